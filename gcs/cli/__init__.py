@@ -1,0 +1,52 @@
+"""The `gcs` command line: a thin layer, one module per command.
+
+Each command module defines ``HELP`` (one line), ``add_arguments(parser)`` and
+``run(args) -> int``. Bad input raises `planner.errors.InputError`, which is
+printed as one line with exit status 2.
+"""
+
+import argparse
+import importlib
+import sys
+
+from gcs import __version__
+from planner.errors import InputError
+
+COMMANDS = ("exposure", "plan", "export", "upload", "download", "fly", "sim", "demo")
+
+
+def _available_commands():
+    for name in COMMANDS:
+        try:
+            yield name, importlib.import_module(f"gcs.cli.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"gcs.cli.{name}":
+                raise
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="gcs",
+        description="Plan hidden, reduced-time coverage missions for UAV fleets and fly them "
+                    "on PX4 / ArduPilot vehicles.",
+    )
+    parser.add_argument("--version", action="version", version=f"gcs {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, module in _available_commands():
+        cmd = sub.add_parser(name, help=module.HELP, description=module.HELP,
+                             formatter_class=argparse.ArgumentDefaultsHelpFormatter)
+        module.add_arguments(cmd)
+        cmd.set_defaults(_run=module.run)
+    return parser
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except InputError as exc:
+        print(f"gcs {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"gcs {args.command}: interrupted", file=sys.stderr)
+        return 130

@@ -1,0 +1,1 @@
+"""A `Plan` becomes MAVLink mission items and the files people exchange."""

@@ -1,0 +1,1 @@
+"""Pure computation: terrain in, hidden reduced-time coverage routes out."""

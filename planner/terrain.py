@@ -1,0 +1,97 @@
+"""The `Terrain`: a DEM on a square metric grid in the local UTM zone.
+
+Heights are metres AMSL at cell centres, row 0 at the north edge. The terrain
+*surface* between centres is the bilinear interpolation of the centres; every
+line-of-sight test in the planner uses that surface.
+
+Grid coordinates used by the numba kernels: ``u`` = column, ``v`` = row, both
+fractional, with the centre of cell (row r, col c) at (u, v) = (c, r).
+"""
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+from affine import Affine
+from pyproj import CRS, Transformer
+
+
+@dataclass(frozen=True, eq=False)
+class Terrain:
+    height: np.ndarray  # float64 [row, col], metres AMSL; NaN = void that could not be filled
+    transform: Affine  # rasterio convention: (col, row) of the upper-left corner -> (x, y)
+    crs: str  # projected CRS of the grid, e.g. "EPSG:32616"
+    source: str = ""  # where it came from, for messages
+    meta: dict = field(default_factory=dict)  # e.g. {"filled_voids": 12}
+
+    def __post_init__(self):
+        if abs(self.transform.a + self.transform.e) > 1e-9 * abs(self.transform.a):
+            raise ValueError("Terrain grid must be square with north up")
+
+    @property
+    def cell_size(self) -> float:
+        return float(self.transform.a)
+
+    @property
+    def shape(self) -> tuple:
+        return self.height.shape
+
+    @property
+    def valid(self) -> np.ndarray:
+        return np.isfinite(self.height)
+
+    # --- grid <-> projected metres -------------------------------------------------
+    def xy(self, row, col):
+        """Projected (x, y) of cell centres (row, col may be fractional)."""
+        x = self.transform.c + (np.asarray(col, float) + 0.5) * self.transform.a
+        y = self.transform.f + (np.asarray(row, float) + 0.5) * self.transform.e
+        return x, y
+
+    def rowcol(self, x, y):
+        """Fractional (row, col) in centre coordinates of projected (x, y)."""
+        col = (np.asarray(x, float) - self.transform.c) / self.transform.a - 0.5
+        row = (np.asarray(y, float) - self.transform.f) / self.transform.e - 0.5
+        return row, col
+
+    # --- projected metres <-> lon/lat ------------------------------------------------
+    @cached_property
+    def _to_lonlat(self) -> Transformer:
+        return Transformer.from_crs(CRS.from_user_input(self.crs), "EPSG:4326", always_xy=True)
+
+    @cached_property
+    def _from_lonlat(self) -> Transformer:
+        return Transformer.from_crs("EPSG:4326", CRS.from_user_input(self.crs), always_xy=True)
+
+    def to_lonlat(self, x, y):
+        return self._to_lonlat.transform(x, y)
+
+    def from_lonlat(self, lon, lat):
+        return self._from_lonlat.transform(lon, lat)
+
+    def contains_xy(self, x, y) -> np.ndarray:
+        row, col = self.rowcol(x, y)
+        n_rows, n_cols = self.shape
+        return (row >= 0) & (row <= n_rows - 1) & (col >= 0) & (col <= n_cols - 1)
+
+    def ground(self, x, y) -> np.ndarray:
+        """Bilinear terrain height (m AMSL) at projected (x, y); NaN outside or near voids."""
+        row, col = self.rowcol(x, y)
+        return bilinear(self.height, np.atleast_1d(row), np.atleast_1d(col))
+
+
+def bilinear(grid: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:
+    """Bilinear interpolation of ``grid`` at fractional centre coordinates."""
+    n_rows, n_cols = grid.shape
+    row = np.asarray(row, float)
+    col = np.asarray(col, float)
+    inside = (row >= 0) & (row <= n_rows - 1) & (col >= 0) & (col <= n_cols - 1)
+    r0 = np.clip(np.floor(row).astype(int), 0, max(n_rows - 2, 0))
+    c0 = np.clip(np.floor(col).astype(int), 0, max(n_cols - 2, 0))
+    r1 = np.minimum(r0 + 1, n_rows - 1)
+    c1 = np.minimum(c0 + 1, n_cols - 1)
+    fr = np.clip(row - r0, 0.0, 1.0)
+    fc = np.clip(col - c0, 0.0, 1.0)
+    top = grid[r0, c0] * (1 - fc) + grid[r0, c1] * fc
+    bottom = grid[r1, c0] * (1 - fc) + grid[r1, c1] * fc
+    out = top * (1 - fr) + bottom * fr
+    return np.where(inside, out, np.nan)
