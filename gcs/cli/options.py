@@ -1,0 +1,129 @@
+"""Command-line flags for every `Scenario` field (shared by `gcs plan` and `gcs demo`).
+
+Flags default to None so that a scenario file's value survives unless the flag
+is given; the help shows the real default from `Scenario`.
+"""
+
+from dataclasses import fields
+
+from planner.errors import InputError
+from planner.scenario import FIRMWARES, METHODS, Scenario, make_scenario, read_scenario
+
+_DEFAULTS = {f.name: f.default for f in fields(Scenario) if f.default is not f.default_factory}
+
+HELP = {
+    "resolution_m": "working grid spacing in metres (default: the DEM's own spacing)",
+    "geoid_offset_m": "ellipsoid minus geoid height in metres, required for a DEM whose "
+                      "heights are ellipsoidal (AMSL = h - offset)",
+    "ceiling_agl_m": "highest altitude flown, metres above ground",
+    "clearance_m": "lowest altitude flown, metres above the terrain surface",
+    "hide_margin_m": "metres flown below the exposure surface",
+    "curvature_coeff": "earth curvature and refraction coefficient as in GDAL (0 = off)",
+    "sensor_range_m": "horizontal range of a snapshot in metres",
+    "max_off_nadir_deg": "largest off-nadir angle a snapshot sees, degrees (default: any)",
+    "viewpoint_spacing_m": "lattice spacing of candidate viewpoints in metres "
+                           "(default: from the sensor range)",
+    "uavs": "number of UAVs",
+    "speed_mps": "horizontal cruise speed, m/s",
+    "climb_mps": "climb rate, m/s",
+    "descent_mps": "descent rate, m/s",
+    "firmware": "mission flavour of the exported files",
+    "method": "coverage method: rt (the paper), rt+ls (rt + our local search), "
+              "rd, b, c (baselines)",
+    "k": "fault tolerance: every target seen by k+1 distinct UAVs",
+    "visibility": "fault-tolerant visibility: hard or soft",
+    "alpha": "PTV exponent alpha (visibility vs time)",
+    "beta": "spread-out exponent beta",
+    "step_time_cap_s": "cap th_ra on one insertion's added time, seconds (default: automatic)",
+    "seed": "random seed (ties and baselines)",
+}
+
+
+def _latlon(text: str) -> tuple:
+    try:
+        lat, lon = (float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError("--launch", f"expected LAT,LON in degrees, got {text!r}") from None
+    if not (-90 <= lat <= 90 and -180 <= lon <= 180):
+        raise InputError("--launch", f"{text!r} is not a latitude,longitude pair")
+    return lat, lon
+
+
+def _area(text: str) -> tuple:
+    try:
+        s, w, n, e = (float(v) for v in text.split(","))
+    except ValueError:
+        raise InputError("--area", f"expected S,W,N,E in degrees, got {text!r}") from None
+    if not (s < n and w < e):
+        raise InputError("--area", f"{text!r}: need south < north and west < east")
+    return s, w, n, e
+
+
+def add_scenario_arguments(parser, with_scenario_file=True) -> None:
+    if with_scenario_file:
+        parser.add_argument("scenario", nargs="?", help="scenario TOML file (flags override it)")
+    terrain = parser.add_argument_group("terrain and outposts")
+    terrain.add_argument("--dem", nargs="+", metavar="FILE",
+                         help="DEM tiles: GeoTIFF (any CRS) or SRTM .hgt; several are mosaicked")
+    terrain.add_argument("--sample", action="store_true", default=None,
+                         help="use the built-in terrain (USGS Jacksboro DEM) and outposts")
+    terrain.add_argument("--area", type=str, metavar="S,W,N,E",
+                         help="crop to this area of operations, degrees")
+    terrain.add_argument("--outposts", metavar="GEOJSON",
+                         help="outposts: GeoJSON Points with height_m and optional range_m")
+    for name in ("resolution_m", "geoid_offset_m"):
+        _add(terrain, name, float)
+    groups = {
+        "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
+        "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
+        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps"),
+        "method": ("k", "alpha", "beta", "step_time_cap_s", "seed"),
+    }
+    for title, names in groups.items():
+        group = parser.add_argument_group(title)
+        for name in names:
+            kind = int if name in ("uavs", "k", "seed") else float
+            _add(group, name, kind)
+        if title == "fleet":
+            group.add_argument("--launch", nargs="+", metavar="LAT,LON",
+                               help="launch point(s), degrees: one for all UAVs or one per UAV "
+                                    "(default: UAVs start at their first viewpoints)")
+            group.add_argument("--firmware", choices=FIRMWARES, help=_help("firmware"))
+        if title == "method":
+            group.add_argument("--method", choices=METHODS, help=_help("method"))
+            group.add_argument("--visibility", choices=("hard", "soft"), help=_help("visibility"))
+
+
+_UNITS = {"_mps": "M/S", "_deg": "DEG", "_m": "M", "_s": "S"}
+
+
+def _flag(name: str) -> dict:
+    """``ceiling_agl_m`` -> ``--ceiling-agl`` with metavar ``M``: the unit is the metavar."""
+    for suffix, unit in _UNITS.items():
+        if name.endswith(suffix):
+            return {"flag": "--" + name[: -len(suffix)].replace("_", "-"), "metavar": unit}
+    return {"flag": "--" + name.replace("_", "-"), "metavar": "N" if name != "curvature_coeff"
+            else "C"}
+
+
+def _add(group, name: str, kind) -> None:
+    spec = _flag(name)
+    group.add_argument(spec["flag"], dest=name, type=kind, metavar=spec["metavar"],
+                       help=_help(name))
+
+
+def _help(name: str) -> str:
+    default = _DEFAULTS.get(name)
+    text = HELP[name]
+    return text if default is None else f"{text} (default: {default})"
+
+
+def scenario_from_args(args) -> "Scenario":
+    """Merge defaults, the scenario file (if any) and the flags."""
+    file_values = read_scenario(args.scenario) if getattr(args, "scenario", None) else {}
+    overrides = {f.name: getattr(args, f.name, None) for f in fields(Scenario)}
+    if args.area is not None:
+        overrides["area"] = _area(args.area)
+    if args.launch is not None:
+        overrides["launch"] = [_latlon(p) for p in args.launch]
+    return make_scenario(file_values, overrides, source=getattr(args, "scenario", None) or "gcs")

@@ -1,0 +1,154 @@
+"""A `Scenario`: everything a plan is made from, readable from a TOML file.
+
+Every field has a TOML key (``[section] key``) and a CLI flag (``--key-with-dashes``);
+flags override the file, the file overrides the defaults below. Units are in
+the names.
+"""
+
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Optional
+
+from .errors import InputError
+
+METHODS = ("rt", "rt+ls", "rd", "b", "c")
+FIRMWARES = ("ardupilot", "px4")
+
+
+@dataclass
+class Scenario:
+    # [terrain]
+    dem: list = field(default_factory=list)  # DEM files (GeoTIFF, .hgt); empty with sample = true
+    sample: bool = False  # the built-in terrain and outposts
+    area: Optional[tuple] = None  # (south, west, north, east) degrees
+    resolution_m: Optional[float] = None  # default: the DEM's own spacing
+    geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
+    # [outposts]
+    outposts: Optional[str] = None  # GeoJSON file
+    # [exposure]
+    ceiling_agl_m: float = 120.0
+    clearance_m: float = 30.0
+    hide_margin_m: float = 10.0
+    curvature_coeff: float = 0.85714
+    # [sensor]
+    sensor_range_m: float = 1500.0
+    max_off_nadir_deg: Optional[float] = None
+    viewpoint_spacing_m: Optional[float] = None  # default from the sensor range
+    # [fleet]
+    uavs: int = 4
+    launch: list = field(default_factory=list)  # [(lat, lon)], one for all or one per UAV
+    speed_mps: float = 12.0
+    climb_mps: float = 3.0
+    descent_mps: float = 2.0
+    firmware: str = "ardupilot"
+    # [method]
+    method: str = "rt"
+    k: int = 0
+    visibility: str = "soft"
+    alpha: float = 0.55
+    beta: float = 0.3
+    step_time_cap_s: Optional[float] = None  # th_ra; default chosen by the benchmark
+    seed: int = 0
+
+    def validate(self, source="scenario") -> "Scenario":
+        """Raise InputError for values no planner stage could use."""
+        checks = [
+            (self.sample or self.dem, "no DEM given (use --dem FILE or --sample)"),
+            (self.uavs >= 1, f"uavs must be at least 1, got {self.uavs}"),
+            (0 <= self.k < self.uavs,
+             f"k must satisfy 0 <= k < uavs (k = {self.k}, uavs = {self.uavs}): "
+             "each target must be seen by k+1 distinct UAVs"),
+            (self.method in METHODS, f"method must be one of {', '.join(METHODS)}"),
+            (self.visibility in ("hard", "soft"), "visibility must be hard or soft"),
+            (self.firmware in FIRMWARES, f"firmware must be one of {', '.join(FIRMWARES)}"),
+            (0.0 <= self.alpha <= 1.0, f"alpha must be in [0, 1], got {self.alpha}"),
+            (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
+            (len(self.launch) in (0, 1, self.uavs),
+             f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
+             f"got {len(self.launch)}"),
+        ]
+        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "climb_mps", "descent_mps")
+        checks += [(_positive(getattr(self, n)), f"{n} must be a positive number")
+                   for n in positive]
+        checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
+                    for n in ("clearance_m", "hide_margin_m", "curvature_coeff")]
+        for ok, problem in checks:
+            if not ok:
+                raise InputError(source, problem)
+        return self
+
+    @property
+    def launch_points(self) -> list:
+        """One (lat, lon) per UAV, or [] when UAVs start at their phase-1 points."""
+        if len(self.launch) == 1:
+            return list(self.launch) * self.uavs
+        return list(self.launch)
+
+
+def _positive(x) -> bool:
+    return isinstance(x, (int, float)) and math.isfinite(x) and x > 0
+
+
+# TOML section of each field; a key may also stand at the top level.
+SECTIONS = {
+    "terrain": ("dem", "sample", "area", "resolution_m", "geoid_offset_m"),
+    "outposts": ("outposts",),
+    "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
+    "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
+    "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "firmware"),
+    "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "seed"),
+}
+_ALIASES = {("outposts", "file"): "outposts", ("method", "name"): "method",
+            ("terrain", "files"): "dem"}
+
+
+def read_scenario(path) -> dict:
+    """Read a scenario TOML file into ``{field: value}``; relative paths resolve
+    against the file's folder. Unknown keys are an error (a typo must not be
+    silently ignored)."""
+    path = Path(path)
+    try:
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, "no such scenario file") from None
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(path, f"not valid TOML ({exc})") from None
+    known = {f.name for f in fields(Scenario)}
+    values = {}
+    for key, value in data.items():
+        if isinstance(value, dict) and key in SECTIONS:
+            for sub, v in value.items():
+                name = _ALIASES.get((key, sub), sub)
+                if name not in known:
+                    raise InputError(path, f"unknown key [{key}] {sub}")
+                values[name] = v
+        elif key in known:
+            values[key] = value
+        else:
+            raise InputError(path, f"unknown key {key}")
+    if isinstance(values.get("dem"), str):
+        values["dem"] = [values["dem"]]
+    values["dem"] = [str(_resolve(path, p)) for p in values.get("dem", [])]
+    if values.get("outposts"):
+        values["outposts"] = str(_resolve(path, values["outposts"]))
+    if values.get("area") is not None:
+        values["area"] = tuple(float(v) for v in values["area"])
+    if values.get("launch"):
+        values["launch"] = [tuple(float(c) for c in p) for p in values["launch"]]
+    return values
+
+
+def _resolve(toml_path: Path, p) -> Path:
+    p = Path(p)
+    return p if p.is_absolute() else toml_path.parent / p
+
+
+def make_scenario(file_values: dict, overrides: dict, source="scenario") -> Scenario:
+    """Defaults, then the file's values, then flags (None = not given)."""
+    merged = {**file_values, **{k: v for k, v in overrides.items() if v is not None}}
+    try:
+        return Scenario(**merged).validate(source)
+    except TypeError as exc:
+        raise InputError(source, f"bad scenario value: {exc}") from None
