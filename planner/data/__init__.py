@@ -1,0 +1,1 @@
+"""Data files shipped with the planner (the sample outposts)."""

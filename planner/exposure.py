@@ -1,0 +1,190 @@
+"""The exposure surface E: where a UAV can fly without being seen.
+
+Visibility model (shared with planner.los): the terrain surface is the bilinear
+interpolation of cell centres; an outpost at (x, y) has its eye ``height_m``
+above that surface; it sees a point P when P is within its range and the
+straight segment from the eye to P does not pass below the terrain surface,
+with GDAL's earth curvature and refraction (``curvature_coeff``). Visibility is
+monotone in altitude, so each outpost has a lowest seen altitude per cell; E is
+the minimum over outposts, capped at ``ground + ceiling_agl``. A cell is
+flyable when ``E - hide_margin >= ground + clearance``.
+
+``compute_exposure`` uses a fast ring sweep that is a proven lower bound of the
+exact lowest seen altitude (the safe side; see planner.exposure_kernels).
+``is_hidden``, ``segment_hidden`` and ``segment_clear`` are exact or
+conservative checks used to prove that a flown leg is hidden and clear.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from . import exposure_kernels as k
+from .los import DEFAULT_CURVATURE_COEFF
+
+BATCH = 4  # outposts swept at once (4 sectors each run in parallel)
+
+
+@dataclass(frozen=True)
+class ExposureParams:
+    ceiling_agl_m: float = 120.0  # never fly higher than this above the ground
+    clearance_m: float = 30.0  # never fly lower than this above the ground
+    hide_margin_m: float = 10.0  # fly this far below E
+    curvature_coeff: float = DEFAULT_CURVATURE_COEFF  # 0 = flat earth
+
+
+@dataclass(eq=False)
+class ExposureSurface:
+    terrain: object  # planner.terrain.Terrain
+    outposts: list
+    params: ExposureParams
+    # float64 [rows, cols]: min over outposts of the lowest seen altitude, m AMSL
+    # (inf = never seen); a proven lower bound of the exact value (the safe side)
+    lowest_seen: np.ndarray
+    exposure: np.ndarray  # float64 [rows, cols]: E, m AMSL; NaN where not flyable
+    flyable: np.ndarray  # bool [rows, cols]
+    regions: np.ndarray  # int32 [rows, cols]: connected flyable regions 1..n, 0 = not flyable
+
+    @property
+    def ceiling(self) -> np.ndarray:
+        """Highest altitude flown (E - hide_margin), NaN where not flyable."""
+        return self.exposure - self.params.hide_margin_m
+
+    @property
+    def floor(self) -> np.ndarray:
+        """Lowest altitude flown (ground + clearance)."""
+        return self.terrain.height + self.params.clearance_m
+
+    @property
+    def n_regions(self) -> int:
+        return int(self.regions.max(initial=0))
+
+
+def compute_exposure(terrain, outposts, params=ExposureParams(), progress=None) -> ExposureSurface:
+    """The exposure surface of ``terrain`` under ``outposts``.
+
+    ``progress``: optional callable(done, total) called as outposts are swept.
+    """
+    h = _heights(terrain)
+    eyes = _eyes(terrain, outposts)
+    lowest = np.full(h.shape, np.inf)
+    total = len(eyes)
+    for start in range(0, total, BATCH):
+        batch = eyes[start:start + BATCH]
+        grids = np.full((len(batch),) + h.shape, np.inf)
+        k.lowest_seen_batch(h, terrain.cell_size, batch, float(params.curvature_coeff), grids)
+        k.min_over_outposts(grids, lowest)
+        if progress is not None:
+            progress(start + len(batch), total)
+    return surface_from_lowest(terrain, outposts, params, lowest)
+
+
+def surface_from_lowest(terrain, outposts, params, lowest) -> ExposureSurface:
+    """Cap, flyable rule and regions from the lowest seen altitude grid."""
+    ground = terrain.height
+    with np.errstate(invalid="ignore"):
+        capped = np.minimum(lowest, ground + params.ceiling_agl_m)
+        flyable = terrain.valid & (capped - params.hide_margin_m >= ground + params.clearance_m)
+    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
+    return ExposureSurface(terrain=terrain, outposts=list(outposts), params=params,
+                           lowest_seen=lowest, exposure=np.where(flyable, capped, np.nan),
+                           flyable=flyable, regions=regions.astype(np.int32))
+
+
+def is_hidden(surface, xyz) -> np.ndarray:
+    """Exact: for each point (x, y, alt AMSL), that no outpost sees it.
+
+    Points off the terrain grid are not proven hidden (False).
+    """
+    terrain = surface.terrain
+    xyz = np.atleast_2d(np.asarray(xyz, float))
+    row, col = terrain.rowcol(xyz[:, 0], xyz[:, 1])
+    pts = np.ascontiguousarray(np.stack([col, row, xyz[:, 2]], axis=1))
+    hidden = k.points_hidden(_heights(terrain), terrain.cell_size,
+                             _eyes(terrain, surface.outposts), pts,
+                             float(surface.params.curvature_coeff))
+    return hidden & terrain.contains_xy(xyz[:, 0], xyz[:, 1]) & np.isfinite(xyz[:, 2])
+
+
+def segment_hidden(surface, a_xyz, b_xyz) -> bool:
+    """Proven: every point of the straight 3-D leg a -> b (x, y, alt AMSL) is
+    hidden from every outpost.
+
+    Per outpost the leg is cut into pieces; a piece is proven by its midpoint m
+    when m's exact margin below the lowest seen altitude exceeds what the
+    piece can gain on it: the terrain at the horizon point of m's ray shifts by
+    at most L * t* * dh for a horizontal offset dh (L: bound of the bilinear
+    surface's gradient near it, t*: its fraction of the ray) and the sight line
+    by t* * dz, so margin > (L + 2 k r_max / R) half_h + half_z suffices
+    (details in exposure_kernels._leg_hidden_from). Pieces that fail are
+    halved; a seen midpoint ends the test. Conservative: False for a leg that
+    grazes a sight line within about a millimetre, leaves the grid, or crosses
+    a void.
+    """
+    return bool(segments_hidden(surface, [a_xyz], [b_xyz])[0])
+
+
+def segments_hidden(surface, a_xyz, b_xyz) -> np.ndarray:
+    """`segment_hidden` for many legs a[k] -> b[k] at once (in parallel)."""
+    terrain = surface.terrain
+    a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
+    h = _heights(terrain)
+    grad = _gradient_bound(surface)
+    eyes = _eyes(terrain, surface.outposts)
+    hidden = k.legs_hidden(h, terrain.cell_size, grad, eyes, a, b,
+                           float(surface.params.curvature_coeff))
+    return hidden & inside
+
+
+def segment_clear(surface, a_xyz, b_xyz) -> bool:
+    """Exact: every point of the leg a -> b is at least clearance_m above the terrain."""
+    return bool(segments_clear(surface, [a_xyz], [b_xyz])[0])
+
+
+def segments_clear(surface, a_xyz, b_xyz) -> np.ndarray:
+    terrain = surface.terrain
+    a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
+    lowest = k.legs_min_height(_heights(terrain), a, b)
+    with np.errstate(invalid="ignore"):
+        return inside & (lowest >= surface.params.clearance_m - 1e-6)
+
+
+# --- helpers ----------------------------------------------------------------------------------
+
+def _heights(terrain) -> np.ndarray:
+    return np.ascontiguousarray(terrain.height, dtype=np.float64)
+
+
+def _eyes(terrain, outposts) -> np.ndarray:
+    """float64 [n, 4]: grid (u, v), eye altitude AMSL and range of each outpost."""
+    eyes = np.empty((len(outposts), 4))
+    for n, o in enumerate(outposts):
+        row, col = terrain.rowcol(o.x, o.y)
+        ground = terrain.ground(o.x, o.y)[0]
+        if not np.isfinite(ground):
+            raise ValueError(f"outpost {o.name or (o.x, o.y)} is off the terrain or on a void")
+        eyes[n] = (float(col), float(row), ground + o.height_m, o.range_m)
+    return eyes
+
+
+def _legs_grid(terrain, a_xyz, b_xyz):
+    """Legs as (u, v, z) rows in grid coordinates, and whether both ends are on the grid."""
+    a = np.atleast_2d(np.asarray(a_xyz, float))
+    b = np.atleast_2d(np.asarray(b_xyz, float))
+    out = []
+    for p in (a, b):
+        row, col = terrain.rowcol(p[:, 0], p[:, 1])
+        out.append(np.ascontiguousarray(np.stack([col, row, p[:, 2]], axis=1)))
+    inside = terrain.contains_xy(a[:, 0], a[:, 1]) & terrain.contains_xy(b[:, 0], b[:, 1])
+    inside &= np.isfinite(a[:, 2]) & np.isfinite(b[:, 2])
+    return out[0], out[1], inside
+
+
+def _gradient_bound(surface) -> np.ndarray:
+    grad = surface.__dict__.get("_grad")
+    if grad is None:
+        terrain = surface.terrain
+        grad = k.patch_gradient_bound(_heights(terrain), terrain.cell_size)
+        surface.__dict__["_grad"] = grad
+    return grad
