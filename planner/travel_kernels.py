@@ -1,0 +1,343 @@
+"""numba kernels for the hidden travel graph (see planner/travel.py)."""
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+
+@njit(cache=True)
+def gap_range(h, u0, v0, z0, u1, v1, z1):
+    """Exact (min, max) over the segment of (altitude - bilinear ground), metres.
+
+    Within a grid patch the ground along the segment is a quadratic in the
+    segment parameter t and the altitude is linear in t, so the extremes of
+    their difference are at a piece's ends or at its one stationary point.
+    Patches touching a NaN height count as no ground (as planner.los).
+    """
+    n_rows, n_cols = h.shape
+    du = u1 - u0
+    dv = v1 - v0
+    dz = z1 - z0
+    lo = np.inf
+    hi = -np.inf
+    t = 0.0
+    while True:
+        um = u0 + min(t + 1e-9, 1.0) * du
+        vm = v0 + min(t + 1e-9, 1.0) * dv
+        i = min(max(int(math.floor(um)), 0), n_cols - 2)
+        j = min(max(int(math.floor(vm)), 0), n_rows - 2)
+        t_next = 1.0
+        if du > 0.0:
+            t_next = min(t_next, (i + 1 - u0) / du)
+        elif du < 0.0:
+            t_next = min(t_next, (i - u0) / du)
+        if dv > 0.0:
+            t_next = min(t_next, (j + 1 - v0) / dv)
+        elif dv < 0.0:
+            t_next = min(t_next, (j - v0) / dv)
+        if t_next <= t:
+            t_next = min(1.0, t + 1e-9)
+        h00 = h[j, i]
+        h10 = h[j, i + 1]
+        h01 = h[j + 1, i]
+        h11 = h[j + 1, i + 1]
+        cx = h10 - h00
+        cy = h01 - h00
+        cxy = h00 - h10 - h01 + h11
+        au = u0 - i
+        av = v0 - j
+        c0 = h00 + cx * au + cy * av + cxy * au * av
+        c1 = cx * du + cy * dv + cxy * (au * dv + av * du)
+        c2 = cxy * du * dv
+        # gap(t) = z0 + dz t - (c0 + c1 t + c2 t^2)
+        for tt in (t, t_next):
+            g = z0 + dz * tt - (c0 + c1 * tt + c2 * tt * tt)
+            lo = min(lo, g)
+            hi = max(hi, g)
+        if c2 != 0.0:  # the one stationary point of the quadratic gap
+            ts = (dz - c1) / (2.0 * c2)
+            if t < ts < t_next:
+                g = z0 + dz * ts - (c0 + c1 * ts + c2 * ts * ts)
+                lo = min(lo, g)
+                hi = max(hi, g)
+        if t_next >= 1.0:
+            break
+        t = t_next
+    return lo, hi
+
+
+@njit(cache=True)
+def legs_gaps(h, ua, va, za, ub, vb, zb):
+    """Lowest and highest height above the ground along each leg (few legs: serial)."""
+    n = ua.shape[0]
+    lo = np.empty(n)
+    hi = np.empty(n)
+    for k in range(n):
+        lo[k], hi[k] = gap_range(h, ua[k], va[k], za[k], ub[k], vb[k], zb[k])
+    return lo, hi
+
+
+@njit(cache=True)
+def _heap_push(heap_d, heap_n, size, d, node):
+    i = size
+    heap_d[i] = d
+    heap_n[i] = node
+    while i > 0:
+        p = (i - 1) >> 1
+        if heap_d[p] <= heap_d[i]:
+            break
+        heap_d[p], heap_d[i] = heap_d[i], heap_d[p]
+        heap_n[p], heap_n[i] = heap_n[i], heap_n[p]
+        i = p
+    return size + 1
+
+
+@njit(cache=True)
+def _grow(heap_d, heap_n):
+    """Twice the capacity, same content (a lazy-deletion heap may outgrow its guess)."""
+    d = np.empty(2 * heap_d.shape[0])
+    n = np.empty(2 * heap_n.shape[0], np.int64)
+    d[:heap_d.shape[0]] = heap_d
+    n[:heap_n.shape[0]] = heap_n
+    return d, n
+
+
+@njit(cache=True)
+def _heap_pop(heap_d, heap_n, size):
+    d = heap_d[0]
+    node = heap_n[0]
+    size -= 1
+    heap_d[0] = heap_d[size]
+    heap_n[0] = heap_n[size]
+    i = 0
+    while True:
+        a = 2 * i + 1
+        if a >= size:
+            break
+        b = a + 1
+        if b < size and heap_d[b] < heap_d[a]:
+            a = b
+        if heap_d[i] <= heap_d[a]:
+            break
+        heap_d[a], heap_d[i] = heap_d[i], heap_d[a]
+        heap_n[a], heap_n[i] = heap_n[i], heap_n[a]
+        i = a
+    return d, node, size
+
+
+@njit(cache=True)
+def _bounded_one(indptr, nbr, w, source, slot_of_node, limit, dist, touched, heap_d, heap_n,
+                 out_row):
+    """Dijkstra from ``source`` up to time ``limit``; out_row[slot] = time to each slotted node.
+
+    ``dist`` must be all +inf on entry and is restored before returning; the
+    heap arrays are returned (they may have grown).
+    """
+    n_touched = 0
+    dist[source] = 0.0
+    touched[n_touched] = source
+    n_touched += 1
+    size = _heap_push(heap_d, heap_n, 0, 0.0, source)
+    while size > 0:
+        d, u, size = _heap_pop(heap_d, heap_n, size)
+        if d > dist[u]:
+            continue
+        s = slot_of_node[u]
+        if s >= 0:
+            out_row[s] = d
+        for p in range(indptr[u], indptr[u + 1]):
+            v = nbr[p]
+            nd = d + w[p]
+            if nd < dist[v] and nd <= limit:
+                if dist[v] == np.inf:
+                    touched[n_touched] = v
+                    n_touched += 1
+                dist[v] = nd
+                if size == heap_d.shape[0]:
+                    heap_d, heap_n = _grow(heap_d, heap_n)
+                size = _heap_push(heap_d, heap_n, size, nd, v)
+    for k in range(n_touched):
+        dist[touched[k]] = np.inf
+    return heap_d, heap_n
+
+
+@njit(cache=True, parallel=True)
+def bounded_times(indptr, nbr, w, sources, slot_of_node, n_slots, limit, n_chunks):
+    """[n_sources, n_slots] shortest times (inf beyond ``limit``), one Dijkstra per source.
+
+    Sources are split into ``n_chunks`` parallel chunks, each reusing its own
+    work arrays (only the nodes a search touched are reset).
+    """
+    n_nodes = indptr.shape[0] - 1
+    n_src = sources.shape[0]
+    out = np.full((n_src, n_slots), np.inf)
+    for ch in prange(n_chunks):
+        dist = np.full(n_nodes, np.inf)
+        touched = np.empty(n_nodes, np.int64)
+        heap_d = np.empty(1024)
+        heap_n = np.empty(1024, np.int64)
+        for k in range(ch, n_src, n_chunks):
+            heap_d, heap_n = _bounded_one(indptr, nbr, w, sources[k], slot_of_node, limit,
+                                          dist, touched, heap_d, heap_n, out[k])
+    return out
+
+
+@njit(cache=True)
+def node_path(indptr, nbr, w, source, target):
+    """Nodes of a shortest path source -> target (Dijkstra stopped once the
+    target is settled); empty when unreachable."""
+    n_nodes = indptr.shape[0] - 1
+    dist = np.full(n_nodes, np.inf)
+    pred = np.full(n_nodes, -1, np.int64)
+    heap_d = np.empty(1024)
+    heap_n = np.empty(1024, np.int64)
+    dist[source] = 0.0
+    size = _heap_push(heap_d, heap_n, 0, 0.0, source)
+    found = False
+    while size > 0:
+        d, u, size = _heap_pop(heap_d, heap_n, size)
+        if d > dist[u]:
+            continue
+        if u == target:
+            found = True
+            break
+        for p in range(indptr[u], indptr[u + 1]):
+            v = nbr[p]
+            nd = d + w[p]
+            if nd < dist[v]:
+                dist[v] = nd
+                pred[v] = u
+                if size == heap_d.shape[0]:
+                    heap_d, heap_n = _grow(heap_d, heap_n)
+                size = _heap_push(heap_d, heap_n, size, nd, v)
+    if not found:
+        return np.zeros(0, np.int64)
+    n = 1
+    u = target
+    while u != source:
+        u = pred[u]
+        n += 1
+    out = np.empty(n, np.int64)
+    u = target
+    for k in range(n - 1, -1, -1):
+        out[k] = u
+        u = pred[u]
+    return out
+
+
+@njit(cache=True)
+def grid_neighbours(node_of_cell, node_region, half_offsets):
+    """(src, dst) of node pairs at the given offsets in the same region, each pair once."""
+    n_rows, n_cols = node_of_cell.shape
+    n_off = half_offsets.shape[0]
+    count = 0
+    for pass_ in range(2):
+        if pass_ == 1:
+            src = np.empty(count, np.int64)
+            dst = np.empty(count, np.int64)
+            count = 0
+        for r in range(n_rows):
+            for c in range(n_cols):
+                a = node_of_cell[r, c]
+                if a < 0:
+                    continue
+                for k in range(n_off):
+                    rr = r + half_offsets[k, 0]
+                    cc = c + half_offsets[k, 1]
+                    if rr < 0 or rr >= n_rows or cc < 0 or cc >= n_cols:
+                        continue
+                    b = node_of_cell[rr, cc]
+                    if b < 0 or node_region[a] != node_region[b]:
+                        continue
+                    if pass_ == 1:
+                        src[count] = a
+                        dst[count] = b
+                    count += 1
+    return src, dst
+
+
+@njit(cache=True, parallel=True)
+def grid_legs_within(h, node_rows, node_cols, node_z, src, dst, clearance, agl_cap):
+    """Legs between nodes (cell centres) that keep clearance and stay under the AGL cap."""
+    n = src.shape[0]
+    out = np.empty(n, np.bool_)
+    for k in prange(n):
+        a = src[k]
+        b = dst[k]
+        lo, hi = gap_range(h, float(node_cols[a]), float(node_rows[a]), node_z[a],
+                           float(node_cols[b]), float(node_rows[b]), node_z[b])
+        out[k] = lo >= clearance - 1e-6 and hi <= agl_cap + 1e-6
+    return out
+
+
+@njit(cache=True)
+def directed_csr(n_nodes, src, dst, w_forward, w_backward, dip):
+    """CSR (indptr, indices, data, dip) of the edges src->dst and dst->src (unsorted
+    rows); ``dip`` per edge is carried along to both directions."""
+    indptr = np.zeros(n_nodes + 1, np.int64)
+    for k in range(src.shape[0]):
+        indptr[src[k] + 1] += 1
+        indptr[dst[k] + 1] += 1
+    for i in range(n_nodes):
+        indptr[i + 1] += indptr[i]
+    fill = indptr[:-1].copy()
+    indices = np.empty(indptr[-1], np.int64)
+    data = np.empty(indptr[-1])
+    dips = np.empty(indptr[-1])
+    for k in range(src.shape[0]):
+        a = src[k]
+        b = dst[k]
+        indices[fill[a]] = b
+        data[fill[a]] = w_forward[k]
+        dips[fill[a]] = dip[k]
+        fill[a] += 1
+        indices[fill[b]] = a
+        data[fill[b]] = w_backward[k]
+        dips[fill[b]] = dip[k]
+        fill[b] += 1
+    return indptr, indices, data, dips
+
+
+@njit(cache=True, parallel=True)
+def undominated_edges(local):
+    """keep[i, j]: the finite local time i -> j is not matched by some i -> k -> j.
+
+    Dropping every dominated edge leaves all shortest times unchanged (with
+    positive times, by induction on the edge's time), and makes the overlay
+    graph several times sparser.
+    """
+    n = local.shape[0]
+    keep = np.zeros((n, n), np.bool_)
+    for i in prange(n):
+        near = np.flatnonzero(np.isfinite(local[i]))
+        for j in near:
+            if j == i:
+                continue
+            t = local[i, j]
+            dominated = False
+            for k in near:
+                if k != i and k != j and local[i, k] + local[k, j] <= t:
+                    dominated = True
+                    break
+            keep[i, j] = not dominated
+    return keep
+
+
+@njit(cache=True)
+def dense_to_csr(values, keep):
+    """CSR (indptr, indices, data) of the kept entries of a dense matrix."""
+    n = values.shape[0]
+    indptr = np.zeros(n + 1, np.int64)
+    for i in range(n):
+        indptr[i + 1] = indptr[i] + np.count_nonzero(keep[i])
+    indices = np.empty(indptr[-1], np.int64)
+    data = np.empty(indptr[-1])
+    p = 0
+    for i in range(n):
+        for j in range(n):
+            if keep[i, j]:
+                indices[p] = j
+                data[p] = values[i, j]
+                p += 1
+    return indptr, indices, data

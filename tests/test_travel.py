@@ -1,0 +1,139 @@
+"""Hidden travel: time model, flat-E optimality, detours, regions, and exact clearance."""
+
+import math
+
+import numpy as np
+from affine import Affine
+from hypothesis import given, settings, strategies as st
+
+from planner.exposure import (ExposureParams, compute_exposure, segment_clear,
+                              segment_hidden)
+from planner.outposts import Outpost
+from planner.terrain import Terrain, bilinear
+from planner.travel import TravelGraph, TravelParams, leg_time, polyline_time
+from planner.travel_kernels import gap_range
+from planner.viewpoints import candidate_viewpoints
+
+CELL = 30.0
+
+
+def _flat(rows, cols, z=100.0):
+    return Terrain(np.full((rows, cols), z), Affine(CELL, 0, 0, 0, -CELL, 0), "EPSG:32616")
+
+
+def _assert_hidden_polyline(surface, poly):
+    for a, b in zip(poly[:-1], poly[1:]):
+        assert segment_hidden(surface, a, b)
+        assert segment_clear(surface, a, b)
+
+
+def test_leg_time_is_the_slower_motion():
+    p = TravelParams(speed_mps=10.0, climb_mps=2.0, descent_mps=4.0)
+    assert leg_time(100.0, 0.0, p) == 10.0
+    assert leg_time(100.0, 40.0, p) == 20.0  # climbing 40 m at 2 m/s
+    assert leg_time(100.0, -40.0, p) == 10.0  # descending at 4 m/s takes 10 s too
+    assert leg_time(0.0, -80.0, p) == 20.0
+    poly = np.array([[0, 0, 0], [30, 40, 0], [30, 40, 10]], float)
+    assert math.isclose(polyline_time(poly, p), 5.0 + 5.0)
+
+
+def test_flat_exposure_gives_straight_line_times():
+    surface = compute_exposure(_flat(30, 40), [], ExposureParams())
+    graph = TravelGraph(surface)
+    vp = candidate_viewpoints(surface, spacing_m=150.0)
+    times = graph.time_matrix(vp.xyz, method="exact")
+    d = np.hypot(*(vp.xyz[:, None, :2] - vp.xyz[None, :, :2]).transpose(2, 0, 1))
+    straight = d / graph.params.speed_mps
+    # 16-neighbour moves: within 3 % of the straight line, never shorter
+    assert (times >= straight - 1e-9).all()
+    assert (times <= 1.03 * straight + 1e-9).all()
+    # smoothing pulls the grid path straight: the exact straight-line time
+    a, b = vp.xyz[0], vp.xyz[-1]
+    poly = graph.path(a, b)
+    assert len(poly) == 2
+    assert math.isclose(polyline_time(poly), np.hypot(*(b - a)[:2]) / 12.0, rel_tol=1e-9)
+
+
+def test_path_detours_around_an_exposed_obstacle_and_stays_hidden():
+    t = _flat(31, 41)
+    # an outpost with a 240 m range on flat ground exposes a disk in the middle
+    x, y = t.xy(15, 20)
+    surface = compute_exposure(t, [Outpost(x=float(x), y=float(y), height_m=2.0,
+                                           range_m=240.0)], ExposureParams())
+    assert not surface.flyable[15, 20] and surface.flyable[15, 5]
+    graph = TravelGraph(surface)
+    a = np.array([*t.xy(15, 5), surface.ceiling[15, 5]])
+    b = np.array([*t.xy(15, 35), surface.ceiling[15, 35]])
+    poly = graph.path(a, b)
+    straight = np.hypot(*(b - a)[:2]) / graph.params.speed_mps
+    assert polyline_time(poly) > 1.05 * straight
+    _assert_hidden_polyline(surface, poly)
+    # the path keeps out of the exposed disk
+    assert (np.hypot(poly[:, 0] - x, poly[:, 1] - y) > 240.0).all()
+    # smoothing only shortens: the polyline beats the graph time
+    assert polyline_time(poly) <= graph.times_between(a[None], b[None])[0, 0] + 1e-9
+    assert len(poly) < 10
+
+
+def test_unreachable_across_regions_is_inf():
+    h = np.full((30, 50), 100.0)
+    h[:, 23:27] = 500.0  # a high wall; an outpost on it sees its top
+    t = Terrain(h, Affine(CELL, 0, 0, 0, -CELL, 0), "EPSG:32616")
+    x, y = t.xy(15, 25)
+    surface = compute_exposure(t, [Outpost(x=float(x), y=float(y))], ExposureParams())
+    vp = candidate_viewpoints(surface, spacing_m=150.0)
+    assert len(set(vp.region)) == 2
+    graph = TravelGraph(surface)
+    for method in ("exact", "overlay"):
+        times = graph.time_matrix(vp.xyz, method=method)
+        same = vp.region[:, None] == vp.region[None, :]
+        assert np.isinf(times[~same]).all()
+        assert np.isfinite(times[same]).all()
+    i = int(np.flatnonzero(vp.region == vp.region[0])[0])
+    j = int(np.flatnonzero(vp.region != vp.region[0])[0])
+    assert graph.path(vp.xyz[i], vp.xyz[j]) is None
+    assert graph.route_polyline(vp.xyz[[i, j]]) is None
+    assert np.isinf(graph.times_between(vp.xyz[[i]], vp.xyz[[j]])).all()
+
+
+def test_overlay_matrix_is_exact_nearby_and_an_upper_bound_beyond():
+    from planner.synthetic import synthetic_terrain
+
+    t = synthetic_terrain(40, 40, cell=CELL, seed=3, family="hills")
+    x, y = t.xy(20, 20)
+    surface = compute_exposure(t, [Outpost(x=float(x), y=float(y), height_m=10.0)],
+                               ExposureParams())
+    graph = TravelGraph(surface)
+    vp = candidate_viewpoints(surface, spacing_m=150.0)
+    exact = graph.time_matrix(vp.xyz, method="exact")
+    overlay = graph.time_matrix(vp.xyz, method="overlay", radius_factor=2.0)
+    assert (np.isfinite(exact) == np.isfinite(overlay)).all()
+    f = np.isfinite(exact)
+    assert (overlay[f] >= exact[f] - 1e-9).all()
+    # the overlay's radius: twice the median nearest-neighbour spacing (150 m here)
+    near = f & (exact <= 2.0 * 150.0 / graph.params.speed_mps)
+    assert np.allclose(overlay[near], exact[near])
+    # route polylines: viewpoints stay vertices, every leg hidden
+    order = np.flatnonzero(vp.region == vp.region[0])[:4]
+    poly, stops = graph.route_polyline(vp.xyz[order])
+    assert np.allclose(poly[stops], vp.xyz[order])
+    _assert_hidden_polyline(surface, poly)
+    legs = sum(exact[p, q] for p, q in zip(order[:-1], order[1:]))
+    assert polyline_time(poly) <= legs + 1e-6
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), a=st.tuples(st.floats(0, 11), st.floats(0, 9)),
+       b=st.tuples(st.floats(0, 11), st.floats(0, 9)), za=st.floats(90, 160),
+       zb=st.floats(90, 160))
+def test_gap_range_matches_dense_sampling(seed, a, b, za, zb):
+    rng = np.random.default_rng(seed)
+    h = 100 + rng.normal(0, 8, (10, 12))
+    lo, hi = gap_range(h, a[0], a[1], za, b[0], b[1], zb)
+    s = np.linspace(0, 1, 20001)
+    u = a[0] + s * (b[0] - a[0])
+    v = a[1] + s * (b[1] - a[1])
+    gap = za + s * (zb - za) - bilinear(h, v, u)
+    # sampling can only miss extremes: it bounds the exact range from inside
+    assert lo <= gap.min() + 1e-9 and hi >= gap.max() - 1e-9
+    assert gap.min() - lo < 0.01 and hi - gap.max() < 0.01
