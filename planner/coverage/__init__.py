@@ -1,0 +1,20 @@
+"""Coverage allocation: which UAV photographs from which viewpoint, in what order.
+
+Pure combinatorics over a :class:`CoverageProblem` (visibility sets, hidden
+travel times, optional launch points).  Methods: ``rt`` (the paper's
+reduced-time method), ``rt+ls`` (RT followed by our local search), ``rd``
+(per-distance baseline), ``b`` (dominating set, then routing), ``c`` (time
+clustering, then dominating set and tour per cluster).
+
+Modules, one piece each: problem (data model), gains (fault-tolerant V),
+objectives (So, M_PTV, M_PTV2, per-distance), insertion (edge-breaking rule,
+route times), greedy (RT/RD phases), setcover, routing (OR-Tools), baselines
+(B, C), local_search (RT+LS), metrics (evaluation, lower bound), solve.
+"""
+
+from .metrics import coverage_counts, lower_bound
+from .problem import Allocation, CoverageParams, CoverageProblem
+from .solve import METHODS, solve
+
+__all__ = ["Allocation", "CoverageParams", "CoverageProblem", "METHODS", "coverage_counts",
+           "lower_bound", "solve"]

@@ -1,0 +1,156 @@
+"""RT (the paper's reduced-time allocation) and RD, on one greedy engine.
+
+Phase 1 spreads the UAVs out (So = Δd · V^β; with launch points the UAVs
+start from them instead).  Phase 2 gives the best (viewpoint, UAV) pair by
+M_PTV to its UAV, Δt capped by th_ra; insertions that do not lengthen a route
+(Δt <= 0, the hidden metric is not Euclidean) go first.  Phase 3 (threshold
+adaptation) then feeds the other UAVs by M_PTV2 while their time stays within
+the longest time t_ru.  Phases 2 and 3 alternate until every target has its
+required number of distinct viewers.  RD uses the per-distance objective and
+no phase 3.
+
+If no pair fits under th_ra while targets remain, the cap is lifted for that
+step (the paper leaves this case open; stopping would leave targets uncovered).
+"""
+
+import math
+
+import numpy as np
+
+from .gains import CoverState
+from .insertion import (combine_ends, insert_cost, middle_costs_all, route_time,
+                        update_middle_costs)
+from .objectives import PER_DISTANCE, PTV, PTV2, best_free_pair, best_pair, best_spread
+
+
+def default_step_cap(travel: np.ndarray, factor: float) -> float:
+    """factor x the median nearest-neighbour travel time between viewpoints."""
+    n = travel.shape[0]
+    if n < 2:
+        return math.inf
+    t = travel.copy()
+    np.fill_diagonal(t, np.inf)
+    nn = t.min(axis=1)
+    nn = nn[np.isfinite(nn)]
+    return factor * float(np.median(nn)) if len(nn) else math.inf
+
+
+def step_cap(prep, params) -> float:
+    if params.step_time_cap is not None:
+        return float(params.step_time_cap)
+    return default_step_cap(prep.travel, params.step_cap_factor)
+
+
+class RouteSet:
+    """The UAVs' routes with their times and cached cheapest insertions.
+
+    ``cost[r, e]``/``pos[r, e]``: Δt and slot of the edge-breaking insertion
+    of e into r; the best edge is cached separately (``mid_*``) so that
+    growing a route at either end never needs a rescan.
+    """
+
+    def __init__(self, prep, routes):
+        self.prep = prep
+        n, n_vp = prep.problem.n_uavs, prep.problem.n_viewpoints
+        self.routes = [list(r) for r in routes]
+        self.times = np.zeros(n)
+        self.cost = np.empty((n, n_vp))
+        self.pos = np.empty((n, n_vp), dtype=np.int64)
+        self.mid_cost = np.empty((n, n_vp))
+        self.mid_pos = np.empty((n, n_vp), dtype=np.int64)
+        for r in range(n):
+            arr = self._array(r)
+            middle_costs_all(arr, *self._model(r), self.mid_cost[r], self.mid_pos[r])
+            self._finish(r, arr)
+
+    def _array(self, r):
+        return np.asarray(self.routes[r], dtype=np.int64)
+
+    def _model(self, r):
+        p = self.prep
+        return p.travel, p.travel_t, p.launch_out[r], p.has_launch
+
+    def _finish(self, r, arr):
+        p = self.prep
+        self.times[r] = route_time(arr, p.travel, p.launch_out[r], p.has_launch)
+        combine_ends(arr, *self._model(r), self.mid_cost[r], self.mid_pos[r], self.cost[r],
+                     self.pos[r])
+
+    def insert(self, e, r):
+        s = int(self.pos[r, e])
+        self.routes[r].insert(s, int(e))
+        arr = self._array(r)
+        update_middle_costs(arr, s, *self._model(r), self.mid_cost[r], self.mid_pos[r])
+        self._finish(r, arr)
+
+
+def spread_out(prep, params, state, steps):
+    """Phase 1: one start per UAV, or none when the UAVs leave from launch points."""
+    n = prep.problem.n_uavs
+    routes = [[] for _ in range(n)]
+    if prep.has_launch:
+        return routes
+    chain = np.zeros(0, dtype=np.int64)
+    for r in range(n):
+        if state.done:
+            break
+        e = best_spread(np.ascontiguousarray(state.gains[:, r]), chain, prep.travel, params.beta)
+        if e < 0:
+            break
+        _, p = insert_cost(chain, e, prep.travel, prep.launch_out[0], False)
+        chain = np.insert(chain, p, e)
+        routes[r].append(int(e))
+        state.take(e, r)
+        steps.append((1, r, int(e), 0.0))
+    return routes
+
+
+def allocate(prep, params, objective="ptv", routes=None, state=None, progress=None):
+    """Run the greedy phases; returns (routes, steps).
+
+    ``routes``/``state`` continue from a partial allocation (used to repair
+    baselines); otherwise phase 1 chooses the starts.
+    """
+    steps = []
+    state = state if state is not None else CoverState(prep)
+    if routes is None:
+        routes = spread_out(prep, params, state, steps)
+    rs = RouteSet(prep, routes)
+    cap = step_cap(prep, params)
+    metric = PTV if objective == "ptv" else PER_DISTANCE
+    adapt = params.threshold_adaptation and objective == "ptv"
+    total = max(state.remaining, 1)
+    while not state.done:
+        e, r = best_free_pair(state.gains, rs.cost)
+        phase = 0
+        if e < 0:
+            phase = 2
+            e, r = best_pair(state.gains, rs.cost, rs.times, metric, params.alpha, cap, -1, np.inf)
+            if e < 0:
+                e, r = best_pair(state.gains, rs.cost, rs.times, metric, params.alpha,
+                                 np.inf, -1, np.inf)
+        if e < 0:
+            break  # what is left is unreachable
+        _give(rs, state, steps, phase, e, r)
+        if adapt and phase == 2:
+            _threshold_adaptation(rs, state, steps, params)
+        if progress is not None:
+            progress(1.0 - state.remaining / total)
+    return rs.routes, steps
+
+
+def _give(rs, state, steps, phase, e, r):
+    rs.insert(e, r)
+    state.take(e, r)
+    steps.append((phase, int(r), int(e), float(rs.times[r])))
+
+
+def _threshold_adaptation(rs, state, steps, params):
+    """Phase 3: the other UAVs catch up to the longest time t_ru by M_PTV2."""
+    ru = int(np.argmax(rs.times))
+    t_ru = rs.times[ru]
+    while not state.done:
+        e, r = best_pair(state.gains, rs.cost, rs.times, PTV2, params.alpha, np.inf, ru, t_ru)
+        if e < 0:
+            return
+        _give(rs, state, steps, 3, e, r)

@@ -1,0 +1,224 @@
+"""Route times, the edge-breaking insertion rule, and intra-route improvement.
+
+A route is an array of viewpoint ids in visiting order.  Its time runs from
+the launch point (``lo[e]`` = transit from launch to e) or, without launch
+points, from the first viewpoint (the paper's setting), to the last snapshot.
+Travel may be asymmetric, so every cost is taken in flight direction.
+
+Edge-breaking rule: a viewpoint is inserted at either end of the route or into
+whichever edge gives the least increase in time (the cheapest of them all).
+"""
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def route_time(route, travel, lo, has_launch):
+    if len(route) == 0:
+        return 0.0
+    t = lo[route[0]] if has_launch else 0.0
+    for i in range(len(route) - 1):
+        t += travel[route[i], route[i + 1]]
+    return t
+
+
+@njit(cache=True)
+def arrival_times(route, travel, lo, has_launch):
+    """Time of each snapshot along the route."""
+    out = np.empty(len(route))
+    t = 0.0
+    for i in range(len(route)):
+        if i == 0:
+            t = lo[route[0]] if has_launch else 0.0
+        else:
+            t += travel[route[i - 1], route[i]]
+        out[i] = t
+    return out
+
+
+@njit(cache=True)
+def insert_cost(route, e, travel, lo, has_launch):
+    """(Δt, position) of the cheapest edge-breaking insertion of e; position p = before route[p]."""
+    m = len(route)
+    if m == 0:
+        return (lo[e] if has_launch else 0.0), 0
+    v0 = route[0]
+    if has_launch:
+        best = lo[e] + travel[e, v0] - lo[v0]
+    else:
+        best = travel[e, v0]
+    pos = 0
+    for p in range(1, m):
+        a = route[p - 1]
+        b = route[p]
+        c = travel[a, e] + travel[e, b] - travel[a, b]
+        if c < best:
+            best = c
+            pos = p
+    c = travel[route[m - 1], e]
+    if c < best:
+        best = c
+        pos = m
+    return best, pos
+
+
+@njit(cache=True)
+def slot_cost(route, s, e, travel, travel_t, lo, has_launch):
+    """Δt of inserting e before route[s] (s = len(route): after the last).
+
+    Reads rows of ``travel`` and of its transpose ``travel_t`` so that loops
+    over e stay in cache (the matrices are large).
+    """
+    m = len(route)
+    if m == 0:
+        return lo[e] if has_launch else 0.0
+    if s == 0:
+        v0 = route[0]
+        return lo[e] + travel_t[v0, e] - lo[v0] if has_launch else travel_t[v0, e]
+    if s == m:
+        return travel[route[m - 1], e]
+    a, b = route[s - 1], route[s]
+    return travel[a, e] + travel_t[b, e] - travel[a, b]
+
+
+@njit(cache=True)
+def middle_costs_all(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos):
+    """Cheapest insertion of every viewpoint into an edge of the route (slots 1..m-1)."""
+    n_vp = travel.shape[0]
+    mid_cost[:] = np.inf
+    mid_pos[:] = -1
+    for s in range(1, len(route)):
+        for e in range(n_vp):
+            c = slot_cost(route, s, e, travel, travel_t, lo, has_launch)
+            if c < mid_cost[e]:
+                mid_cost[e] = c
+                mid_pos[e] = s
+
+
+@njit(cache=True)
+def combine_ends(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos, cost, pos):
+    """Edge-breaking rule: the cheapest of front, best edge and back."""
+    m = len(route)
+    for e in range(travel.shape[0]):
+        c, p = slot_cost(route, 0, e, travel, travel_t, lo, has_launch), 0
+        if mid_cost[e] < c:
+            c, p = mid_cost[e], mid_pos[e]
+        if m > 0:
+            cb = slot_cost(route, m, e, travel, travel_t, lo, has_launch)
+            if cb < c:
+                c, p = cb, m
+        cost[e] = c
+        pos[e] = p
+
+
+@njit(cache=True)
+def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mid_pos):
+    """Refresh edge insertions after route[s] was inserted (``route`` is the new route).
+
+    Front or back insertions only add one edge; a middle insertion splits
+    edge s into s and s+1 and shifts later ones, and only the viewpoints whose
+    best edge was s need a rescan.
+    """
+    n_vp = travel.shape[0]
+    m = len(route)
+    if m < 2:
+        return
+    if s == 0 or s == m - 1:
+        new_edge = 1 if s == 0 else m - 1
+        for e in range(n_vp):
+            if s == 0 and mid_pos[e] >= 1:
+                mid_pos[e] += 1
+            c = slot_cost(route, new_edge, e, travel, travel_t, lo, has_launch)
+            if c < mid_cost[e]:
+                mid_cost[e] = c
+                mid_pos[e] = new_edge
+        return
+    rescan = np.empty(n_vp, dtype=np.int64)
+    n_rescan = 0
+    for e in range(n_vp):
+        if mid_pos[e] == s:
+            rescan[n_rescan] = e
+            n_rescan += 1
+        elif mid_pos[e] > s:
+            mid_pos[e] += 1
+    for q in (s, s + 1):
+        for e in range(n_vp):
+            c = slot_cost(route, q, e, travel, travel_t, lo, has_launch)
+            if mid_pos[e] != s and c < mid_cost[e]:
+                mid_cost[e] = c
+                mid_pos[e] = q
+    # Rescan per viewpoint: row e of travel and of travel_t stays in cache.
+    edge = np.empty(m - 1)
+    for q in range(1, m):
+        edge[q - 1] = travel[route[q - 1], route[q]]
+    for i in range(n_rescan):
+        e = rescan[i]
+        best, best_q = np.inf, -1
+        for q in range(1, m):
+            c = travel_t[e, route[q - 1]] + travel[e, route[q]] - edge[q - 1]
+            if c < best:
+                best, best_q = c, q
+        mid_cost[e] = best
+        mid_pos[e] = best_q
+
+
+@njit(cache=True)
+def removal_saving(route, i, travel, lo, has_launch):
+    """Time saved by removing route[i] and joining its neighbours."""
+    m = len(route)
+    e = route[i]
+    if m == 1:
+        return lo[e] if has_launch else 0.0
+    if i == 0:
+        nxt = route[1]
+        if has_launch:
+            return lo[e] + travel[e, nxt] - lo[nxt]
+        return travel[e, nxt]
+    prev = route[i - 1]
+    if i == m - 1:
+        return travel[prev, e]
+    nxt = route[i + 1]
+    return travel[prev, e] + travel[e, nxt] - travel[prev, nxt]
+
+
+@njit(cache=True)
+def improve_route(route, travel, lo, has_launch):
+    """Or-opt (move segments of 1-3, also reversed) and 2-opt until no gain.
+
+    Full re-evaluation per candidate keeps it exact for asymmetric travel;
+    routes are short (tens to a few hundred snapshots).
+    """
+    best = route.copy()
+    best_t = route_time(best, travel, lo, has_launch)
+    m = len(best)
+    improved = True
+    while improved:
+        improved = False
+        # 2-opt: reverse best[i..j]
+        for i in range(m - 1):
+            for j in range(i + 1, m):
+                cand = best.copy()
+                cand[i:j + 1] = best[i:j + 1][::-1]
+                t = route_time(cand, travel, lo, has_launch)
+                if t < best_t - 1e-9:
+                    best, best_t, improved = cand, t, True
+        # or-opt: move a segment of length 1..3 elsewhere (optionally reversed)
+        for seg in range(1, 4):
+            for i in range(m - seg + 1):
+                segment = best[i:i + seg].copy()
+                rest = np.concatenate((best[:i], best[i + seg:]))
+                moved = False
+                for rev in range(2):
+                    s = segment if rev == 0 else segment[::-1].copy()
+                    for p in range(len(rest) + 1):
+                        if p == i and rev == 0:
+                            continue
+                        cand = np.concatenate((rest[:p], s, rest[p:]))
+                        t = route_time(cand, travel, lo, has_launch)
+                        if t < best_t - 1e-9:
+                            best, best_t, improved, moved = cand, t, True, True
+                            break
+                    if moved:
+                        break
+    return best

@@ -1,0 +1,162 @@
+"""Evaluation of routes (times, coverage) and the lower bound on coverage time."""
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .insertion import arrival_times, route_time
+from .problem import Allocation, CoverageProblem, prepare
+
+
+@njit(cache=True)
+def _first_seen(route, arrivals, vis_indptr, vis_indices, first_r):
+    for i in range(len(route)):
+        e = route[i]
+        for j in range(vis_indptr[e], vis_indptr[e + 1]):
+            t = vis_indices[j]
+            if arrivals[i] < first_r[t]:
+                first_r[t] = arrivals[i]
+
+
+@njit(cache=True)
+def _kth_over_uavs(first, req):
+    """Per target, the req-th smallest time over UAVs; max over targets."""
+    worst = 0.0
+    for t in range(first.shape[1]):
+        q = req[t]
+        if q <= 0:
+            continue
+        v = np.sort(first[:, t])[q - 1]
+        if v > worst:
+            worst = v
+    return worst
+
+
+def first_seen_times(prep, routes) -> np.ndarray:
+    """[n_uavs, n_targets]: when UAV r first sees t (0 if seen before planning, inf never)."""
+    n = prep.problem.n_uavs
+    first = np.full((n, prep.problem.n_targets), np.inf)
+    first[prep.seen0.astype(bool)] = 0.0
+    for r, route in enumerate(routes):
+        arr = np.asarray(route, dtype=np.int64)
+        arrivals = arrival_times(arr, prep.travel, prep.launch_out[r], prep.has_launch)
+        _first_seen(arr, arrivals, prep.vis_indptr, prep.vis_indices, first[r])
+    return first
+
+
+def evaluate(prep, routes, method: str, steps=None, planning_s=0.0) -> Allocation:
+    """Times and coverage of ``routes`` recomputed from the travel model."""
+    n = prep.problem.n_uavs
+    times = np.zeros(n)
+    back = np.zeros(n)
+    for r, route in enumerate(routes):
+        arr = np.asarray(route, dtype=np.int64)
+        times[r] = route_time(arr, prep.travel, prep.launch_out[r], prep.has_launch)
+        back[r] = times[r] + (prep.launch_back[r, arr[-1]] if prep.has_launch and len(arr) else 0.0)
+    first = first_seen_times(prep, routes)
+    counts = np.isfinite(first).sum(axis=0)
+    covered = bool(np.all(counts >= prep.required))
+    cov_t = _kth_over_uavs(first, prep.required) if covered else math.inf
+    return Allocation(method=method, routes=[list(map(int, r)) for r in routes], times=times,
+                      return_times=back, coverage_time=float(cov_t),
+                      mission_time=float(back.max()) if n else 0.0, sum_time=float(times.sum()),
+                      n_snapshots=int(sum(len(r) for r in routes)), covered=covered,
+                      uncoverable=prep.uncoverable, planning_s=planning_s,
+                      steps=list(steps or []))
+
+
+def coverage_counts(problem: CoverageProblem, allocation: Allocation) -> np.ndarray:
+    """Per target, the number of distinct UAVs that see it (including earlier snapshots)."""
+    prep = prepare(problem)
+    seen = prep.seen0.astype(bool)
+    for r, route in enumerate(allocation.routes):
+        for e in route:
+            seen[r, prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]]] = True
+    return seen.sum(axis=0)
+
+
+def lower_bound(problem: CoverageProblem) -> float:
+    """A lower bound on coverage time (seconds), the larger of two valid bounds.
+
+    * Reach bound (only with launch points): a target t needs ``req[t]``
+      distinct UAVs; UAV r reaches it no sooner than the shortest time from
+      its launch point to any viewpoint e seeing t (via other viewpoints too,
+      in case ``launch_out`` is not closed under shortest paths; 0 if r saw t
+      before planning).  The
+      req[t]-th smallest of these over UAVs, maximised over targets.
+    * Packing bound (any setting): targets no two of which share a viewpoint
+      need pairwise different viewpoints.  Every visit of a viewpoint costs at
+      least its cheapest way in (the nearest other viewpoint, or launch), the
+      first visit of each UAV is free without launch points, and the busiest
+      UAV flies at least the average of the total.
+
+    Without launch points the reach bound is 0 (a UAV may start on any
+    viewpoint), so only the packing bound remains and it is loose.
+    """
+    prep = prepare(problem)
+    return max(_reach_bound(prep), _packing_bound(prep))
+
+
+@njit(cache=True)
+def _earliest_arrival(lo, travel_t):
+    """Shortest time from launch to each viewpoint, also via other viewpoints.
+
+    Bellman-Ford relaxation: one sweep when ``travel`` is already closed under
+    shortest paths (as hidden travel times are), more otherwise.
+    """
+    out = lo.copy()
+    n_vp = len(lo)
+    changed = True
+    while changed:
+        changed = False
+        for e in range(n_vp):
+            best = out[e]
+            for f in range(n_vp):
+                c = out[f] + travel_t[e, f]
+                if c < best:
+                    best = c
+            if best < out[e]:
+                out[e] = best
+                changed = True
+    return out
+
+
+def _reach_bound(prep) -> float:
+    if not prep.has_launch:
+        return 0.0
+    n, n_t = prep.problem.n_uavs, prep.problem.n_targets
+    arrive = np.array([_earliest_arrival(prep.launch_out[r], prep.travel_t) for r in range(n)])
+    reach = np.full((n, n_t), np.inf)
+    for e in range(prep.problem.n_viewpoints):
+        ts = prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]]
+        reach[:, ts] = np.minimum(reach[:, ts], arrive[:, e:e + 1])
+    reach[prep.seen0.astype(bool)] = 0.0
+    return float(_kth_over_uavs(reach, prep.required))
+
+
+def _packing_bound(prep) -> float:
+    n = prep.problem.n_uavs
+    travel = prep.travel.copy()
+    np.fill_diagonal(travel, np.inf)
+    way_in = travel.min(axis=0)  # cheapest arrival at each viewpoint from another one
+    if prep.has_launch:
+        way_in = np.minimum(way_in, prep.launch_out.min(axis=0))
+    degree = np.diff(prep.tgt_indptr)
+    blocked = np.zeros(prep.problem.n_viewpoints, dtype=bool)
+    costs = []
+    for t in np.argsort(degree, kind="stable"):
+        need = prep.required[t] - int(prep.seen0[:, t].sum())
+        if need <= 0 or degree[t] == 0:
+            continue
+        vps = prep.tgt_indices[prep.tgt_indptr[t]:prep.tgt_indptr[t + 1]]
+        if blocked[vps].any():
+            continue
+        blocked[vps] = True  # a later packed target may share none of them
+        costs.extend([float(way_in[vps].min())] * need)
+    costs = np.sort(np.asarray(costs))
+    if not prep.has_launch:
+        costs = costs[:max(len(costs) - n, 0)]  # the n dearest visits may be free starts
+    costs = costs[np.isfinite(costs)]
+    return float(costs.sum() / n) if len(costs) else 0.0
+

@@ -1,0 +1,193 @@
+"""The abstract coverage problem, its parameters and the resulting allocation.
+
+Everything in :mod:`planner.coverage` works on this combinatorial form: which
+targets each viewpoint sees (CSR), hidden travel times between viewpoints, and
+optionally per-UAV launch points.  The terrain, visibility and travel stages
+build a :class:`CoverageProblem`; the coverage methods turn it into an
+:class:`Allocation` (one route of viewpoint ids per UAV).
+"""
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+import numpy as np
+
+
+@dataclass
+class CoverageProblem:
+    """Viewpoints, targets, travel times and the fault-tolerance requirement.
+
+    ``seen`` is the re-planning state: ``seen[r, t]`` is True when UAV r has
+    already photographed target t (the survivors' snapshots so far).  Such a
+    target counts for r's distinct-UAV tally at time zero.  ``required[t]`` is
+    how many distinct UAVs must see t in total (including ``seen``); it
+    defaults to k+1.
+    """
+
+    vis_indptr: np.ndarray
+    vis_indices: np.ndarray
+    n_targets: int
+    travel: np.ndarray
+    launch_out: Optional[np.ndarray]
+    launch_back: Optional[np.ndarray]
+    n_uavs: int
+    k: int = 0
+    visibility: str = "soft"
+    required: Optional[np.ndarray] = None
+    seen: Optional[np.ndarray] = None
+
+    @property
+    def n_viewpoints(self) -> int:
+        return len(self.vis_indptr) - 1
+
+    @property
+    def has_launch(self) -> bool:
+        return self.launch_out is not None
+
+
+@dataclass
+class CoverageParams:
+    """Planning parameters.
+
+    ``step_time_cap`` is th_ra in seconds; None picks ``step_cap_factor`` times
+    the median nearest-neighbour travel time between viewpoints (chosen by
+    benchmarks/bench_coverage.py), ``math.inf`` disables the cap.
+    ``routing_solutions`` bounds each OR-Tools search (deterministic);
+    ``routing_time_s`` is a safety-net time limit (None: scale with size).
+    RT+LS runs ``ls_starts`` RT starts (th_ra factor x1, x0.5, x2), each
+    followed by ``ls_rounds`` rounds of local search, and keeps the best.
+    """
+
+    alpha: float = 0.55
+    beta: float = 0.3
+    step_time_cap: Optional[float] = None
+    step_cap_factor: float = 4.0
+    seed: int = 0
+    threshold_adaptation: bool = True
+    routing_time_s: Optional[float] = None
+    routing_solutions: int = 20
+    ls_rounds: int = 20
+    ls_starts: int = 3
+
+
+@dataclass
+class Allocation:
+    """Routes and their times.
+
+    ``times[r]`` is UAV r's coverage time (arrival at its last snapshot,
+    including transit from launch); ``return_times[r]`` adds the hidden return
+    to launch (equal to ``times`` without launch points).  ``coverage_time`` is
+    the moment the last target is first seen by as many distinct UAVs as it
+    requires, ``mission_time`` the latest return.
+    """
+
+    method: str
+    routes: list
+    times: np.ndarray
+    return_times: np.ndarray
+    coverage_time: float
+    mission_time: float
+    sum_time: float
+    n_snapshots: int
+    covered: bool
+    uncoverable: int
+    planning_s: float = 0.0
+    # greedy insertions (phase, uav, viewpoint, uav time after it); phase 0 = Δt <= 0 first
+    steps: list = field(default_factory=list)
+
+    def summary(self) -> dict:
+        return {
+            "method": self.method,
+            "coverage_time_s": self.coverage_time,
+            "mission_time_s": self.mission_time,
+            "sum_time_s": self.sum_time,
+            "snapshots": self.n_snapshots,
+            "covered": self.covered,
+            "planning_s": self.planning_s,
+        }
+
+
+@dataclass
+class Prepared:
+    """Validated arrays shared by every method (built once per solve)."""
+
+    problem: CoverageProblem
+    vis_indptr: np.ndarray  # int64
+    vis_indices: np.ndarray  # int64
+    tgt_indptr: np.ndarray  # CSC transpose: target -> viewpoints that see it
+    tgt_indices: np.ndarray
+    travel: np.ndarray  # float64 [n_vp, n_vp]
+    travel_t: np.ndarray  # its transpose, C-contiguous (column reads in the kernels)
+    launch_out: np.ndarray  # float64 [n_uavs, n_vp] (zeros if no launch)
+    launch_back: np.ndarray
+    has_launch: bool
+    seen0: np.ndarray  # uint8 [n_uavs, n_targets]
+    required: np.ndarray  # int32 [n_targets], reduced to what is achievable
+    uncoverable: int  # targets whose requirement cannot be met at all
+    soft: bool
+    soft_exp: float
+
+
+def prepare(problem: CoverageProblem) -> Prepared:
+    """Validate the problem and build the arrays the kernels need."""
+    n, k = int(problem.n_uavs), int(problem.k)
+    if n < 1:
+        raise ValueError("n_uavs must be at least 1")
+    if k < 0:
+        raise ValueError("k must be >= 0")
+    if k >= n:
+        raise ValueError(
+            f"fault tolerance k={k} needs at least k+1={k + 1} UAVs, but only {n} given"
+        )
+    if problem.visibility not in ("soft", "hard"):
+        raise ValueError(f"visibility must be 'soft' or 'hard', not {problem.visibility!r}")
+    indptr = np.asarray(problem.vis_indptr, dtype=np.int64)
+    indices = np.asarray(problem.vis_indices, dtype=np.int64)
+    n_vp, n_t = len(indptr) - 1, int(problem.n_targets)
+    travel = np.asarray(problem.travel, dtype=np.float64)
+    if travel.shape != (n_vp, n_vp):
+        raise ValueError(f"travel must be [{n_vp}, {n_vp}], got {travel.shape}")
+    if len(indices) and (indices.min() < 0 or indices.max() >= n_t):
+        raise ValueError("vis_indices hold target ids outside 0..n_targets-1")
+    has_launch = problem.launch_out is not None
+    if has_launch:
+        lo = np.asarray(problem.launch_out, dtype=np.float64)
+        lb = (np.asarray(problem.launch_back, dtype=np.float64)
+              if problem.launch_back is not None else np.zeros_like(lo))
+        if lo.shape != (n, n_vp) or lb.shape != (n, n_vp):
+            raise ValueError(f"launch_out/launch_back must be [{n}, {n_vp}]")
+    else:
+        lo = np.zeros((n, n_vp))
+        lb = np.zeros((n, n_vp))
+    seen0 = np.zeros((n, n_t), dtype=np.uint8)
+    if problem.seen is not None:
+        s = np.asarray(problem.seen, dtype=bool)
+        if s.shape != (n, n_t):
+            raise ValueError(f"seen must be [{n}, {n_t}]")
+        seen0[s] = 1
+    req = (np.full(n_t, k + 1, dtype=np.int32) if problem.required is None
+           else np.asarray(problem.required, dtype=np.int32).copy())
+    if req.shape != (n_t,):
+        raise ValueError(f"required must have one entry per target ({n_t})")
+    tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
+    # A target nobody can see, or needing more UAVs than exist, is capped at
+    # what is achievable and reported as uncoverable.
+    achievable = np.where(np.diff(tgt_indptr) > 0, n, 0)
+    achievable = np.maximum(achievable, seen0.sum(axis=0))
+    uncoverable = int(np.count_nonzero(req > achievable))
+    req = np.minimum(req, achievable).astype(np.int32)
+    return Prepared(problem, indptr, indices, tgt_indptr, tgt_indices, travel,
+                    np.ascontiguousarray(travel.T), lo, lb,
+                    has_launch, seen0, req, uncoverable, problem.visibility == "soft",
+                    float(n) / k if k > 0 else 1.0)
+
+
+def csc_transpose(indptr: np.ndarray, indices: np.ndarray, n_targets: int):
+    """Target -> viewpoint lists (the CSC form of the visibility matrix)."""
+    n_vp = len(indptr) - 1
+    rows = np.repeat(np.arange(n_vp, dtype=np.int64), np.diff(indptr))
+    order = np.argsort(indices, kind="stable")
+    counts = np.bincount(indices, minlength=n_targets)
+    t_indptr = np.zeros(n_targets + 1, dtype=np.int64)
+    np.cumsum(counts, out=t_indptr[1:])
+    return t_indptr, rows[order]

@@ -1,0 +1,285 @@
+"""Coverage methods on small synthetic problems, against independent references."""
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from planner.coverage import (METHODS, CoverageParams, CoverageProblem, coverage_counts,
+                              lower_bound, solve)
+from planner.coverage.gains import CoverState
+from planner.coverage.insertion import insert_cost, route_time
+from planner.coverage.instances import random_problem
+from planner.coverage.problem import prepare
+
+FAST = CoverageParams(routing_solutions=20, routing_time_s=2.0)
+
+
+def small(k=0, visibility="soft", launch=False, seed=0, n_uavs=3, family="uniform"):
+    return random_problem(n_viewpoints=40, n_targets=300, n_uavs=n_uavs, k=k,
+                          visibility=visibility, family=family, seed=seed, launch=launch,
+                          size_m=2000.0, sensor_m=450.0)
+
+
+# -- independent references ---------------------------------------------------
+
+def ref_route_time(problem, r, route):
+    if not route:
+        return 0.0
+    t = problem.launch_out[r, route[0]] if problem.launch_out is not None else 0.0
+    return t + sum(problem.travel[a, b] for a, b in zip(route, route[1:]))
+
+
+def ref_seen_by(problem, allocation):
+    """target -> {uav: first time seen}, by walking the routes."""
+    out = [dict() for _ in range(problem.n_targets)]
+    if problem.seen is not None:
+        for r, t in zip(*np.nonzero(problem.seen)):
+            out[t][r] = 0.0
+    for r, route in enumerate(allocation.routes):
+        for i, e in enumerate(route):
+            now = ref_route_time(problem, r, route[:i + 1])
+            for t in problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]:
+                out[t][r] = min(out[t].get(r, math.inf), now)
+    return out
+
+
+def required(problem):
+    return (np.full(problem.n_targets, problem.k + 1) if problem.required is None
+            else problem.required)
+
+
+def assert_covers(problem, allocation):
+    seen = ref_seen_by(problem, allocation)
+    need = required(problem)
+    assert all(len(seen[t]) >= need[t] for t in range(problem.n_targets))
+    np.testing.assert_array_equal(coverage_counts(problem, allocation),
+                                  [len(s) for s in seen])
+
+
+def assert_times(problem, allocation):
+    for r, route in enumerate(allocation.routes):
+        t = ref_route_time(problem, r, route)
+        assert allocation.times[r] == pytest.approx(t, abs=1e-6)
+        back = t + (problem.launch_back[r, route[-1]]
+                    if problem.launch_back is not None and route else 0.0)
+        assert allocation.return_times[r] == pytest.approx(back, abs=1e-6)
+    seen = ref_seen_by(problem, allocation)
+    need = required(problem)
+    cov = max((sorted(s.values())[need[t] - 1] for t, s in enumerate(seen) if need[t] > 0),
+              default=0.0)
+    assert allocation.coverage_time == pytest.approx(cov, abs=1e-6)
+    assert allocation.mission_time == pytest.approx(max(allocation.return_times), abs=1e-6)
+
+
+# -- every method ---------------------------------------------------------------
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("k,visibility,launch", [
+    (0, "soft", False), (1, "soft", True), (1, "hard", False), (2, "hard", True),
+    (2, "soft", False)])
+def test_methods_cover_with_consistent_times(method, k, visibility, launch):
+    problem = small(k=k, visibility=visibility, launch=launch, seed=k + 3 * launch)
+    a = solve(problem, method, FAST)
+    assert a.covered and a.method == method
+    assert_covers(problem, a)
+    assert_times(problem, a)
+    assert lower_bound(problem) <= a.coverage_time + 1e-9
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_deterministic_for_fixed_seed(method):
+    problem = small(k=1, launch=True, seed=5, family="clustered")
+    a = solve(problem, method, FAST)
+    b = solve(problem, method, FAST)
+    assert a.routes == b.routes
+
+
+def test_k_not_below_fleet_size_is_an_error():
+    with pytest.raises(ValueError, match="k=3 needs at least k\\+1=4 UAVs"):
+        solve(small(k=3, n_uavs=3), "rt")
+    with pytest.raises(ValueError, match="unknown coverage method"):
+        solve(small(), "xx")
+
+
+def test_rt_ls_never_worse_than_rt_and_keeps_coverage():
+    for seed in range(4):
+        for k in (0, 1):
+            problem = small(k=k, seed=seed, launch=bool(seed % 2), family="corridor")
+            rt = solve(problem, "rt")
+            ls = solve(problem, "rt+ls")
+            assert ls.coverage_time <= rt.coverage_time + 1e-9
+            assert_covers(problem, ls)
+
+
+# -- the paper's properties ------------------------------------------------------
+
+def unseen_after_starts(problem, steps):
+    """k = 0: per viewpoint, targets no start has seen (independent of the gain code)."""
+    seen = np.zeros(problem.n_targets, dtype=bool)
+    for phase, _, e, _ in steps:
+        if phase == 1:
+            seen[problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]] = True
+    return np.array([np.count_nonzero(~seen[problem.vis_indices[
+        problem.vis_indptr[e]:problem.vis_indptr[e + 1]]])
+        for e in range(problem.n_viewpoints)])
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_alpha_one_picks_most_visible_alpha_zero_picks_quickest(seed):
+    problem = small(seed=seed)
+    n = problem.n_uavs
+    a1 = solve(problem, "rt", CoverageParams(alpha=1.0, step_time_cap=math.inf))
+    v = unseen_after_starts(problem, a1.steps)
+    phase, _, e, _ = a1.steps[n]
+    assert phase == 2 and v[e] == v.max()
+
+    a0 = solve(problem, "rt", CoverageParams(alpha=0.0, step_time_cap=math.inf))
+    v = unseen_after_starts(problem, a0.steps)
+    starts = [e for phase, _, e, _ in a0.steps[:n]]
+    # routes are single starts with time 0: the pick minimises the insertion time
+    quickest = min(min(problem.travel[e, s], problem.travel[s, e])
+                   for s in starts for e in np.flatnonzero(v > 0))
+    phase, r, e, _ = a0.steps[n]
+    s = starts[r]
+    assert phase == 2 and min(problem.travel[e, s], problem.travel[s, e]) == pytest.approx(
+        quickest)
+
+
+def mean_spread(problem, steps):
+    """Mean of (max - min) / max of the UAV times over the allocation, once all have started."""
+    times = np.zeros(problem.n_uavs)
+    started = np.zeros(problem.n_uavs, dtype=bool)
+    spreads = []
+    for _, r, _, t in steps:
+        times[r], started[r] = t, True
+        if started.all() and times.max() > 0:
+            spreads.append((times.max() - times.min()) / times.max())
+    return np.mean(spreads)
+
+
+def test_threshold_adaptation_keeps_uav_times_together():
+    with_, without = [], []
+    for seed in range(4):
+        for family in ("uniform", "clustered"):
+            problem = random_problem(80, 800, 4, seed=seed, family=family,
+                                     launch=bool(seed % 2))
+            a = solve(problem, "rt")
+            b = solve(problem, "rt", CoverageParams(threshold_adaptation=False))
+            assert any(s[0] == 3 for s in a.steps) and not any(s[0] == 3 for s in b.steps)
+            for alloc in (a, b):  # the recorded times are the routes' real times
+                last = {r: t for _, r, _, t in alloc.steps}
+                for r, t in last.items():
+                    assert t == pytest.approx(ref_route_time(problem, r, alloc.routes[r]))
+            with_.append(mean_spread(problem, a.steps))
+            without.append(mean_spread(problem, b.steps))
+    assert np.mean(with_) < 0.8 * np.mean(without)
+
+
+def test_phase_one_spreads_out_starts():
+    problem = small(seed=2)
+    a = solve(problem, "rt")
+    starts = [e for phase, _, e, _ in a.steps if phase == 1]
+    assert len(starts) == problem.n_uavs
+    v = unseen_after_starts(problem, [])
+    assert v[starts[0]] == v.max()  # the first start is the most visible viewpoint
+
+
+# -- pieces -----------------------------------------------------------------------
+
+@given(st.integers(0, 2 ** 16), st.integers(0, 6), st.booleans())
+@settings(max_examples=30, deadline=None)
+def test_edge_breaking_insertion_is_cheapest_position(seed, length, launch):
+    rng = np.random.default_rng(seed)
+    n = 10
+    travel = rng.uniform(1, 10, (n, n))
+    lo = rng.uniform(1, 10, n)
+    route = rng.permutation(n)[:length].astype(np.int64)
+    e = int(rng.permutation(np.setdiff1d(np.arange(n), route))[0])
+    base = route_time(route, travel, lo, launch)
+    brute = min(route_time(np.insert(route, p, e), travel, lo, launch) - base
+                for p in range(length + 1))
+    cost, pos = insert_cost(route, e, travel, lo, launch)
+    assert cost == pytest.approx(brute)
+    assert route_time(np.insert(route, pos, e), travel, lo, launch) - base == pytest.approx(brute)
+
+
+@pytest.mark.parametrize("visibility", ["hard", "soft"])
+def test_incremental_gains_match_recomputation(visibility):
+    problem = small(k=2, visibility=visibility, seed=4, n_uavs=4)
+    prep = prepare(problem)
+    state = CoverState(prep)
+    rng = np.random.default_rng(0)
+    for _ in range(60):
+        state.take(int(rng.integers(problem.n_viewpoints)), int(rng.integers(4)))
+    count = state.seen.sum(axis=0)
+    expo = 4 / 2
+    for e in range(0, problem.n_viewpoints, 3):
+        for r in range(4):
+            want = 0.0
+            for t in problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]:
+                if state.seen[r, t] or count[t] >= 3:
+                    continue
+                want += (3 - count[t]) ** expo if visibility == "soft" else 1.0
+            assert state.gains[e, r] == pytest.approx(want)
+    assert state.remaining == np.count_nonzero(count < 3)
+
+
+@given(st.integers(0, 2 ** 16), st.integers(0, 1), st.booleans())
+@settings(max_examples=20, deadline=None)
+def test_random_structures_are_covered(seed, k, launch):
+    """Arbitrary visibility sets and asymmetric (non-metric) travel times."""
+    rng = np.random.default_rng(seed)
+    n_vp, n_t, n = int(rng.integers(3, 15)), int(rng.integers(1, 40)), 2
+    sets = [np.union1d(rng.choice(n_t, rng.integers(1, n_t + 1), replace=False),
+                       np.arange(e, n_t, n_vp)) for e in range(n_vp)]  # every target seen
+    indptr = np.concatenate([[0], np.cumsum([len(s) for s in sets])])
+    travel = rng.uniform(1, 20, (n_vp, n_vp))
+    np.fill_diagonal(travel, 0)
+    lo = rng.uniform(1, 20, (n, n_vp)) if launch else None
+    problem = CoverageProblem(indptr, np.concatenate(sets), n_t, travel, lo, lo, n, k,
+                              "soft")
+    bound = lower_bound(problem)
+    for method in ("rt", "rt+ls", "rd"):
+        a = solve(problem, method)
+        assert a.covered
+        assert_covers(problem, a)
+        assert_times(problem, a)
+        assert bound <= a.coverage_time + 1e-9
+
+
+def test_unseeable_targets_are_reported_not_chased():
+    travel = np.array([[0.0, 5.0], [5.0, 0.0]])
+    problem = CoverageProblem(np.array([0, 1, 2]), np.array([0, 1]), 3, travel, None, None, 2)
+    a = solve(problem, "rt")
+    assert a.uncoverable == 1 and a.covered
+    assert sorted(e for route in a.routes for e in route) == [0, 1]
+
+
+def test_replanning_counts_earlier_snapshots():
+    problem = small(k=1, seed=6, launch=True)
+    rng = np.random.default_rng(1)
+    problem.seen = rng.uniform(size=(problem.n_uavs, problem.n_targets)) < 0.4
+    need = np.full(problem.n_targets, 2)
+    need[::5] = 1  # a lost UAV's share: reduced needs
+    problem.required = need
+    for method in METHODS:
+        a = solve(problem, method, FAST)
+        assert_covers(problem, a)
+        assert_times(problem, a)
+    # nothing left to do: empty routes, zero coverage time
+    problem.seen = np.ones((problem.n_uavs, problem.n_targets), dtype=bool)
+    a = solve(problem, "rt")
+    assert a.routes == [[], [], []] and a.coverage_time == 0.0
+
+
+def test_lower_bound_reach_term_with_launch_points():
+    """One target, seen only from viewpoint 1: the bound is the (k+1)-th fastest UAV to reach it."""
+    travel = np.array([[0.0, 60.0], [60.0, 0.0]])
+    lo = np.array([[1.0, 30.0], [1.0, 20.0], [1.0, 50.0]])
+    problem = CoverageProblem(np.array([0, 0, 1]), np.array([0]), 1, travel, lo, lo, 3, k=1)
+    assert lower_bound(problem) == pytest.approx(30.0)
+    a = solve(problem, "rt")
+    assert a.coverage_time == pytest.approx(30.0)
