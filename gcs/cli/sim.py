@@ -1,0 +1,156 @@
+"""`gcs sim`: simulated ArduPilot or PX4 multicopters on the endpoints real SITL uses."""
+
+import time
+
+from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
+from gcs.sim.fleet import DEFAULT_HOME, FleetConfig, SimFleet, vehicle_port
+from gcs.sim.physics import Limits
+from planner.errors import InputError
+
+HELP = "run simulated vehicles (ArduPilot: TCP 5760+10*i; PX4: UDP 18570+i -> 14550)"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("--vehicles", type=int, default=1, metavar="N", help="number of vehicles")
+    parser.add_argument("--firmware", choices=("ardupilot", "px4"), default="ardupilot",
+                        help="which autopilot to behave like")
+    parser.add_argument("--home", default=",".join(str(v) for v in DEFAULT_HOME),
+                        metavar="LAT,LON[,ALT]",
+                        help="launch point of every vehicle; ALT = ground m AMSL (default 0)")
+    parser.add_argument("--homes", metavar="LAT,LON,ALT;...",
+                        help="one launch point per vehicle, separated by ';'")
+    parser.add_argument("--speedup", type=float, default=1.0, metavar="X",
+                        help="mission time runs X times faster than the wall clock "
+                             "(telemetry rates stay real)")
+    faults = parser.add_argument_group("faults (times: mission s since boot; durations: wall s)")
+    faults.add_argument("--kill", action="append", default=[], metavar="SYSID@Ts|SYSID@itemN",
+                        help="shoot vehicle SYSID down at mission time T or on reaching item N")
+    faults.add_argument("--cut", action="append", default=[], metavar="SYSID@Ts+Ds",
+                        help="cut vehicle SYSID's link at mission time T for D wall seconds")
+    faults.add_argument("--drop", type=float, default=0.0, metavar="PCT",
+                        help="drop this percentage of packets in both directions")
+    faults.add_argument("--refuse-arm", type=int, action="append", default=[], metavar="SYSID",
+                        help="vehicle SYSID refuses to arm")
+    vehicle = parser.add_argument_group("vehicle")
+    defaults = Limits()
+    vehicle.add_argument("--speed", type=float, default=defaults.speed_mps, metavar="M/S",
+                         help="horizontal speed limit")
+    vehicle.add_argument("--climb", type=float, default=defaults.climb_mps, metavar="M/S")
+    vehicle.add_argument("--descent", type=float, default=defaults.descent_mps, metavar="M/S")
+    vehicle.add_argument("--accel", type=float, default=defaults.accel_mps2, metavar="M/S2")
+    vehicle.add_argument("--warmup", type=float, default=2.0, metavar="S",
+                         help="wall seconds of GPS/EKF warm-up before arming is allowed")
+    vehicle.add_argument("--auto-disarm", type=float, default=10.0, metavar="S",
+                         help="disarm after S mission seconds armed and idle on the ground "
+                              "(0 = never)")
+    vehicle.add_argument("--auto-options", type=int, default=0, metavar="N",
+                         help="ArduPilot AUTO_OPTIONS (1 = allow arming in AUTO)")
+    vehicle.add_argument("--no-camera", action="store_true",
+                         help="no camera configured: no CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED")
+    io = parser.add_argument_group("endpoints and output")
+    io.add_argument("--base-port", type=int, metavar="P",
+                    help="first port (default 5760 ArduPilot TCP, 18570 PX4 UDP)")
+    io.add_argument("--gcs-port", type=int, default=14550, metavar="P",
+                    help="PX4: UDP port on 127.0.0.1 that telemetry is sent to")
+    io.add_argument("--bind", default="127.0.0.1", metavar="HOST",
+                    help="address to listen on (0.0.0.0 for other machines)")
+    io.add_argument("--track-dir", metavar="DIR",
+                    help="write each vehicle's true track to DIR/vehicle_<sysid>.json")
+    io.add_argument("--duration", type=float, metavar="S",
+                    help="stop after S wall seconds (default: run until Ctrl-C)")
+    io.add_argument("--seed", type=int, default=0, help="random seed of packet drops")
+
+
+def _point(text: str, option: str, need_alt: bool) -> tuple:
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) == 2 and not need_alt:
+        values.append(0.0)
+    if len(values) != 3 or not (-90 <= values[0] <= 90 and -180 <= values[1] <= 180):
+        form = "LAT,LON,ALT" if need_alt else "LAT,LON[,ALT]"
+        raise InputError(option, f"expected {form} in degrees and metres, got {text!r}")
+    return tuple(values)
+
+
+def config_from_args(args) -> FleetConfig:
+    if args.vehicles < 1:
+        raise InputError("--vehicles", "need at least one vehicle")
+    if args.speedup <= 0:
+        raise InputError("--speedup", "must be positive")
+    if not 0 <= args.drop <= 100:
+        raise InputError("--drop", "must be a percentage between 0 and 100")
+    homes = None
+    if args.homes:
+        homes = [_point(p, "--homes", True) for p in args.homes.split(";") if p.strip()]
+        if len(homes) != args.vehicles:
+            raise InputError("--homes", f"{len(homes)} points for {args.vehicles} vehicles")
+    faults = {}
+
+    def plan(sysid, option):
+        if not 1 <= sysid <= args.vehicles:
+            raise InputError(option, f"no vehicle with system id {sysid} "
+                                     f"(ids are 1..{args.vehicles})")
+        return faults.setdefault(sysid, FaultPlan())
+
+    for text in args.kill:
+        sysid, at_s, at_item = parse_kill(text)
+        p = plan(sysid, "--kill")
+        p.kill_at_s, p.kill_at_item = at_s, at_item
+    for text in args.cut:
+        sysid, start, seconds = parse_cut(text)
+        plan(sysid, "--cut").cuts.append((start, seconds))
+    for sysid in args.refuse_arm:
+        plan(sysid, "--refuse-arm").refuse_arm = True
+    limits = Limits(args.speed, args.climb, args.descent, args.accel)
+    if min(limits.speed_mps, limits.climb_mps, limits.descent_mps, limits.accel_mps2) <= 0:
+        raise InputError("--speed/--climb/--descent/--accel", "limits must be positive")
+    return FleetConfig(
+        vehicles=args.vehicles, firmware=args.firmware, home=_point(args.home, "--home", False),
+        homes=homes, speedup=args.speedup, base_port=args.base_port, gcs_port=args.gcs_port,
+        bind_host=args.bind, limits=limits, warmup_s=args.warmup,
+        auto_disarm_s=args.auto_disarm, camera=not args.no_camera,
+        auto_options=args.auto_options, drop_pct=args.drop, faults=faults,
+        track_dir=args.track_dir, seed=args.seed)
+
+
+def run(args) -> int:
+    config = config_from_args(args)
+    fleet = SimFleet(config)
+    try:
+        fleet.start()
+    except OSError as exc:
+        raise InputError("--base-port", f"cannot open a simulator endpoint: {exc}") from None
+    try:
+        _describe(fleet)
+        _wait(fleet, args.duration)
+    finally:
+        fleet.stop()
+    return 0
+
+
+def _describe(fleet) -> None:
+    c = fleet.config
+    for i, v in enumerate(fleet.vehicles):
+        port = vehicle_port(c.firmware, i, c.base_port)
+        where = (f"TCP {c.bind_host}:{port}" if c.firmware == "ardupilot"
+                 else f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}")
+        lat, lon, alt = v.cfg.home
+        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g}")
+    print("connect with: " + " ".join(f"--connect {u}" for u in fleet.urls()))
+    print(f"speedup x{c.speedup:g}; Ctrl-C stops", flush=True)
+
+
+def _wait(fleet, duration) -> None:
+    end = None if duration is None else time.monotonic() + duration
+    reported = set()
+    while end is None or time.monotonic() < end:
+        for v in fleet.vehicles:
+            if v.dead and v.sysid not in reported:
+                reported.add(v.sysid)
+                print(f"vehicle {v.sysid} killed at mission time {v.track.killed_at:g} s",
+                      flush=True)
+        if len(reported) == len(fleet.vehicles):
+            return
+        time.sleep(0.2)

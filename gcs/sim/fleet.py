@@ -1,0 +1,157 @@
+"""A fleet of simulated vehicles in one process, one thread each.
+
+    fleet = SimFleet(FleetConfig(vehicles=3, firmware="ardupilot", speedup=10,
+                                 base_port=15760, track_dir="tracks")).start()
+    fleet.urls()          # ['tcp:127.0.0.1:15760', 'tcp:127.0.0.1:15770', ...]
+    fleet.kill(2)         # system id 2 stops talking, its socket closes
+    fleet.stop()
+
+Vehicles are addressed by MAVLink system id (1..N), as a ground station sees them.
+"""
+
+import threading
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+from gcs.sim.faults import FaultPlan
+from gcs.sim.physics import Limits
+from gcs.sim.track import track_path
+from gcs.sim.vehicle import SimVehicle, VehicleConfig
+
+DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
+BASE_PORTS = {"ardupilot": 5760, "px4": 18570}
+PORT_STEP = {"ardupilot": 10, "px4": 1}
+
+
+def vehicle_port(firmware: str, index: int, base_port: int | None = None) -> int:
+    base = BASE_PORTS[firmware] if base_port is None else base_port
+    return base + PORT_STEP[firmware] * index
+
+
+def vehicle_url(firmware: str, index: int, base_port: int | None = None,
+                gcs_port: int = 14550) -> str:
+    """The pymavlink URL a ground station uses for vehicle `index` (0-based)."""
+    if firmware == "ardupilot":
+        return f"tcp:127.0.0.1:{vehicle_port(firmware, index, base_port)}"
+    return f"udpin:0.0.0.0:{gcs_port}"      # every PX4 instance sends to the same port
+
+
+@dataclass
+class FleetConfig:
+    vehicles: int = 1
+    firmware: str = "ardupilot"                 # "ardupilot" | "px4"
+    home: tuple = DEFAULT_HOME                  # lat, lon, ground alt AMSL, for every vehicle
+    homes: list | None = None                   # or one (lat, lon, alt) per vehicle
+    speedup: float = 1.0
+    base_port: int | None = None                # default: 5760 (ArduPilot) / 18570 (PX4)
+    gcs_port: int = 14550                       # PX4: where telemetry is sent
+    bind_host: str = "127.0.0.1"
+    limits: Limits = field(default_factory=Limits)
+    warmup_s: float = 2.0
+    no_space_s: float = 1.0
+    auto_disarm_s: float = 10.0
+    camera: bool = True
+    auto_options: int = 0
+    drop_pct: float = 0.0
+    faults: dict = field(default_factory=dict)  # system id -> FaultPlan
+    track_dir: Path | str | None = None
+    seed: int = 0
+    signing_key: bytes | None = None
+
+    def vehicle_configs(self) -> list:
+        if self.firmware not in BASE_PORTS:
+            raise ValueError(f"unknown firmware {self.firmware!r}")
+        if self.homes is not None and len(self.homes) != self.vehicles:
+            raise ValueError(f"{len(self.homes)} homes given for {self.vehicles} vehicles")
+        unknown = set(self.faults) - set(range(1, self.vehicles + 1))
+        if unknown:
+            raise ValueError(f"faults for unknown system ids {sorted(unknown)}")
+        configs = []
+        for i in range(self.vehicles):
+            sysid = i + 1
+            home = tuple(self.homes[i]) if self.homes is not None else tuple(self.home)
+            configs.append(VehicleConfig(
+                sysid=sysid, port=vehicle_port(self.firmware, i, self.base_port),
+                firmware=self.firmware, home=home,
+                gcs_address=("127.0.0.1", self.gcs_port), bind_host=self.bind_host,
+                speedup=self.speedup, limits=self.limits, warmup_s=self.warmup_s,
+                no_space_s=self.no_space_s, auto_disarm_s=self.auto_disarm_s,
+                camera=self.camera, auto_options=self.auto_options, drop_pct=self.drop_pct,
+                faults=replace(self.faults.get(sysid, FaultPlan())),
+                track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
+                seed=self.seed, signing_key=self.signing_key))
+        return configs
+
+
+class SimFleet:
+    def __init__(self, config: FleetConfig):
+        self.config = config
+        self.vehicles = [SimVehicle(c) for c in config.vehicle_configs()]
+        self._threads = []
+
+    def start(self) -> "SimFleet":
+        """Bind every endpoint (OSError if one is taken: nothing is left open), then run."""
+        opened = []
+        try:
+            for v in self.vehicles:
+                v.open()
+                opened.append(v)
+        except OSError:
+            for v in opened:
+                v.link.close()
+            raise
+        for v in self.vehicles:
+            thread = threading.Thread(target=v.run, name=f"sim-vehicle-{v.sysid}", daemon=True)
+            thread.start()
+            self._threads.append(thread)
+        return self
+
+    def stop(self) -> None:
+        for v in self.vehicles:
+            v.stop()
+        for thread in self._threads:
+            thread.join(timeout=5)
+        self._threads = []
+
+    def __enter__(self) -> "SimFleet":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.stop()
+
+    def vehicle(self, sysid: int) -> SimVehicle:
+        if not 1 <= sysid <= len(self.vehicles):
+            raise ValueError(f"no simulated vehicle with system id {sysid}")
+        return self.vehicles[sysid - 1]
+
+    def urls(self) -> list:
+        """Ground-station URLs: one per vehicle (ArduPilot), one shared port (PX4)."""
+        c = self.config
+        if c.firmware == "px4":
+            return [vehicle_url("px4", 0, c.base_port, c.gcs_port)]
+        return [vehicle_url("ardupilot", i, c.base_port) for i in range(c.vehicles)]
+
+    def kill(self, sysid: int) -> None:
+        """Shoot vehicle `sysid` down now: no more output, its sockets closed."""
+        v = self.vehicle(sysid)
+        v.request_kill()
+        thread = self._threads[sysid - 1] if self._threads else None
+        if thread is not None:
+            thread.join(timeout=5)
+
+    def cut_link(self, sysid: int, seconds: float) -> None:
+        """Nothing in or out for `seconds` of wall time; the vehicle flies on."""
+        self.vehicle(sysid).link_faults.cut(time.monotonic(), seconds)
+
+    def set_drop(self, pct: float, sysid: int | None = None) -> None:
+        """Drop `pct` % of packets in both directions (all vehicles, or one)."""
+        for v in self.vehicles if sysid is None else [self.vehicle(sysid)]:
+            v.link_faults.drop_pct = float(pct)
+
+    def refuse_arm(self, sysid: int, refuse: bool = True) -> None:
+        self.vehicle(sysid).plan.refuse_arm = refuse
+
+    def alive(self) -> list:
+        """System ids of the vehicles still running."""
+        return [v.sysid for v in self.vehicles if not v.dead]

@@ -1,0 +1,224 @@
+"""The vehicle side of the MAVLink mission protocol (mavlink.io/en/services/mission.html).
+
+Upload: MISSION_COUNT -> item requests (re-sent after 1.5 s, up to 5 times) ->
+MISSION_ACK. Download: MISSION_REQUEST_LIST -> MISSION_COUNT -> the items asked
+for. ArduPilot quirks, when its flavour says so: items are requested with the
+legacy MISSION_REQUEST, an upload in the first second after boot is refused with
+MAV_MISSION_NO_SPACE, item 0 is home and always reads back as the real home, and
+items are written into the live mission as they arrive (uploads are not atomic).
+PX4 requests with MISSION_REQUEST_INT and swaps the mission in when complete.
+"""
+
+from dataclasses import dataclass, replace
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
+SUPPORTED_FRAMES = GLOBAL_FRAMES | {2}            # plus MAV_FRAME_MISSION
+MAX_ITEMS = 700
+RETRY_S = 1.5
+RETRIES = 5
+
+
+@dataclass(frozen=True)
+class MissionItem:
+    seq: int
+    frame: int
+    command: int
+    param1: float = 0.0
+    param2: float = 0.0
+    param3: float = 0.0
+    param4: float = 0.0
+    x: int = 0                 # degrees * 1e7 in global frames, else the integer param5
+    y: int = 0
+    z: float = 0.0
+    autocontinue: int = 1
+
+    @property
+    def is_nav(self) -> bool:
+        return self.command < mavlink.MAV_CMD_NAV_LAST
+
+    @property
+    def param5(self) -> float:
+        return self.x * 1e-7 if self.frame in GLOBAL_FRAMES else float(self.x)
+
+    @property
+    def lat(self) -> float:
+        return self.x * 1e-7
+
+    @property
+    def lon(self) -> float:
+        return self.y * 1e-7
+
+    @classmethod
+    def from_msg(cls, msg) -> "MissionItem":
+        x, y = msg.x, msg.y
+        if msg.get_type() == "MISSION_ITEM":        # float lat/lon in degrees
+            scale = 1e7 if msg.frame in GLOBAL_FRAMES else 1.0
+            x, y = int(round(x * scale)), int(round(y * scale))
+        return cls(msg.seq, msg.frame, msg.command, msg.param1, msg.param2, msg.param3,
+                   msg.param4, x, y, msg.z, msg.autocontinue)
+
+    def encode(self, mav, target: tuple, legacy: bool, current: bool):
+        args = (target[0], target[1], self.seq, self.frame, self.command, int(current),
+                self.autocontinue, self.param1, self.param2, self.param3, self.param4)
+        if legacy:
+            scale = 1e-7 if self.frame in GLOBAL_FRAMES else 1.0
+            return mav.mission_item_encode(*args, self.x * scale, self.y * scale, self.z)
+        return mav.mission_item_int_encode(*args, self.x, self.y, self.z)
+
+
+class MissionServer:
+    """Holds the mission of one vehicle and answers the protocol.
+
+    `send(msg)` transmits, `say(severity, text)` sends a STATUSTEXT, `home()` gives
+    (lat, lon, alt) for ArduPilot's item 0, `current()` the current index, and
+    `changed(kind)` tells the vehicle that the mission was replaced or cleared.
+    """
+
+    def __init__(self, flavour, mav, send, say, home, current, changed, boot_time: float,
+                 no_space_s: float = 1.0):
+        self.flavour = flavour
+        self._mav, self._send, self._say = mav, send, say
+        self._home, self._current, self._changed = home, current, changed
+        self._boot, self._no_space_s = boot_time, no_space_s
+        self.items = [self._home_item()] if flavour.home_item else []
+        self._up = None            # upload in progress
+        self._done = None          # (partner, count) of the last finished upload, to re-ACK
+
+    # -- dispatch ---------------------------------------------------------------------
+    def handle(self, msg, now: float) -> bool:
+        kind = msg.get_type()
+        partner = (msg.get_srcSystem(), msg.get_srcComponent())
+        handler = {
+            "MISSION_COUNT": self._on_count,
+            "MISSION_ITEM": self._on_item, "MISSION_ITEM_INT": self._on_item,
+            "MISSION_REQUEST_LIST": self._on_request_list,
+            "MISSION_REQUEST": self._on_request, "MISSION_REQUEST_INT": self._on_request,
+            "MISSION_CLEAR_ALL": self._on_clear,
+            "MISSION_ACK": lambda *a: None,
+        }.get(kind)
+        if handler is None:
+            return False
+        handler(msg, partner, now)
+        return True
+
+    def tick(self, now: float) -> None:
+        up = self._up
+        if up is None or now - up["asked"] < RETRY_S:
+            return
+        if up["tries"] >= RETRIES:
+            self._up = None
+            self._ack(up["partner"], mavlink.MAV_MISSION_OPERATION_CANCELLED)
+            return
+        up["tries"] += 1
+        self._request(now)
+
+    # -- upload -----------------------------------------------------------------------
+    def _on_count(self, msg, partner, now) -> None:
+        if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
+            result = (mavlink.MAV_MISSION_ACCEPTED if msg.count == 0
+                      else mavlink.MAV_MISSION_UNSUPPORTED)
+            return self._ack(partner, result, msg.mission_type)
+        if self.flavour.home_item and now - self._boot < self._no_space_s:
+            self._say(mavlink.MAV_SEVERITY_WARNING, "Only 0 items are supported")
+            return self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
+        if msg.count > MAX_ITEMS:
+            return self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
+        self._done = None
+        if msg.count == 0:
+            self._up = None
+            self._replace([], "cleared")
+            return self._ack(partner, mavlink.MAV_MISSION_ACCEPTED)
+        self._up = {"partner": partner, "count": msg.count, "next": 0, "tries": 0,
+                    "asked": now, "items": []}
+        self._request(now)
+
+    def _on_item(self, msg, partner, now) -> None:
+        if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
+            return
+        up = self._up
+        if up is None:
+            if self._done == (partner, msg.seq + 1):    # our ACK was lost: say it again
+                self._ack(partner, mavlink.MAV_MISSION_ACCEPTED)
+            return
+        if partner != up["partner"]:
+            return self._ack(partner, mavlink.MAV_MISSION_DENIED)
+        if msg.seq != up["next"]:
+            return self._request(now)                   # out of order: ask again
+        if msg.frame not in SUPPORTED_FRAMES:
+            self._up = None
+            return self._ack(partner, mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
+        item = MissionItem.from_msg(msg)
+        up["items"].append(item)
+        if self.flavour.home_item:                      # written into the live mission now
+            self._write_live(item)
+        up["next"] += 1
+        up["tries"] = 0
+        if up["next"] < up["count"]:
+            return self._request(now)
+        self._up = None
+        self._done = (partner, up["count"])
+        self._replace(up["items"], "uploaded")
+        self._ack(partner, mavlink.MAV_MISSION_ACCEPTED)
+        if self.flavour.home_item:
+            self._say(mavlink.MAV_SEVERITY_INFO, "Flight plan received")
+
+    def _write_live(self, item) -> None:
+        if item.seq == 0:
+            return                                      # home stays the real home
+        while len(self.items) <= item.seq:
+            self.items.append(None)
+        self.items[item.seq] = item
+
+    def _replace(self, items, kind) -> None:
+        items = list(items)
+        if self.flavour.home_item:
+            items = [self._home_item()] + items[1:]
+        self.items = items
+        self._changed(kind)
+
+    def _request(self, now) -> None:
+        up = self._up
+        up["asked"] = now
+        target = up["partner"]
+        if self.flavour.legacy_request:
+            self._send(self._mav.mission_request_encode(*target, up["next"]))
+        else:
+            self._send(self._mav.mission_request_int_encode(*target, up["next"]))
+
+    # -- download and clear -----------------------------------------------------------
+    def _on_request_list(self, msg, partner, now) -> None:
+        count = len(self.items) if msg.mission_type == mavlink.MAV_MISSION_TYPE_MISSION else 0
+        self._send(self._mav.mission_count_encode(*partner, count, msg.mission_type))
+
+    def _on_request(self, msg, partner, now) -> None:
+        if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
+            return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE, msg.mission_type)
+        if not 0 <= msg.seq < len(self.items) or self.items[msg.seq] is None:
+            return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE)
+        item = self._home_item() if (self.flavour.home_item and msg.seq == 0) \
+            else self.items[msg.seq]
+        legacy = msg.get_type() == "MISSION_REQUEST"
+        self._send(item.encode(self._mav, partner, legacy, msg.seq == self._current()))
+
+    def _on_clear(self, msg, partner, now) -> None:
+        if msg.mission_type == mavlink.MAV_MISSION_TYPE_MISSION:
+            self._up = None
+            self._replace([], "cleared")
+        self._ack(partner, mavlink.MAV_MISSION_ACCEPTED, msg.mission_type)
+
+    def _ack(self, partner, result, mission_type=mavlink.MAV_MISSION_TYPE_MISSION) -> None:
+        self._send(self._mav.mission_ack_encode(*partner, result, mission_type))
+
+    def _home_item(self) -> MissionItem:
+        lat, lon, alt = self._home()
+        return MissionItem(0, mavlink.MAV_FRAME_GLOBAL, mavlink.MAV_CMD_NAV_WAYPOINT,
+                           x=int(round(lat * 1e7)), y=int(round(lon * 1e7)), z=float(alt))
+
+    def item(self, seq: int):
+        """The live item at `seq` (None past the end or not yet written)."""
+        if 0 <= seq < len(self.items):
+            it = self.items[seq]
+            return replace(it, seq=seq) if it is not None else None
+        return None

@@ -1,0 +1,92 @@
+"""The true track of a simulated vehicle, written where tests can judge the flight.
+
+File ``vehicle_<sysid>.json`` in the track directory, rewritten atomically every
+couple of wall seconds and when the vehicle stops or is killed::
+
+    {"format": "gcs-sim-track/1", "sysid": 1, "firmware": "ardupilot",
+     "home": [lat, lon, alt_amsl],
+     "columns": ["t", "lat", "lon", "alt"],
+     "samples": [[t, lat, lon, alt], ...],         # mission time s since boot, degrees, m AMSL
+     "snapshots": [{"t", "lat", "lon", "alt", "seq"}],   # seq: mission item, or null for a command
+     "events": [{"t", "event"}],      # boot, armed, takeoff, reached N, landed, killed: ...
+     "killed_at": t or null, "complete": bool}     # complete: the file was closed on purpose
+
+Samples are taken every 0.1 s of mission time (10 Hz; never more than 0.15 s
+apart) and at boot, touchdown and kill.
+"""
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from planner.fileio import write_text_atomic
+
+FORMAT = "gcs-sim-track/1"
+SAMPLE_PERIOD_S = 0.1
+
+
+def track_path(track_dir, sysid: int) -> Path:
+    return Path(track_dir) / f"vehicle_{sysid}.json"
+
+
+class TrackRecorder:
+    def __init__(self, path, sysid: int, firmware: str, home: tuple):
+        self.path = Path(path) if path is not None else None
+        self._head = {"format": FORMAT, "sysid": sysid, "firmware": firmware,
+                      "home": list(home), "columns": ["t", "lat", "lon", "alt"]}
+        self.samples, self.snapshots, self.events = [], [], []
+        self.killed_at = None
+        self._next_sample = 0.0
+        self._dirty = True
+
+    def sample(self, t: float, lat: float, lon: float, alt: float, force=False) -> None:
+        if t + 1e-9 < self._next_sample and not force:
+            return
+        while self._next_sample <= t + 1e-9:      # stay on the grid: no drift, no gaps
+            self._next_sample += SAMPLE_PERIOD_S
+        self.samples.append([round(t, 3), round(lat, 9), round(lon, 9), round(alt, 3)])
+        self._dirty = True
+
+    def snapshot(self, t, lat, lon, alt, seq=None) -> None:
+        self.snapshots.append({"t": round(t, 3), "lat": round(lat, 9), "lon": round(lon, 9),
+                               "alt": round(alt, 3), "seq": seq})
+        self._dirty = True
+
+    def event(self, t: float, text: str) -> None:
+        self.events.append({"t": round(t, 3), "event": text})
+        self._dirty = True
+
+    def flush(self, complete=False) -> None:
+        if self.path is None or not (self._dirty or complete):
+            return
+        doc = dict(self._head, samples=self.samples, snapshots=self.snapshots,
+                   events=self.events, killed_at=self.killed_at, complete=complete)
+        write_text_atomic(self.path, json.dumps(doc, separators=(",", ":")))
+        self._dirty = False
+
+
+@dataclass
+class Track:
+    sysid: int
+    firmware: str
+    home: tuple
+    t: np.ndarray          # s of mission time
+    lat: np.ndarray
+    lon: np.ndarray
+    alt: np.ndarray        # m AMSL
+    snapshots: list
+    events: list
+    killed_at: float | None
+    complete: bool
+
+
+def read_track(path) -> Track:
+    doc = json.loads(Path(path).read_text(encoding="utf-8"))
+    if doc.get("format") != FORMAT:
+        raise ValueError(f"{path}: not a {FORMAT} track file")
+    rows = np.asarray(doc["samples"], dtype=float).reshape(-1, 4)
+    return Track(doc["sysid"], doc["firmware"], tuple(doc["home"]), rows[:, 0], rows[:, 1],
+                 rows[:, 2], rows[:, 3], doc["snapshots"], doc["events"], doc["killed_at"],
+                 doc["complete"])

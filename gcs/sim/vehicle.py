@@ -1,0 +1,787 @@
+"""One simulated multicopter: its state machine and command handling.
+
+The vehicle runs in its own thread (`run`). Two clocks: telemetry rates, the
+GPS/EKF warm-up, the no-upload second after boot and link cuts run on the wall
+clock, so a ground station's timeouts behave as in the field; flight physics,
+mission hold times and the track run on mission time, which advances `speedup`
+times faster.
+"""
+
+import math
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from gcs.sim import flavours as fl
+from gcs.sim import telemetry
+from gcs.sim.faults import FaultPlan, LinkFaults
+from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
+from gcs.sim.physics import Limits, LocalFrame, PointMass
+from gcs.sim.track import TrackRecorder
+from gcs.sim.transport import ARDUPILOT_BANNER, TcpServerLink, UdpLink
+
+M = mavlink
+TICK_S = 0.02            # wall period of the vehicle loop
+PHYSICS_STEP_S = 0.05    # largest mission-time step of the point mass
+FLUSH_S = 2.0            # wall period of track file writes
+FORCE_DISARM = 21196
+LAND_SLOW_AGL_M = 10.0
+LAND_SLOW_MPS = 1.0
+TAKEOFF_TOLERANCE_M = 0.5
+
+_WAYPOINT_LIKE = (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_UNLIM,
+                  M.MAV_CMD_NAV_LOITER_TURNS, M.MAV_CMD_NAV_LOITER_TIME,
+                  M.MAV_CMD_NAV_SPLINE_WAYPOINT, M.MAV_CMD_NAV_LOITER_TO_ALT)
+
+
+@dataclass
+class VehicleConfig:
+    sysid: int
+    port: int                                  # TCP listen (ArduPilot) or UDP bind (PX4)
+    firmware: str = "ardupilot"
+    home: tuple = (-35.363261, 149.165230, 584.0)   # lat, lon deg; ground alt m AMSL
+    gcs_address: tuple = ("127.0.0.1", 14550)  # PX4: where telemetry goes
+    bind_host: str = "127.0.0.1"
+    speedup: float = 1.0
+    limits: Limits = field(default_factory=Limits)
+    warmup_s: float = 2.0                      # wall s until GPS/EKF are ready to arm
+    no_space_s: float = 1.0                    # wall s after boot refusing uploads (ArduPilot)
+    auto_disarm_s: float = 10.0                # mission s armed on the ground idle; 0 = never
+    camera: bool = True                        # a camera is configured: feedback messages
+    auto_options: int = 0                      # ArduPilot AUTO_OPTIONS (bit 0: arm in AUTO)
+    wp_radius_m: float = 2.0
+    rtl_alt_m: float = 15.0                    # above home
+    drop_pct: float = 0.0
+    faults: FaultPlan = field(default_factory=FaultPlan)
+    track_path: Path | None = None
+    seed: int = 0
+    signing_key: bytes | None = None           # sign what we send, require signed input
+
+
+class _LinkWriter:
+    """File-like sink for pymavlink: every packet passes the fault filter first."""
+
+    def __init__(self, vehicle):
+        self._v = vehicle
+
+    def write(self, buf: bytes) -> None:
+        v = self._v
+        if v.link is not None and not v.dead and v.link_faults.passes(time.monotonic()):
+            v.link.send(bytes(buf))
+
+
+class SimVehicle:
+    def __init__(self, cfg: VehicleConfig):
+        self.cfg = cfg
+        self.flavour = fl.FLAVOURS[cfg.firmware]
+        self.sysid = cfg.sysid
+        self.mav = M.MAVLink(_LinkWriter(self), srcSystem=cfg.sysid,
+                             srcComponent=M.MAV_COMP_ID_AUTOPILOT1)
+        self.mav.robust_parsing = True
+        if cfg.signing_key is not None:
+            self.mav.signing.secret_key = cfg.signing_key
+            self.mav.signing.link_id = 0
+            self.mav.signing.sign_outgoing = True
+        lat, lon, alt = cfg.home
+        self.frame = LocalFrame(lat, lon)
+        self.ground = float(alt)               # flat ground at the home altitude, as SITL
+        self.home = (0.0, 0.0, self.ground)    # local x, y, alt
+        self.body = PointMass((0.0, 0.0, self.ground), cfg.limits)
+        self.link_faults = LinkFaults(cfg.drop_pct, seed=cfg.seed * 7919 + cfg.sysid)
+        self.plan = cfg.faults
+        self.params = dict(self.flavour.params, SYSID_THISMAV=float(cfg.sysid))
+        if "AUTO_OPTIONS" in self.params:
+            self.params["AUTO_OPTIONS"] = float(cfg.auto_options)
+        self.track = TrackRecorder(cfg.track_path, cfg.sysid, cfg.firmware, cfg.home)
+        self.link = None
+        self.mission = None
+        self.mode = self.flavour.initial_mode
+        self.armed = False
+        self.landed = True
+        self.current = 1 if self.flavour.home_item else 0
+        self.auto_started = False      # ArduPilot: MISSION_START received (auto_armed)
+        self.task = None               # what the vehicle is doing, see _update_task
+        self.t = 0.0                   # mission time since boot, s
+        self.dead = False
+        self.boot_wall = None
+        self._ready_announced = False
+        self._idle_since = None
+        self._cuts_done = set()
+        self._periods = dict(telemetry.STREAMS)
+        if self.flavour.name != "ardupilot":
+            for msgid in telemetry.ARDUPILOT_ONLY:
+                del self._periods[msgid]
+        self._due = {}
+        self._clients_seen = 0
+        self._images = 0
+        self.airborne_s = 0.0
+        self.heading = 0.0
+        self._last_dest = None         # destination of the last nav item reached
+        self._stop = threading.Event()
+        self._kill = threading.Event()
+        self._next_flush = 0.0
+        self._takeoff_alt = self.ground + 2.5     # PX4 AUTO.TAKEOFF target, m AMSL
+
+    # -- life cycle -------------------------------------------------------------------
+    def open(self) -> None:
+        """Bind the sockets (raises OSError if the port is taken) and boot."""
+        cfg = self.cfg
+        if self.flavour.name == "ardupilot":
+            self.link = TcpServerLink(cfg.port, cfg.bind_host, ARDUPILOT_BANNER)
+        else:
+            self.link = UdpLink(cfg.port, tuple(cfg.gcs_address), cfg.bind_host)
+        self.boot_wall = time.monotonic()
+        self.mission = MissionServer(self.flavour, self.mav, self._send, self._say,
+                                     self.home_geo, lambda: self.current,
+                                     self._mission_changed, self.boot_wall, cfg.no_space_s)
+        self.track.event(0.0, "boot")
+        self._sample(force=True)
+
+    def run(self) -> None:
+        """The vehicle loop; returns on stop() or kill."""
+        last = next_tick = time.monotonic()
+        try:
+            while not self._stop.is_set() and not self.dead:
+                if self._kill.is_set():
+                    self._die("killed on request")
+                    break
+                chunks = self.link.poll(max(0.0, next_tick - time.monotonic()))
+                now = time.monotonic()
+                for chunk in chunks:
+                    self._receive(chunk, now)
+                if now >= next_tick:
+                    self._advance(now - last, now)
+                    last = now
+                    next_tick = max(next_tick + TICK_S, now)
+        finally:
+            if not self.dead:
+                self.link.close()
+                self.track.flush(complete=True)
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def request_kill(self) -> None:
+        self._kill.set()
+
+    def _die(self, reason: str) -> None:
+        """Shot down: no more output, sockets closed at once (as a dead SITL's)."""
+        self.track.killed_at = round(self.t, 3)
+        self.track.event(self.t, f"killed: {reason}")
+        self._sample(force=True)
+        self.dead = True
+        self.link.close()
+        self.track.flush(complete=True)
+
+    # -- state seen from outside ------------------------------------------------------
+    def position(self) -> tuple:
+        """(lat, lon, alt AMSL) of the true position."""
+        x, y, z = self.body.pos
+        lat, lon = self.frame.to_geo(x, y)
+        return lat, lon, z
+
+    @property
+    def ready(self) -> bool:
+        return self.boot_wall is not None and \
+            time.monotonic() - self.boot_wall >= self.cfg.warmup_s
+
+    @property
+    def gps_fix(self) -> bool:
+        return self.boot_wall is not None and \
+            time.monotonic() - self.boot_wall >= self.cfg.warmup_s / 2
+
+    # -- time -------------------------------------------------------------------------
+    def _advance(self, wall_dt: float, now: float) -> None:
+        remaining = wall_dt * self.cfg.speedup
+        while remaining > 1e-9 and not self.dead:
+            dt = min(PHYSICS_STEP_S, remaining)
+            remaining -= dt
+            self.t += dt
+            self._physics(dt)
+            self._update_task()
+            self._scheduled_faults(now)
+            self._sample()
+        if self.dead:
+            return
+        self.mission.tick(now)
+        self._announce_ready()
+        self._stream(now)
+        if now >= self._next_flush:
+            self._next_flush = now + FLUSH_S
+            self.track.flush()
+
+    def _physics(self, dt: float) -> None:
+        if self.landed:
+            self.body.vel = [0.0, 0.0, 0.0]
+            return
+        kind = self.task["kind"] if self.task else None
+        descent = self.cfg.limits.descent_mps
+        if kind == "fall":
+            descent = 10.0
+        elif kind == "land" and self.body.pos[2] - self.ground < LAND_SLOW_AGL_M:
+            descent = min(descent, LAND_SLOW_MPS)
+        self.body.descent_mps = descent
+        self.body.step(dt)
+        self.airborne_s += dt
+        if math.hypot(self.body.vel[0], self.body.vel[1]) > 0.5:
+            self.heading = math.degrees(math.atan2(self.body.vel[0], self.body.vel[1])) % 360
+        if self.body.pos[2] <= self.ground:
+            self._touch_down()
+
+    def _sample(self, force=False) -> None:
+        lat, lon, alt = self.position()
+        self.track.sample(self.t, lat, lon, alt, force=force)
+
+    def _scheduled_faults(self, now: float) -> None:
+        plan = self.plan
+        if plan.kill_at_s is not None and self.t >= plan.kill_at_s:
+            return self._die(f"at {plan.kill_at_s:g} s")
+        for k, (start, seconds) in enumerate(plan.cuts):
+            if k not in self._cuts_done and self.t >= start:
+                self._cuts_done.add(k)
+                self.link_faults.cut(now, seconds)
+                self.track.event(self.t, f"link cut for {seconds:g} s (wall)")
+
+    def _kill_at_item(self, seq: int) -> bool:
+        if self.plan.kill_at_item is not None and seq == self.plan.kill_at_item:
+            self._die(f"at item {seq}")
+        return self.dead
+
+    # -- receiving --------------------------------------------------------------------
+    def _receive(self, chunk: bytes, now: float) -> None:
+        try:
+            msgs = self.mav.parse_buffer(chunk) or []
+        except M.MAVError:
+            return
+        for msg in msgs:
+            if self.dead:
+                return
+            if msg.get_type() == "BAD_DATA" or not self.link_faults.passes(now):
+                continue
+            target = getattr(msg, "target_system", 0)
+            if target not in (0, self.sysid):
+                continue
+            self._dispatch(msg, now)
+
+    def _dispatch(self, msg, now: float) -> None:
+        kind = msg.get_type()
+        if self.mission.handle(msg, now):
+            return
+        if kind in ("COMMAND_LONG", "COMMAND_INT"):
+            self._on_command(msg)
+        elif kind == "SET_MODE":
+            result = self._set_mode_custom(msg.custom_mode)
+            self._ack(M.MAVLINK_MSG_ID_SET_MODE, result, msg)
+        elif kind == "MISSION_SET_CURRENT":
+            self._set_current(msg.seq)
+        elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
+            self._on_position_target(msg)
+        elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
+            self._on_param(msg)
+
+    # -- commands ---------------------------------------------------------------------
+    def _on_command(self, msg) -> None:
+        p = [msg.param1, msg.param2, msg.param3, msg.param4]
+        if msg.get_type() == "COMMAND_INT":
+            scale = 1e-7 if msg.frame in GLOBAL_FRAMES else 1.0
+            p += [msg.x * scale, msg.y * scale, msg.z]
+            frame = msg.frame
+        else:
+            p += [msg.param5, msg.param6, msg.param7]
+            frame = None
+        handler = self._COMMANDS.get(msg.command)
+        result = M.MAV_RESULT_UNSUPPORTED if handler is None else handler(self, p, frame)
+        self._ack(msg.command, result, msg)
+
+    def _ack(self, command: int, result: int, msg) -> None:
+        self._send(self.mav.command_ack_encode(command, result, 0, 0, msg.get_srcSystem(),
+                                               msg.get_srcComponent()))
+
+    def _cmd_set_mode(self, p, frame) -> int:
+        name = self.flavour.mode_from_command(p[1], p[2])
+        return M.MAV_RESULT_FAILED if name is None else self._set_mode(name)
+
+    def _set_mode_custom(self, custom_mode: int) -> int:
+        name = self.flavour.mode_named(custom_mode)
+        return M.MAV_RESULT_FAILED if name is None else self._set_mode(name)
+
+    def _cmd_arm(self, p, frame) -> int:
+        if p[0] >= 0.5:
+            return self._arm()
+        return self._disarm(force=int(round(p[1])) == FORCE_DISARM)
+
+    def _cmd_takeoff(self, p, frame) -> int:
+        if self.flavour.name == "ardupilot":
+            # GUIDED, armed and on the ground; altitude relative to home.
+            if not (self.armed and self.landed and self.behaviour() == fl.GUIDED):
+                return M.MAV_RESULT_FAILED
+            self._start_takeoff(self.ground + p[6])
+            return M.MAV_RESULT_ACCEPTED
+        alt = p[6] if math.isfinite(p[6]) else self.ground + 2.5     # PX4: AMSL
+        self._takeoff_alt = alt
+        return self._set_mode("AUTO.TAKEOFF")
+
+    def _cmd_mission_start(self, p, frame) -> int:
+        auto = "AUTO" if self.flavour.name == "ardupilot" else "AUTO.MISSION"
+        if self.flavour.name == "ardupilot" and not self.armed:
+            return M.MAV_RESULT_FAILED
+        if p[0] > 0 and self.mission.item(int(p[0])) is not None:
+            self.current = int(p[0])
+        self.auto_started = True
+        result = self._set_mode(auto)
+        if result == M.MAV_RESULT_ACCEPTED and self.armed and self.task is None:
+            self._run_mission(self.current)
+        return result
+
+    def _cmd_set_current(self, p, frame) -> int:
+        return M.MAV_RESULT_ACCEPTED if self._set_current(int(p[0])) else M.MAV_RESULT_DENIED
+
+    def _cmd_message_interval(self, p, frame) -> int:
+        msgid, interval_us = int(p[0]), p[1]
+        if interval_us < 0:
+            self._periods.pop(msgid, None)
+        elif interval_us == 0:
+            if msgid in telemetry.STREAMS:
+                self._periods[msgid] = telemetry.STREAMS[msgid]
+        else:
+            self._periods[msgid] = interval_us * 1e-6
+        self._due.pop(msgid, None)
+        return M.MAV_RESULT_ACCEPTED
+
+    def _cmd_request_message(self, p, frame) -> int:
+        return self._send_by_id(int(p[0]))
+
+    def _cmd_home(self, p, frame) -> int:
+        return self._send_by_id(M.MAVLINK_MSG_ID_HOME_POSITION)
+
+    def _cmd_version(self, p, frame) -> int:
+        return self._send_by_id(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
+
+    def _cmd_reposition(self, p, frame) -> int:
+        ap = self.flavour.name == "ardupilot"
+        if ap and frame is None:
+            return M.MAV_RESULT_UNSUPPORTED        # ArduPilot takes it as COMMAND_INT only
+        if not self.armed or self.landed:
+            return self.flavour.deny_result
+        if ap and self.behaviour() != fl.GUIDED:
+            if not int(p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE:
+                return M.MAV_RESULT_FAILED
+            self._set_mode("GUIDED")
+        elif not ap:
+            self._set_mode("AUTO.LOITER")
+        x, y, z = self.body.pos
+        if math.isfinite(p[4]) and math.isfinite(p[5]) and (p[4], p[5]) != (0.0, 0.0):
+            x, y = self.frame.to_local(p[4], p[5])
+        if math.isfinite(p[6]):
+            z = self._alt(p[6], frame if frame is not None else M.MAV_FRAME_GLOBAL)
+        if p[0] > 0:
+            self.body.speed_mps = p[0]
+        self._go_to((x, y, z))
+        return M.MAV_RESULT_ACCEPTED
+
+    def _cmd_image_capture(self, p, frame) -> int:
+        self._snapshot(None)
+        return M.MAV_RESULT_ACCEPTED
+
+    def _cmd_digicam(self, p, frame) -> int:
+        if p[4] == 1:                        # param5: shoot
+            self._snapshot(None)
+        return M.MAV_RESULT_ACCEPTED
+
+    def _cmd_trigger_distance(self, p, frame) -> int:
+        if p[2] == 1:                        # param3: trigger once now
+            self._snapshot(None)
+        return M.MAV_RESULT_ACCEPTED
+
+    def _cmd_land(self, p, frame) -> int:
+        return self._set_mode("LAND" if self.flavour.name == "ardupilot" else "AUTO.LAND")
+
+    def _cmd_rtl(self, p, frame) -> int:
+        return self._set_mode("RTL" if self.flavour.name == "ardupilot" else "AUTO.RTL")
+
+    def _cmd_change_speed(self, p, frame) -> int:
+        if p[1] > 0:
+            self.body.speed_mps = p[1]
+        return M.MAV_RESULT_ACCEPTED
+
+    _COMMANDS = {
+        M.MAV_CMD_DO_SET_MODE: _cmd_set_mode,
+        M.MAV_CMD_COMPONENT_ARM_DISARM: _cmd_arm,
+        M.MAV_CMD_NAV_TAKEOFF: _cmd_takeoff,
+        M.MAV_CMD_MISSION_START: _cmd_mission_start,
+        M.MAV_CMD_DO_SET_MISSION_CURRENT: _cmd_set_current,
+        M.MAV_CMD_SET_MESSAGE_INTERVAL: _cmd_message_interval,
+        M.MAV_CMD_REQUEST_MESSAGE: _cmd_request_message,
+        M.MAV_CMD_GET_HOME_POSITION: _cmd_home,
+        M.MAV_CMD_REQUEST_AUTOPILOT_CAPABILITIES: _cmd_version,
+        M.MAV_CMD_DO_REPOSITION: _cmd_reposition,
+        M.MAV_CMD_IMAGE_START_CAPTURE: _cmd_image_capture,
+        M.MAV_CMD_DO_DIGICAM_CONTROL: _cmd_digicam,
+        M.MAV_CMD_DO_SET_CAM_TRIGG_DIST: _cmd_trigger_distance,
+        M.MAV_CMD_NAV_LAND: _cmd_land,
+        M.MAV_CMD_NAV_RETURN_TO_LAUNCH: _cmd_rtl,
+        M.MAV_CMD_DO_CHANGE_SPEED: _cmd_change_speed,
+    }
+
+    def _on_position_target(self, msg) -> None:
+        """SET_POSITION_TARGET_GLOBAL_INT: a position in GUIDED (ArduPilot)."""
+        if msg.type_mask & 0b111 or self.behaviour() != fl.GUIDED or self.landed:
+            return
+        x, y = self.frame.to_local(msg.lat_int * 1e-7, msg.lon_int * 1e-7)
+        self._go_to((x, y, self._alt(msg.alt, msg.coordinate_frame)))
+
+    def _on_param(self, msg) -> None:
+        names = list(self.params)
+        kind = msg.get_type()
+        if kind == "PARAM_SET" and msg.param_id in self.params:
+            self.params[msg.param_id] = float(msg.param_value)
+        if kind == "PARAM_REQUEST_LIST":
+            wanted = names
+        elif kind == "PARAM_REQUEST_READ" and msg.param_index >= 0:
+            wanted = names[msg.param_index:msg.param_index + 1]
+        else:
+            wanted = [msg.param_id] if msg.param_id in self.params else []
+        for name in wanted:
+            self._send(self.mav.param_value_encode(
+                name.encode(), self.params[name], M.MAV_PARAM_TYPE_REAL32, len(names),
+                names.index(name)))
+
+    # -- modes, arming ----------------------------------------------------------------
+    def behaviour(self) -> str:
+        return self.flavour.behaviour[self.mode]
+
+    def _set_mode(self, name: str) -> int:
+        self.mode = name
+        self._last_dest = None     # a resumed leg starts where the vehicle is, as AC_WPNav
+        behaviour = self.behaviour()
+        if behaviour != fl.AUTO:
+            self.auto_started = False
+        flying = self.armed and not self.landed      # a falling vehicle obeys nothing
+        if behaviour in (fl.MANUAL, fl.GUIDED):
+            if flying:
+                self._go_to(self.body.pos)
+        elif behaviour == fl.AUTO:
+            if flying or (self.armed and self.flavour.arm_in_auto_starts):
+                self._run_mission(self.current)
+        elif behaviour == fl.LAND:
+            if flying:
+                self._start_land(None, None)
+        elif behaviour == fl.RTL:
+            if flying:
+                self._start_rtl(None)
+        elif behaviour == fl.TAKEOFF:
+            if self.armed:
+                self._start_takeoff(self._takeoff_alt)
+        return M.MAV_RESULT_ACCEPTED
+
+    def _arm(self) -> int:
+        if self.armed:
+            return M.MAV_RESULT_ACCEPTED
+        ap = self.flavour.name == "ardupilot"
+        problem = None
+        if self.plan.refuse_arm:
+            problem = "PreArm: Simulated arming failure" if ap else \
+                "Preflight Fail: simulated arming failure"
+        elif not self.gps_fix:
+            problem = "PreArm: GPS 1: Bad fix" if ap else "Preflight Fail: GPS fix too low"
+        elif not self.ready:
+            problem = "PreArm: EKF3 still initialising" if ap else \
+                "Preflight Fail: ekf2 missing data"
+        elif not self._mode_armable():
+            problem = "Arm: Mode not armable" if ap else \
+                "Arming denied: not possible in this flight mode"
+        if problem is not None:
+            self._say(M.MAV_SEVERITY_CRITICAL, problem)
+            return self.flavour.deny_result
+        self.armed = True
+        self._idle_since = self.t
+        x, y, z = self.body.pos                 # home is where the vehicle arms
+        self.home = (x, y, self.ground)
+        self.track.event(self.t, "armed")
+        if self.behaviour() == fl.AUTO and self.flavour.arm_in_auto_starts:
+            self._run_mission(self.current)
+        elif self.behaviour() == fl.TAKEOFF:
+            self._start_takeoff(self._takeoff_alt)
+        return M.MAV_RESULT_ACCEPTED
+
+    def _mode_armable(self) -> bool:
+        if self.mode in self.flavour.armable:
+            return True
+        return self.mode == "AUTO" and int(self.params.get("AUTO_OPTIONS", 0)) & 1 == 1
+
+    def _disarm(self, force: bool, reason="disarmed") -> int:
+        if not self.armed:
+            return M.MAV_RESULT_ACCEPTED
+        if not self.landed and not force:
+            return self.flavour.deny_result
+        self.armed = False
+        self.auto_started = False
+        self.track.event(self.t, reason)
+        if not self.landed:
+            self.task = {"kind": "fall"}
+            self.body.go_to((self.body.pos[0], self.body.pos[1], self.ground - 100.0))
+        else:
+            self.task = None
+        return M.MAV_RESULT_ACCEPTED
+
+    # -- tasks: what the vehicle is doing ---------------------------------------------
+    def _go_to(self, dest, origin=None) -> None:
+        self.task = {"kind": "goto"}
+        self.body.go_to(dest, origin)
+
+    def _start_takeoff(self, alt: float, seq=None) -> None:
+        x, y, z = self.body.pos
+        if self.landed:
+            self.landed = False
+            self.track.event(self.t, "takeoff")
+        self.task = {"kind": "takeoff", "alt": alt, "seq": seq}
+        self.body.go_to((x, y, max(alt, z)))
+
+    def _start_land(self, latlon, seq) -> None:
+        self.task = {"kind": "land", "seq": seq, "phase": "approach"}
+        x, y, z = self.body.pos
+        if latlon is not None:
+            x, y = self.frame.to_local(*latlon)
+        self.body.go_to((x, y, z))
+
+    def _start_rtl(self, seq) -> None:
+        self.task = {"kind": "rtl", "seq": seq, "phase": "climb"}
+        x, y, z = self.body.pos
+        self.body.go_to((x, y, max(z, self.home[2] + self.cfg.rtl_alt_m)))
+
+    def _update_task(self) -> None:
+        task = self.task
+        if task is None:
+            return self._idle_check()
+        kind = task["kind"]
+        if kind == "takeoff":
+            if abs(self.body.pos[2] - self.body.dest[2]) < TAKEOFF_TOLERANCE_M:
+                self._takeoff_done(task)
+        elif kind == "item":
+            self._update_item(task)
+        elif kind == "land" and task["phase"] == "approach":
+            if math.dist(self.body.pos[:2], self.body.dest[:2]) <= self.cfg.wp_radius_m:
+                task["phase"] = "descend"
+                x, y, z = self.body.pos
+                self.body.go_to((x, y, self.ground - 1.0))   # aim below: touch down firmly
+        elif kind == "rtl":
+            self._update_rtl(task)
+
+    def _takeoff_done(self, task) -> None:
+        if task["seq"] is not None:
+            self._last_dest = list(self.body.dest)
+            return self._item_complete(task["seq"])
+        x, y, z = self.body.pos
+        self._go_to((x, y, task["alt"]))
+        if self.behaviour() == fl.TAKEOFF:
+            self.mode = self.flavour.hold_mode
+
+    def _update_rtl(self, task) -> None:
+        if self.body.distance_to_dest() > self.cfg.wp_radius_m:
+            return
+        if task["phase"] == "climb":
+            task["phase"] = "return"
+            self.body.go_to((self.home[0], self.home[1], self.body.pos[2]))
+        elif task["phase"] == "return":
+            seq = task["seq"]
+            self._start_land(None, seq)
+
+    def _idle_check(self) -> None:
+        """Armed on the ground with nothing to do: disarm, as both autopilots do."""
+        if not (self.armed and self.landed) or self.cfg.auto_disarm_s <= 0:
+            self._idle_since = self.t
+            return
+        if self._idle_since is None:
+            self._idle_since = self.t
+        if self.t - self._idle_since >= self.cfg.auto_disarm_s:
+            self._say(M.MAV_SEVERITY_INFO, "Disarming motors due to inactivity")
+            self._disarm(force=False, reason="disarmed (inactivity)")
+
+    def _touch_down(self) -> None:
+        self.body.pos[2] = self.ground
+        self.body.vel = [0.0, 0.0, 0.0]
+        self.body.hold()
+        self.landed = True
+        task, self.task = self.task, None
+        self._sample(force=True)
+        self.track.event(self.t, "landed" if task and task["kind"] != "fall" else "crashed")
+        if self.armed:
+            self._disarm(force=True, reason="disarmed (landed)")
+        self._idle_since = self.t
+        if task and task.get("seq") is not None and not self._kill_at_item(task["seq"]):
+            self._report_reached(task["seq"])
+
+    # -- the mission ------------------------------------------------------------------
+    def _run_mission(self, seq: int) -> None:
+        """Execute from item `seq`: DO commands at once, up to the next nav item."""
+        if self.flavour.home_item:
+            seq = max(seq, 1)
+        while not self.dead:
+            item = self.mission.item(seq)
+            if item is None:
+                return self._mission_done(seq)
+            self._set_current(seq, run=False)
+            if item.is_nav:
+                return self._start_item(item)
+            if self._kill_at_item(seq):
+                return
+            self._do(item)
+            if self.flavour.reached_do_items:
+                self._report_reached(seq)
+            seq += 1
+
+    def _start_item(self, item) -> None:
+        cmd = item.command
+        x, y, z = self.body.pos
+        if (item.x, item.y) != (0, 0):
+            x, y = self.frame.to_local(item.lat, item.lon)
+        if cmd != M.MAV_CMD_NAV_LAND and cmd != M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            z = self._alt(item.z, item.frame)
+        if cmd == M.MAV_CMD_NAV_TAKEOFF:
+            return self._start_takeoff(z, seq=item.seq)
+        if cmd == M.MAV_CMD_NAV_LAND:
+            latlon = (item.lat, item.lon) if (item.x, item.y) != (0, 0) else None
+            return self._start_land(latlon, item.seq)
+        if cmd == M.MAV_CMD_NAV_RETURN_TO_LAUNCH:
+            return self._start_rtl(item.seq)
+        if cmd not in _WAYPOINT_LIKE:          # a nav command we do not fly: done at once
+            return self._item_complete(item.seq)
+        if self.landed:
+            self.landed = False
+            self.track.event(self.t, "takeoff")
+        hold = item.param1 if cmd in (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_TIME) \
+            else math.inf if cmd == M.MAV_CMD_NAV_LOITER_UNLIM else 0.0
+        origin = self._last_dest if self._last_dest is not None else self.body.pos
+        self.task = {"kind": "item", "seq": item.seq, "arrived": None, "hold": max(hold, 0.0)}
+        self.body.go_to((x, y, z), origin)
+
+    def _update_item(self, task) -> None:
+        if task["arrived"] is None:
+            if self.body.distance_to_dest() > self.cfg.wp_radius_m:
+                return
+            if self._kill_at_item(task["seq"]):
+                return
+            task["arrived"] = self.t
+        if self.t - task["arrived"] >= task["hold"]:
+            self._last_dest = list(self.body.dest)
+            self._item_complete(task["seq"], killed_checked=True)
+
+    def _item_complete(self, seq: int, killed_checked=False) -> None:
+        if not killed_checked and self._kill_at_item(seq):
+            return
+        self._report_reached(seq)
+        self._run_mission(seq + 1)
+
+    def _report_reached(self, seq: int) -> None:
+        self.track.event(self.t, f"reached {seq}")
+        if self.flavour.name == "ardupilot":
+            self._say(M.MAV_SEVERITY_INFO, f"Reached command #{seq}")
+        self._send(self.mav.mission_item_reached_encode(seq))
+
+    def _mission_done(self, seq: int) -> None:
+        self._last_dest = None
+        if not self.landed:
+            self.mode = self.flavour.hold_mode       # hold where the mission ended
+            self._go_to(self.body.pos)
+        else:
+            self.task = None
+        self.track.event(self.t, "mission complete")
+
+    def _do(self, item) -> None:
+        if item.command == M.MAV_CMD_DO_CHANGE_SPEED and item.param2 > 0:
+            self.body.speed_mps = item.param2
+        elif item.command == M.MAV_CMD_DO_DIGICAM_CONTROL and item.param5 == 1:
+            self._snapshot(item.seq)
+        elif item.command == M.MAV_CMD_IMAGE_START_CAPTURE:
+            self._snapshot(item.seq)
+        elif item.command == M.MAV_CMD_DO_SET_CAM_TRIGG_DIST and item.param3 == 1:
+            self._snapshot(item.seq)
+
+    def _set_current(self, seq: int, run=True) -> bool:
+        """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; in AUTO in the air, go there now."""
+        first = 1 if self.flavour.home_item else 0
+        if self.flavour.home_item and seq == 0:
+            seq = 1
+        if self.mission.item(seq) is None or seq < first:
+            return False
+        self.current = seq
+        self._send(telemetry.mission_current(self))
+        if run:
+            self._last_dest = None
+            if self.behaviour() == fl.AUTO and not self.landed and self.armed:
+                self._run_mission(seq)
+        return True
+
+    def _mission_changed(self, kind: str) -> None:
+        self.track.event(self.t, f"mission {kind}")
+        if not self.flavour.resume_old_index:
+            self.current = 0
+            if self.behaviour() == fl.AUTO and not self.landed:
+                self._last_dest = None
+                self._run_mission(0)
+
+    def _snapshot(self, seq) -> None:
+        lat, lon, alt = self.position()
+        self._images += 1
+        self.track.snapshot(self.t, lat, lon, alt, seq)
+        if not self.cfg.camera:
+            return
+        ms = int(self.t * 1000)
+        rel = alt - self.home[2]
+        if self.flavour.name == "ardupilot":
+            self._send(self.mav.camera_feedback_encode(
+                ms * 1000, self.sysid, 0, self._images, round(lat * 1e7), round(lon * 1e7),
+                alt, rel, 0.0, 0.0, self.heading, 0.0, M.CAMERA_FEEDBACK_PHOTO, self._images))
+        else:
+            self._send(self.mav.camera_image_captured_encode(
+                ms, 0, 0, round(lat * 1e7), round(lon * 1e7), round(alt * 1000), round(rel * 1000),
+                [1.0, 0.0, 0.0, 0.0], self._images - 1, 1, b""))
+
+    def _alt(self, z: float, frame: int) -> float:
+        """A command's altitude in metres AMSL (terrain frames: the flat simulated ground)."""
+        if frame in (M.MAV_FRAME_GLOBAL, M.MAV_FRAME_GLOBAL_INT):
+            return float(z)
+        if frame == M.MAV_FRAME_MISSION:
+            return self.body.pos[2]
+        return self.home[2] + float(z)
+
+    def home_geo(self) -> tuple:
+        lat, lon = self.frame.to_geo(self.home[0], self.home[1])
+        return lat, lon, self.home[2]
+
+    # -- sending ----------------------------------------------------------------------
+    def _send(self, msg) -> None:
+        if not self.dead:
+            self.mav.send(msg)
+
+    def _say(self, severity: int, text: str) -> None:
+        self._send(self.mav.statustext_encode(severity, text.encode()[:50]))
+
+    def _announce_ready(self) -> None:
+        if self._ready_announced or not self.ready:
+            return
+        self._ready_announced = True
+        self._say(M.MAV_SEVERITY_INFO, "EKF3 IMU0 is using GPS"
+                  if self.flavour.name == "ardupilot" else "Ready for takeoff!")
+        self._send_by_id(M.MAVLINK_MSG_ID_HOME_POSITION)
+
+    def _stream(self, now: float) -> None:
+        if self.link.accepted != self._clients_seen:      # greet a new TCP client now
+            self._clients_seen = self.link.accepted
+            self._due.clear()
+        for msgid, period in list(self._periods.items()):
+            if now >= self._due.get(msgid, 0.0):
+                self._due[msgid] = now + period
+                self._send_by_id(msgid)
+
+    def _send_by_id(self, msgid: int) -> int:
+        build = telemetry.BUILDERS.get(msgid)
+        if build is None:
+            return M.MAV_RESULT_DENIED
+        if msgid == M.MAVLINK_MSG_ID_HOME_POSITION and not self.ready:
+            return M.MAV_RESULT_DENIED          # home is set once the EKF has a position
+        self._send(build(self))
+        return M.MAV_RESULT_ACCEPTED
