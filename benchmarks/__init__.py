@@ -1,0 +1,1 @@
+"""Measured comparisons: ``python -m benchmarks`` runs every bench_*.py module."""
