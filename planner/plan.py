@@ -34,7 +34,7 @@ class Waypoint:
     lon: float
     lat: float
     alt_amsl: float
-    t_s: float  # planned time since the vehicle left its takeoff altitude
+    t_s: float  # planned time since the vehicle left the ground (takeoff climb included)
     snapshot: bool = False
 
 

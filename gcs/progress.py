@@ -1,0 +1,44 @@
+"""Progress display for long work: one rich progress bar per pipeline stage."""
+
+import contextlib
+import sys
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+console = Console(stderr=True)
+
+STAGE_TEXT = {
+    "terrain": "loading terrain",
+    "exposure": "exposure surface",
+    "viewpoints": "candidate viewpoints",
+    "visibility": "visibility sets",
+    "travel": "hidden travel times",
+    "allocation": "allocating viewpoints",
+    "routes": "hidden routes",
+    "write": "writing files",
+}
+
+
+@contextlib.contextmanager
+def stage_progress(enabled=None):
+    """Yield ``progress(stage, fraction)``; draws bars on a terminal, quiet lines otherwise."""
+    if enabled is None:
+        enabled = True
+    if not enabled:
+        yield lambda stage, fraction: None
+        return
+    bars = Progress(TextColumn("{task.description:<24}"), BarColumn(), TextColumn(
+        "{task.percentage:>3.0f}%"), TimeElapsedColumn(), console=console,
+        transient=False, disable=not console.is_terminal)
+    tasks = {}
+
+    def progress(stage, fraction):
+        if stage not in tasks:
+            tasks[stage] = bars.add_task(STAGE_TEXT.get(stage, stage), total=1.0)
+            if not console.is_terminal:
+                print(f"... {STAGE_TEXT.get(stage, stage)}", file=sys.stderr, flush=True)
+        bars.update(tasks[stage], completed=min(max(fraction, 0.0), 1.0))
+
+    with bars:
+        yield progress

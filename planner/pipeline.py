@@ -1,0 +1,342 @@
+"""The whole planning pipeline: Scenario -> PlanningContext -> Plan.
+
+``prepare`` runs the terrain-bound stages once (terrain, exposure, viewpoints,
+visibility, travel graph); ``allocate`` runs a coverage method from given
+start states and turns the allocation into hidden 3-D routes. Re-planning in
+flight calls ``allocate`` again on the same context with the survivors'
+positions and what they have already seen.
+"""
+
+import time
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from typing import Callable, Optional
+
+import numpy as np
+
+from . import coverage
+from .dem import load_dem, sample_terrain
+from .errors import InputError
+from .exposure import ExposureParams, compute_exposure
+from .outposts import load_outposts, sample_outposts
+from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
+from .scenario import Scenario
+from .travel import TravelParams, build_travel_graph, leg_time
+from .viewpoints import candidate_viewpoints, fleet_region, launch_cells
+from .visibility import SensorParams, compute_visibility
+
+#: progress(stage, fraction) — fraction in [0, 1], 1 when the stage is done
+Progress = Callable[[str, float], None]
+
+
+@dataclass
+class Start:
+    """Where a UAV's route begins: its launch point (on the ground) or a point in the air."""
+
+    xyz: np.ndarray  # projected x, y and altitude AMSL of the first route vertex
+    launch: Optional[np.ndarray] = None  # ground point (x, y, ground AMSL) it returns to
+    climb_s: float = 0.0  # vertical takeoff time before xyz, counted in the route's time
+
+
+@dataclass
+class PlanningContext:
+    scenario: Scenario
+    terrain: object
+    outposts: list
+    surface: object
+    regions: tuple
+    viewpoints: object
+    visibility: object
+    graph: object
+    travel: np.ndarray  # [n_vp, n_vp] hidden times between viewpoints, s
+    timing_s: dict = field(default_factory=dict)
+
+    @property
+    def travel_params(self) -> TravelParams:
+        s = self.scenario
+        return TravelParams(s.speed_mps, s.climb_mps, s.descent_mps)
+
+
+@contextmanager
+def _stage(name, timing, progress):
+    if progress:
+        progress(name, 0.0)
+    t0 = time.perf_counter()
+    yield
+    timing[name] = time.perf_counter() - t0
+    if progress:
+        progress(name, 1.0)
+
+
+def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
+            outposts=None) -> PlanningContext:
+    """Run the terrain-bound stages of ``scenario`` (``terrain`` and ``outposts``
+    given directly replace the scenario's files, e.g. for synthetic terrain)."""
+    s = scenario
+    timing = {}
+    with _stage("terrain", timing, progress):
+        if terrain is None:
+            terrain = (sample_terrain(resolution=s.resolution_m) if s.sample else
+                       load_dem(s.dem, area=s.area, resolution=s.resolution_m,
+                                geoid_offset=s.geoid_offset_m))
+        if outposts is None:
+            outposts = (load_outposts(s.outposts, terrain) if s.outposts
+                        else sample_outposts(terrain) if s.sample else [])
+    with _stage("exposure", timing, progress):
+        params = ExposureParams(ceiling_agl_m=s.ceiling_agl_m, clearance_m=s.clearance_m,
+                                hide_margin_m=s.hide_margin_m, curvature_coeff=s.curvature_coeff)
+        surface = compute_exposure(terrain, outposts, params,
+                                   progress=_fraction(progress, "exposure"))
+    launch_xy = _launch_xy(terrain, s)
+    with _stage("viewpoints", timing, progress):
+        regions = fleet_region(surface, launch_xy if launch_xy is not None else None)
+        viewpoints = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
+                                          s.sensor_range_m)
+    with _stage("visibility", timing, progress):
+        sensor = SensorParams(s.sensor_range_m, s.max_off_nadir_deg)
+        visibility = compute_visibility(surface, viewpoints, sensor)
+    with _stage("travel", timing, progress):
+        graph = build_travel_graph(surface, TravelParams(s.speed_mps, s.climb_mps,
+                                                         s.descent_mps))
+        travel = graph.time_matrix(viewpoints.xyz)
+    return PlanningContext(s, terrain, outposts, surface, regions, viewpoints, visibility,
+                           graph, travel, timing)
+
+
+def _fraction(progress, stage):
+    if progress is None:
+        return None
+    return lambda done, total: progress(stage, done / max(total, 1))
+
+
+def _launch_xy(terrain, s: Scenario):
+    if not s.launch_points:
+        return None
+    lat = np.array([p[0] for p in s.launch_points])
+    lon = np.array([p[1] for p in s.launch_points])
+    x, y = terrain.from_lonlat(lon, lat)
+    inside = terrain.contains_xy(x, y)
+    if not inside.all():
+        i = int(np.flatnonzero(~inside)[0])
+        raise InputError("--launch", f"launch point {lat[i]:.6f},{lon[i]:.6f} is outside the DEM")
+    return np.stack([x, y], axis=1)
+
+
+def launch_starts(ctx: PlanningContext) -> Optional[list]:
+    """Starts at the scenario's launch points: vertical takeoff to the hidden ceiling."""
+    xy = _launch_xy(ctx.terrain, ctx.scenario)
+    if xy is None:
+        return None
+    launch_cells(ctx.surface, xy)  # every launch point must be flyable hidden
+    starts = []
+    for x, y in xy:
+        ground = np.array([x, y, float(ctx.terrain.ground(x, y)[0])])
+        top = _above(ctx, ground)
+        climb = float(leg_time(0.0, top[2] - ground[2], ctx.travel_params))
+        starts.append(Start(top, ground, climb))
+    return starts
+
+
+@dataclass
+class Outcome:
+    """A plan and what it was made from (for writers, plots and re-planning)."""
+
+    plan: Plan
+    problem: coverage.CoverageProblem
+    allocation: coverage.Allocation
+    polylines: list  # per UAV: (n, 3) projected x, y, alt AMSL
+    counts: np.ndarray  # per target: distinct UAVs that see it
+
+
+def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibility="soft",
+                     seen=None, required=None) -> coverage.CoverageProblem:
+    """The combinatorial problem: visibility sets, viewpoint times, start/return times."""
+    vis = ctx.visibility
+    out = back = None
+    if starts:
+        vp = ctx.viewpoints.xyz
+        climb = np.array([s.climb_s for s in starts])[:, None]
+        out = ctx.graph.times_between(np.stack([s.xyz for s in starts]), vp) + climb
+        if all(s.launch is not None for s in starts):
+            tops = np.stack([_above(ctx, s.launch) for s in starts])
+            ground = np.array([s.launch[2] for s in starts])
+            land = leg_time(0.0, ground - tops[:, 2], ctx.travel_params)[:, None]
+            back = ctx.graph.times_between(vp, tops).T + land
+    return coverage.CoverageProblem(vis.indptr, vis.indices, vis.n_targets, ctx.travel, out,
+                                    back, n_uavs, k, visibility, required, seen)
+
+
+def _above(ctx, ground_xyz) -> np.ndarray:
+    """The takeoff (and landing approach) point above a launch point, at the hidden ceiling."""
+    row, col = ctx.terrain.rowcol(ground_xyz[0], ground_xyz[1])
+    top = float(ctx.surface.ceiling[int(np.rint(row)), int(np.rint(col))])
+    return np.array([ground_xyz[0], ground_xyz[1], top])
+
+
+def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
+             method=None, progress: Progress = None) -> Outcome:
+    """Run the scenario's coverage method from ``starts`` and build hidden routes."""
+    s = ctx.scenario
+    method = method or s.method
+    timing = dict(ctx.timing_s)
+    with _stage("allocation", timing, progress):
+        problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required)
+        params = coverage.CoverageParams(alpha=s.alpha, beta=s.beta,
+                                         step_time_cap=s.step_time_cap_s, seed=s.seed)
+        try:
+            allocation = coverage.solve(problem, method, params,
+                                        progress=(lambda f: progress("allocation", f))
+                                        if progress else None)
+        except ValueError as exc:
+            raise InputError("plan", str(exc)) from None
+    with _stage("routes", timing, progress):
+        polylines, arrivals = _routes(ctx, allocation.routes, starts)
+        counts = coverage.coverage_counts(problem, allocation)
+    plan = _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts,
+                      timing)
+    return Outcome(plan, problem, allocation, polylines, counts)
+
+
+def _routes(ctx, routes, starts):
+    """Hidden polylines through each route's viewpoints, and times at every vertex."""
+    polylines, arrivals = [], []
+    for r, route in enumerate(routes):
+        start = starts[r] if starts else None
+        points = [ctx.viewpoints.xyz[e] for e in route]
+        if start is not None:
+            points = [start.xyz] + points
+            if start.launch is not None:
+                points.append(_above(ctx, start.launch))
+        if not points:
+            polylines.append(np.zeros((0, 3)))
+            arrivals.append((np.zeros(0), np.zeros(0, np.int64)))
+            continue
+        found = ctx.graph.route_polyline(np.stack(points))
+        if found is None:
+            raise InputError("plan", f"UAV {r + 1}: no hidden path joins its viewpoints")
+        poly, stops = found
+        d = np.diff(poly, axis=0)
+        legs = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], ctx.travel_params)
+        t = np.r_[0.0, np.cumsum(legs)] + (start.climb_s if start is not None else 0.0)
+        snap = stops[1:len(route) + 1] if start is not None else stops[:len(route)]
+        polylines.append(poly)
+        arrivals.append((t, snap))
+    return polylines, arrivals
+
+
+def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
+    """When the last target is first seen by as many distinct UAVs as it needs."""
+    first = np.full((problem.n_uavs, problem.n_targets), np.inf)
+    if problem.seen is not None:
+        first[np.asarray(problem.seen, bool)] = 0.0
+    for r, route in enumerate(routes):
+        t, snap = arrivals[r]
+        for e, when in zip(route, t[snap]):
+            seen = problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]
+            first[r, seen] = np.minimum(first[r, seen], when)
+    first.sort(axis=0)
+    need = np.clip(counts_needed, 0, problem.n_uavs)
+    cols = np.flatnonzero(need > 0)
+    if cols.size == 0:
+        return 0.0
+    return float(first[need[cols] - 1, cols].max())
+
+
+def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing):
+    s = ctx.scenario
+    required = (np.asarray(problem.required) if problem.required is not None
+                else np.full(problem.n_targets, min(s.k + 1, problem.n_uavs)))
+    vehicles = []
+    for r, (poly, (t, snap)) in enumerate(zip(polylines, arrivals)):
+        vehicles.append(_vehicle(ctx, r, poly, t, snap, starts[r] if starts else None))
+    lengths = [v.path_length_m for v in vehicles]
+    metrics = {
+        "coverage_time_s": _coverage_time(problem, allocation.routes, arrivals, required),
+        "mission_time_s": max((v.mission_time_s for v in vehicles), default=0.0),
+        "sum_length_m": float(sum(lengths)),
+        "targets": int(problem.n_targets),
+        "covered": int((counts >= 1).sum()),
+        "k": int(s.k),
+        "k_covered": int((counts >= required).sum()),
+        "snapshots": int(allocation.n_snapshots),
+        "lower_bound_s": float(coverage.lower_bound(problem)),
+    }
+    metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
+                                       if metrics["lower_bound_s"] > 0 else None)
+    timing["total"] = float(sum(timing.values()))
+    return Plan(method=method, params=plan_params(s), crs=ctx.terrain.crs,
+                outposts=[{"lon": o.lon, "lat": o.lat, "height_m": o.height_m,
+                           "range_m": o.range_m if np.isfinite(o.range_m) else None,
+                           "name": o.name}
+                          for o in ctx.outposts],
+                vehicles=vehicles, metrics=metrics, timing_s=timing)
+
+
+def _vehicle(ctx, r, poly, t, snap, start) -> VehicleRoute:
+    snapshot = np.zeros(len(poly), bool)
+    snapshot[snap] = True
+    lon, lat = ctx.terrain.to_lonlat(poly[:, 0], poly[:, 1]) if len(poly) else ([], [])
+    waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f))
+                 for a, b, z, ts, f in zip(lon, lat, poly[:, 2], t, snapshot)]
+    launch = None
+    if start is not None and start.launch is not None:
+        llon, llat = ctx.terrain.to_lonlat(start.launch[0], start.launch[1])
+        launch = GeoPoint(float(llon), float(llat), float(start.launch[2]))
+    d = np.diff(poly, axis=0)
+    length = float(np.sqrt((d ** 2).sum(axis=1)).sum()) if len(poly) > 1 else 0.0
+    coverage_t = float(t[snap].max()) if len(snap) else 0.0
+    mission_t = float(t[-1]) if len(t) else 0.0
+    if launch is not None and len(poly):
+        mission_t += float(leg_time(0.0, -(poly[-1, 2] - launch.alt_amsl), ctx.travel_params))
+    return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints, coverage_time_s=coverage_t,
+                        mission_time_s=mission_t, path_length_m=length)
+
+
+def plan_params(s: Scenario) -> dict:
+    """Every planning parameter, units in the key."""
+    return {
+        "uavs": s.uavs, "k": s.k, "visibility": s.visibility, "alpha": s.alpha, "beta": s.beta,
+        "step_time_cap_s": s.step_time_cap_s, "seed": s.seed,
+        "clearance_m": s.clearance_m, "hide_margin_m": s.hide_margin_m,
+        "ceiling_agl_m": s.ceiling_agl_m, "curvature_coeff": s.curvature_coeff,
+        "sensor_range_m": s.sensor_range_m, "max_off_nadir_deg": s.max_off_nadir_deg,
+        "viewpoint_spacing_m": s.viewpoint_spacing_m, "target_height_m": 0.5,
+        "speed_mps": s.speed_mps, "climb_mps": s.climb_mps, "descent_mps": s.descent_mps,
+        "resolution_m": s.resolution_m, "firmware": s.firmware,
+        "dem": list(s.dem), "sample": bool(s.sample), "area": s.area,
+        "outposts_file": s.outposts, "launch": [list(p) for p in s.launch_points],
+    }
+
+
+def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None):
+    """Scenario -> (PlanningContext, Outcome): the whole of `gcs plan`."""
+    ctx = prepare(scenario, progress, terrain, outposts)
+    starts = launch_starts(ctx)
+    return ctx, allocate(ctx, scenario.uavs, starts, progress=progress)
+
+
+def plan_surface(directory, plan: Plan):
+    """The exposure surface a saved plan was made against, rebuilt from its directory.
+
+    ``terrain.tif`` holds the working grid; outposts and exposure parameters come
+    from ``plan.json``, so the legs can be re-checked before export or upload.
+    """
+    from pathlib import Path
+
+    from .geotiff import read_terrain
+    from .outposts import Outpost
+    from .plan import TERRAIN_FILE
+
+    terrain = read_terrain(Path(directory) / TERRAIN_FILE)
+    lon = np.array([o["lon"] for o in plan.outposts], float)
+    lat = np.array([o["lat"] for o in plan.outposts], float)
+    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
+    outposts = [Outpost(float(xi), float(yi), float(o["height_m"]),
+                        float("inf") if o.get("range_m") is None else float(o["range_m"]),
+                        float(o["lon"]), float(o["lat"]), o.get("name", ""))
+                for xi, yi, o in zip(x, y, plan.outposts)]
+    p = plan.params
+    params = ExposureParams(ceiling_agl_m=p["ceiling_agl_m"], clearance_m=p["clearance_m"],
+                            hide_margin_m=p["hide_margin_m"],
+                            curvature_coeff=p["curvature_coeff"])
+    return compute_exposure(terrain, outposts, params)

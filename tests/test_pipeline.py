@@ -1,0 +1,88 @@
+"""The whole planning pipeline on small synthetic terrains: coverage, hiddenness, times."""
+
+import numpy as np
+import pytest
+
+from planner.exposure import is_hidden, segment_clear, segment_hidden
+from planner.outposts import Outpost
+from planner.pipeline import plan_mission
+from planner.scenario import Scenario
+from planner.synthetic import synthetic_terrain
+from planner.travel import TravelParams, polyline_time
+
+N = 96
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    return synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+
+
+def _outposts(terrain):
+    r, c = N // 2, N // 2
+    x, y = terrain.xy(r, c)
+    return [Outpost(float(x), float(y), 2.0, 2500.0)]
+
+
+def _scenario(terrain, **kw):
+    lon, lat = terrain.to_lonlat(*terrain.xy(5, 5))
+    base = dict(sample=True, uavs=3, sensor_range_m=600.0, ceiling_agl_m=150.0, clearance_m=20.0,
+                hide_margin_m=5.0)
+    base.update(kw)
+    return Scenario(**base).validate()
+
+
+@pytest.fixture(scope="module")
+def planned(terrain):
+    return plan_mission(_scenario(terrain), terrain=terrain, outposts=_outposts(terrain))
+
+
+def test_every_target_covered(planned):
+    ctx, outcome = planned
+    m = outcome.plan.metrics
+    assert m["targets"] > 100
+    assert m["k_covered"] == m["targets"]
+    assert (outcome.counts >= 1).all()
+
+
+def test_routes_are_hidden_and_clear(planned):
+    ctx, outcome = planned
+    for poly in outcome.polylines:
+        assert len(poly) >= 1
+        assert is_hidden(ctx.surface, poly).all()
+        for a, b in zip(poly[:-1], poly[1:]):
+            assert segment_hidden(ctx.surface, a, b)
+            assert segment_clear(ctx.surface, a, b)
+
+
+def test_times_follow_the_travel_model(planned):
+    ctx, outcome = planned
+    params = TravelParams()
+    for poly, vehicle in zip(outcome.polylines, outcome.plan.vehicles):
+        t = [w.t_s for w in vehicle.waypoints]
+        assert t[-1] == pytest.approx(t[0] + polyline_time(poly, params), rel=1e-9, abs=1e-6)
+        assert vehicle.coverage_time_s == pytest.approx(max(w.t_s for w in vehicle.waypoints
+                                                            if w.snapshot))
+
+
+def test_deterministic(terrain, planned):
+    _, again = plan_mission(_scenario(terrain), terrain=terrain, outposts=_outposts(terrain))
+    first = planned[1].plan
+    assert [[(w.lon, w.lat, w.alt_amsl) for w in v.waypoints] for v in first.vehicles] == \
+           [[(w.lon, w.lat, w.alt_amsl) for w in v.waypoints] for v in again.plan.vehicles]
+
+
+def test_k1_with_launch_points(terrain):
+    lon, lat = terrain.to_lonlat(*terrain.xy(8, 8))
+    scenario = _scenario(terrain, k=1, launch=[(lat, lon)], method="rt+ls")
+    ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=_outposts(terrain))
+    m = outcome.plan.metrics
+    assert m["k_covered"] == m["targets"]
+    assert (outcome.counts >= 2).all()
+    for v in outcome.plan.vehicles:
+        assert v.launch is not None
+        first, last = v.waypoints[0], v.waypoints[-1]
+        assert (first.lon, first.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=1e-9)
+        assert (last.lon, last.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=1e-9)
+        assert v.mission_time_s > v.coverage_time_s
+    assert m["lower_bound_s"] <= m["coverage_time_s"]
