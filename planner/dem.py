@@ -91,7 +91,7 @@ def load_dem(paths, area=None, resolution=None, geoid_offset=None) -> Terrain:
     return _to_terrain(grids, area, resolution, names)
 
 
-def sample_terrain(resolution=None) -> Terrain:
+def sample_terrain(resolution=None, area=None) -> Terrain:
     """The USGS DEM that matplotlib ships (Jacksboro fault, Tennessee), in UTM 16N.
 
     The npz holds ``elevation`` (344 x 403, metres) on a 3 arc-second
@@ -109,8 +109,14 @@ def sample_terrain(resolution=None) -> Terrain:
         west, north = float(dem["xmin"]), float(max(dem["ymin"], dem["ymax"]))
         dx, dy = float(dem["dx"]), float(dem["dy"])
     transform = Affine(dx, 0.0, west, 0.0, -dy, north)
-    grid = _Grid(height, transform, WGS84, f"matplotlib sample {SAMPLE_NAME}")
-    return _to_terrain([grid], None, resolution, grid.source)
+    source = f"matplotlib sample {SAMPLE_NAME}"
+    area = _check_area(area)
+    window = _area_window(WGS84, transform, height.shape, area)
+    if window is None:
+        raise InputError(source, f"area {_fmt_area(area)} does not overlap the sample terrain")
+    rows, cols = window.toslices()
+    grid = _Grid(height[rows, cols], _window_transform(transform, window), WGS84, source)
+    return _to_terrain([grid], area, resolution, source)
 
 
 def utm_crs(lon: float, lat: float) -> str:

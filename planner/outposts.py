@@ -2,6 +2,7 @@
 
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -54,9 +55,22 @@ def load_outposts(path, terrain) -> list:
 
 
 def sample_outposts(terrain) -> list:
-    """The built-in outposts that go with `planner.dem.sample_terrain`."""
+    """The built-in outposts that go with `planner.dem.sample_terrain`.
+
+    On a sample cropped with ``area``, posts outside the crop are left out:
+    their lines of sight would cross terrain the crop no longer holds.
+    """
     text = resources.files("planner.data").joinpath(SAMPLE_FILE).read_text(encoding="utf-8")
-    return _parse_outposts(text, terrain, f"built-in {SAMPLE_FILE}")
+    data = json.loads(text)
+    inside = [f for f in data["features"]
+              if terrain.contains_xy(*terrain.from_lonlat(*f["geometry"]["coordinates"]))]
+    if not inside:
+        raise InputError(f"built-in {SAMPLE_FILE}", "no built-in outpost lies inside the area")
+    if len(inside) < len(data["features"]):
+        warnings.warn(f"built-in {SAMPLE_FILE}: {len(data['features']) - len(inside)} "
+                      "outpost(s) outside the area were left out", stacklevel=2)
+    return _parse_outposts(json.dumps(dict(data, features=inside)), terrain,
+                           f"built-in {SAMPLE_FILE}")
 
 
 def outposts_to_geojson(outposts) -> dict:

@@ -76,7 +76,7 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
     timing = {}
     with _stage("terrain", timing, progress):
         if terrain is None:
-            terrain = (sample_terrain(resolution=s.resolution_m) if s.sample else
+            terrain = (sample_terrain(resolution=s.resolution_m, area=s.area) if s.sample else
                        load_dem(s.dem, area=s.area, resolution=s.resolution_m,
                                 geoid_offset=s.geoid_offset_m))
         if outposts is None:
@@ -88,16 +88,19 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
         surface = compute_exposure(terrain, outposts, params,
                                    progress=_fraction(progress, "exposure"))
     launch_xy = _launch_xy(terrain, s)
+    with _stage("travel graph", timing, progress):
+        graph = build_travel_graph(surface, TravelParams(s.speed_mps, s.climb_mps,
+                                                         s.descent_mps))
     with _stage("viewpoints", timing, progress):
-        regions = fleet_region(surface, launch_xy if launch_xy is not None else None)
-        viewpoints = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
+        regions = fleet_region(surface, launch_xy)
+        candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
                                           s.sensor_range_m)
+        launch_xyz = None if launch_xy is None else np.c_[launch_xy, np.zeros(len(launch_xy))]
+        viewpoints = candidates.subset(graph.reachable(launch_xyz)[graph.nodes_of(candidates.xyz)])
     with _stage("visibility", timing, progress):
         sensor = SensorParams(s.sensor_range_m, s.max_off_nadir_deg)
         visibility = compute_visibility(surface, viewpoints, sensor)
-    with _stage("travel", timing, progress):
-        graph = build_travel_graph(surface, TravelParams(s.speed_mps, s.climb_mps,
-                                                         s.descent_mps))
+    with _stage("travel times", timing, progress):
         travel = graph.time_matrix(viewpoints.xyz)
     return PlanningContext(s, terrain, outposts, surface, regions, viewpoints, visibility,
                            graph, travel, timing)

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.sparse import csr_matrix
-from scipy.sparse.csgraph import dijkstra
+from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
 from . import exposure
@@ -167,6 +167,18 @@ class TravelGraph:
             raise InputError(what, f"({xyz[k, 0]:.0f}, {xyz[k, 1]:.0f}) is not over a flyable"
                              " hidden cell")
         return nodes
+
+    def reachable(self, xyz=None) -> np.ndarray:
+        """Bool per node: in a strongly connected part holding a node under ``xyz``
+        (e.g. the launch points), or in the largest part when ``xyz`` is None.
+
+        Flyable regions are connected as cells, but a hidden graph edge also needs
+        its straight leg hidden, so a region can fall apart into several parts.
+        """
+        _, labels = connected_components(self.csr, directed=True, connection="strong")
+        keep = (np.unique(labels[self.nodes_of(xyz)]) if xyz is not None
+                else [np.bincount(labels).argmax()])
+        return np.isin(labels, keep)
 
     # --- times ------------------------------------------------------------------------
     def times_from(self, xyz) -> np.ndarray:

@@ -27,6 +27,9 @@ class Viewpoints:
     def __len__(self) -> int:
         return int(self.indices.shape[0])
 
+    def subset(self, keep) -> "Viewpoints":
+        return Viewpoints(self.indices[keep], self.xyz[keep], self.region[keep])
+
 
 def default_spacing(surface, regions, sensor_range_m=DEFAULT_SENSOR_RANGE_M) -> float:
     """Lattice spacing (m) giving about TARGET_CANDIDATES candidates over ``regions``."""

@@ -86,3 +86,32 @@ def test_k1_with_launch_points(terrain):
         assert (last.lon, last.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=1e-9)
         assert v.mission_time_s > v.coverage_time_s
     assert m["lower_bound_s"] <= m["coverage_time_s"]
+
+
+def test_every_viewpoint_is_reachable_hidden_from_launch(terrain):
+    """Regions are connected as cells; viewpoints must also be joined by hidden legs."""
+    from planner.pipeline import coverage_problem, launch_starts, prepare
+
+    lon, lat = terrain.to_lonlat(*terrain.xy(8, 8))
+    ctx = prepare(_scenario(terrain, launch=[(lat, lon)]), terrain=terrain,
+                  outposts=_outposts(terrain))
+    problem = coverage_problem(ctx, 3, launch_starts(ctx))
+    assert np.isfinite(problem.launch_out).all()
+    assert np.isfinite(problem.launch_back).all()
+    assert np.isfinite(ctx.travel).all()
+
+
+def test_cropped_sample_keeps_the_outposts_inside():
+    from planner.dem import sample_terrain
+    from planner.outposts import sample_outposts
+
+    area = (36.49, -84.28, 36.56, -84.18)
+    terrain = sample_terrain(area=area)
+    with pytest.warns(UserWarning, match="2 outpost"):
+        posts = sample_outposts(terrain)
+    assert {p.name for p in posts} == {"South summit", "Fault gap"}
+    south, west, north, east = area
+    lon, lat = terrain.to_lonlat(*terrain.xy(np.array([0, terrain.shape[0] - 1]),
+                                              np.array([0, terrain.shape[1] - 1])))
+    assert lat[0] >= north - 0.01 and lat[1] <= south + 0.01
+    assert lon[0] <= west + 0.01 and lon[1] >= east - 0.01

@@ -1,0 +1,1 @@
+"""Package data of the ground station: the built-in demo scenario."""
