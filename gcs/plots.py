@@ -90,6 +90,44 @@ def overview_png(path, terrain, surface, plan) -> None:
     _save(fig, path)
 
 
+def view3d_png(path, terrain, surface, plan, max_cells=160) -> None:
+    """view3d.png: terrain, the exposure surface above it and the routes in 3-D
+    (the source paper's Fig. 4), decimated to at most ``max_cells`` per side."""
+    step = max(1, int(np.ceil(max(terrain.shape) / max_cells)))
+    rows = np.arange(0, terrain.shape[0], step)
+    cols = np.arange(0, terrain.shape[1], step)
+    x, y = _to_km(terrain, *terrain.xy(*np.meshgrid(rows, cols, indexing="ij")))
+    ground = terrain.height[np.ix_(rows, cols)]
+    ceiling = surface.ceiling[np.ix_(rows, cols)]
+    fig = plt.figure(figsize=(11, 8), dpi=110)
+    # draw in call order (terrain, ceiling, routes): matplotlib's depth sort would
+    # bury the routes under the translucent ceiling they fly just below
+    ax = fig.add_subplot(projection="3d", computed_zorder=False)
+    ax.plot_surface(x, y, ground, cmap="gist_earth", linewidth=0, antialiased=False,
+                    alpha=0.95)
+    ax.plot_wireframe(x, y, ceiling, color="tab:blue", alpha=0.35, linewidth=0.4,
+                      rstride=2, cstride=2)
+    for i, vehicle in enumerate(plan.vehicles):
+        if not vehicle.waypoints:
+            continue
+        w = vehicle.waypoints
+        vx, vy = _lonlat_km(terrain, [p.lon for p in w], [p.lat for p in w])
+        ax.plot(vx, vy, [p.alt_amsl for p in w], color=ROUTE_COLOURS[i % len(ROUTE_COLOURS)],
+                linewidth=2.0, label=f"UAV {vehicle.id}")
+    for o in surface.outposts:
+        ox, oy = _to_km(terrain, o.x, o.y)
+        ax.scatter([ox], [oy], [float(terrain.ground(o.x, o.y)[0]) + o.height_m + 20],
+                   marker="^", color="red", s=60, depthshade=False)
+    ax.set_xlabel("east (km)")
+    ax.set_ylabel("north (km)")
+    ax.set_zlabel("altitude AMSL (m)")
+    ax.set_box_aspect((np.ptp(x), np.ptp(y), 0.25 * max(np.ptp(x), np.ptp(y))))
+    ax.view_init(elev=35, azim=-60)
+    ax.set_title("terrain, hidden ceiling (blue mesh: fly below it) and routes")
+    ax.legend(loc="upper left", fontsize=8)
+    _save(fig, path)
+
+
 def _save(fig, path) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")

@@ -9,7 +9,7 @@ import numpy as np
 from rich.table import Table
 
 from gcs.cli.options import add_scenario_arguments, scenario_from_args
-from gcs.plots import overview_png
+from gcs.plots import overview_png, view3d_png
 from gcs.progress import console, stage_progress
 from planner import plan as plan_files
 from planner.geotiff import write_grid
@@ -71,6 +71,8 @@ def write_outputs(directory, ctx, outcome) -> list:
             written.append((staging / name, what))
         overview_png(staging / "overview.png", ctx.terrain, ctx.surface, outcome.plan)
         written.append((staging / "overview.png", "map of the hidden ceiling, outposts and routes"))
+        view3d_png(staging / "view3d.png", ctx.terrain, ctx.surface, outcome.plan)
+        written.append((staging / "view3d.png", "3-D view: terrain, hidden ceiling, routes"))
         written += export_plan_dir(staging, outcome.plan, firmware=ctx.scenario.firmware,
                                    surface=ctx.surface)
         moved = []
