@@ -93,8 +93,10 @@ def launch_cells(surface, launch_xy) -> list:
     cells = []
     for i, (r, c) in enumerate(zip(np.rint(row).astype(int), np.rint(col).astype(int))):
         if not (0 <= r < n_rows and 0 <= c < n_cols) or surface.regions[r, c] == 0:
-            raise InputError("launch", f"launch point {i + 1} ({xy[i, 0]:.0f}, {xy[i, 1]:.0f})"
-                             " is not in a flyable hidden region")
+            lon, lat = surface.terrain.to_lonlat(xy[i, 0], xy[i, 1])
+            raise InputError("launch", f"launch point {i + 1} ({float(lat):.6f},{float(lon):.6f})"
+                             " is not in a flyable hidden region (seen by an outpost, or no "
+                             "room between clearance and the exposure surface)")
         cells.append((int(r), int(c)))
     return cells
 

@@ -126,4 +126,4 @@ def scenario_from_args(args) -> "Scenario":
         overrides["area"] = _area(args.area)
     if args.launch is not None:
         overrides["launch"] = [_latlon(p) for p in args.launch]
-    return make_scenario(file_values, overrides, source=getattr(args, "scenario", None) or "gcs")
+    return make_scenario(file_values, overrides, source=getattr(args, "scenario", None) or "options")

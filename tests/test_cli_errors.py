@@ -1,0 +1,117 @@
+"""Bad input at the command line: one clear line, exit status 2, nothing half-written."""
+
+import json
+
+import numpy as np
+import pytest
+import rasterio
+from rasterio.transform import from_origin
+
+from gcs.cli import main
+
+
+def _run(capsys, *argv):
+    status = main(list(argv))
+    return status, capsys.readouterr().err
+
+
+def _geotiff(path, height, crs="EPSG:32616", nodata=None):
+    profile = dict(driver="GTiff", width=height.shape[1], height=height.shape[0], count=1,
+                   dtype="float32", transform=from_origin(500000, 4000000, 30, 30), nodata=nodata)
+    if crs:
+        profile["crs"] = crs
+    with rasterio.open(path, "w", **profile) as ds:
+        ds.write(height.astype(np.float32), 1)
+    return path
+
+
+def _outposts(path, lon, lat):
+    path.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": "North post"},
+         "geometry": {"type": "Point", "coordinates": [lon, lat]}}]}))
+    return path
+
+
+def _assert_clean_failure(status, err, out_dir, *phrases):
+    assert status == 2
+    lines = err.strip().splitlines()
+    assert lines and lines[-1].startswith("gcs plan: error: ")
+    for phrase in phrases:
+        assert phrase in lines[-1]
+    assert not out_dir.exists() or not any(out_dir.iterdir())
+
+
+def test_missing_dem(tmp_path, capsys):
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--dem", str(tmp_path / "nope.tif"), "-o", str(out))
+    _assert_clean_failure(status, err, out, "nope.tif", "no such file")
+
+
+def test_dem_without_crs(tmp_path, capsys):
+    dem = _geotiff(tmp_path / "nocrs.tif", np.ones((20, 20)), crs=None)
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--dem", str(dem), "-o", str(out))
+    _assert_clean_failure(status, err, out, "nocrs.tif", "no CRS")
+
+
+def test_all_nodata_dem(tmp_path, capsys):
+    dem = _geotiff(tmp_path / "void.tif", np.full((20, 20), -9999.0), nodata=-9999.0)
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--dem", str(dem), "-o", str(out))
+    _assert_clean_failure(status, err, out, "void.tif", "nodata")
+
+
+def test_outpost_outside_the_dem(tmp_path, capsys):
+    posts = _outposts(tmp_path / "posts.geojson", 10.0, 50.0)
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--sample", "--outposts", str(posts), "-o", str(out))
+    _assert_clean_failure(status, err, out, "posts.geojson", "North post", "outside the DEM")
+
+
+def test_no_flyable_cell_on_flat_ground(tmp_path, capsys):
+    dem = _geotiff(tmp_path / "flat.tif", np.full((40, 40), 100.0))
+    posts = _outposts(tmp_path / "posts.geojson", *_lonlat_of_centre(dem))
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--dem", str(dem), "--outposts", str(posts),
+                       "-o", str(out))
+    _assert_clean_failure(status, err, out, "no flyable")
+
+
+def test_exposed_launch_point(tmp_path, capsys):
+    out = tmp_path / "out"
+    # the summit of Pine Mountain's neighbour, in full view of the built-in posts
+    status, err = _run(capsys, "plan", "--sample", "--area", "36.49,-84.28,36.56,-84.18",
+                       "--launch", "36.5235,-84.2553", "-o", str(out))
+    _assert_clean_failure(status, err, out, "launch point 1", "not in a flyable hidden region")
+
+
+def test_k_not_below_the_number_of_uavs(tmp_path, capsys):
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--sample", "--uavs", "3", "--k", "3", "-o", str(out))
+    _assert_clean_failure(status, err, out, "k = 3", "uavs = 3")
+
+
+def test_refused_plan_leaves_an_existing_directory_as_it_was(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "plan.json").write_text("old")
+    status, err = _run(capsys, "plan", "--sample", "--uavs", "2", "--k", "2", "-o", str(out))
+    assert status == 2
+    assert [p.name for p in out.iterdir()] == ["plan.json"]
+    assert (out / "plan.json").read_text() == "old"
+
+
+def _lonlat_of_centre(dem):
+    from pyproj import Transformer
+
+    lon, lat = Transformer.from_crs("EPSG:32616", "EPSG:4326", always_xy=True).transform(
+        500000 + 20 * 30, 4000000 - 20 * 30)
+    return lon, lat
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["plan", "--help"], ["sim", "--help"]])
+def test_help_exits_zero(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0
+    assert "usage: gcs" in capsys.readouterr().out
