@@ -1,0 +1,137 @@
+"""A vehicle's hidden route becomes its list of MAVLink mission items.
+
+Per vehicle, in order:
+
+- ArduPilot only: item 0 is home (ArduPilot keeps home there and overwrites it);
+- ``NAV_TAKEOFF`` straight up to the first waypoint's altitude, when the route
+  starts above its launch point;
+- ``DO_CHANGE_SPEED`` to the speed the plan assumed (optional);
+- one ``NAV_WAYPOINT`` per vertex of the hidden polyline (``param1`` = hold at a
+  snapshot), followed at each snapshot by a camera trigger: ``DO_DIGICAM_CONTROL``
+  (ArduPilot) or ``IMAGE_START_CAPTURE`` (PX4);
+- ``NAV_LAND`` at the launch point, when the route ends above it. Never
+  ``RETURN_TO_LAUNCH``: the autopilot would fly straight at its RTL altitude.
+
+Positions are absolute (MAV_FRAME_GLOBAL, metres AMSL) like the exposure
+surface; commands without a position use MAV_FRAME_MISSION as PX4 requires.
+"""
+
+import math
+from dataclasses import dataclass, field
+from typing import Optional
+
+from planner.errors import InputError
+
+from .items import (DO_CHANGE_SPEED, DO_DIGICAM_CONTROL, FRAME_GLOBAL, FRAME_MISSION,
+                    IMAGE_START_CAPTURE, NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem,
+                    renumber)
+
+ARDUPILOT, PX4 = "ardupilot", "px4"
+FIRMWARES = (ARDUPILOT, PX4)
+SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1
+NO_THROTTLE_CHANGE = -1.0  # DO_CHANGE_SPEED param3
+ABOVE_LAUNCH_M = 1.0  # a waypoint this close (horizontally) to launch is above it
+
+
+@dataclass(frozen=True)
+class MissionOptions:
+    camera: bool = True  # trigger the camera at every snapshot waypoint
+    hold_s: float = 0.0  # hover this long at a snapshot before triggering (0 = fly through)
+    speed_mps: Optional[float] = None  # DO_CHANGE_SPEED to this ground speed; None = no item
+    takeoff: bool = True  # NAV_TAKEOFF / NAV_LAND when the route starts / ends above launch
+    acceptance_m: float = 0.0  # waypoint acceptance radius, 0 = the autopilot's default
+
+
+@dataclass
+class VehicleMission:
+    vehicle_id: int
+    firmware: str
+    items: list  # [MissionItem], seq 0..n-1
+    # per seq: index into route.waypoints of that position item, None otherwise
+    waypoint_of_item: list = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        return f"vehicle {self.vehicle_id}"
+
+
+def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptions()
+                    ) -> VehicleMission:
+    """The mission items that fly ``route`` (a planner.plan.VehicleRoute)."""
+    if firmware not in FIRMWARES:
+        raise InputError("--firmware", f"must be one of {', '.join(FIRMWARES)}, got {firmware!r}")
+    if not route.waypoints:
+        raise InputError(f"vehicle {route.id}", "route has no waypoints")
+    yaw = 0.0 if firmware == ARDUPILOT else math.nan  # PX4: NaN keeps its heading mode
+    out = _Builder()
+    waypoints = route.waypoints
+    first, last = waypoints[0], waypoints[-1]
+    if firmware == ARDUPILOT:
+        home = route.launch or first
+        out.add(_position(NAV_WAYPOINT, home.lat, home.lon, home.alt_amsl))
+    if options.takeoff and _above_launch(route.launch, first):
+        out.add(_position(NAV_TAKEOFF, route.launch.lat, route.launch.lon, first.alt_amsl,
+                          p4=yaw))
+    if options.speed_mps:
+        out.add(_command(DO_CHANGE_SPEED, SPEED_TYPE_GROUND, float(options.speed_mps),
+                         NO_THROTTLE_CHANGE, 0.0))
+    shots = 0
+    for index, w in enumerate(waypoints):
+        hold = float(options.hold_s) if w.snapshot else 0.0
+        out.add(_position(NAV_WAYPOINT, w.lat, w.lon, w.alt_amsl, p1=hold,
+                          p2=float(options.acceptance_m), p4=yaw), waypoint=index)
+        if w.snapshot and options.camera:
+            shots += 1
+            out.add(_camera(firmware, shots))
+    if options.takeoff and _above_launch(route.launch, last):
+        out.add(_position(NAV_LAND, route.launch.lat, route.launch.lon, route.launch.alt_amsl,
+                          p4=yaw))
+    return VehicleMission(route.id, firmware, renumber(out.items), out.waypoint_of_item)
+
+
+def plan_missions(plan, firmware: Optional[str] = None, options: Optional[MissionOptions] = None
+                  ) -> list:
+    """One `VehicleMission` per vehicle of ``plan`` (firmware default: the plan's;
+    options default: fly the plan's speed, trigger the camera, no hold)."""
+    firmware = firmware or plan.params.get("firmware") or ARDUPILOT
+    if options is None:
+        options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
+    return [vehicle_mission(route, firmware, options) for route in plan.vehicles
+            if route.waypoints]
+
+
+class _Builder:
+    def __init__(self):
+        self.items, self.waypoint_of_item = [], []
+
+    def add(self, item, waypoint=None):
+        self.items.append(item)
+        self.waypoint_of_item.append(waypoint)
+
+
+def _above_launch(launch, w) -> bool:
+    if launch is None:
+        return False
+    # equirectangular distance: plenty for "the same point" at 1 m
+    dlat = math.radians(w.lat - launch.lat)
+    dlon = math.radians(w.lon - launch.lon) * math.cos(math.radians(launch.lat))
+    return 6371008.8 * math.hypot(dlat, dlon) <= ABOVE_LAUNCH_M
+
+
+def _position(command, lat, lon, alt, p1=0.0, p2=0.0, p3=0.0, p4=0.0) -> MissionItem:
+    # degE7 is what the wire and the files keep: quantise once, here
+    return MissionItem(0, FRAME_GLOBAL, command, 0, 1, p1, p2, p3, p4,
+                       round(float(lat) * 1e7) / 1e7, round(float(lon) * 1e7) / 1e7,
+                       float(alt))
+
+
+def _command(command, p1=0.0, p2=0.0, p3=0.0, p4=0.0, p5=0.0, p6=0.0, p7=0.0) -> MissionItem:
+    return MissionItem(0, FRAME_MISSION, command, 0, 1, p1, p2, p3, p4, p5, p6, p7)
+
+
+def _camera(firmware, shot) -> MissionItem:
+    if firmware == ARDUPILOT:
+        # session, zoom pos, zoom step, focus lock, shoot = 1, command id, shot id
+        return _command(DO_DIGICAM_CONTROL, p5=1.0)
+    # camera id 0 (all), interval 0, one image, capture sequence number from 1
+    return _command(IMAGE_START_CAPTURE, 0.0, 0.0, 1.0, float(shot))

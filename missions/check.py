@@ -1,0 +1,124 @@
+"""Prove a mission before it is written or uploaded: a refused plan is never flown.
+
+Checks, in order: sequence numbers are 0..n-1; no command whose flight is not
+a straight leg (RETURN_TO_LAUNCH, loiter turns, splines, DO_JUMP); every
+position is a valid latitude / longitude / finite altitude in MAV_FRAME_GLOBAL
+(absolute, like the exposure surface); and every straight 3-D leg between
+consecutive position items is hidden (`planner.exposure.segments_hidden`) and
+at least ``clearance_m`` above the terrain (`segments_clear`).
+
+How legs are flown: ArduPilot's home item (seq 0) is not flown to. A takeoff
+climbs straight up at the launch point, hidden because the top of the climb is
+(visibility only grows with altitude) and exempt from the clearance rule; a
+landing first flies level to above its point (a checked leg) and then descends
+straight down, hidden for the same reason.
+"""
+
+from dataclasses import replace
+
+import numpy as np
+
+from planner.errors import InputError
+from planner.exposure import is_hidden, segments_clear, segments_hidden
+
+from .items import (FRAME_GLOBAL, GLOBAL_FRAMES, NAV_LAND, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF,
+                    NAV_WAYPOINT, NAV_POSITION_COMMANDS)
+
+
+# Commands whose flight is not a straight leg between mission positions.
+UNPROVABLE = {
+    NAV_RETURN_TO_LAUNCH: "RETURN_TO_LAUNCH: the autopilot would fly straight home at its RTL "
+                          "altitude and may be seen",
+    18: "NAV_LOITER_TURNS: its circles are not legs that can be proven hidden",
+    82: "NAV_SPLINE_WAYPOINT: its curves are not legs that can be proven hidden",
+    177: "DO_JUMP: the legs it adds cannot be proven hidden",
+}
+
+
+def check_mission(mission, surface, clearance_m=None) -> None:
+    """Raise InputError naming the vehicle and the first bad item or leg."""
+    check_items(mission.items, surface, clearance_m, name=mission.name,
+                has_home=mission.firmware == "ardupilot")
+
+
+def check_items(items, surface, clearance_m=None, name="mission", has_home=False) -> None:
+    """`check_mission` for a bare item list (e.g. read from a file)."""
+    check_structure(items, name)
+    flown = [it for it in items[1 if has_home else 0:] if it.is_position]
+    if not flown:
+        return
+    xyz = _projected(surface, flown)
+    a, b, labels = _legs(flown, xyz)
+    if flown[0].command == NAV_TAKEOFF and not is_hidden(surface, xyz[:1])[0]:
+        raise InputError(name, f"takeoff (item {flown[0].seq}) climbs to "
+                               f"{_where(flown[0])}, which an outpost sees")
+    if not len(a):
+        return
+    hidden = segments_hidden(surface, a, b)
+    clear = segments_clear(_with_clearance(surface, clearance_m), a, b)
+    for n in range(len(a)):
+        if not hidden[n]:
+            raise InputError(name, f"{labels[n]} is not hidden from the outposts")
+        if not clear[n]:
+            floor = surface.params.clearance_m if clearance_m is None else clearance_m
+            raise InputError(name, f"{labels[n]} passes closer than {floor:g} m to the terrain")
+
+
+def check_structure(items, name="mission") -> None:
+    """Sequence numbers, frames, coordinates and commands, without the terrain."""
+    for n, it in enumerate(items):
+        if int(it.seq) != n:
+            raise InputError(name, f"item {n} has sequence number {it.seq}: not contiguous")
+        why = UNPROVABLE.get(int(it.command))
+        if why:
+            raise InputError(name, f"item {n} is {why}")
+    for n, it in enumerate(items):
+        if int(it.command) not in NAV_POSITION_COMMANDS:
+            continue
+        if int(it.frame) not in GLOBAL_FRAMES:
+            raise InputError(name, f"item {n} ({it.name}) has frame {it.frame}, not a "
+                                   "global position")
+        if int(it.frame) not in (FRAME_GLOBAL, 5) and not (n == 0 and it.command == NAV_WAYPOINT):
+            raise InputError(name, f"item {n} ({it.name}) has frame {it.frame}: only absolute "
+                                   "altitudes (MAV_FRAME_GLOBAL, AMSL) can be proven hidden")
+        if not _valid_position(it):
+            raise InputError(name, f"item {n} ({it.name}) has an invalid position "
+                                   f"lat {it.x!r}, lon {it.y!r}, alt {it.z!r}")
+
+
+def _valid_position(it) -> bool:
+    lat, lon, alt = float(it.x), float(it.y), float(it.z)
+    return (np.isfinite([lat, lon, alt]).all() and -90 <= lat <= 90 and -180 <= lon <= 180
+            and not (lat == 0 and lon == 0))
+
+
+def _projected(surface, items) -> np.ndarray:
+    lat = np.array([it.x for it in items], float)
+    lon = np.array([it.y for it in items], float)
+    x, y = surface.terrain.from_lonlat(lon, lat)
+    return np.stack([np.asarray(x, float), np.asarray(y, float),
+                     np.array([it.z for it in items], float)], axis=1)
+
+
+def _legs(items, xyz):
+    """Straight legs (a, b) as flown, with a label naming each."""
+    a, b, labels = [], [], []
+    for n in range(1, len(items)):
+        start, end = xyz[n - 1], xyz[n].copy()
+        if items[n].command == NAV_LAND:
+            end[2] = start[2]  # level to above the landing point, then straight down
+        a.append(start)
+        b.append(end)
+        labels.append(f"leg {n} (item {items[n - 1].seq} -> item {items[n].seq}, "
+                      f"{_where(items[n - 1])} -> {_where(items[n])})")
+    return np.array(a).reshape(-1, 3), np.array(b).reshape(-1, 3), labels
+
+
+def _where(it) -> str:
+    return f"{it.x:.7f},{it.y:.7f} at {it.z:.1f} m"
+
+
+def _with_clearance(surface, clearance_m):
+    if clearance_m is None or clearance_m == surface.params.clearance_m:
+        return surface
+    return replace(surface, params=replace(surface.params, clearance_m=float(clearance_m)))
