@@ -18,7 +18,7 @@ def main(argv=None) -> int:
             continue
         print(f"\n######## {name} ########", flush=True)
         start = time.perf_counter()
-        importlib.import_module(f"benchmarks.{name}").main()
+        importlib.import_module(f"benchmarks.{name}").main([])
         print(f"({name}: {time.perf_counter() - start:.0f} s)", flush=True)
     return 0
 
