@@ -1,0 +1,220 @@
+"""`gcs upload`: put each vehicle's mission on it and read it back to prove it.
+
+Missions come from a plan directory (built per vehicle for its own firmware) or
+from mission files (.plan, .waypoints), one route per file. Vehicles are found
+by HEARTBEAT and take routes in order of system id, unless `--vehicle
+SYSID=ROUTE` says otherwise. Every upload is verified item by item.
+"""
+
+import re
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+from rich.console import Console
+from rich.progress import BarColumn, Progress, TextColumn
+from rich.table import Table
+
+from gcs.progress import console
+from planner.errors import InputError
+
+HELP = "upload each vehicle's mission (plan directory or .plan/.waypoints files) and verify it"
+FIRMWARE_CHOICES = ("auto", "ardupilot", "px4")
+
+
+def add_connection_arguments(parser) -> None:
+    """--connect, --signing-key, --connect-timeout: shared with `gcs download`."""
+    parser.add_argument("--connect", action="append", default=[], metavar="URL", required=True,
+                        help="MAVLink connection, repeatable: tcp:HOST:PORT (ArduPilot SITL "
+                             "5760), udpin:0.0.0.0:14550 (PX4 SITL, telemetry radios), "
+                             "udpout:HOST:PORT, /dev/ttyACM0,57600 (serial device, baud)")
+    parser.add_argument("--signing-key", metavar="FILE",
+                        help="MAVLink 2 signing key: a 32-byte file, or a text file holding a "
+                             "passphrase (SHA-256, as MAVProxy's 'signing setup'); "
+                             "none: nothing is signed")
+    parser.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
+                        help="seconds (wall clock) to wait for the vehicles' HEARTBEATs")
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("sources", nargs="+", metavar="PLAN_DIR|FILE",
+                        help="a plan directory (plan.json) or mission files "
+                             "(.plan, .waypoints), one route per file")
+    add_connection_arguments(parser)
+    parser.add_argument("--vehicle", "--assign", dest="assign", action="append", default=[],
+                        metavar="SYSID=ROUTE",
+                        help="give route ROUTE (plan vehicle id, or file number 1..n) to "
+                             "system id SYSID, repeatable; the others go by order of system id")
+    parser.add_argument("--firmware", choices=FIRMWARE_CHOICES, default="auto",
+                        help="mission flavour; auto = each vehicle's own, from its HEARTBEAT")
+
+
+# -- routes ------------------------------------------------------------------------------
+@dataclass
+class Route:
+    """One uploadable route: `items(firmware)` gives its mission items."""
+    id: int
+    source: str
+    build: object              # callable(firmware) -> (items, description)
+
+
+def load_routes(sources) -> list:
+    """Routes from one plan directory, or from mission files (one route each)."""
+    paths = [Path(s) for s in sources]
+    dirs = [p for p in paths if p.is_dir()]
+    if dirs:
+        if len(paths) > 1:
+            raise InputError(dirs[0], "give one plan directory, or mission files, not both")
+        return _plan_routes(dirs[0])
+    routes = []
+    for number, path in enumerate(paths, start=1):
+        match = re.search(r"(\d+)$", path.stem)
+        route_id = int(match.group(1)) if match and len(paths) > 1 else number
+        routes.append(Route(route_id, str(path), _file_builder(path)))
+    ids = [r.id for r in routes]
+    if len(set(ids)) != len(ids):
+        routes = [Route(n, r.source, r.build) for n, r in enumerate(routes, start=1)]
+    return routes
+
+
+def _plan_routes(directory: Path) -> list:
+    from missions.build import MissionOptions, vehicle_mission
+    from planner.plan import Plan
+
+    plan = Plan.load(directory)
+    options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
+    routes = []
+    for route in plan.vehicles:
+        if route.waypoints:
+            def build(firmware, route=route):
+                return vehicle_mission(route, firmware, options).items
+            routes.append(Route(route.id, f"{directory} vehicle {route.id}", build))
+    if not routes:
+        raise InputError(directory, "the plan has no route with waypoints")
+    return routes
+
+
+def _file_builder(path: Path):
+    suffix = path.suffix.lower()
+    if suffix == ".plan":
+        from missions.qgc import read_plan_file
+        return lambda firmware: read_plan_file(path, firmware)
+    if suffix in (".waypoints", ".txt"):
+        from missions.wpl import read_waypoints
+        return lambda firmware: read_waypoints(path)
+    raise InputError(path, "not a mission file: expected .plan or .waypoints")
+
+
+# -- matching ----------------------------------------------------------------------------
+def parse_assignments(texts) -> dict:
+    out = {}
+    for text in texts:
+        sysid, sep, route = text.partition("=")
+        if not sep or not sysid.strip().isdigit() or not route.strip().isdigit():
+            raise InputError("--vehicle", f"expected SYSID=ROUTE, got {text!r}")
+        if int(sysid) in out:
+            raise InputError("--vehicle", f"system id {sysid} given twice")
+        out[int(sysid)] = int(route)
+    return out
+
+
+def match(sysids, routes, assign: dict) -> list:
+    """[(sysid, route)]: the assignments first, the rest in order of system id."""
+    by_id = {r.id: r for r in routes}
+    unknown = sorted(set(assign.values()) - set(by_id))
+    if unknown:
+        raise InputError("--vehicle", f"no route {unknown[0]}; routes are "
+                                      f"{', '.join(map(str, sorted(by_id)))}")
+    missing = sorted(set(assign) - set(sysids))
+    if missing:
+        raise InputError("--vehicle", f"no vehicle with system id {missing[0]} answered "
+                                      f"(found {', '.join(map(str, sysids)) or 'none'})")
+    pairs = [(s, by_id[r]) for s, r in assign.items()]
+    free_vehicles = [s for s in sorted(sysids) if s not in assign]
+    free_routes = [r for r in routes if r.id not in set(assign.values())]
+    if len(free_routes) > len(free_vehicles):
+        raise InputError("--connect", f"{len(routes)} routes but {len(sysids)} vehicle(s) "
+                                      f"found (system ids {', '.join(map(str, sysids))})")
+    pairs += list(zip(free_vehicles, free_routes))
+    return sorted(pairs, key=lambda p: p[0])
+
+
+# -- running -----------------------------------------------------------------------------
+def open_link(args, expect):
+    """GroundLink.open from the shared connection options; LinkError -> one line."""
+    from gcs.link import GroundLink, LinkError
+    from gcs.signing import load_key
+
+    key = load_key(args.signing_key) if args.signing_key else None
+    try:
+        return GroundLink.open(args.connect, signing_key=key, expect=expect,
+                               timeout_s=args.connect_timeout)
+    except LinkError as exc:
+        raise InputError("--connect", str(exc)) from None
+
+
+def run(args) -> int:
+    routes = load_routes(args.sources)
+    assign = parse_assignments(args.assign)
+    expect = set(assign) if len(assign) >= len(routes) else len(routes)
+    link = open_link(args, expect)
+    try:
+        pairs = match(list(link.vehicles), routes, assign)
+        results = _upload_all(link, pairs, args.firmware)
+    finally:
+        link.close()
+    Console().print(_summary(results))
+    failed = [r for r in results if r["error"]]
+    for r in failed:
+        print(f"gcs upload: error: {r['error']}", file=sys.stderr)
+    return 1 if failed else 0
+
+
+def _upload_all(link, pairs, firmware_choice) -> list:
+    bars = Progress(TextColumn("{task.description:<28}"), BarColumn(),
+                    TextColumn("{task.completed:>4.0f}/{task.total:.0f}"), console=console,
+                    disable=not console.is_terminal)
+    vehicles = link.vehicles
+    with bars, ThreadPoolExecutor(max_workers=max(1, len(pairs))) as pool:
+        jobs = [pool.submit(_upload_one, vehicles[s], route, firmware_choice, bars)
+                for s, route in pairs]
+        return [job.result() for job in jobs]
+
+
+def _upload_one(vehicle, route, firmware_choice, bars) -> dict:
+    from gcs import mission_protocol as mp
+    from gcs.mavlink import ARDUPILOT, PX4
+
+    firmware = firmware_choice if firmware_choice != "auto" else \
+        (ARDUPILOT if vehicle.flavour == ARDUPILOT else PX4)
+    result = {"sysid": vehicle.sysid, "flavour": vehicle.flavour, "route": route.id,
+              "firmware": firmware, "items": 0, "error": None, "seconds": 0.0}
+    t0 = time.monotonic()
+    try:
+        items = route.build(firmware)
+        result["items"] = len(items)
+        task = bars.add_task(f"vehicle {vehicle.sysid} <- route {route.id}",
+                             total=2 * len(items))
+        mp.upload_verified(vehicle, items,
+                           progress=lambda done, total: bars.update(task, completed=done))
+    except (mp.MissionError, InputError) as exc:
+        result["error"] = str(exc)
+    result["seconds"] = time.monotonic() - t0
+    if not console.is_terminal:
+        state = "verified" if not result["error"] else "FAILED"
+        print(f"vehicle {vehicle.sysid}: route {route.id}, {result['items']} items, {state}",
+              file=sys.stderr, flush=True)
+    return result
+
+
+def _summary(results) -> Table:
+    table = Table(title="mission upload")
+    for column in ("system id", "autopilot", "route", "items", "result", "time"):
+        table.add_column(column, justify="right" if column in ("items", "time") else "left")
+    for r in results:
+        table.add_row(str(r["sysid"]), r["flavour"], str(r["route"]), str(r["items"]),
+                      "verified" if not r["error"] else "[red]failed[/red]",
+                      f"{r['seconds']:.1f} s")
+    return table

@@ -1,0 +1,272 @@
+"""Commands with acknowledgement: modes, arming, readiness, the start of a mission.
+
+Every COMMAND_LONG / COMMAND_INT is re-sent until its COMMAND_ACK arrives (1.5 s,
+up to 5 retries, `confirmation` counting up as the spec asks); a result other
+than ACCEPTED raises CommandError naming the MAV_RESULT and, where the vehicle
+explained itself in a STATUSTEXT ("PreArm: GPS 1: Bad fix"), its words.
+
+Start sequences (issue 5):
+- ArduPilot: GUIDED, arm, MAV_CMD_NAV_TAKEOFF, then AUTO + MISSION_START. It
+  refuses to arm in AUTO (unless AUTO_OPTIONS allows), and a copter armed on the
+  ground in AUTO waits for MISSION_START, so it takes off in GUIDED first.
+- PX4: MISSION_START (mode AUTO.MISSION), then arm: it takes off on its own.
+In both, the current item is set first: after a new upload ArduPilot would
+otherwise resume at the old index.
+"""
+
+import time
+
+from gcs.mavlink import ARDUPILOT, PX4, M, command_name, mode_number, result_name
+
+TIMEOUT_S = 1.5
+RETRIES = 5
+CONFIRM_S = 3.0                 # how long a mode change may take to show in the HEARTBEAT
+TEMPORARY_WAIT_S = 0.5          # pause before retrying a TEMPORARILY_REJECTED command
+HEARTBEAT_LAG_S = 0.5           # a HEARTBEAT this long after a command reflects it
+
+
+class CommandError(Exception):
+    """A command was refused or never acknowledged; names vehicle, command, result."""
+
+    def __init__(self, vehicle, problem: str, command: int | None = None,
+                 result: int | None = None):
+        self.sysid = getattr(vehicle, "sysid", vehicle)
+        self.command = command
+        self.result = result
+        self.result_name = None if result is None else result_name(result)
+        super().__init__(f"vehicle {self.sysid}: {problem}")
+
+
+# -- acknowledged commands -------------------------------------------------------------
+def command_long(link, command: int, *params, timeout_s=TIMEOUT_S, retries=RETRIES):
+    """Send COMMAND_LONG (params 1-7, missing ones 0) until acknowledged; returns the
+    COMMAND_ACK. Raises CommandError on refusal or when no ACK comes."""
+    p = [float(x) for x in params] + [0.0] * (7 - len(params))
+    fields = {f"param{i + 1}": p[i] for i in range(7)}
+
+    def send(attempt):
+        link.send("COMMAND_LONG", command=command, confirmation=min(attempt, 255), **fields)
+
+    return _acknowledged(link, command, send, timeout_s, retries)
+
+
+def command_int(link, command: int, frame: int, params=(), x: int = 0, y: int = 0,
+                z: float = 0.0, timeout_s=TIMEOUT_S, retries=RETRIES):
+    """COMMAND_INT (x, y as degrees * 1e7 in global frames) until acknowledged."""
+    p = [float(v) for v in params] + [0.0] * (4 - len(params))
+    fields = {f"param{i + 1}": p[i] for i in range(4)}
+
+    def send(_attempt):
+        link.send("COMMAND_INT", command=command, frame=frame, x=int(x), y=int(y),
+                  z=float(z), **fields)
+
+    return _acknowledged(link, command, send, timeout_s, retries)
+
+
+def _acknowledged(link, command, send, timeout_s, retries):
+    is_ours = lambda ack: ack.command == command             # noqa: E731
+    while link.recv("COMMAND_ACK", 0, is_ours) is not None:  # stale ACKs of this command
+        pass
+    texts_before = len(_texts(link))
+    for attempt in range(retries + 1):
+        send(attempt)
+        deadline = time.monotonic() + timeout_s
+        while (left := deadline - time.monotonic()) > 0:
+            ack = link.recv("COMMAND_ACK", left, is_ours)
+            if ack is None:
+                break
+            if ack.result == M.MAV_RESULT_ACCEPTED:
+                return ack
+            if ack.result == M.MAV_RESULT_IN_PROGRESS:
+                deadline = time.monotonic() + timeout_s        # a long command: wait on
+                continue
+            if ack.result == M.MAV_RESULT_TEMPORARILY_REJECTED and attempt < retries:
+                time.sleep(TEMPORARY_WAIT_S)
+                break
+            raise CommandError(link, f"{command_name(command)} refused: "
+                                     f"{result_name(ack.result)}"
+                                     f"{_explanation(link, texts_before)}",
+                               command, ack.result)
+    raise CommandError(link, f"no COMMAND_ACK for {command_name(command)} after "
+                             f"{retries + 1} tries {timeout_s:g} s apart{_silence(link)}",
+                       command)
+
+
+def _texts(link) -> list:
+    return list(getattr(link.state, "statustext", []))
+
+
+def _explanation(link, since: int = 0) -> str:
+    """What the vehicle said since the command went out (warnings and worse first)."""
+    time.sleep(0.05)                           # the STATUSTEXT usually trails the ACK
+    texts = _texts(link)[since:]
+    if not texts:
+        return ""
+    worst = min(texts, key=lambda t: t[0])
+    return f' (vehicle said: "{worst[1]}")'
+
+
+def _silence(link) -> str:
+    age = link.heartbeat_age()
+    return f" (no HEARTBEAT for {age:.0f} s)" if age > 3 else ""
+
+
+# -- modes and arming ------------------------------------------------------------------
+def set_mode(link, name: str, confirm=True, timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
+    """Switch to mode `name` (ArduPilot: "GUIDED", "AUTO", ...; PX4: "AUTO.MISSION",
+    "AUTO.LOITER", "POSCTL", ...), then wait until the HEARTBEAT shows it."""
+    try:
+        custom, main, sub = mode_number(link.flavour, name, link.mav_type)
+    except KeyError as exc:
+        raise CommandError(link, exc.args[0]) from None
+    flag = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
+    try:
+        if link.flavour == PX4:
+            command_long(link, M.MAV_CMD_DO_SET_MODE, flag, main, sub,
+                         timeout_s=timeout_s, retries=retries)
+        else:
+            command_long(link, M.MAV_CMD_DO_SET_MODE, flag, custom,
+                         timeout_s=timeout_s, retries=retries)
+    except CommandError as exc:
+        if exc.result != M.MAV_RESULT_UNSUPPORTED:
+            raise
+        link.send("SET_MODE", base_mode=flag, custom_mode=custom)   # older firmware
+    if confirm:
+        _wait_for(link, lambda s: s.custom_mode == custom, CONFIRM_S,
+                  lambda s: f"mode is still {s.mode} after asking for {name.upper()}")
+
+
+def arm(link, timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
+    """Arm; a refusal names the reason the vehicle gave (pre-arm failure etc.).
+
+    The ACK is the confirmation: waiting for a HEARTBEAT (1 Hz) would eat into the
+    few seconds before an idle armed copter disarms itself."""
+    command_long(link, M.MAV_CMD_COMPONENT_ARM_DISARM, 1, timeout_s=timeout_s,
+                 retries=retries)
+
+
+def disarm(link, force=False) -> None:
+    command_long(link, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 21196 if force else 0)
+
+
+def set_current(link, seq: int, timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
+    """Make mission item `seq` the current one, confirmed by MISSION_CURRENT."""
+    try:
+        command_long(link, M.MAV_CMD_DO_SET_MISSION_CURRENT, seq, timeout_s=timeout_s,
+                     retries=retries)
+    except CommandError as exc:
+        if exc.result != M.MAV_RESULT_UNSUPPORTED:
+            raise
+        _set_current_legacy(link, seq, timeout_s, retries)
+
+
+def _set_current_legacy(link, seq, timeout_s, retries) -> None:
+    """MISSION_SET_CURRENT (deprecated message): answered by MISSION_CURRENT."""
+    link.flush("MISSION_CURRENT")
+    for _ in range(retries + 1):
+        link.send("MISSION_SET_CURRENT", seq=seq)
+        if link.recv("MISSION_CURRENT", timeout_s, lambda m: m.seq == seq) is not None:
+            return
+    raise CommandError(link, f"the current mission item did not become {seq}")
+
+
+def wait_ready(link, timeout_s: float = 60.0) -> None:
+    """Wait until the vehicle reports it may arm (pre-arm checks, EKF, GPS) and has a
+    position; CommandError saying what is missing after `timeout_s`."""
+    _wait_for(link, lambda s: s.ready and s.lat is not None, timeout_s,
+              lambda s: f"not ready to arm after {timeout_s:g} s: {_readiness(s)}")
+
+
+def _readiness(s) -> str:
+    missing = []
+    if s.gps_fix < M.GPS_FIX_TYPE_3D_FIX:
+        missing.append(f"GPS fix type {s.gps_fix} (3D fix needed)")
+    if not s.ready:
+        missing.append("pre-arm checks failing (EKF / sensors)")
+    if s.lat is None:
+        missing.append("no position reported")
+    texts = [t for sev, t in s.statustext if sev <= M.MAV_SEVERITY_WARNING]
+    if texts:
+        missing.append(f'last warning: "{texts[-1]}"')
+    return "; ".join(missing) or "unknown reason"
+
+
+def _wait_for(link, predicate, timeout_s, problem) -> None:
+    deadline = time.monotonic() + timeout_s
+    while not predicate(link.state):
+        if time.monotonic() >= deadline:
+            raise CommandError(link, problem(link.state))
+        time.sleep(0.05)
+
+
+# -- the start sequence ----------------------------------------------------------------
+def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
+                  climb_timeout_s: float = 120.0) -> None:
+    """Take off and start the uploaded mission, as the vehicle's firmware expects.
+
+    takeoff_alt_amsl: where ArduPilot climbs in GUIDED before AUTO (m AMSL; the
+    mission's own takeoff item then completes at once). PX4 flies its mission's
+    takeoff item itself. Returns once the vehicle is airborne in its mission mode."""
+    wait_ready(link, ready_timeout_s)
+    if link.flavour == ARDUPILOT:
+        _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s)
+    else:
+        _start_px4(link, climb_timeout_s)
+
+
+def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s) -> None:
+    set_current(link, 1)                    # item 0 is home
+    set_mode(link, "GUIDED")
+    armed_at = time.monotonic()
+    arm(link)
+    home_alt = _home_alt(link)
+    climb = takeoff_alt_amsl - home_alt
+    if climb < 1.0:
+        raise CommandError(link, f"takeoff altitude {takeoff_alt_amsl:.1f} m AMSL is not "
+                                 f"above home ({home_alt:.1f} m AMSL)")
+    command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb)   # relative to home
+    target = climb - max(1.0, 0.05 * climb)
+    _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) >= target,
+                   climb_timeout_s, f"climbing to {climb:.1f} m above home")
+    set_mode(link, "AUTO")
+    command_long(link, M.MAV_CMD_MISSION_START, 0, 0)
+
+
+def _start_px4(link, climb_timeout_s) -> None:
+    set_current(link, 0)
+    try:
+        command_long(link, M.MAV_CMD_MISSION_START, 0, 0)
+    except CommandError as exc:
+        if exc.result is None:
+            raise
+        set_mode(link, "AUTO.MISSION")
+    armed_at = time.monotonic()
+    arm(link)
+    _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) > 1.0, climb_timeout_s,
+                   "taking off")
+
+
+def _wait_airborne(link, armed_at, climbed, timeout_s, doing) -> None:
+    """Wait for `climbed(state)`; a HEARTBEAT sent after arming that shows the vehicle
+    disarmed (it gave up, or disarmed itself idle on the ground) is an error."""
+    def disarmed(s):
+        return not s.armed and (s.last_heartbeat or 0.0) > armed_at + HEARTBEAT_LAG_S
+
+    _wait_for(link, lambda s: climbed(s) or disarmed(s), timeout_s,
+              lambda s: f"still at {s.relative_alt or 0.0:.1f} m above home "
+                        f"{timeout_s:g} s after {doing} started (mode {s.mode})")
+    if disarmed(link.state):
+        raise CommandError(link, f"disarmed while {doing}{_explanation(link)}")
+
+
+def _home_alt(link) -> float:
+    s = link.state
+    if s.home is not None:
+        return s.home[2]
+    if s.alt_amsl is not None and s.relative_alt is not None:
+        return s.alt_amsl - s.relative_alt
+    raise CommandError(link, "no home position or altitude reported yet")
+
+
+__all__ = ["CommandError", "arm", "command_int", "command_long", "disarm", "set_current",
+           "set_mode", "start_mission", "wait_ready"]

@@ -1,0 +1,242 @@
+"""The MAVLink mission protocol, ground side (mavlink.io/en/services/mission.html).
+
+Upload: MISSION_COUNT -> the vehicle asks for each item (MISSION_REQUEST_INT, or
+the legacy MISSION_REQUEST that ArduPilot still sends; both are answered with
+MISSION_ITEM_INT) -> MISSION_ACK. Download: MISSION_REQUEST_LIST -> MISSION_COUNT
+-> MISSION_REQUEST_INT per item -> MISSION_ACK. Clear: MISSION_CLEAR_ALL ->
+MISSION_ACK. Whoever waits re-sends its last message after 1.5 s, up to 5 times,
+as the spec recommends; every MAV_MISSION_RESULT error is reported by name.
+
+ArduPilot answers an upload in the first second after boot with
+MAV_MISSION_NO_SPACE ("Only 0 items are supported"); that is retried after a
+short wait. Its item 0 is home and always reads back as the real home, so a
+read-back comparison skips it.
+"""
+
+import math
+import time
+
+from gcs.mavlink import ARDUPILOT, M, mission_result_name
+
+TIMEOUT_S = 1.5
+RETRIES = 5
+NO_SPACE_WAIT_S = 1.0          # ArduPilot refuses uploads for about a second after boot
+NO_SPACE_RETRIES = 5
+ITEM_TYPES = ("MISSION_ITEM_INT", "MISSION_ITEM")
+REQUEST_TYPES = ("MISSION_REQUEST_INT", "MISSION_REQUEST")
+
+
+class MissionError(Exception):
+    """A mission transfer failed: names the vehicle, the step, and the MAV_MISSION_RESULT."""
+
+    def __init__(self, vehicle, problem: str, result: int | None = None, timeout=False):
+        self.sysid = getattr(vehicle, "sysid", vehicle)
+        self.result = result
+        self.result_name = None if result is None else mission_result_name(result)
+        self.timeout = timeout
+        super().__init__(f"vehicle {self.sysid}: {problem}")
+
+
+class _NoSpace(Exception):
+    pass
+
+
+# -- upload ----------------------------------------------------------------------------
+def upload(link, items, progress=None, mission_type=M.MAV_MISSION_TYPE_MISSION,
+           timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
+    """Upload `items` (missions.items.MissionItem, seq 0..n-1) to the vehicle `link`.
+
+    progress(done, total) is called as items are sent. Raises MissionError."""
+    items = list(items)
+    for k, item in enumerate(items):
+        if item.seq != k:
+            raise ValueError(f"mission items must be numbered 0..{len(items) - 1}: "
+                             f"item {k} has seq {item.seq}")
+    for attempt in range(NO_SPACE_RETRIES + 1):
+        try:
+            return _upload_once(link, items, progress, mission_type, timeout_s, retries)
+        except _NoSpace:
+            if attempt == NO_SPACE_RETRIES:
+                raise MissionError(link, f"upload of {len(items)} items refused: "
+                                         f"{mission_result_name(M.MAV_MISSION_NO_SPACE)}",
+                                   M.MAV_MISSION_NO_SPACE) from None
+            time.sleep(NO_SPACE_WAIT_S)
+
+
+def _upload_once(link, items, progress, mission_type, timeout_s, retries) -> None:
+    count = len(items)
+    link.flush(REQUEST_TYPES + ("MISSION_ACK",))
+    sent = {"last": None}          # what to re-send on a timeout: None = the count
+
+    def resend():
+        if sent["last"] is None:
+            link.send("MISSION_COUNT", count=count, mission_type=mission_type)
+        else:
+            _send_item(link, items[sent["last"]], mission_type)
+
+    resend()
+    highest, tries = -1, 0
+    same_type = _of_type(mission_type)
+    while True:
+        msg = link.recv(REQUEST_TYPES + ("MISSION_ACK",), timeout_s, same_type)
+        if msg is None:
+            tries += 1
+            if tries > retries:
+                waited = "MISSION_COUNT" if sent["last"] is None else f"item {sent['last']}"
+                raise _timeout(link, f"no answer to {waited} of an upload of {count} "
+                                     f"items", timeout_s, retries)
+            resend()
+            continue
+        if msg.get_type() == "MISSION_ACK":
+            if msg.type == M.MAV_MISSION_ACCEPTED:
+                if count == 0 or highest == count - 1:
+                    if progress:
+                        progress(count, count)
+                    return
+                continue                         # a stale ACK of an earlier transfer
+            if msg.type == M.MAV_MISSION_NO_SPACE and highest < 0:
+                raise _NoSpace()
+            where = f"after item {highest}" if highest >= 0 else "at MISSION_COUNT"
+            raise MissionError(link, f"upload of {count} items refused {where}: "
+                                     f"{mission_result_name(msg.type)}{_said(link)}",
+                               msg.type)
+        if not 0 <= msg.seq < count:
+            continue                             # not a request we can answer
+        tries = 0
+        sent["last"] = msg.seq
+        _send_item(link, items[msg.seq], mission_type)
+        if msg.seq > highest:
+            highest = msg.seq
+            if progress:
+                progress(highest, count)
+
+
+def _send_item(link, item, mission_type) -> None:
+    fields = dict(item.to_int())
+    fields.pop("target_system", None)
+    fields.pop("target_component", None)
+    fields["mission_type"] = mission_type
+    link.send("MISSION_ITEM_INT", **fields)
+
+
+# -- download --------------------------------------------------------------------------
+def download(link, progress=None, mission_type=M.MAV_MISSION_TYPE_MISSION,
+             timeout_s=TIMEOUT_S, retries=RETRIES) -> list:
+    """The mission the vehicle holds, as a list of missions.items.MissionItem."""
+    from missions.items import MissionItem
+
+    link.flush(("MISSION_COUNT", "MISSION_ACK") + ITEM_TYPES)
+    same_type = _of_type(mission_type)
+    msg = _exchange(link, lambda: link.send("MISSION_REQUEST_LIST", mission_type=mission_type),
+                    ("MISSION_COUNT",), same_type, "MISSION_REQUEST_LIST", timeout_s, retries)
+    count = msg.count
+    items = []
+    for seq in range(count):
+        def ask(seq=seq):
+            link.send("MISSION_REQUEST_INT", seq=seq, mission_type=mission_type)
+
+        def answer(m, seq=seq):
+            return same_type(m) and (m.get_type() == "MISSION_ACK" or m.seq == seq)
+
+        msg = _exchange(link, ask, ITEM_TYPES, answer, f"the request for item {seq} of "
+                        f"{count}", timeout_s, retries)
+        items.append(MissionItem.from_int(msg))
+        if progress:
+            progress(seq + 1, count)
+    link.send("MISSION_ACK", type=M.MAV_MISSION_ACCEPTED, mission_type=mission_type)
+    return items
+
+
+def clear(link, mission_type=M.MAV_MISSION_TYPE_MISSION, timeout_s=TIMEOUT_S,
+          retries=RETRIES) -> None:
+    """Delete the vehicle's mission (MISSION_CLEAR_ALL)."""
+    link.flush("MISSION_ACK")
+    _exchange(link, lambda: link.send("MISSION_CLEAR_ALL", mission_type=mission_type), (),
+              _of_type(mission_type), "MISSION_CLEAR_ALL", timeout_s, retries)
+
+
+def _exchange(link, ask, types, condition, what, timeout_s, retries):
+    """Send `ask()` until a message of `types` (or an error MISSION_ACK) answers it.
+
+    A MISSION_ACK ACCEPTED is the answer when `types` is empty (clear)."""
+    for _ in range(retries + 1):
+        ask()
+        deadline = time.monotonic() + timeout_s
+        while (left := deadline - time.monotonic()) > 0:
+            msg = link.recv(tuple(types) + ("MISSION_ACK",), left, condition)
+            if msg is None:
+                break
+            if msg.get_type() != "MISSION_ACK":
+                return msg
+            if msg.type != M.MAV_MISSION_ACCEPTED:
+                raise MissionError(link, f"{what} refused: {mission_result_name(msg.type)}"
+                                         f"{_said(link)}", msg.type)
+            if not types:
+                return msg
+            # an ACCEPTED left over from an earlier transfer: keep waiting
+    raise _timeout(link, f"no answer to {what}", timeout_s, retries)
+
+
+def _of_type(mission_type):
+    return lambda m: getattr(m, "mission_type", 0) == mission_type
+
+
+def _timeout(link, problem, timeout_s, retries) -> MissionError:
+    text = f"{problem} after {retries + 1} tries {timeout_s:g} s apart"
+    age = link.heartbeat_age() if hasattr(link, "heartbeat_age") else float("inf")
+    if age > 3:
+        text += f" (no HEARTBEAT for {age:.0f} s: link lost?)" if math.isfinite(age) \
+            else " (no HEARTBEAT at all)"
+    if getattr(link, "signs", False) and not getattr(link.ground, "signing_key", None):
+        text += "; the vehicle signs its messages and ignores unsigned ones: " \
+                "give --signing-key"
+    return MissionError(link, text, timeout=True)
+
+
+def _said(link) -> str:
+    """The vehicle's last STATUSTEXT, which often says why (ArduPilot)."""
+    texts = getattr(getattr(link, "state", None), "statustext", None)
+    return f' (vehicle said: "{texts[-1][1]}")' if texts else ""
+
+
+# -- verified upload -------------------------------------------------------------------
+def upload_verified(link, items, progress=None, attempts=2, timeout_s=TIMEOUT_S,
+                    retries=RETRIES) -> list:
+    """Upload, read back, compare item by item; returns what was read back.
+
+    progress(done, 2 * n) covers both halves. A transfer that times out is started
+    again (up to `attempts` in all); a read-back that differs is an error."""
+    items = list(items)
+    n = len(items)
+    up = (lambda d, t: progress(d, 2 * n)) if progress else None
+    down = (lambda d, t: progress(n + d, 2 * n)) if progress else None
+    for attempt in range(1, attempts + 1):
+        try:
+            upload(link, items, up, timeout_s=timeout_s, retries=retries)
+            back = download(link, down, timeout_s=timeout_s, retries=retries)
+            break
+        except MissionError as exc:
+            if not exc.timeout or attempt == attempts:
+                raise
+    problems = compare(items, back, getattr(link, "flavour", None))
+    if problems:
+        raise MissionError(link, "mission read back differs from the upload: "
+                                 + "; ".join(problems[:5])
+                                 + (f" (and {len(problems) - 5} more)" if len(problems) > 5
+                                    else ""))
+    return back
+
+
+def compare(sent, got, flavour=None) -> list:
+    """Differences between two missions, one line per item (empty: the same), as
+    `MissionItem.differences` judges them. ArduPilot's item 0 is home and reads
+    back as the real home: not compared."""
+    if len(sent) != len(got):
+        return [f"{len(sent)} items sent, {len(got)} read back"]
+    first = 1 if flavour == ARDUPILOT else 0
+    out = []
+    for a, b in zip(sent[first:], got[first:]):
+        diff = a.differences(b)
+        if diff:
+            out.append(f"item {a.seq}: " + ", ".join(diff))
+    return out

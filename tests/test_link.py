@@ -1,0 +1,267 @@
+"""Links: vehicles found by HEARTBEAT, per-vehicle routing on a shared UDP port,
+signing, .tlog recording. References: the simulated vehicles, plain pymavlink
+endpoints standing in for other ground stations and cameras, pymavlink's tlog
+reader, hashlib for MAVProxy's passphrase rule."""
+
+import hashlib
+import random
+import socket
+import time
+
+import pytest
+
+from gcs import commands, signing
+from gcs.link import GroundLink, LinkError, build_message
+from gcs.mavlink import M, mavutil, mode_name, mode_number
+from gcs.sim import FleetConfig, SimFleet
+from planner.errors import InputError
+
+pytestmark = pytest.mark.timeout(60)
+
+FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=10.0)
+
+
+def _bindable(port, kind):
+    with socket.socket(socket.AF_INET, kind) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def free_base(step=1, count=1, kind=socket.SOCK_STREAM) -> int:
+    rng = random.Random()
+    for _ in range(500):
+        base = rng.randrange(20000, 60000 - step * count)
+        if all(_bindable(base + step * i, kind) for i in range(count)):
+            return base
+    raise RuntimeError("no free ports")
+
+
+def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
+    if firmware == "ardupilot":
+        ports = dict(base_port=free_base(10, vehicles))
+    else:
+        ports = dict(base_port=free_base(1, vehicles, socket.SOCK_DGRAM),
+                     gcs_port=free_base(1, 1, socket.SOCK_DGRAM))
+    return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
+
+
+@pytest.fixture
+def fleet_of():
+    fleets = []
+
+    def start(cfg):
+        fleets.append(SimFleet(cfg).start())
+        return fleets[-1]
+
+    yield start
+    for f in fleets:
+        f.stop()
+
+
+def wait_until(predicate, timeout=5.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+# -- finding vehicles ------------------------------------------------------------------
+@pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
+def test_vehicles_found_by_heartbeat(fleet_of, firmware):
+    fleet = fleet_of(fleet_config(firmware, 3))
+    with GroundLink.open(fleet.urls(), expect=3, timeout_s=10) as link:
+        assert sorted(link.vehicles) == [1, 2, 3]
+        for sysid, v in link.vehicles.items():
+            assert (v.sysid, v.compid, v.flavour) == (sysid, 1, firmware)
+            assert wait_until(lambda: v.state.ready and v.state.lat is not None)
+            assert v.state.lat == pytest.approx(-35.363261, abs=1e-6)
+            assert v.state.alt_amsl == pytest.approx(584.0, abs=0.01)
+            assert v.state.mode == ("STABILIZE" if firmware == "ardupilot" else "AUTO.LOITER")
+            assert v.state.landed is True and v.state.armed is False
+            assert v.heartbeat_age() < 2.0
+
+
+def test_open_without_expect_waits_for_every_vehicle_on_a_shared_port(fleet_of):
+    fleet = fleet_of(fleet_config("px4", 3))
+    with GroundLink.open(fleet.urls(), timeout_s=10) as link:
+        assert sorted(link.vehicles) == [1, 2, 3]
+
+
+def test_udpout_reaches_a_vehicle_that_waits_to_be_spoken_to(fleet_of):
+    # The PX4 flavour answers whoever spoke last: our GCS HEARTBEAT opens the way.
+    cfg = fleet_config("px4", 1)
+    fleet = fleet_of(cfg)
+    with GroundLink.open([f"udpout:127.0.0.1:{cfg.base_port}"], expect=1, timeout_s=10) as link:
+        v = link.vehicles[1]
+        v.send("MISSION_REQUEST_LIST", mission_type=0)
+        assert v.recv("MISSION_COUNT", 3.0) is not None
+
+
+def test_serial_urls_carry_their_baud():
+    from gcs.link import _split_serial
+    assert _split_serial("/dev/ttyACM0,57600") == ("/dev/ttyACM0", 57600)
+    assert _split_serial("/dev/ttyUSB0") == ("/dev/ttyUSB0", 115200)
+    assert _split_serial("tcp:127.0.0.1:5760") == ("tcp:127.0.0.1:5760", 115200)
+
+
+def test_open_names_what_is_missing(fleet_of):
+    fleet = fleet_of(fleet_config("ardupilot", 1))
+    with pytest.raises(LinkError, match=r"2 vehicle\(s\), found 1 \[1\] within 1 s"):
+        GroundLink.open(fleet.urls(), expect=2, timeout_s=1)
+    port = free_base(1, 1, socket.SOCK_DGRAM)
+    with pytest.raises(LinkError, match="nothing received at all"):
+        GroundLink.open([f"udpin:127.0.0.1:{port}"], expect=1, timeout_s=0.5)
+    with pytest.raises(LinkError, match="cannot open"):
+        GroundLink.open([f"tcp:127.0.0.1:{free_base()}"], timeout_s=0.5)
+
+
+def test_ground_stations_and_cameras_are_not_vehicles(fleet_of):
+    fleet = fleet_of(fleet_config("px4", 1))
+    port = fleet.config.gcs_port
+    others = []
+    for sysid, compid, mav_type, autopilot in [(200, 190, M.MAV_TYPE_GCS, M.MAV_AUTOPILOT_INVALID),
+                                              (1, 100, M.MAV_TYPE_CAMERA, M.MAV_AUTOPILOT_INVALID),
+                                              (7, 191, M.MAV_TYPE_ONBOARD_CONTROLLER,
+                                               M.MAV_AUTOPILOT_GENERIC)]:
+        c = mavutil.mavlink_connection(f"udpout:127.0.0.1:{port}", source_system=sysid,
+                                       source_component=compid)
+        others.append((c, mav_type, autopilot))
+    with GroundLink.open(fleet.urls(), expect=1, timeout_s=10) as link:
+        for _ in range(3):
+            for c, mav_type, autopilot in others:
+                c.mav.heartbeat_send(mav_type, autopilot, 0, 0, 0)
+            time.sleep(0.3)
+        assert list(link.vehicles) == [1]
+        assert link.vehicles[1].compid == 1           # the camera of system 1 is not it
+    for c, _, _ in others:
+        c.close()
+
+
+# -- routing on a shared UDP port ----------------------------------------------------------
+def test_px4_instances_on_one_port_each_get_their_own_messages(fleet_of):
+    fleet = fleet_of(fleet_config("px4", 3))
+    with GroundLink.open(fleet.urls(), expect=3, timeout_s=10) as link:
+        vehicles = link.vehicles
+        addresses = {v.sysid: v._route[1] for v in vehicles.values()}
+        assert len(set(addresses.values())) == 3      # three source ports
+        # Ask in reverse order: pymavlink's udpin would answer whoever spoke last.
+        for sysid in (3, 1, 2):
+            vehicles[sysid].send("PARAM_REQUEST_READ", param_id=b"SYSID_THISMAV",
+                                 param_index=-1)
+        for sysid, v in vehicles.items():
+            answer = v.recv("PARAM_VALUE", 3.0)
+            assert answer is not None and answer.param_value == sysid
+        # a mode change addressed to vehicle 2 changes vehicle 2 only
+        commands.wait_ready(vehicles[2], 10)
+        commands.set_mode(vehicles[2], "POSCTL")
+        assert [v.mode for v in fleet.vehicles] == ["AUTO.LOITER", "POSCTL", "AUTO.LOITER"]
+
+
+def test_recv_subscribe_flush(fleet_of):
+    fleet = fleet_of(fleet_config("ardupilot", 1))
+    with GroundLink.open(fleet.urls(), expect=1, timeout_s=10) as link:
+        v = link.vehicles[1]
+        seen = []
+        unsubscribe = v.subscribe(lambda msg: seen.append(msg.get_type()))
+        assert v.recv("GLOBAL_POSITION_INT", 2.0) is not None
+        first = v.recv(["HEARTBEAT", "SYS_STATUS"], 3.0, lambda m: m.get_type() == "SYS_STATUS")
+        assert first.get_type() == "SYS_STATUS"
+        assert v.recv("NO_SUCH_MESSAGE", 0.1) is None
+        v.flush()
+        assert v.recv("HEARTBEAT", 0.0) is None
+        assert wait_until(lambda: {"HEARTBEAT", "GLOBAL_POSITION_INT"} <= set(seen))
+        unsubscribe()
+        count = len(seen)
+        time.sleep(0.5)
+        assert len(seen) == count
+
+
+def test_build_message_fills_unset_fields():
+    msg = build_message("MISSION_COUNT", {"target_system": 3, "count": 7})
+    assert (msg.target_system, msg.target_component, msg.count, msg.mission_type) == (3, 0, 7, 0)
+    with pytest.raises(ValueError, match="unknown MAVLink message"):
+        build_message("NOT_A_MESSAGE", {})
+    with pytest.raises(ValueError, match="unknown fields"):
+        build_message("MISSION_COUNT", {"cuont": 1})
+
+
+def test_mode_names_round_trip():
+    for flavour, names in [("ardupilot", ["STABILIZE", "GUIDED", "AUTO", "RTL", "LAND"]),
+                           ("px4", ["POSCTL", "AUTO.MISSION", "AUTO.LOITER", "AUTO.RTL"])]:
+        for name in names:
+            custom = mode_number(flavour, name)[0]
+            assert mode_name(flavour, custom) == name
+    with pytest.raises(KeyError, match="unknown PX4 mode"):
+        mode_number("px4", "GUIDED")
+
+
+# -- signing ---------------------------------------------------------------------------------
+def test_load_key(tmp_path):
+    raw = bytes(range(32))
+    (tmp_path / "raw.key").write_bytes(raw)
+    assert signing.load_key(tmp_path / "raw.key") == raw
+    (tmp_path / "phrase.txt").write_text("correct horse battery staple\n")
+    assert signing.load_key(tmp_path / "phrase.txt") == \
+        hashlib.sha256(b"correct horse battery staple").digest()       # MAVProxy's rule
+    (tmp_path / "empty").write_text("  \n")
+    with pytest.raises(InputError, match="empty"):
+        signing.load_key(tmp_path / "empty")
+    with pytest.raises(InputError, match="cannot read"):
+        signing.load_key(tmp_path / "missing")
+
+
+@pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
+def test_signed_fleet(fleet_of, firmware):
+    key = signing.key_from_passphrase("hidden coverage")
+    fleet = fleet_of(fleet_config(firmware, 2, signing_key=key))
+    urls = fleet.urls()
+    # the right key: found, and the vehicle answers our signed requests
+    with GroundLink.open(urls, signing_key=key, expect=2, timeout_s=10) as link:
+        for v in link.vehicles.values():
+            v.send("MISSION_REQUEST_LIST", mission_type=0)
+            assert v.recv("MISSION_COUNT", 3.0) is not None
+    # a wrong key: nothing accepted, and the error says why
+    with pytest.raises(LinkError, match="rejected for their signature.*key differs"):
+        GroundLink.open(urls, signing_key=signing.key_from_passphrase("wrong"), expect=2,
+                        timeout_s=2)
+    # no key: the vehicles ignore us, and a command's timeout says so
+    with GroundLink.open(urls, expect=2, timeout_s=10) as link:
+        v = link.vehicles[1]
+        assert v.signs
+        with pytest.raises(commands.CommandError, match="no COMMAND_ACK"):
+            commands.command_long(v, M.MAV_CMD_REQUEST_MESSAGE, M.MAVLINK_MSG_ID_AUTOPILOT_VERSION,
+                                  timeout_s=0.2, retries=1)
+        from gcs import mission_protocol as mp
+        with pytest.raises(mp.MissionError, match="signs its messages.*--signing-key"):
+            mp.clear(v, timeout_s=0.2, retries=1)
+
+
+def test_unsigned_messages_are_dropped_when_we_have_a_key(fleet_of):
+    fleet = fleet_of(fleet_config("px4", 1))                # an unsigned vehicle
+    with pytest.raises(LinkError, match="give --signing-key|rejected for their signature"):
+        GroundLink.open(fleet.urls(), signing_key=bytes(32), expect=1, timeout_s=1.5)
+
+
+# -- tlog ------------------------------------------------------------------------------------
+def test_tlog_replays_with_pymavlink(fleet_of, tmp_path):
+    fleet = fleet_of(fleet_config("px4", 2))
+    t0 = time.time()
+    with GroundLink.open(fleet.urls(), expect=2, timeout_s=10,
+                         tlog=tmp_path / "flight-{sysid}.tlog"):
+        time.sleep(1.5)
+    t1 = time.time()
+    for sysid in (1, 2):
+        log = mavutil.mavlink_connection(str(tmp_path / f"flight-{sysid}.tlog"))
+        kinds, stamps = set(), []
+        while (msg := log.recv_match()) is not None:
+            assert msg.get_srcSystem() == sysid
+            kinds.add(msg.get_type())
+            stamps.append(msg._timestamp)
+        assert {"HEARTBEAT", "GLOBAL_POSITION_INT", "SYS_STATUS"} <= kinds
+        assert t0 - 0.1 <= stamps[0] <= stamps[-1] <= t1 + 0.1
+        assert stamps == sorted(stamps)
