@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import EARTH_RADIUS_M, sees
+from .los import EARTH_RADIUS_M, gap_range, sees
 
 FULL_RINGS = 4  # rings around the outpost whose rays are evaluated exactly in full
 DISTINCT = 2  # two horizons closer than this (rings) count as one feature
@@ -607,65 +607,11 @@ def legs_hidden(h, cell, grad, eyes, a, b, curv):
 
 # --- clearance above the terrain ---------------------------------------------------------------
 
-@njit(cache=True)
-def leg_min_height(h, a, b):
-    """Min over the leg a -> b ((u, v, z)) of altitude minus the bilinear terrain.
-
-    Per patch the terrain along the line is quadratic and the altitude linear,
-    so the minimum is at a piece end or at the vertex. NaN next to a void.
-    """
-    n_rows, n_cols = h.shape
-    u0, v0, z0 = a[0], a[1], a[2]
-    du = b[0] - u0
-    dv = b[1] - v0
-    dz = b[2] - z0
-    best = np.inf
-    t = 0.0
-    while True:
-        um = u0 + (t + 1e-9) * du
-        vm = v0 + (t + 1e-9) * dv
-        i = min(max(int(math.floor(um)), 0), n_cols - 2)
-        j = min(max(int(math.floor(vm)), 0), n_rows - 2)
-        t_next = 1.0
-        if du > 0.0:
-            t_next = min(t_next, (i + 1 - u0) / du)
-        elif du < 0.0:
-            t_next = min(t_next, (i - u0) / du)
-        if dv > 0.0:
-            t_next = min(t_next, (j + 1 - v0) / dv)
-        elif dv < 0.0:
-            t_next = min(t_next, (j - v0) / dv)
-        if t_next <= t:
-            t_next = min(1.0, t + 1e-9)
-        h00 = h[j, i]
-        h10 = h[j, i + 1]
-        h01 = h[j + 1, i]
-        h11 = h[j + 1, i + 1]
-        cx = h10 - h00
-        cy = h01 - h00
-        cxy = h00 - h10 - h01 + h11
-        au = u0 - i
-        av = v0 - j
-        # altitude minus terrain: k0 + k1 t + k2 t^2
-        k0 = z0 - (h00 + cx * au + cy * av + cxy * au * av)
-        k1 = dz - (cx * du + cy * dv + cxy * (au * dv + av * du))
-        k2 = -cxy * du * dv
-        for tt in (t, t_next):
-            best = min(best, k0 + k1 * tt + k2 * tt * tt)
-        if k2 > 0.0:
-            tv = -k1 / (2.0 * k2)
-            if t < tv < t_next:
-                best = min(best, k0 + k1 * tv + k2 * tv * tv)
-        if not (k0 == k0 and k1 == k1 and k2 == k2):
-            return np.nan
-        if t_next >= 1.0:
-            return best
-        t = t_next
-
-
 @njit(cache=True, parallel=True)
 def legs_min_height(h, a, b):
+    """Min over each leg a[k] -> b[k] ((u, v, z)) of altitude minus the bilinear
+    terrain (planner.los.gap_range); NaN next to a void."""
     out = np.empty(a.shape[0])
     for k in prange(a.shape[0]):
-        out[k] = leg_min_height(h, a[k], b[k])
+        out[k] = gap_range(h, a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2])[0]
     return out

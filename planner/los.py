@@ -30,13 +30,29 @@ def curvature_drop(d_m, curvature_coeff):
 
 
 @njit(cache=True, inline="always")
-def _piece_max_slope(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
-    """Max over t in [ta, tb] of (T(t) - drop(d) - z0) / d on patch (col i, row j).
+def next_patch(u0, v0, du, dv, t, n_rows, n_cols):
+    """The patch (col i, row j) holding the line (u0, v0) + t (du, dv) just after
+    ``t``, and the parameter where the line leaves it (always beyond ``t``)."""
+    tm = min(t + 1e-9, 1.0)
+    i = min(max(int(math.floor(u0 + tm * du)), 0), n_cols - 2)
+    j = min(max(int(math.floor(v0 + tm * dv)), 0), n_rows - 2)
+    t_next = 1.0
+    if du > 0.0:
+        t_next = min(t_next, (i + 1 - u0) / du)
+    elif du < 0.0:
+        t_next = min(t_next, (i - u0) / du)
+    if dv > 0.0:
+        t_next = min(t_next, (j + 1 - v0) / dv)
+    elif dv < 0.0:
+        t_next = min(t_next, (j - v0) / dv)
+    if t_next <= t:
+        t_next = min(1.0, t + 1e-9)
+    return i, j, t_next
 
-    T(t) = c0 + c1 t + c2 t^2 (bilinear along the line), d = t * length_m, so
-    slope(t) = (a t + c1 + e / t) / length_m with a = c2 - curv L^2 / 2R and
-    e = c0 - z0; its only interior stationary point is t* = sqrt(e / a).
-    """
+
+@njit(cache=True, inline="always")
+def line_over_patch(h, i, j, u0, v0, du, dv):
+    """The bilinear surface of patch (i, j) along the line: c0 + c1 t + c2 t^2."""
     h00 = h[j, i]
     h10 = h[j, i + 1]
     h01 = h[j + 1, i]
@@ -48,7 +64,54 @@ def _piece_max_slope(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
     av = v0 - j
     c0 = h00 + cx * au + cy * av + cxy * au * av
     c1 = cx * du + cy * dv + cxy * (au * dv + av * du)
-    c2 = cxy * du * dv
+    return c0, c1, cxy * du * dv
+
+
+@njit(cache=True)
+def gap_range(h, u0, v0, z0, u1, v1, z1):
+    """Exact (min, max) over the segment of (altitude - bilinear ground), metres.
+
+    Within a patch the ground along the segment is a quadratic in t and the
+    altitude linear, so the extremes of their difference are at a piece's ends
+    or its one stationary point. (NaN, NaN) when the segment crosses a patch
+    touching a void: unknown ground is never clear.
+    """
+    n_rows, n_cols = h.shape
+    du = u1 - u0
+    dv = v1 - v0
+    dz = z1 - z0
+    lo = np.inf
+    hi = -np.inf
+    t = 0.0
+    while True:
+        i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
+        c0, c1, c2 = line_over_patch(h, i, j, u0, v0, du, dv)
+        if not (c0 == c0 and c1 == c1 and c2 == c2):
+            return np.nan, np.nan
+        for tt in (t, t_next):
+            g = z0 + dz * tt - (c0 + c1 * tt + c2 * tt * tt)
+            lo = min(lo, g)
+            hi = max(hi, g)
+        if c2 != 0.0:  # the one stationary point of the quadratic gap
+            ts = (dz - c1) / (2.0 * c2)
+            if t < ts < t_next:
+                g = z0 + dz * ts - (c0 + c1 * ts + c2 * ts * ts)
+                lo = min(lo, g)
+                hi = max(hi, g)
+        if t_next >= 1.0:
+            return lo, hi
+        t = t_next
+
+
+@njit(cache=True, inline="always")
+def _piece_max_slope(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
+    """Max over t in [ta, tb] of (T(t) - drop(d) - z0) / d on patch (col i, row j).
+
+    T(t) = c0 + c1 t + c2 t^2 (bilinear along the line), d = t * length_m, so
+    slope(t) = (a t + c1 + e / t) / length_m with a = c2 - curv L^2 / 2R and
+    e = c0 - z0; its only interior stationary point is t* = sqrt(e / a).
+    """
+    c0, c1, c2 = line_over_patch(h, i, j, u0, v0, du, dv)
     a = c2 - curv * length_m * length_m / (2.0 * EARTH_RADIUS_M)
     e = c0 - z0
     best = (a * ta + c1 + e / ta) / length_m
@@ -83,23 +146,7 @@ def max_slope(h, cell, u0, v0, z0, u1, v1, t_from, curvature_coeff):
         return best
     t = max(t_from, 1e-12)
     while t < 1.0:
-        # the patch holding the point just after t
-        um = u0 + (t + 1e-9) * du
-        vm = v0 + (t + 1e-9) * dv
-        i = min(max(int(math.floor(um)), 0), n_cols - 2)
-        j = min(max(int(math.floor(vm)), 0), n_rows - 2)
-        # parameter where the line leaves that patch
-        t_next = 1.0
-        if du > 0.0:
-            t_next = min(t_next, (i + 1 - u0) / du)
-        elif du < 0.0:
-            t_next = min(t_next, (i - u0) / du)
-        if dv > 0.0:
-            t_next = min(t_next, (j + 1 - v0) / dv)
-        elif dv < 0.0:
-            t_next = min(t_next, (j - v0) / dv)
-        if t_next <= t:
-            t_next = min(1.0, t + 1e-9)
+        i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
         s = _piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m,
                              curvature_coeff)
         if s > best:

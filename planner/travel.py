@@ -10,7 +10,7 @@ directed.
 Graph: one node per flyable cell, at the cell's ceiling ``E - hide_margin``
 (the highest hidden altitude there); edges to the 8 or 16 neighbouring cells
 of the same region, kept when the straight 3-D leg between the two nodes
-passes the exact clearance test (travel_kernels.gap_range) and
+passes the exact clearance test (planner.los.gap_range) and
 ``segments_hidden``; when it fails, the edge may still "dip": descend to the
 higher of the two floors, fly level (checked the same way), climb back.
 Different regions are never joined, so their times are infinite.

@@ -1,70 +1,9 @@
 """numba kernels for the hidden travel graph (see planner/travel.py)."""
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
-
-@njit(cache=True)
-def gap_range(h, u0, v0, z0, u1, v1, z1):
-    """Exact (min, max) over the segment of (altitude - bilinear ground), metres.
-
-    Within a grid patch the ground along the segment is a quadratic in the
-    segment parameter t and the altitude is linear in t, so the extremes of
-    their difference are at a piece's ends or at its one stationary point.
-    Patches touching a NaN height count as no ground (as planner.los).
-    """
-    n_rows, n_cols = h.shape
-    du = u1 - u0
-    dv = v1 - v0
-    dz = z1 - z0
-    lo = np.inf
-    hi = -np.inf
-    t = 0.0
-    while True:
-        um = u0 + min(t + 1e-9, 1.0) * du
-        vm = v0 + min(t + 1e-9, 1.0) * dv
-        i = min(max(int(math.floor(um)), 0), n_cols - 2)
-        j = min(max(int(math.floor(vm)), 0), n_rows - 2)
-        t_next = 1.0
-        if du > 0.0:
-            t_next = min(t_next, (i + 1 - u0) / du)
-        elif du < 0.0:
-            t_next = min(t_next, (i - u0) / du)
-        if dv > 0.0:
-            t_next = min(t_next, (j + 1 - v0) / dv)
-        elif dv < 0.0:
-            t_next = min(t_next, (j - v0) / dv)
-        if t_next <= t:
-            t_next = min(1.0, t + 1e-9)
-        h00 = h[j, i]
-        h10 = h[j, i + 1]
-        h01 = h[j + 1, i]
-        h11 = h[j + 1, i + 1]
-        cx = h10 - h00
-        cy = h01 - h00
-        cxy = h00 - h10 - h01 + h11
-        au = u0 - i
-        av = v0 - j
-        c0 = h00 + cx * au + cy * av + cxy * au * av
-        c1 = cx * du + cy * dv + cxy * (au * dv + av * du)
-        c2 = cxy * du * dv
-        # gap(t) = z0 + dz t - (c0 + c1 t + c2 t^2)
-        for tt in (t, t_next):
-            g = z0 + dz * tt - (c0 + c1 * tt + c2 * tt * tt)
-            lo = min(lo, g)
-            hi = max(hi, g)
-        if c2 != 0.0:  # the one stationary point of the quadratic gap
-            ts = (dz - c1) / (2.0 * c2)
-            if t < ts < t_next:
-                g = z0 + dz * ts - (c0 + c1 * ts + c2 * ts * ts)
-                lo = min(lo, g)
-                hi = max(hi, g)
-        if t_next >= 1.0:
-            break
-        t = t_next
-    return lo, hi
+from .los import gap_range
 
 
 @njit(cache=True)

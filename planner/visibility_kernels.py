@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import _piece_max_slope, curvature_drop
+from .los import _piece_max_slope, curvature_drop, next_patch
 
 
 @njit(cache=True)
@@ -38,21 +38,7 @@ def sees_early_exit(h, cell, u0, v0, z0, u1, v1, z1, range_m, curv):
         return True
     t = 1e-12
     while t < 1.0:
-        um = u0 + (t + 1e-9) * du
-        vm = v0 + (t + 1e-9) * dv
-        i = min(max(int(math.floor(um)), 0), n_cols - 2)
-        j = min(max(int(math.floor(vm)), 0), n_rows - 2)
-        t_next = 1.0
-        if du > 0.0:
-            t_next = min(t_next, (i + 1 - u0) / du)
-        elif du < 0.0:
-            t_next = min(t_next, (i - u0) / du)
-        if dv > 0.0:
-            t_next = min(t_next, (j + 1 - v0) / dv)
-        elif dv < 0.0:
-            t_next = min(t_next, (j - v0) / dv)
-        if t_next <= t:
-            t_next = min(1.0, t + 1e-9)
+        i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
         s = _piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m, curv)
         if s > target:
             return False

@@ -11,7 +11,7 @@ from planner.exposure import (ExposureParams, compute_exposure, segment_clear,
 from planner.outposts import Outpost
 from planner.terrain import Terrain, bilinear
 from planner.travel import TravelGraph, TravelParams, leg_time, polyline_time
-from planner.travel_kernels import gap_range
+from planner.los import gap_range
 from planner.viewpoints import candidate_viewpoints
 
 CELL = 30.0

@@ -155,3 +155,19 @@ class SimFleet:
     def alive(self) -> list:
         """System ids of the vehicles still running."""
         return [v.sysid for v in self.vehicles if not v.dead]
+
+
+def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
+    """A started fleet for a dry run of ``plan``: one vehicle per route (or
+    ``vehicles``), each at its route's launch point; ``config`` as FleetConfig.
+
+    OSError if an endpoint is taken (nothing is left open)."""
+    n = len(plan.vehicles) if vehicles is None else vehicles
+    homes = []
+    for i in range(n):
+        route = plan.vehicles[i % len(plan.vehicles)]
+        if route.launch is None:
+            raise ValueError(f"plan vehicle {route.id} has no launch point to start from")
+        homes.append((route.launch.lat, route.launch.lon, route.launch.alt_amsl))
+    config.setdefault("firmware", plan.params.get("firmware", "ardupilot"))
+    return SimFleet(FleetConfig(vehicles=n, homes=homes, **config)).start()

@@ -1,0 +1,281 @@
+"""Re-planning in flight: the survivors' remaining work after a loss.
+
+``context_for_plan`` rebuilds the `PlanningContext` a saved plan was made in
+(scenario from ``plan.params``, the working grid from ``terrain.tif``, the
+outposts from ``plan.json``). ``replan`` then runs the plan's coverage method
+again for the survivors only: each starts where it is now (a point in the
+hidden volume) and still returns hidden to its own launch point; what it has
+photographed so far counts as seen by it.
+
+Choices (the paper's assumption): a lost UAV's images are lost with it, so
+only the survivors' snapshots count, and every target must be seen by
+``min(k + 1, survivors)`` distinct survivors. Snapshot positions are judged
+with the planner's own sensor model (`snapshot_sets`).
+"""
+
+from dataclasses import dataclass, fields, replace
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .errors import InputError
+from .geotiff import read_terrain
+from .outposts import Outpost
+from .pipeline import PlanningContext, Start, allocate, prepare
+from .exposure import segments_clear, segments_hidden
+from .plan import TERRAIN_FILE, Plan, Waypoint
+from .scenario import Scenario
+from .travel import leg_time
+from .viewpoints import Viewpoints
+from .visibility import SensorParams, compute_visibility
+
+#: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
+#: autopilots accept a waypoint within about 2 m
+SNAP_TO_VIEWPOINT_M = 3.0
+#: nearest graph nodes tried when a survivor's position must be snapped
+SNAP_CANDIDATES = 32
+#: MAVLink carries latitude and longitude as integers of 1e-7 degree
+DEG_E7 = 1e7
+#: how far a split leg's midpoint may be lowered (m), and how often a leg is split
+SPLIT_DROPS_M = (0.5, 2.0, 5.0)
+MAX_SPLITS = 3
+
+
+@dataclass
+class Survivor:
+    """A UAV still flying, as the ground station knows it when re-planning."""
+
+    vehicle_id: int  # its plan vehicle id
+    xyz: np.ndarray  # current position: projected x, y, alt AMSL
+    launch: np.ndarray  # ground point it returns to: x, y, ground AMSL
+
+
+def scenario_from_params(params: dict) -> Scenario:
+    """The Scenario a plan was made from (`planner.pipeline.plan_params` inverted)."""
+    known = {f.name for f in fields(Scenario)}
+    values = {k: v for k, v in params.items() if k in known}
+    values["outposts"] = params.get("outposts_file")
+    values["launch"] = [tuple(p) for p in params.get("launch", [])]
+    if values.get("area") is not None:
+        values["area"] = tuple(values["area"])
+    try:
+        return Scenario(**values)
+    except TypeError as exc:
+        raise InputError("plan.json", f"bad planning parameters: {exc}") from None
+
+
+def plan_outposts(terrain, plan: Plan) -> list:
+    """The plan's outposts on the working grid."""
+    lon = np.array([o["lon"] for o in plan.outposts], float)
+    lat = np.array([o["lat"] for o in plan.outposts], float)
+    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
+    return [Outpost(float(xi), float(yi), float(o["height_m"]),
+                    float("inf") if o.get("range_m") is None else float(o["range_m"]),
+                    float(o["lon"]), float(o["lat"]), o.get("name", ""))
+            for xi, yi, o in zip(x, y, plan.outposts)]
+
+
+def context_for_plan(directory, plan: Plan, progress=None) -> PlanningContext:
+    """The planning context of a saved plan: same grid, outposts and parameters."""
+    terrain = read_terrain(Path(directory) / TERRAIN_FILE)
+    scenario = scenario_from_params(plan.params)
+    return prepare(scenario, progress, terrain=terrain, outposts=plan_outposts(terrain, plan))
+
+
+# --- what has been seen ------------------------------------------------------------------
+
+def snapshot_sets(ctx: PlanningContext, xyz) -> list:
+    """Target ids (of ``ctx.visibility``) seen from each snapshot position.
+
+    A position within `SNAP_TO_VIEWPOINT_M` of a candidate viewpoint uses that
+    viewpoint's visibility set; any other is evaluated with the same sensor
+    model from the cell under it at its own altitude. Positions off the grid
+    see nothing.
+    """
+    xyz = np.atleast_2d(np.asarray(xyz, float)).reshape(-1, 3)
+    out = [np.zeros(0, np.int64)] * len(xyz)
+    if not len(xyz):
+        return out
+    others = list(range(len(xyz)))
+    if len(ctx.viewpoints):
+        d, j = cKDTree(ctx.viewpoints.xyz).query(np.nan_to_num(xyz, nan=np.inf))
+        others = []
+        for i in range(len(xyz)):
+            if d[i] <= SNAP_TO_VIEWPOINT_M:
+                out[i] = ctx.visibility.seen_by(int(j[i])).astype(np.int64)
+            else:
+                others.append(i)
+    if others:
+        for i, ids in zip(others, _sets_at(ctx, xyz[others])):
+            out[i] = ids
+    return out
+
+
+def _sets_at(ctx, xyz) -> list:
+    """Visibility sets computed for arbitrary points (at the centre of their cell)."""
+    terrain = ctx.terrain
+    inside = terrain.contains_xy(xyz[:, 0], xyz[:, 1]) & np.isfinite(xyz[:, 2])
+    result = [np.zeros(0, np.int64)] * len(xyz)
+    idx = np.flatnonzero(inside)
+    if not idx.size:
+        return result
+    row, col = terrain.rowcol(xyz[idx, 0], xyz[idx, 1])
+    cells = np.stack([np.rint(row), np.rint(col)], axis=1).astype(np.int64)
+    points = Viewpoints(indices=cells, xyz=xyz[idx].copy(), region=np.zeros(len(idx), np.int32))
+    s = ctx.scenario
+    vis = compute_visibility(ctx.surface, points, SensorParams(s.sensor_range_m,
+                                                               s.max_off_nadir_deg))
+    known = ctx.visibility.target_cells
+    order = np.argsort(known)
+    for k, i in enumerate(idx):
+        cells_seen = vis.target_cells[vis.seen_by(k)]
+        pos = np.searchsorted(known[order], cells_seen)
+        pos = np.minimum(pos, len(known) - 1)
+        hit = known[order][pos] == cells_seen
+        result[i] = np.sort(order[pos[hit]]).astype(np.int64)
+    return result
+
+
+def seen_matrix(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
+    """bool [n_uavs, n_targets]: which targets each UAV's snapshots (xyz arrays) saw."""
+    seen = np.zeros((len(snapshots_per_uav), ctx.visibility.n_targets), bool)
+    for r, xyz in enumerate(snapshots_per_uav):
+        for ids in snapshot_sets(ctx, np.asarray(xyz, float).reshape(-1, 3)):
+            seen[r, ids] = True
+    return seen
+
+
+def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
+    """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per target)."""
+    counts = seen.sum(axis=0) if len(seen) else np.zeros(ctx.visibility.n_targets, int)
+    n = int(ctx.visibility.n_targets)
+    need = min(k + 1, max(len(seen), 1))
+    return {"targets": n, "covered": int((counts >= 1).sum()),
+            "k": int(k), "required_uavs": int(need), "k_covered": int((counts >= need).sum()),
+            "fraction_k_covered": float((counts >= need).sum() / n) if n else 1.0}
+
+
+# --- re-planning ------------------------------------------------------------------------
+
+def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
+    """A survivor's start: its own position when the hidden graph can take it from
+    there, else the nearest graph node reachable by a straight hidden leg (the
+    time of that leg counted as ``climb_s``)."""
+    graph = ctx.graph
+    xyz = np.asarray(survivor.xyz, float)
+    launch = np.asarray(survivor.launch, float)
+    node = _node_under(graph, xyz)
+    if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node])[0]:
+        return Start(xyz, launch, 0.0)
+    target = _nearest_reachable_node(graph, xyz)
+    if target is None:
+        raise InputError(f"vehicle {survivor.vehicle_id}",
+                         "its position is not joined to the hidden volume by a hidden leg")
+    d = target - xyz
+    return Start(target, launch, float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)))
+
+
+def _node_under(graph, xyz) -> int:
+    row, col = graph.surface.terrain.rowcol(xyz[0], xyz[1])
+    r, c = int(np.rint(row)), int(np.rint(col))
+    n_rows, n_cols = graph.node_of_cell.shape
+    if 0 <= r < n_rows and 0 <= c < n_cols:
+        return int(graph.node_of_cell[r, c])
+    return -1
+
+
+def _nearest_reachable_node(graph, xyz):
+    d = np.linalg.norm(graph.node_xyz - xyz, axis=1)
+    near = np.argsort(d)[:SNAP_CANDIDATES]
+    ok = graph.legs_ok(np.repeat(xyz[None], len(near), axis=0), graph.node_xyz[near])
+    hits = near[ok]
+    return graph.node_xyz[hits[0]].copy() if hits.size else None
+
+
+def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
+    """(k used for the survivors, required distinct survivors per target)."""
+    k = int(ctx.scenario.k)
+    need = min(k + 1, n_survivors)
+    return min(k, n_survivors - 1), np.full(ctx.visibility.n_targets, need, np.int32)
+
+
+def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
+           progress=None):
+    """Routes for ``survivors`` (list of `Survivor`) from where they are.
+
+    ``seen``: bool [n_survivors, n_targets], what each has photographed so far
+    (`seen_matrix`), None for nothing. Returns the `planner.pipeline.Outcome`
+    with vehicle ids renumbered to the survivors' plan ids; each route starts
+    at the survivor's (possibly snapped) position and ends above its launch.
+    """
+    if not survivors:
+        raise InputError("replan", "no surviving vehicle to re-plan")
+    k, required = requirement(ctx, len(survivors))
+    sub = replace(ctx, scenario=replace(ctx.scenario, k=k, uavs=len(survivors)))
+    starts = [survivor_start(ctx, s) for s in survivors]
+    outcome = allocate(sub, len(survivors), starts, seen=seen, required=required,
+                       method=method, progress=progress)
+    for r, (vehicle, s) in enumerate(zip(outcome.plan.vehicles, survivors)):
+        vehicle.id = int(s.vehicle_id)
+        harden_route(ctx, outcome, r)
+    return outcome
+
+
+# --- legs that survive the trip to the autopilot ------------------------------------------
+
+def quantised(ctx, poly) -> np.ndarray:
+    """``poly`` as a vehicle flies it: latitude and longitude in whole degE7 (MAVLink)."""
+    lon, lat = ctx.terrain.to_lonlat(poly[:, 0], poly[:, 1])
+    lon = np.round(np.asarray(lon, float) * DEG_E7) / DEG_E7
+    lat = np.round(np.asarray(lat, float) * DEG_E7) / DEG_E7
+    x, y = ctx.terrain.from_lonlat(lon, lat)
+    return np.stack([np.asarray(x, float), np.asarray(y, float), poly[:, 2]], axis=1)
+
+
+def _legs_ok(ctx, a, b) -> np.ndarray:
+    return segments_hidden(ctx.surface, a, b) & segments_clear(ctx.surface, a, b)
+
+
+def _safe_leg(ctx, a, b, depth=0) -> list:
+    """Vertices from a to b (ends included) whose legs pass after quantisation.
+
+    The planner's smoothed legs may graze a sight line within a centimetre,
+    which rounding to degE7 can cross; such a leg is split at its midpoint,
+    lowered (lower is never less hidden) as far as clearance allows."""
+    q = quantised(ctx, np.stack([a, b]))
+    if _legs_ok(ctx, q[:1], q[1:])[0] or depth >= MAX_SPLITS:
+        return [a, b]
+    for drop in SPLIT_DROPS_M:
+        m = (a + b) / 2.0 - np.array([0.0, 0.0, drop])
+        first, second = _safe_leg(ctx, a, m, depth + 1), _safe_leg(ctx, m, b, depth + 1)
+        pts = np.stack(first + second[1:])
+        q = quantised(ctx, pts)
+        if _legs_ok(ctx, q[:-1], q[1:]).all():
+            return list(pts)
+    return [a, b]
+
+
+def harden_route(ctx, outcome, r: int) -> None:
+    """Split the legs of route ``r`` that fail once quantised (see `_safe_leg`);
+    waypoint times are recomputed from the travel model."""
+    poly = outcome.polylines[r]
+    if len(poly) < 2:
+        return
+    q = quantised(ctx, poly)
+    if _legs_ok(ctx, q[:-1], q[1:]).all():
+        return
+    vehicle = outcome.plan.vehicles[r]
+    points, snaps = [poly[0]], [vehicle.waypoints[0].snapshot]
+    for i in range(len(poly) - 1):
+        pieces = _safe_leg(ctx, poly[i], poly[i + 1])
+        points += pieces[1:]
+        snaps += [False] * (len(pieces) - 2) + [vehicle.waypoints[i + 1].snapshot]
+    new = np.stack(points)
+    d = np.diff(new, axis=0)
+    t = vehicle.waypoints[0].t_s + np.r_[0.0, np.cumsum(
+        leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], ctx.travel_params))]
+    lon, lat = ctx.terrain.to_lonlat(new[:, 0], new[:, 1])
+    vehicle.waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f))
+                         for a, b, z, ts, f in zip(lon, lat, new[:, 2], t, snaps)]
+    outcome.polylines[r] = new
