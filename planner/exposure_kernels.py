@@ -613,5 +613,5 @@ def legs_min_height(h, a, b):
     terrain (planner.los.gap_range); NaN next to a void."""
     out = np.empty(a.shape[0])
     for k in prange(a.shape[0]):
-        out[k] = gap_range(h, a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2])[0]
+        out[k] = gap_range(h, a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2], False)[0]
     return out

@@ -68,13 +68,13 @@ def line_over_patch(h, i, j, u0, v0, du, dv):
 
 
 @njit(cache=True)
-def gap_range(h, u0, v0, z0, u1, v1, z1):
+def gap_range(h, u0, v0, z0, u1, v1, z1, void_is_clear=True):
     """Exact (min, max) over the segment of (altitude - bilinear ground), metres.
 
     Within a patch the ground along the segment is a quadratic in t and the
     altitude linear, so the extremes of their difference are at a piece's ends
-    or its one stationary point. (NaN, NaN) when the segment crosses a patch
-    touching a void: unknown ground is never clear.
+    or its one stationary point. Patches touching a void are skipped, or, with
+    ``void_is_clear=False``, give (NaN, NaN): unknown ground is never clear.
     """
     n_rows, n_cols = h.shape
     du = u1 - u0
@@ -87,7 +87,12 @@ def gap_range(h, u0, v0, z0, u1, v1, z1):
         i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
         c0, c1, c2 = line_over_patch(h, i, j, u0, v0, du, dv)
         if not (c0 == c0 and c1 == c1 and c2 == c2):
-            return np.nan, np.nan
+            if not void_is_clear:
+                return np.nan, np.nan
+            if t_next >= 1.0:
+                return lo, hi
+            t = t_next
+            continue
         for tt in (t, t_next):
             g = z0 + dz * tt - (c0 + c1 * tt + c2 * tt * tt)
             lo = min(lo, g)
