@@ -107,7 +107,7 @@ def is_hidden(surface, xyz) -> np.ndarray:
     return hidden & terrain.contains_xy(xyz[:, 0], xyz[:, 1]) & np.isfinite(xyz[:, 2])
 
 
-def segment_hidden(surface, a_xyz, b_xyz) -> bool:
+def segment_hidden(surface, a_xyz, b_xyz, slack_m=0.0) -> bool:
     """Proven: every point of the straight 3-D leg a -> b (x, y, alt AMSL) is
     hidden from every outpost.
 
@@ -120,12 +120,14 @@ def segment_hidden(surface, a_xyz, b_xyz) -> bool:
     (details in exposure_kernels._leg_hidden_from). Pieces that fail are
     halved; a seen midpoint ends the test. Conservative: False for a leg that
     grazes a sight line within about a millimetre, leaves the grid, or crosses
-    a void.
+    a void. With ``slack_m`` > 0 every point within that horizontal distance of
+    the leg must be hidden too: the planner's legs then stay hidden when their
+    ends are rounded for MAVLink.
     """
-    return bool(segments_hidden(surface, [a_xyz], [b_xyz])[0])
+    return bool(segments_hidden(surface, [a_xyz], [b_xyz], slack_m)[0])
 
 
-def segments_hidden(surface, a_xyz, b_xyz) -> np.ndarray:
+def segments_hidden(surface, a_xyz, b_xyz, slack_m=0.0) -> np.ndarray:
     """`segment_hidden` for many legs a[k] -> b[k] at once (in parallel)."""
     terrain = surface.terrain
     a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
@@ -133,7 +135,7 @@ def segments_hidden(surface, a_xyz, b_xyz) -> np.ndarray:
     grad = _gradient_bound(surface)
     eyes = _eyes(terrain, surface.outposts)
     hidden = k.legs_hidden(h, terrain.cell_size, grad, eyes, a, b,
-                           float(surface.params.curvature_coeff))
+                           float(surface.params.curvature_coeff), float(slack_m))
     return hidden & inside
 
 

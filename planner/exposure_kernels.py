@@ -508,9 +508,10 @@ MIN_PIECE_M = 1e-3
 
 
 @njit(cache=True)
-def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv):
-    """Whether every point of the leg a -> b ((u, v, z), grid units and m AMSL)
-    is hidden from one eye (u, v, z, range_m). Conservative: False when not proven.
+def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m):
+    """Whether every point within ``slack_m`` (horizontally) of the leg a -> b
+    ((u, v, z), grid units and m AMSL) is hidden from one eye (u, v, z, range_m).
+    Conservative: False when not proven.
 
     A piece of the leg is proven by its midpoint m: if the terrain point X* at
     fraction t* of the ray O -> m (its horizon) rises `margin` = zmin(m) - z(m)
@@ -521,6 +522,8 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv):
     t* dz higher, curvature terms changing by at most 2 curv r_max dh t* / R.
     Dividing by t*, p is hidden when
         margin > (L + 2 curv r_max / R) half_h + half_z.
+    With a slack, half_h grows by ``slack_m`` and ranges by as much, so that
+    the leg's ends may move that far (e.g. rounded to degE7) and stay hidden.
     Pieces that fail are halved; a midpoint seen (margin <= 0) ends the test.
     """
     u0, v0, z0, range_m = eye[0], eye[1], eye[2], eye[3]
@@ -551,7 +554,7 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv):
         if ee > 0.0:
             w = min(max(((u0 - ua) * ex + (v0 - va) * ey) / ee, 0.0), 1.0)
         r_near = cell * math.sqrt((ua + w * ex - u0) ** 2 + (va + w * ey - v0) ** 2)
-        if r_near > range_m:
+        if r_near > range_m + slack_m:
             continue  # the whole piece is out of range
         r_max = cell * max(math.sqrt((ua - u0) ** 2 + (va - v0) ** 2),
                            math.sqrt((ub - u0) ** 2 + (vb - v0) ** 2))
@@ -559,10 +562,10 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv):
         um = a[0] + sm * (b[0] - a[0])
         vm = a[1] + sm * (b[1] - a[1])
         zm = a[2] + sm * (b[2] - a[2])
-        half_h = 0.5 * (sb - sa) * leg_h
+        half_h = 0.5 * (sb - sa) * leg_h + slack_m
         half_z = 0.5 * (sb - sa) * leg_z
         d_m = cell * math.sqrt((um - u0) ** 2 + (vm - v0) ** 2)
-        if d_m <= range_m:
+        if d_m <= range_m + slack_m:
             if d_m == 0.0:
                 return False  # straight above the outpost
             # from 1e-3 grid units on: at the eye (T - z0) / d is rounding noise, and a
@@ -576,7 +579,7 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv):
             need = (lip + 2.0 * curv * r_max / EARTH_RADIUS_M) * half_h + half_z
             if margin > need * (1.0 + 1e-9) + 1e-6:
                 continue
-        if half_h + half_z < MIN_PIECE_M or top + 2 > stack_a.shape[0]:
+        if half_h - slack_m + half_z < MIN_PIECE_M or top + 2 > stack_a.shape[0]:
             return False  # grazing: not provable at this resolution
         stack_a[top] = sa
         stack_b[top] = sm
@@ -587,7 +590,7 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv):
 
 
 @njit(cache=True, parallel=True)
-def legs_hidden(h, cell, grad, eyes, a, b, curv):
+def legs_hidden(h, cell, grad, eyes, a, b, curv, slack_m):
     """segment hidden from every eye, for each leg a[k] -> b[k] ((u, v, z) rows)."""
     n = a.shape[0]
     out = np.zeros(n, np.bool_)
@@ -598,7 +601,7 @@ def legs_hidden(h, cell, grad, eyes, a, b, curv):
     for k in prange(n):
         ok = True
         for o in range(eyes.shape[0]):
-            if not _leg_hidden_from(h, cell, grad, g_max, eyes[o], a[k], b[k], curv):
+            if not _leg_hidden_from(h, cell, grad, g_max, eyes[o], a[k], b[k], curv, slack_m):
                 ok = False
                 break
         out[k] = ok

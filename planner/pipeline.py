@@ -319,27 +319,30 @@ def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, ou
 
 
 def plan_surface(directory, plan: Plan):
-    """The exposure surface a saved plan was made against, rebuilt from its directory.
-
-    ``terrain.tif`` holds the working grid; outposts and exposure parameters come
-    from ``plan.json``, so the legs can be re-checked before export or upload.
-    """
+    """The exposure surface a saved plan was made against, rebuilt from its directory
+    (``terrain.tif``, outposts and parameters from ``plan.json``) to re-check legs
+    before export or upload; cheaper than the whole context."""
     from pathlib import Path
 
     from .geotiff import read_terrain
-    from .outposts import Outpost
     from .plan import TERRAIN_FILE
 
     terrain = read_terrain(Path(directory) / TERRAIN_FILE)
-    lon = np.array([o["lon"] for o in plan.outposts], float)
-    lat = np.array([o["lat"] for o in plan.outposts], float)
-    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
-    outposts = [Outpost(float(xi), float(yi), float(o["height_m"]),
-                        float("inf") if o.get("range_m") is None else float(o["range_m"]),
-                        float(o["lon"]), float(o["lat"]), o.get("name", ""))
-                for xi, yi, o in zip(x, y, plan.outposts)]
     p = plan.params
     params = ExposureParams(ceiling_agl_m=p["ceiling_agl_m"], clearance_m=p["clearance_m"],
                             hide_margin_m=p["hide_margin_m"],
                             curvature_coeff=p["curvature_coeff"])
-    return compute_exposure(terrain, outposts, params)
+    return compute_exposure(terrain, plan_outposts(terrain, plan), params)
+
+
+def plan_outposts(terrain, plan: Plan) -> list:
+    """The plan's outposts on the working grid."""
+    from .outposts import Outpost
+
+    lon = np.array([o["lon"] for o in plan.outposts], float)
+    lat = np.array([o["lat"] for o in plan.outposts], float)
+    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
+    return [Outpost(float(xi), float(yi), float(o["height_m"]),
+                    float("inf") if o.get("range_m") is None else float(o["range_m"]),
+                    float(o["lon"]), float(o["lat"]), o.get("name", ""))
+            for xi, yi, o in zip(x, y, plan.outposts)]

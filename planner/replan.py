@@ -21,10 +21,8 @@ from scipy.spatial import cKDTree
 
 from .errors import InputError
 from .geotiff import read_terrain
-from .outposts import Outpost
-from .pipeline import PlanningContext, Start, allocate, prepare
-from .exposure import segments_clear, segments_hidden
-from .plan import TERRAIN_FILE, Plan, Waypoint
+from .pipeline import PlanningContext, Start, allocate, plan_outposts, prepare
+from .plan import TERRAIN_FILE, Plan
 from .scenario import Scenario
 from .travel import leg_time
 from .viewpoints import Viewpoints
@@ -35,11 +33,6 @@ from .visibility import SensorParams, compute_visibility
 SNAP_TO_VIEWPOINT_M = 3.0
 #: nearest graph nodes tried when a survivor's position must be snapped
 SNAP_CANDIDATES = 32
-#: MAVLink carries latitude and longitude as integers of 1e-7 degree
-DEG_E7 = 1e7
-#: how far a split leg's midpoint may be lowered (m), and how often a leg is split
-SPLIT_DROPS_M = (0.5, 2.0, 5.0)
-MAX_SPLITS = 3
 
 
 @dataclass
@@ -63,17 +56,6 @@ def scenario_from_params(params: dict) -> Scenario:
         return Scenario(**values)
     except TypeError as exc:
         raise InputError("plan.json", f"bad planning parameters: {exc}") from None
-
-
-def plan_outposts(terrain, plan: Plan) -> list:
-    """The plan's outposts on the working grid."""
-    lon = np.array([o["lon"] for o in plan.outposts], float)
-    lat = np.array([o["lat"] for o in plan.outposts], float)
-    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
-    return [Outpost(float(xi), float(yi), float(o["height_m"]),
-                    float("inf") if o.get("range_m") is None else float(o["range_m"]),
-                    float(o["lon"]), float(o["lat"]), o.get("name", ""))
-            for xi, yi, o in zip(x, y, plan.outposts)]
 
 
 def context_for_plan(directory, plan: Plan, progress=None) -> PlanningContext:
@@ -218,64 +200,4 @@ def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
                        method=method, progress=progress)
     for r, (vehicle, s) in enumerate(zip(outcome.plan.vehicles, survivors)):
         vehicle.id = int(s.vehicle_id)
-        harden_route(ctx, outcome, r)
     return outcome
-
-
-# --- legs that survive the trip to the autopilot ------------------------------------------
-
-def quantised(ctx, poly) -> np.ndarray:
-    """``poly`` as a vehicle flies it: latitude and longitude in whole degE7 (MAVLink)."""
-    lon, lat = ctx.terrain.to_lonlat(poly[:, 0], poly[:, 1])
-    lon = np.round(np.asarray(lon, float) * DEG_E7) / DEG_E7
-    lat = np.round(np.asarray(lat, float) * DEG_E7) / DEG_E7
-    x, y = ctx.terrain.from_lonlat(lon, lat)
-    return np.stack([np.asarray(x, float), np.asarray(y, float), poly[:, 2]], axis=1)
-
-
-def _legs_ok(ctx, a, b) -> np.ndarray:
-    return segments_hidden(ctx.surface, a, b) & segments_clear(ctx.surface, a, b)
-
-
-def _safe_leg(ctx, a, b, depth=0) -> list:
-    """Vertices from a to b (ends included) whose legs pass after quantisation.
-
-    The planner's smoothed legs may graze a sight line within a centimetre,
-    which rounding to degE7 can cross; such a leg is split at its midpoint,
-    lowered (lower is never less hidden) as far as clearance allows."""
-    q = quantised(ctx, np.stack([a, b]))
-    if _legs_ok(ctx, q[:1], q[1:])[0] or depth >= MAX_SPLITS:
-        return [a, b]
-    for drop in SPLIT_DROPS_M:
-        m = (a + b) / 2.0 - np.array([0.0, 0.0, drop])
-        first, second = _safe_leg(ctx, a, m, depth + 1), _safe_leg(ctx, m, b, depth + 1)
-        pts = np.stack(first + second[1:])
-        q = quantised(ctx, pts)
-        if _legs_ok(ctx, q[:-1], q[1:]).all():
-            return list(pts)
-    return [a, b]
-
-
-def harden_route(ctx, outcome, r: int) -> None:
-    """Split the legs of route ``r`` that fail once quantised (see `_safe_leg`);
-    waypoint times are recomputed from the travel model."""
-    poly = outcome.polylines[r]
-    if len(poly) < 2:
-        return
-    q = quantised(ctx, poly)
-    if _legs_ok(ctx, q[:-1], q[1:]).all():
-        return
-    vehicle = outcome.plan.vehicles[r]
-    points, snaps = [poly[0]], [vehicle.waypoints[0].snapshot]
-    for i in range(len(poly) - 1):
-        pieces = _safe_leg(ctx, poly[i], poly[i + 1])
-        points += pieces[1:]
-        snaps += [False] * (len(pieces) - 2) + [vehicle.waypoints[i + 1].snapshot]
-    new = np.stack(points)
-    d = np.diff(new, axis=0)
-    t = vehicle.waypoints[0].t_s + np.r_[0.0, np.cumsum(
-        leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], ctx.travel_params))]
-    lon, lat = ctx.terrain.to_lonlat(new[:, 0], new[:, 1])
-    vehicle.waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f))
-                         for a, b, z, ts, f in zip(lon, lat, new[:, 2], t, snaps)]
-    outcome.polylines[r] = new

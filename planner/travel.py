@@ -33,6 +33,10 @@ from . import exposure
 from . import travel_kernels as K
 from .errors import InputError
 
+#: MISSION_ITEM_INT carries lat/lon in 1e-7 degree (<= 1.1 cm): every planned leg is
+#: proven hidden with this much room around it, so the rounded leg is hidden too
+ROUNDING_SLACK_M = 0.05
+
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
 _HALF_16 = _HALF_8 + ((1, -2), (1, 2), (2, -1), (2, 1))
@@ -357,10 +361,11 @@ def _edge_time(horiz, z_from, z_low, z_to, params):
 
 
 def _segments_hidden(surface, a, b) -> np.ndarray:
-    """exposure.segments_hidden (proven hidden from every outpost), for many legs."""
+    """exposure.segments_hidden (proven hidden from every outpost), for many legs,
+    with `ROUNDING_SLACK_M`: a planned leg stays hidden once MAVLink rounds it."""
     if len(a) == 0:
         return np.zeros(0, bool)
-    return np.asarray(exposure.segments_hidden(surface, a, b), bool)
+    return np.asarray(exposure.segments_hidden(surface, a, b, ROUNDING_SLACK_M), bool)
 
 
 def _dedupe(poly):

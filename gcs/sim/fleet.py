@@ -58,6 +58,8 @@ class FleetConfig:
     track_dir: Path | str | None = None
     seed: int = 0
     signing_key: bytes | None = None
+    terrain: object = None                      # (lat, lon) -> ground m AMSL; None: flat
+                                                # at each home's altitude, as SITL
 
     def vehicle_configs(self) -> list:
         if self.firmware not in BASE_PORTS:
@@ -80,7 +82,7 @@ class FleetConfig:
                 camera=self.camera, auto_options=self.auto_options, drop_pct=self.drop_pct,
                 faults=replace(self.faults.get(sysid, FaultPlan())),
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
-                seed=self.seed, signing_key=self.signing_key))
+                seed=self.seed, signing_key=self.signing_key, terrain=self.terrain))
         return configs
 
 
@@ -171,3 +173,12 @@ def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
         homes.append((route.launch.lat, route.launch.lon, route.launch.alt_amsl))
     config.setdefault("firmware", plan.params.get("firmware", "ardupilot"))
     return SimFleet(FleetConfig(vehicles=n, homes=homes, **config)).start()
+
+
+def terrain_ground(terrain):
+    """(lat, lon) -> ground m AMSL on a `planner.terrain.Terrain`, for FleetConfig.terrain:
+    simulated vehicles then touch down (or crash) on the real relief."""
+    def ground(lat: float, lon: float) -> float:
+        x, y = terrain.from_lonlat(lon, lat)
+        return float(terrain.ground(x, y)[0])
+    return ground

@@ -12,6 +12,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -59,6 +60,7 @@ class VehicleConfig:
     track_path: Path | None = None
     seed: int = 0
     signing_key: bytes | None = None           # sign what we send, require signed input
+    terrain: Callable | None = None            # (lat, lon) -> ground m AMSL; None: flat
 
 
 class _LinkWriter:
@@ -87,9 +89,9 @@ class SimVehicle:
             self.mav.signing.sign_outgoing = True
         lat, lon, alt = cfg.home
         self.frame = LocalFrame(lat, lon)
-        self.ground = float(alt)               # flat ground at the home altitude, as SITL
-        self.home = (0.0, 0.0, self.ground)    # local x, y, alt
-        self.body = PointMass((0.0, 0.0, self.ground), cfg.limits)
+        self._home_ground = float(alt)
+        self.home = (0.0, 0.0, self._home_ground)    # local x, y, alt
+        self.body = PointMass((0.0, 0.0, self._home_ground), cfg.limits)
         self.link_faults = LinkFaults(cfg.drop_pct, seed=cfg.seed * 7919 + cfg.sysid)
         self.plan = cfg.faults
         self.params = dict(self.flavour.params, SYSID_THISMAV=float(cfg.sysid))
@@ -124,6 +126,15 @@ class SimVehicle:
         self._kill = threading.Event()
         self._next_flush = 0.0
         self._takeoff_alt = self.ground + 2.5     # PX4 AUTO.TAKEOFF target, m AMSL
+
+    @property
+    def ground(self) -> float:
+        """Ground altitude (m AMSL) under the vehicle: the configured terrain, or
+        flat at the home altitude as in ArduPilot and PX4 SITL."""
+        if self.cfg.terrain is None:
+            return self._home_ground
+        ground = self.cfg.terrain(*self.frame.to_geo(self.body.pos[0], self.body.pos[1]))
+        return float(ground) if math.isfinite(ground) else self._home_ground
 
     # -- life cycle -------------------------------------------------------------------
     def open(self) -> None:
