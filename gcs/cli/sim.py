@@ -16,7 +16,7 @@ def add_arguments(parser) -> None:
                         help="which autopilot to behave like")
     parser.add_argument("--home", default=",".join(str(v) for v in DEFAULT_HOME),
                         metavar="LAT,LON[,ALT]",
-                        help="launch point of every vehicle; ALT = ground m AMSL (default 0)")
+                        help="launch point of every vehicle; ALT = ground m AMSL")
     parser.add_argument("--homes", metavar="LAT,LON,ALT;...",
                         help="one launch point per vehicle, separated by ';'")
     parser.add_argument("--speedup", type=float, default=1.0, metavar="X",
@@ -35,9 +35,12 @@ def add_arguments(parser) -> None:
     defaults = Limits()
     vehicle.add_argument("--speed", type=float, default=defaults.speed_mps, metavar="M/S",
                          help="horizontal speed limit")
-    vehicle.add_argument("--climb", type=float, default=defaults.climb_mps, metavar="M/S")
-    vehicle.add_argument("--descent", type=float, default=defaults.descent_mps, metavar="M/S")
-    vehicle.add_argument("--accel", type=float, default=defaults.accel_mps2, metavar="M/S2")
+    vehicle.add_argument("--climb", type=float, default=defaults.climb_mps, metavar="M/S",
+                         help="climb rate limit")
+    vehicle.add_argument("--descent", type=float, default=defaults.descent_mps, metavar="M/S",
+                         help="descent rate limit")
+    vehicle.add_argument("--accel", type=float, default=defaults.accel_mps2, metavar="M/S2",
+                         help="horizontal acceleration limit")
     vehicle.add_argument("--warmup", type=float, default=2.0, metavar="S",
                          help="wall seconds of GPS/EKF warm-up before arming is allowed")
     vehicle.add_argument("--auto-disarm", type=float, default=10.0, metavar="S",
@@ -49,7 +52,7 @@ def add_arguments(parser) -> None:
                          help="no camera configured: no CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED")
     io = parser.add_argument_group("endpoints and output")
     io.add_argument("--base-port", type=int, metavar="P",
-                    help="first port (default 5760 ArduPilot TCP, 18570 PX4 UDP)")
+                    help="first port (default: 5760 ArduPilot TCP, 18570 PX4 UDP)")
     io.add_argument("--gcs-port", type=int, default=14550, metavar="P",
                     help="PX4: UDP port on 127.0.0.1 that telemetry is sent to")
     io.add_argument("--bind", default="127.0.0.1", metavar="HOST",
@@ -59,6 +62,10 @@ def add_arguments(parser) -> None:
     io.add_argument("--duration", type=float, metavar="S",
                     help="stop after S wall seconds (default: run until Ctrl-C)")
     io.add_argument("--seed", type=int, default=0, help="random seed of packet drops")
+    io.add_argument("--terrain", metavar="PLAN_DIR|GEOTIFF",
+                    help="fly over this terrain (a plan directory's terrain.tif, or a "
+                         "working-grid GeoTIFF): vehicles land on it and crash into it; "
+                         "default: flat ground at each home altitude, as in SITL")
 
 
 def _point(text: str, option: str, need_alt: bool) -> tuple:
@@ -112,7 +119,20 @@ def config_from_args(args) -> FleetConfig:
         bind_host=args.bind, limits=limits, warmup_s=args.warmup,
         auto_disarm_s=args.auto_disarm, camera=not args.no_camera,
         auto_options=args.auto_options, drop_pct=args.drop, faults=faults,
-        track_dir=args.track_dir, seed=args.seed)
+        track_dir=args.track_dir, seed=args.seed, terrain=_terrain(args.terrain))
+
+
+def _terrain(path):
+    if path is None:
+        return None
+    from pathlib import Path
+
+    from gcs.sim import terrain_ground
+    from planner.geotiff import read_terrain
+    from planner.plan import TERRAIN_FILE
+
+    path = Path(path)
+    return terrain_ground(read_terrain(path / TERRAIN_FILE if path.is_dir() else path))
 
 
 def run(args) -> int:
