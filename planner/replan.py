@@ -183,17 +183,19 @@ def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
 
 
 def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
-           progress=None):
+           progress=None, required=None):
     """Routes for ``survivors`` (list of `Survivor`) from where they are.
 
     ``seen``: bool [n_survivors, n_targets], what each has photographed so far
-    (`seen_matrix`), None for nothing. Returns the `planner.pipeline.Outcome`
+    (`seen_matrix`), None for nothing. ``required`` overrides the per-target
+    requirement (all zeros: straight home along hidden paths). Returns the `planner.pipeline.Outcome`
     with vehicle ids renumbered to the survivors' plan ids; each route starts
     at the survivor's (possibly snapped) position and ends above its launch.
     """
     if not survivors:
         raise InputError("replan", "no surviving vehicle to re-plan")
-    k, required = requirement(ctx, len(survivors))
+    k, need = requirement(ctx, len(survivors))
+    required = need if required is None else np.asarray(required, np.int32)
     sub = replace(ctx, scenario=replace(ctx.scenario, k=k, uavs=len(survivors)))
     starts = [survivor_start(ctx, s) for s in survivors]
     outcome = allocate(sub, len(survivors), starts, seen=seen, required=required,

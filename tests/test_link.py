@@ -4,8 +4,6 @@ endpoints standing in for other ground stations and cameras, pymavlink's tlog
 reader, hashlib for MAVProxy's passphrase rule."""
 
 import hashlib
-import random
-import socket
 import time
 
 import pytest
@@ -13,7 +11,7 @@ import pytest
 from gcs import commands, signing
 from gcs.link import GroundLink, LinkError, build_message
 from gcs.mavlink import M, mavutil, mode_name, mode_number
-from gcs.sim import FleetConfig, SimFleet
+from gcs.sim import FleetConfig, SimFleet, free_base_port
 from planner.errors import InputError
 
 pytestmark = pytest.mark.timeout(60)
@@ -21,30 +19,12 @@ pytestmark = pytest.mark.timeout(60)
 FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=10.0)
 
 
-def _bindable(port, kind):
-    with socket.socket(socket.AF_INET, kind) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
-def free_base(step=1, count=1, kind=socket.SOCK_STREAM) -> int:
-    rng = random.Random()
-    for _ in range(500):
-        base = rng.randrange(20000, 60000 - step * count)
-        if all(_bindable(base + step * i, kind) for i in range(count)):
-            return base
-    raise RuntimeError("no free ports")
-
-
 def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
     if firmware == "ardupilot":
-        ports = dict(base_port=free_base(10, vehicles))
+        ports = dict(base_port=free_base_port(10, vehicles))
     else:
-        ports = dict(base_port=free_base(1, vehicles, socket.SOCK_DGRAM),
-                     gcs_port=free_base(1, 1, socket.SOCK_DGRAM))
+        ports = dict(base_port=free_base_port(1, vehicles, udp=True),
+                     gcs_port=free_base_port(1, 1, udp=True))
     return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
 
 
@@ -113,11 +93,11 @@ def test_open_names_what_is_missing(fleet_of):
     fleet = fleet_of(fleet_config("ardupilot", 1))
     with pytest.raises(LinkError, match=r"2 vehicle\(s\), found 1 \[1\] within 1 s"):
         GroundLink.open(fleet.urls(), expect=2, timeout_s=1)
-    port = free_base(1, 1, socket.SOCK_DGRAM)
+    port = free_base_port(1, 1, udp=True)
     with pytest.raises(LinkError, match="nothing received at all"):
         GroundLink.open([f"udpin:127.0.0.1:{port}"], expect=1, timeout_s=0.5)
     with pytest.raises(LinkError, match="cannot open"):
-        GroundLink.open([f"tcp:127.0.0.1:{free_base()}"], timeout_s=0.5)
+        GroundLink.open([f"tcp:127.0.0.1:{free_base_port()}"], timeout_s=0.5)
 
 
 def test_ground_stations_and_cameras_are_not_vehicles(fleet_of):

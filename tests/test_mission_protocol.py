@@ -2,8 +2,6 @@
 into gcs/: the simulated vehicles' own mission stores and recorded tracks, and
 MAVSDK's autopilot-side MissionRawServer."""
 
-import random
-import socket
 import threading
 import time
 
@@ -12,7 +10,7 @@ import pytest
 from gcs import commands, mission_protocol as mp
 from gcs.link import GroundLink
 from gcs.mavlink import M
-from gcs.sim import FleetConfig, SimFleet, read_track, track_path
+from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
 from missions.build import MissionOptions, vehicle_mission
 from missions.items import MissionItem
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
@@ -25,30 +23,12 @@ FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=20.0)
 
 
 # -- helpers ---------------------------------------------------------------------------
-def _bindable(port, kind):
-    with socket.socket(socket.AF_INET, kind) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
-def free_base(step=1, count=1, kind=socket.SOCK_STREAM) -> int:
-    rng = random.Random()
-    for _ in range(500):
-        base = rng.randrange(20000, 60000 - step * count)
-        if all(_bindable(base + step * i, kind) for i in range(count)):
-            return base
-    raise RuntimeError("no free ports")
-
-
 def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
     if firmware == "ardupilot":
-        ports = dict(base_port=free_base(10, vehicles))
+        ports = dict(base_port=free_base_port(10, vehicles))
     else:
-        ports = dict(base_port=free_base(1, vehicles, socket.SOCK_DGRAM),
-                     gcs_port=free_base(1, 1, socket.SOCK_DGRAM))
+        ports = dict(base_port=free_base_port(1, vehicles, udp=True),
+                     gcs_port=free_base_port(1, 1, udp=True))
     return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
 
 
@@ -196,7 +176,7 @@ def test_upload_to_mavsdk_mission_raw_server(vehicles):
     mavsdk = pytest.importorskip("mavsdk")
     from mavsdk.plugins.mission_raw_server import MissionRawServer
 
-    port = free_base(1, 1, socket.SOCK_DGRAM)
+    port = free_base_port(1, 1, udp=True)
     link = GroundLink(f"udpin:127.0.0.1:{port}").start()   # bound before MAVSDK sends
     received, servers, done = {}, [], threading.Event()
     try:

@@ -4,7 +4,6 @@ station, pyproj for distances, the track files read back from disk."""
 import argparse
 import contextlib
 import os
-import random
 import socket
 import time
 
@@ -14,7 +13,8 @@ from pymavlink import mavutil
 from pyproj import Geod, Transformer
 
 from gcs.cli import sim as sim_cli
-from gcs.sim import FaultPlan, FleetConfig, Limits, SimFleet, parse_cut, parse_kill, read_track
+from gcs.sim import (FaultPlan, FleetConfig, Limits, SimFleet, free_base_port, parse_cut,
+                     parse_kill, read_track)
 from gcs.sim.physics import PointMass
 from planner.errors import InputError
 
@@ -30,24 +30,6 @@ pytestmark = pytest.mark.timeout(60)
 
 
 # -- a small ground station ----------------------------------------------------------
-def _bindable(port: int, kind) -> bool:
-    with socket.socket(socket.AF_INET, kind) as s:
-        try:
-            s.bind(("127.0.0.1", port))
-        except OSError:
-            return False
-    return True
-
-
-def free_base(step: int = 10, count: int = 1, kind=socket.SOCK_STREAM) -> int:
-    rng = random.Random()
-    for _ in range(500):
-        base = rng.randrange(20000, 60000 - step * count)
-        if all(_bindable(base + step * i, kind) for i in range(count)):
-            return base
-    raise RuntimeError("no free ports")
-
-
 class Client:
     """A pymavlink connection that keeps a log of everything it read."""
 
@@ -214,7 +196,7 @@ def test_fault_and_cli_parsing():
 
 # -- ArduPilot flavour ---------------------------------------------------------------
 def test_ardupilot_banner_heartbeat_and_endpoints():
-    base = free_base(10, 2)
+    base = free_base_port(10, 2)
     fleet = SimFleet(FleetConfig(vehicles=2, base_port=base, **FAST)).start()
     try:
         with socket.create_connection(("127.0.0.1", base), timeout=5) as raw:
@@ -238,7 +220,7 @@ def test_ardupilot_banner_heartbeat_and_endpoints():
 
 
 def test_ardupilot_arming_rules():
-    base = free_base()
+    base = free_base_port()
     config = FleetConfig(base_port=base, warmup_s=3.0)
     with fleet_and_clients(config) as (fleet, (c,)):
         c.wait("HEARTBEAT")
@@ -284,7 +266,7 @@ def _ardupilot_mission(a, b):
 
 
 def test_ardupilot_mission_protocol_quirks():
-    base = free_base()
+    base = free_base_port()
     a, b = offset(*HOME[:2], 80, 0), offset(*HOME[:2], 80, 80)
     items = _ardupilot_mission(a, b)
     with fleet_and_clients(FleetConfig(base_port=base, warmup_s=1.5, no_space_s=1.5)) \
@@ -338,7 +320,7 @@ def _cross_track(points_xyz, polyline_xyz) -> np.ndarray:
 
 
 def test_ardupilot_flight_track_and_kill_at_item(tmp_path):
-    base = free_base(10, 2)
+    base = free_base_port(10, 2)
     a, b = offset(*HOME[:2], 80, 0), offset(*HOME[:2], 80, 80)
     items = _ardupilot_mission(a, b)
     config = FleetConfig(vehicles=2, base_port=base, speedup=20, track_dir=tmp_path,
@@ -397,7 +379,7 @@ def test_ardupilot_flight_track_and_kill_at_item(tmp_path):
 
 # -- PX4 flavour ---------------------------------------------------------------------
 def test_px4_over_udp():
-    base, gcs_port = free_base(1, 1, socket.SOCK_DGRAM), free_base(1, 1, socket.SOCK_DGRAM)
+    base, gcs_port = free_base_port(1, 1, udp=True), free_base_port(1, 1, udp=True)
     a = offset(*HOME[:2], 60, 30)
     rel, mis = M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, M.MAV_FRAME_MISSION
     items = [
@@ -437,7 +419,7 @@ def test_px4_over_udp():
 
 # -- faults --------------------------------------------------------------------------
 def test_kill_stops_all_output(tmp_path):
-    base = free_base(10, 2)
+    base = free_base_port(10, 2)
     config = FleetConfig(vehicles=2, base_port=base, speedup=10, track_dir=tmp_path,
                          faults={1: FaultPlan(kill_at_s=15.0),
                                  2: FaultPlan(cuts=[(5.0, 1.0)])}, **FAST)
@@ -468,7 +450,7 @@ def test_kill_stops_all_output(tmp_path):
 
 
 def test_packet_drop_and_link_cut():
-    base = free_base()
+    base = free_base_port()
     with fleet_and_clients(FleetConfig(base_port=base, **FAST)) as (fleet, (c,)):
         c.wait("HEARTBEAT")
 
@@ -500,7 +482,7 @@ def test_packet_drop_and_link_cut():
 
 def test_signing_key_required_when_set():
     key = bytes(range(32))
-    base = free_base()
+    base = free_base_port()
     with fleet_and_clients(FleetConfig(base_port=base, signing_key=key, **FAST)) as (_, (c,)):
         hb = c.wait("HEARTBEAT")
         assert hb.get_header().incompat_flags & M.MAVLINK_IFLAG_SIGNED   # it signs
@@ -513,7 +495,7 @@ def test_signing_key_required_when_set():
 
 
 def test_px4_instances_share_the_ground_station_port():
-    base, gcs_port = free_base(1, 3, socket.SOCK_DGRAM), free_base(1, 1, socket.SOCK_DGRAM)
+    base, gcs_port = free_base_port(1, 3, udp=True), free_base_port(1, 1, udp=True)
     config = FleetConfig(vehicles=3, firmware="px4", base_port=base, gcs_port=gcs_port, **FAST)
     parser = M.MAVLink(None)
     sources = {}

@@ -9,6 +9,8 @@
 Vehicles are addressed by MAVLink system id (1..N), as a ground station sees them.
 """
 
+import random
+import socket
 import threading
 import time
 from dataclasses import dataclass, field, replace
@@ -182,3 +184,24 @@ def terrain_ground(terrain):
         x, y = terrain.from_lonlat(lon, lat)
         return float(terrain.ground(x, y)[0])
     return ground
+
+
+def free_base_port(step: int = 10, count: int = 1, udp: bool = False) -> int:
+    """A first port P with P + step*i free on 127.0.0.1 for i < count (tests and
+    dry runs that must not meet a real SITL on its default ports)."""
+    kind = socket.SOCK_DGRAM if udp else socket.SOCK_STREAM
+    rng = random.Random()
+    for _ in range(500):
+        base = rng.randrange(20000, 60000 - step * count)
+        if all(_bindable(base + step * i, kind) for i in range(count)):
+            return base
+    raise OSError("no free range of local ports")
+
+
+def _bindable(port: int, kind) -> bool:
+    with socket.socket(socket.AF_INET, kind) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True

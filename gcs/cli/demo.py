@@ -1,0 +1,101 @@
+"""`gcs demo`: the whole mission on the built-in terrain, start to finish.
+
+Plans with the built-in scenario (gcs/data/demo.toml: the USGS Jacksboro DEM,
+its outposts, 4 UAVs from one base, RT with k = 1), writes every output of
+`gcs plan`, starts 4 simulated vehicles, flies the plan with one of them shot
+down partway, re-tasks the survivors and ends with the coverage report.
+"""
+
+import shutil
+from importlib import resources
+from pathlib import Path
+
+from gcs.cli import plan as plan_cmd
+from gcs.progress import console, stage_progress
+from planner.errors import InputError
+from planner.pipeline import plan_mission
+from planner.scenario import make_scenario, read_scenario
+
+HELP = "plan, fly and re-task 4 simulated UAVs on the built-in terrain, one of them shot down"
+
+SCENARIO = "demo.toml"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("-o", "--output", default="demo-out", metavar="DIR",
+                        help="output directory: DIR/plan (gcs plan's files) and DIR/flight "
+                             "(flight report, plot, tracks, tlogs); replaced if it exists")
+    parser.add_argument("--firmware", choices=("ardupilot", "px4"), default="ardupilot",
+                        help="autopilot the simulated vehicles imitate")
+    parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
+                        help="simulated time runs X times faster than the wall clock")
+    parser.add_argument("--kill", type=int, default=2, metavar="SYSID",
+                        help="the simulated vehicle shot down (0: none)")
+    parser.add_argument("--kill-at", type=float, default=0.4, metavar="FRACTION",
+                        help="when, as a fraction of that vehicle's mission items")
+    parser.add_argument("--base-port", type=int, metavar="P",
+                        help="first simulator port (default: the firmware's SITL port)")
+
+
+def run(args) -> int:
+    if not 0 < args.kill_at < 1:
+        raise InputError("--kill-at", f"must be between 0 and 1, got {args.kill_at}")
+    out = Path(args.output)
+    if out.exists():
+        shutil.rmtree(out)
+    plan_dir, flight_dir = out / "plan", out / "flight"
+    scenario_file = resources.files("gcs.data").joinpath(SCENARIO)
+    with resources.as_file(scenario_file) as path:
+        scenario = make_scenario(read_scenario(path), {"firmware": args.firmware},
+                                 source=f"built-in {SCENARIO}")
+    console.rule("1. plan: hidden reduced-time routes, k = 1")
+    with stage_progress() as progress:
+        ctx, outcome = plan_mission(scenario, progress)
+        written = plan_cmd.write_outputs(plan_dir, ctx, outcome)
+    plan_cmd.print_summary(outcome.plan)
+    console.rule(f"2. fly: {scenario.uavs} simulated {args.firmware} vehicles, "
+                 f"{args.speedup:g}x real time")
+    report, flight_files = _fly(outcome.plan, plan_dir, flight_dir, args)
+    console.rule("3. files written")
+    for path, what in written + flight_files:
+        console.print(f"  {path}  [dim]{what}[/dim]")
+    survivors = report["coverage"].get("survivors", {})
+    return 0 if survivors.get("fraction_k_covered", 0) >= 0.999 else 1
+
+
+def _fly(plan, plan_dir, flight_dir, args):
+    from gcs.cli.fly import fly_plan, summary
+    from gcs.fly import FlyOptions
+    from gcs.sim import FaultPlan, fleet_for_plan, terrain_ground
+    from missions.build import vehicle_mission
+    from planner.geotiff import read_terrain
+    from planner.plan import TERRAIN_FILE
+
+    faults = {}
+    if args.kill:
+        victim = next((v for v in plan.vehicles if v.id == args.kill), None)
+        if victim is None:
+            raise InputError("--kill", f"the plan has no vehicle {args.kill}")
+        # by mission item, not by time: the simulators' clocks start at boot
+        items = vehicle_mission(victim, args.firmware).items
+        item = max(2, int(args.kill_at * len(items)))
+        faults[args.kill] = FaultPlan(kill_at_item=item)
+        console.print(f"vehicle {args.kill} will be shot down on reaching mission item "
+                      f"{item} of {len(items)}")
+    fleet = fleet_for_plan(plan, firmware=args.firmware, speedup=args.speedup, faults=faults,
+                           track_dir=flight_dir / "tracks", base_port=args.base_port,
+                           terrain=terrain_ground(read_terrain(plan_dir / TERRAIN_FILE)))
+    longest = max(v.mission_time_s for v in plan.vehicles)
+    options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
+    try:
+        report = fly_plan(plan_dir, fleet.urls(), options)
+    finally:
+        fleet.stop()
+    summary(report)
+    files = [(flight_dir / "flight.json", "flight report: events, losses, re-plans, coverage"),
+             (flight_dir / "flight.png", "recorded tracks, the loss, re-planned routes, coverage")]
+    files += [(p, "MAVLink telemetry log (mavlogdump.py reads it)")
+              for p in sorted(flight_dir.glob("*.tlog"))]
+    files += [(p, "true track of the simulated vehicle (gcs-sim-track/1)")
+              for p in sorted((flight_dir / "tracks").glob("*.json"))]
+    return report, files

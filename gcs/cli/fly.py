@@ -1,0 +1,197 @@
+"""`gcs fly`: upload, start, monitor, re-task survivors on losses, land, report."""
+
+import sys
+from pathlib import Path
+
+from rich.live import Live
+from rich.table import Table
+
+from gcs.progress import console
+from planner.errors import InputError
+
+HELP = "fly a plan: upload, start, monitor, re-task survivors after losses, report"
+
+
+def add_arguments(parser) -> None:
+    parser.add_argument("plan_dir", metavar="PLAN_DIR", help="plan directory written by gcs plan")
+    parser.add_argument("--connect", action="append", default=[], metavar="URL",
+                        help="MAVLink connection, repeatable (tcp:HOST:PORT, udpin:0.0.0.0:14550, "
+                             "udpout:HOST:PORT, /dev/ttyACM0,57600); not needed with --sim")
+    parser.add_argument("-o", "--output", default="flight", metavar="DIR",
+                        help="directory for flight.json, flight.png and the .tlog files")
+    parser.add_argument("--signing-key", metavar="FILE",
+                        help="MAVLink 2 signing key: 32-byte file, or a passphrase file "
+                             "(SHA-256, as MAVProxy); none = no signing")
+    parser.add_argument("--lost-after", type=float, default=5.0, metavar="S",
+                        help="a vehicle silent (no HEARTBEAT) this many wall seconds is lost")
+    parser.add_argument("--assign", action="append", default=[], metavar="SYSID=VEHICLE",
+                        help="fly plan vehicle VEHICLE with system id SYSID (repeatable; "
+                             "none: system ids in ascending order take vehicles 1..n)")
+    parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
+                        help="wait this long for every vehicle's HEARTBEAT")
+    parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
+                        help="wait this long for pre-arm readiness (EKF/GPS)")
+    parser.add_argument("--timeout", type=float, metavar="S",
+                        help="stop monitoring after S wall seconds (default: until every "
+                             "vehicle has landed or is lost)")
+    parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
+    sim = parser.add_argument_group("dry run with the built-in simulated vehicles")
+    sim.add_argument("--sim", type=int, metavar="N",
+                     help="start N simulated vehicles with homes at the plan's launch points "
+                          "and fly against them")
+    sim.add_argument("--firmware", choices=("ardupilot", "px4"),
+                     help="simulated autopilot; none = the plan's firmware")
+    sim.add_argument("--speedup", type=float, default=10.0, metavar="X",
+                     help="simulated time runs X times faster than the wall clock")
+    sim.add_argument("--kill", action="append", default=[], metavar="SYSID@Ts|SYSID@itemN",
+                     help="shoot simulated vehicle SYSID down at mission time T s (since its "
+                          "boot) or on reaching item N (repeatable)")
+    sim.add_argument("--sim-base-port", type=int, metavar="P",
+                     help="first simulator port; none = 5760 (ArduPilot TCP), 18570 (PX4 UDP)")
+    sim.add_argument("--sim-gcs-port", type=int, default=14550, metavar="P",
+                     help="PX4 flavour: UDP port the simulated vehicles send to")
+
+
+def _assignments(texts) -> dict:
+    out = {}
+    for text in texts:
+        sysid, sep, vehicle = text.partition("=")
+        if not sep or not sysid.strip().isdigit() or not vehicle.strip().isdigit():
+            raise InputError("--assign", f"expected SYSID=VEHICLE, got {text!r}")
+        out[int(sysid)] = int(vehicle)
+    return out
+
+
+def options_from_args(args):
+    from gcs.fly import FlyOptions
+
+    if args.lost_after <= 0:
+        raise InputError("--lost-after", "must be positive")
+    key = None
+    if args.signing_key:
+        from gcs.signing import load_key
+        key = load_key(args.signing_key)
+    return FlyOptions(output=Path(args.output), lost_after_s=args.lost_after, signing_key=key,
+                      assign=_assignments(args.assign), connect_timeout_s=args.connect_timeout,
+                      ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
+                      tlog=not args.no_tlog)
+
+
+def sim_fleet(plan, plan_dir, args, output: Path):
+    """The built-in fleet for a dry run: one vehicle per plan route, homes at its
+    launch, flying over the plan's own terrain."""
+    from gcs.sim import FaultPlan, fleet_for_plan, parse_kill, terrain_ground
+    from planner.geotiff import read_terrain
+    from planner.plan import TERRAIN_FILE
+
+    n = args.sim
+    if n < 1:
+        raise InputError("--sim", "need at least one vehicle")
+    if args.speedup <= 0:
+        raise InputError("--speedup", "must be positive")
+    faults = {}
+    for text in args.kill:
+        sysid, at_s, at_item = parse_kill(text)
+        if not 1 <= sysid <= n:
+            raise InputError("--kill", f"no simulated vehicle {sysid} (ids are 1..{n})")
+        faults[sysid] = FaultPlan(kill_at_s=at_s, kill_at_item=at_item)
+    try:
+        return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
+            "firmware", "ardupilot"), speedup=args.speedup, base_port=args.sim_base_port,
+            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks",
+            terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
+    except ValueError as exc:
+        raise InputError("--sim", str(exc)) from None
+    except OSError as exc:
+        raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
+
+
+def status_table(rows) -> Table:
+    table = Table(title="vehicles", expand=False)
+    for col in ("sysid", "UAV", "mode", "item", "mission", "snapshots", "alt", "heartbeat",
+                "battery", "state"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        style = {"lost": "red", "landed": "green", "holding": "yellow"}.get(r["state"], "")
+        table.add_row(str(r["sysid"]), str(r["vehicle"]), r["mode"], r["item"],
+                      str(r["mission"]), r["snapshots"],
+                      "-" if r["alt"] is None else f"{r['alt']:.0f} m",
+                      f"{r['heartbeat_s']:.1f} s", "-" if r["battery"] is None else
+                      f"{r['battery']} %", f"[{style}]{r['state']}[/{style}]" if style
+                      else r["state"], style=None)
+    return table
+
+
+def run(args) -> int:
+    from planner.plan import Plan
+
+    options = options_from_args(args)
+    plan = Plan.load(args.plan_dir)
+    urls = list(args.connect)
+    fleet = None
+    if args.sim:
+        fleet = sim_fleet(plan, args.plan_dir, args, options.output)
+        urls = urls or fleet.urls()
+        if options.timeout_s is None:
+            longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
+            options.timeout_s = 120.0 + 4.0 * longest / args.speedup
+    if not urls:
+        raise InputError("--connect", "give at least one --connect URL (or --sim N)")
+    try:
+        report = fly_plan(args.plan_dir, urls, options)
+    finally:
+        if fleet is not None:
+            fleet.stop()
+    summary(report, options.output)
+    return 0 if report["coverage"].get("survivors", {}).get("fraction_k_covered", 0) > 0 else 1
+
+
+def fly_plan(plan_dir, urls, options) -> dict:
+    """Fly with a live status table on a terminal, event lines on stderr otherwise."""
+    from gcs.fly import Flight, FlightError
+
+    live = console.is_terminal
+    flight = Flight(plan_dir, urls, options,
+                    log=(lambda text: None) if live else
+                    (lambda text: print(text, file=sys.stderr, flush=True)))
+    try:
+        if live:
+            with Live(status_table([]), console=console, refresh_per_second=4) as view:
+                return flight.run(lambda rows: view.update(status_table(rows)),
+                                  lambda: _ask(view))
+        return flight.run(on_interrupt=lambda: "leave")
+    except FlightError as exc:
+        raise InputError("gcs fly", str(exc)) from None
+
+
+def _ask(view) -> str:
+    """Ctrl-C during a flight: bring every vehicle home hidden, or leave them flying."""
+    view.stop()
+    try:
+        answer = console.input("[bold]interrupted[/bold]: bring every vehicle home along "
+                               "hidden paths? [h]ome / [l]eave them on their missions: ")
+    except (EOFError, KeyboardInterrupt):
+        return "leave"
+    if answer.strip().lower().startswith("h"):
+        view.start()
+        return "home"
+    return "leave"
+
+
+def summary(report, output=None) -> None:
+    """Losses, re-plans and coverage reached; the files written when ``output`` is given."""
+    for loss in report["losses"]:
+        console.print(f"vehicle {loss['sysid']} lost at {loss['detected_s']:.1f} s "
+                      f"({loss['reason']})")
+    for r in report["replans"]:
+        console.print(f"re-plan at {r['t_s']:.1f} s for {r['survivors']}: planned in "
+                      f"{r['planning_s']:.1f} s, uploaded in {r['upload_s']:.1f} s; "
+                      f"coverage time {r['planned'].get('coverage_time_s', 0) / 60:.1f} min")
+    cov = report["coverage"].get("survivors")
+    if cov:
+        console.print(f"k = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
+                      f"{cov['required_uavs']} surviving vehicle(s) "
+                      f"({100 * cov['fraction_k_covered']:.1f} %) in {report['duration_s']:.0f} s")
+    if output is not None:
+        console.print(f"  {Path(output) / 'flight.json'}  [dim]flight report[/dim]")
+        console.print(f"  {Path(output) / 'flight.png'}  [dim]map of the flight[/dim]")

@@ -1,0 +1,303 @@
+"""Flying a plan: connect, upload, start, monitor, re-task on losses, report.
+
+    report = fly(plan_dir, ["tcp:127.0.0.1:5760", ...], FlyOptions(output="flight"))
+
+Stages (each in its own module): `gcs.link` finds the vehicles; missions are
+built per vehicle for its own autopilot (`missions.build`) and uploaded with
+read-back (`gcs.mission_protocol.upload_verified`); `gcs.commands.start_mission`
+takes off; `gcs.monitor` follows them and detects losses; `gcs.retask`
+re-plans the survivors. At the end ``flight.json`` and ``flight.png`` are
+written to the output directory, with one ``.tlog`` per vehicle beside them.
+
+Coverage at the end is re-evaluated from the snapshot positions with the
+planner's own sensor model; a lost vehicle's snapshots count as lost.
+"""
+
+import json
+import threading
+import time
+from dataclasses import asdict, dataclass, field
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+from gcs import commands
+from gcs.link import GroundLink, LinkError
+from gcs.mission_protocol import MissionError, upload_verified
+from gcs.monitor import FLYING, LANDED, LOST, STARTING, Monitor
+from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
+from missions.build import MissionOptions, vehicle_mission
+from planner.errors import InputError
+from planner.fileio import write_text_atomic
+from planner.plan import Plan
+from planner.replan import context_for_plan, coverage_summary, seen_matrix
+
+FORMAT = "gcs-flight/1"
+FLIGHT_FILE = "flight.json"
+PLOT_FILE = "flight.png"
+TLOG_PATTERN = "vehicle_{sysid}.tlog"
+LOOP_S = 0.1
+
+
+@dataclass
+class FlyOptions:
+    output: Path | str = "flight"
+    lost_after_s: float = 5.0  # wall seconds without HEARTBEAT before a vehicle is lost
+    signing_key: bytes | None = None
+    assign: dict = field(default_factory=dict)  # sysid -> plan vehicle id (default: in order)
+    connect_timeout_s: float = 30.0
+    ready_timeout_s: float = 60.0
+    timeout_s: float | None = None  # give up monitoring after this many wall seconds
+    tlog: bool = True
+    live: bool = True  # rich status table on a terminal, event lines otherwise
+    plot: bool = True
+
+
+class FlightError(Exception):
+    """The flight could not go on (a vehicle refused its start, re-tasking failed)."""
+
+
+def assign_vehicles(plan: Plan, sysids: list, assign: dict) -> dict:
+    """{sysid: VehicleRoute}: by ``assign`` (sysid -> vehicle id), else in order."""
+    routes = {v.id: v for v in plan.vehicles}
+    if assign:
+        unknown = [i for i in assign.values() if i not in routes]
+        if unknown:
+            raise InputError("--assign", f"the plan has no vehicle {unknown[0]} "
+                                         f"(vehicles {sorted(routes)})")
+        missing = [s for s in assign if s not in sysids]
+        if missing:
+            raise InputError("--assign", f"no vehicle with system id {missing[0]} answered "
+                                         f"(found {sysids})")
+        return {s: routes[i] for s, i in assign.items()}
+    if len(sysids) < len(plan.vehicles):
+        raise InputError("--connect", f"the plan has {len(plan.vehicles)} vehicles but only "
+                                      f"{len(sysids)} answered ({sysids})")
+    return {s: v for s, v in zip(sorted(sysids), plan.vehicles)}
+
+
+class Flight:
+    """One flight of a plan; `run` does everything, the parts are there for tests."""
+
+    def __init__(self, plan_dir, urls, options: FlyOptions, log=None):
+        self.plan_dir = Path(plan_dir)
+        self.plan = Plan.load(self.plan_dir)
+        self.urls = list(urls)
+        self.options = options
+        self.output = Path(options.output)
+        self.output.mkdir(parents=True, exist_ok=True)
+        self.log = log or (lambda text: None)
+        self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
+        self.start_unix = time.time()
+        self.link = None
+        self.retasks = []
+        # fly at the speed the plan's times assume, as `gcs plan` writes the files
+        self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
+        self.ctx = None
+        self._ctx_ready = threading.Event()
+        self._ctx_error = None
+
+    # -- stages -------------------------------------------------------------------------
+    def run(self, status=None, on_interrupt=None) -> dict:
+        """Fly the plan to the end; returns the report (also written to flight.json).
+
+        Ctrl-C while monitoring calls ``on_interrupt()``: "home" re-tasks every
+        vehicle in the air home along hidden paths (never plain RTL) and keeps
+        monitoring; anything else leaves them on their missions and stops."""
+        threading.Thread(target=self._prepare_context, daemon=True,
+                         name="replan-context").start()
+        try:
+            self.connect()
+            self.upload()
+            self.start()
+            try:
+                self.watch(status)
+            except KeyboardInterrupt:
+                choice = on_interrupt() if on_interrupt is not None else "leave"
+                self.monitor.event(None, f"interrupted: {choice}")
+                if choice == "home":
+                    self.retask(home=True)
+                    self.watch(status)
+        finally:
+            self.monitor.close()
+            if self.link is not None:
+                self.link.close()
+        report = self.report()
+        self.write(report)
+        return report
+
+    def _prepare_context(self) -> None:
+        try:
+            self.ctx = context_for_plan(self.plan_dir, self.plan)
+        except Exception as exc:  # reported when the context is needed
+            self._ctx_error = exc
+        self._ctx_ready.set()
+
+    def context(self):
+        self._ctx_ready.wait()
+        if self._ctx_error is not None:
+            raise self._ctx_error
+        return self.ctx
+
+    def connect(self) -> None:
+        o = self.options
+        expect = sorted(o.assign) if o.assign else len(self.plan.vehicles)
+        tlog = str(self.output / TLOG_PATTERN) if o.tlog else None
+        try:
+            self.link = GroundLink.open(self.urls, o.signing_key, expect=expect,
+                                        timeout_s=o.connect_timeout_s, tlog=tlog)
+        except LinkError as exc:
+            raise FlightError(str(exc)) from None
+        vehicles = self.link.vehicles
+        for sysid, route in assign_vehicles(self.plan, list(vehicles), o.assign).items():
+            link = vehicles[sysid]
+            mission = vehicle_mission(route, link.flavour, self.mission_options)
+            self.monitor.follow(link, route.id, route, mission)
+            self.monitor.event(sysid, "connected", flavour=link.flavour, vehicle=route.id,
+                               items=len(mission.items))
+
+    def upload(self) -> None:
+        m = self.monitor
+
+        def one(sysid):
+            upload_verified(m.links[sysid], m.vehicles[sysid].mission.items)
+            m.event(sysid, "mission uploaded and verified")
+
+        self._all(one, "upload", MissionError)
+
+    def start(self) -> None:
+        m = self.monitor
+
+        def one(sysid):
+            v = m.vehicles[sysid]
+            m.set_state(sysid, STARTING)
+            commands.start_mission(m.links[sysid], v.route.waypoints[0].alt_amsl,
+                                   ready_timeout_s=self.options.ready_timeout_s)
+            m.set_state(sysid, FLYING)
+
+        self._all(one, "start", commands.CommandError)
+
+    def _all(self, fn, what, expected) -> None:
+        """fn on every vehicle at once. A vehicle that fails and then falls silent
+        was lost during this stage (the flight goes on); any other failure stops it."""
+        errors = _in_parallel(fn, sorted(self.monitor.vehicles))
+        failed = {s: e for s, e in errors.items() if e is not None}
+        if not failed:
+            return
+        end = time.monotonic() + self.options.lost_after_s + 1.0
+        while time.monotonic() < end and any(self.monitor.vehicles[s].state != LOST
+                                             for s in failed):
+            self.monitor.check_losses()
+            time.sleep(LOOP_S)
+        for sysid, exc in sorted(failed.items()):
+            if self.monitor.vehicles[sysid].state == LOST:
+                self.monitor.event(sysid, f"lost during {what}", error=str(exc))
+                continue
+            if isinstance(exc, expected):
+                raise FlightError(f"{what} failed: {exc}") from None
+            raise exc
+        self._lost_early = True
+
+    def watch(self, status=None) -> None:
+        """Monitor until every vehicle has landed or is lost; re-task on each loss."""
+        m = self.monitor
+        end = None if self.options.timeout_s is None else time.monotonic() + \
+            self.options.timeout_s
+        if getattr(self, "_lost_early", False):
+            self._lost_early = False
+            self.retask()
+        while not m.all_finished():
+            if m.check_losses():
+                self.retask()
+            if status is not None:
+                status(m.status_rows())
+            if end is not None and time.monotonic() > end:
+                m.event(None, f"gave up after {self.options.timeout_s:g} s")
+                break
+            time.sleep(LOOP_S)
+        if status is not None:
+            status(m.status_rows())
+
+    def retask(self, home: bool = False) -> None:
+        m = self.monitor
+        try:
+            ctx = self.context()
+        except InputError as exc:
+            raise FlightError(f"cannot re-plan: {exc}") from None
+        m.event(None, "re-planning", survivors=m.survivors())
+        try:
+            record = Retasker(ctx, m, self.mission_options).retask(home)
+        except RetaskError as exc:
+            raise FlightError(str(exc)) from None
+        self.retasks.append(record)
+
+    # -- results ------------------------------------------------------------------------
+    def report(self) -> dict:
+        m = self.monitor
+        vehicles = [self._vehicle_report(v) for _, v in sorted(m.vehicles.items())]
+        losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
+                   "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason}
+                  for _, v in sorted(m.vehicles.items()) if v.state == LOST]
+        return {
+            "format": FORMAT, "plan": str(self.plan_dir),
+            "started_utc": datetime.fromtimestamp(self.start_unix, timezone.utc).isoformat(),
+            "start_unix": self.start_unix, "duration_s": round(m.now(), 3),
+            "lost_after_s": self.options.lost_after_s, "k": int(self.plan.metrics.get("k", 0)),
+            "vehicles": vehicles, "losses": losses,
+            "replans": [asdict(r) for r in self.retasks],
+            "coverage": self.coverage(), "events": list(m.events),
+        }
+
+    def _vehicle_report(self, v) -> dict:
+        return {
+            "sysid": v.sysid, "vehicle": v.vehicle_id, "flavour": v.flavour, "state": v.state,
+            "missions": v.generation + 1, "lost_at_s": v.lost_at_s,
+            "lost_reason": v.lost_reason, "landed_at_s": v.landed_at_s,
+            "snapshots": [asdict(s) for s in v.snapshots],
+            "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],
+        }
+
+    def coverage(self) -> dict:
+        """k-coverage from the snapshots taken: by the survivors, and by every vehicle."""
+        try:
+            ctx = self.context()
+        except Exception as exc:
+            return {"error": str(exc)}
+        m = self.monitor
+        k = int(self.plan.metrics.get("k", ctx.scenario.k))
+        alive = [v for _, v in sorted(m.vehicles.items()) if v.state != LOST]
+        every = [v for _, v in sorted(m.vehicles.items())]
+        coverable = int((np.diff(ctx.visibility.target_indptr) > 0).sum())
+        out = {"coverable_targets": coverable}
+        for name, group in (("survivors", alive), ("all_vehicles", every)):
+            seen = seen_matrix(ctx, [snapshot_xyz(ctx, v) for v in group])
+            out[name] = coverage_summary(ctx, seen, k)
+        out["planned"] = {key: self.plan.metrics.get(key) for key in
+                          ("targets", "covered", "k_covered", "coverage_time_s")}
+        return out
+
+    def write(self, report: dict) -> None:
+        write_text_atomic(self.output / FLIGHT_FILE, json.dumps(report, indent=1))
+        if self.options.plot:
+            from gcs.flight_plot import flight_png
+            try:
+                ctx = self.context()
+            except Exception:
+                return
+            flight_png(self.output / PLOT_FILE, ctx.terrain, ctx.surface, self.plan, report)
+
+    def _on_event(self, entry) -> None:
+        who = f"vehicle {entry['sysid']}: " if entry.get("sysid") is not None else ""
+        extra = {k: v for k, v in entry.items() if k not in ("t_s", "sysid", "event")}
+        tail = " " + " ".join(f"{k}={v}" for k, v in extra.items()) if extra else ""
+        self.log(f"[{entry['t_s']:8.1f} s] {who}{entry['event']}{tail}")
+
+
+def fly(plan_dir, urls, options: FlyOptions = None, log=None, status=None,
+        on_interrupt=None) -> dict:
+    """Fly ``plan_dir`` on the vehicles at ``urls``; returns the flight report."""
+    return Flight(plan_dir, urls, options or FlyOptions(), log).run(status, on_interrupt)
+
+
+__all__ = ["Flight", "FlightError", "FlyOptions", "LANDED", "LOST", "assign_vehicles", "fly"]

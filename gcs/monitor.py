@@ -1,0 +1,252 @@
+"""Following each vehicle from its telemetry: progress, snapshots, losses, landing.
+
+A `Monitor` subscribes to every `gcs.link.VehicleLink` of the flight. From the
+reader threads it records the track (GLOBAL_POSITION_INT), the mission items
+reached (MISSION_ITEM_REACHED, mapped to plan waypoints through
+`VehicleMission.waypoint_of_item`) and camera feedback. A snapshot counts as
+taken when its waypoint is reached: ArduPilot reports MISSION_ITEM_REACHED for
+navigation items only, and camera feedback only with a camera configured, so
+the waypoint is the one signal every autopilot gives. Camera feedback, where
+it comes, is kept beside it.
+
+Loss detection (`check_losses`, called by the flight loop on the wall clock):
+a vehicle is lost when no HEARTBEAT has arrived for ``lost_after_s`` seconds,
+or when it disarms in the air. A link that comes back earlier is not a loss.
+"""
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+from gcs.mavlink import M
+
+# Flight states of a vehicle, as shown in the status table and flight.json.
+WAITING, STARTING, FLYING, HOLDING, RETURNING, LANDED, LOST = (
+    "waiting", "starting", "flying", "holding", "returning", "landed", "lost")
+#: below this height above home (m) a disarmed vehicle has landed, above it it fell
+LANDED_AGL_M = 3.0
+#: keep one track sample per this many wall seconds (telemetry comes at a few Hz)
+TRACK_PERIOD_S = 0.2
+#: position reports above LANDED_AGL_M after a disarm that make it a fall
+DISARM_REPORTS = 3
+
+
+@dataclass
+class Snapshot:
+    t_s: float  # seconds since the flight started (wall clock)
+    lon: float
+    lat: float
+    alt_amsl: float
+    mission: int  # which mission of the vehicle: 0 = the plan, 1.. = re-plans
+    waypoint: int  # index into that mission's route waypoints
+
+
+@dataclass
+class VehicleProgress:
+    """What the ground station knows about one vehicle of the flight."""
+
+    sysid: int
+    vehicle_id: int  # plan route id
+    flavour: str
+    route: object  # planner.plan.VehicleRoute being flown
+    mission: object  # missions.build.VehicleMission uploaded
+    generation: int = 0  # 0: the plan's mission; n: the n-th re-plan
+    state: str = WAITING
+    reached: set = field(default_factory=set)  # item seqs reached in this mission
+    done: set = field(default_factory=set)  # route waypoint indices reached in this mission
+    snapshots: list = field(default_factory=list)  # [Snapshot], every mission
+    camera: list = field(default_factory=list)  # camera feedback positions [(t, lon, lat, alt)]
+    track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL)]
+    airborne: bool = False
+    lost_at_s: float | None = None
+    lost_reason: str | None = None
+    last_heartbeat_s: float | None = None
+    landed_at_s: float | None = None
+    disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
+    disarmed_reports: int = 0  # position reports since
+
+    @property
+    def snapshot_total(self) -> int:
+        return sum(1 for w in self.route.waypoints if w.snapshot)
+
+    @property
+    def snapshots_done(self) -> int:
+        """Snapshots of the current mission taken so far."""
+        return sum(1 for i in self.done if self.route.waypoints[i].snapshot)
+
+    @property
+    def finished(self) -> bool:
+        return self.state in (LANDED, LOST)
+
+
+class Monitor:
+    """Telemetry of every vehicle of a flight, on one clock (seconds since `t0`)."""
+
+    def __init__(self, lost_after_s: float = 5.0, on_event=None):
+        self.lost_after_s = float(lost_after_s)
+        self.t0 = time.monotonic()
+        self.vehicles = {}  # sysid -> VehicleProgress
+        self.links = {}  # sysid -> VehicleLink
+        self.events = []  # [{"t_s", "sysid", "event", ...}]
+        self._lock = threading.RLock()
+        self._unsubscribe = []
+        self._on_event = on_event
+
+    def now(self) -> float:
+        return time.monotonic() - self.t0
+
+    # -- setting up -----------------------------------------------------------------
+    def follow(self, link, vehicle_id: int, route, mission) -> VehicleProgress:
+        """Start following vehicle ``link`` flying ``route`` as ``mission``."""
+        progress = VehicleProgress(link.sysid, vehicle_id, link.flavour, route, mission)
+        with self._lock:
+            self.vehicles[link.sysid] = progress
+            self.links[link.sysid] = link
+        self._unsubscribe.append(link.subscribe(lambda msg, s=link.sysid: self._on(s, msg)))
+        return progress
+
+    def close(self) -> None:
+        for unsubscribe in self._unsubscribe:
+            unsubscribe()
+        self._unsubscribe = []
+
+    def event(self, sysid, text: str, **extra) -> dict:
+        entry = {"t_s": round(self.now(), 3), "sysid": sysid, "event": text, **extra}
+        with self._lock:
+            self.events.append(entry)
+        if self._on_event is not None:
+            self._on_event(entry)
+        return entry
+
+    def set_state(self, sysid: int, state: str) -> None:
+        with self._lock:
+            v = self.vehicles[sysid]
+            if v.state != state and v.state != LOST:
+                v.state = state
+                self.event(sysid, state)
+
+    def new_mission(self, sysid: int, route, mission) -> None:
+        """The vehicle now flies ``mission`` (a re-plan): progress restarts at its item 1."""
+        with self._lock:
+            v = self.vehicles[sysid]
+            v.route, v.mission = route, mission
+            v.generation += 1
+            v.reached, v.done = set(), set()
+
+    # -- telemetry (reader threads) ---------------------------------------------------
+    def _on(self, sysid: int, msg) -> None:
+        kind = msg.get_type()
+        handler = self._HANDLERS.get(kind)
+        if handler is not None:
+            with self._lock:
+                v = self.vehicles.get(sysid)
+                if v is not None and v.state != LOST:
+                    handler(self, v, msg)
+
+    def _heartbeat(self, v, msg) -> None:
+        v.last_heartbeat_s = self.now()
+        armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
+        link = self.links[v.sysid]
+        agl = link.state.relative_alt
+        if armed and agl is not None and agl > LANDED_AGL_M:
+            v.airborne = True
+        if v.airborne and not armed and v.state != LANDED and v.disarmed_at_s is None:
+            # position reports lag the touchdown: judge by the next ones
+            v.disarmed_at_s = self.now()
+            v.disarmed_reports = 0
+            self._judge_disarm(v, agl)
+
+    def _judge_disarm(self, v, agl) -> None:
+        """Disarmed after flying: landed if near home height, else fell (lost)."""
+        if agl is not None and agl <= LANDED_AGL_M:
+            v.state = LANDED
+            v.landed_at_s = round(self.now(), 3)
+            self.event(v.sysid, LANDED)
+        elif v.disarmed_reports >= DISARM_REPORTS:
+            self._lose(v, f"disarmed in the air ({agl:.0f} m above home)")
+
+    def _position(self, v, msg) -> None:
+        t = self.now()
+        if v.disarmed_at_s is not None and v.state != LANDED:
+            v.disarmed_reports += 1
+            self._judge_disarm(v, msg.relative_alt * 1e-3)
+        if v.track and t - v.track[-1][0] < TRACK_PERIOD_S:
+            return
+        v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3))
+
+    def _reached(self, v, msg) -> None:
+        seq = int(msg.seq)
+        if seq in v.reached:
+            return
+        v.reached.add(seq)
+        of_item = v.mission.waypoint_of_item
+        index = of_item[seq] if 0 <= seq < len(of_item) else None
+        if index is None or index in v.done:
+            return
+        v.done.add(index)
+        w = v.route.waypoints[index]
+        if w.snapshot:
+            v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
+                                        v.generation, index))
+
+    def _camera(self, v, msg) -> None:
+        if msg.get_type() == "CAMERA_FEEDBACK":
+            lat, lon, alt = msg.lat * 1e-7, msg.lng * 1e-7, msg.alt_msl
+        else:
+            lat, lon, alt = msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3
+        v.camera.append((round(self.now(), 3), lon, lat, alt))
+
+    _HANDLERS = {"HEARTBEAT": _heartbeat, "GLOBAL_POSITION_INT": _position,
+                 "MISSION_ITEM_REACHED": _reached, "CAMERA_FEEDBACK": _camera,
+                 "CAMERA_IMAGE_CAPTURED": _camera}
+
+    # -- losses (flight loop) ---------------------------------------------------------
+    def check_losses(self) -> list:
+        """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock)."""
+        lost = []
+        with self._lock:
+            for sysid, v in self.vehicles.items():
+                if v.finished:
+                    if v.state == LOST and v.lost_at_s is not None and not getattr(
+                            v, "_reported", False):
+                        v._reported = True
+                        lost.append(sysid)
+                    continue
+                age = self.links[sysid].heartbeat_age()
+                if age > self.lost_after_s:
+                    self._lose(v, f"no HEARTBEAT for {age:.1f} s")
+                    v._reported = True
+                    lost.append(sysid)
+        return lost
+
+    def _lose(self, v, reason: str) -> None:
+        v.state = LOST
+        v.lost_at_s = round(self.now(), 3)
+        v.lost_reason = reason
+        self.event(v.sysid, LOST, reason=reason, last_heartbeat_s=v.last_heartbeat_s)
+
+    # -- views ------------------------------------------------------------------------
+    def survivors(self) -> list:
+        with self._lock:
+            return [s for s, v in self.vehicles.items() if v.state != LOST]
+
+    def all_finished(self) -> bool:
+        with self._lock:
+            return all(v.finished for v in self.vehicles.values())
+
+    def status_rows(self) -> list:
+        """One row per vehicle for the status table."""
+        rows = []
+        with self._lock:
+            for sysid, v in sorted(self.vehicles.items()):
+                s = self.links[sysid].state
+                age = self.links[sysid].heartbeat_age()
+                items = len(v.mission.items) if v.mission is not None else 0
+                rows.append({
+                    "sysid": sysid, "vehicle": v.vehicle_id, "mode": s.mode or "?",
+                    "item": f"{s.mission_seq if s.mission_seq is not None else '-'}/{items}",
+                    "mission": v.generation,
+                    "snapshots": f"{len(v.snapshots)} ({v.snapshots_done}/{v.snapshot_total})",
+                    "alt": s.relative_alt, "heartbeat_s": age, "state": v.state,
+                    "battery": s.battery_pct})
+        return rows

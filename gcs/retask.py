@@ -1,0 +1,260 @@
+"""Re-tasking the survivors after a loss: hold, re-plan, upload in flight, resume.
+
+Sequence per loss (issue 5): every survivor still in the air is held where it
+is (ArduPilot GUIDED, PX4 AUTO.LOITER), because ArduPilot applies an upload
+item by item and would otherwise fly a half-written mission; the planner
+(`planner.replan`) re-plans from the held positions and the survivors'
+snapshots so far; each new mission is checked (hidden, clear) and uploaded
+with read-back; then the current item is set to the first new item and the
+vehicle goes back to AUTO. Setting the current item is not optional:
+ArduPilot resumes at the old index after an upload.
+
+A loss during any of this (another vehicle silent, an upload failing because
+its vehicle is gone) restarts the re-plan with the remaining survivors.
+"""
+
+import threading
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from gcs import commands
+from gcs.mavlink import ARDUPILOT, PX4
+from gcs.mission_protocol import upload_verified
+from gcs.monitor import FLYING, HOLDING, LANDED, LOST
+from missions.build import MissionOptions, vehicle_mission
+from planner.errors import InputError
+from planner.replan import (Survivor, coverage_summary, replan, requirement, seen_matrix)
+
+HOLD_MODE = {ARDUPILOT: "GUIDED", PX4: "AUTO.LOITER"}
+MISSION_MODE = {ARDUPILOT: "AUTO", PX4: "AUTO.MISSION"}
+#: wall seconds to let a held vehicle brake before its position is taken
+SETTLE_S = 3.0
+SETTLED_MPS = 0.5
+MAX_ATTEMPTS = 4
+
+
+class RetaskError(Exception):
+    """Re-tasking could not be done (no survivor, or a survivor refused)."""
+
+
+@dataclass
+class Retask:
+    """One re-plan, as written to flight.json."""
+
+    t_s: float
+    lost: list  # system ids lost so far when it was made
+    survivors: list = field(default_factory=list)  # system ids re-tasked
+    attempts: int = 0
+    planning_s: float = 0.0
+    upload_s: float = 0.0
+    done_t_s: float | None = None
+    required_uavs: int = 0
+    seen_before: dict = field(default_factory=dict)  # coverage by survivors' snapshots so far
+    original: dict = field(default_factory=dict)  # the rest of the original plan, evaluated
+    planned: dict = field(default_factory=dict)  # the re-plan's own metrics
+    routes: dict = field(default_factory=dict)  # sysid -> [[lon, lat, alt AMSL], ...]
+    starts: dict = field(default_factory=dict)  # sysid -> held position [lon, lat, alt]
+
+
+def geo_to_xyz(ctx, lon, lat, alt) -> np.ndarray:
+    x, y = ctx.terrain.from_lonlat(lon, lat)
+    return np.array([float(x), float(y), float(alt)])
+
+
+def snapshot_xyz(ctx, progress) -> np.ndarray:
+    """(n, 3) projected positions of the snapshots a vehicle has taken."""
+    if not progress.snapshots:
+        return np.zeros((0, 3))
+    lon = np.array([s.lon for s in progress.snapshots])
+    lat = np.array([s.lat for s in progress.snapshots])
+    x, y = ctx.terrain.from_lonlat(lon, lat)
+    return np.stack([x, y, [s.alt_amsl for s in progress.snapshots]], axis=1)
+
+
+def remaining_snapshot_xyz(ctx, progress) -> np.ndarray:
+    """Snapshots of the mission being flown that are not taken yet."""
+    route = progress.route
+    idx = [i for i, w in enumerate(route.waypoints) if w.snapshot and i not in progress.done]
+    if not idx:
+        return np.zeros((0, 3))
+    w = [route.waypoints[i] for i in idx]
+    x, y = ctx.terrain.from_lonlat(np.array([p.lon for p in w]), np.array([p.lat for p in w]))
+    return np.stack([x, y, [p.alt_amsl for p in w]], axis=1)
+
+
+def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
+    """Would the survivors' current missions, flown to the end, meet the requirement?
+
+    ``meets_requirement``: every coverable target seen by min(k + 1, survivors)
+    survivors (what a re-plan aims at); ``tolerated``: seen by k + 1 - losses
+    (at least 1) survivors, which a k-tolerant plan guarantees for up to k
+    losses without re-planning. Also the time they still need: the latest
+    planned time of a remaining snapshot minus that of the last waypoint reached.
+    """
+    snaps, left = [], 0.0
+    for s in sysids:
+        v = monitor.vehicles[s]
+        rest = remaining_snapshot_xyz(ctx, v)
+        snaps.append(np.vstack([snapshot_xyz(ctx, v), rest]))
+        times = [w.t_s for i, w in enumerate(v.route.waypoints) if w.snapshot and i not in v.done]
+        now = max((v.route.waypoints[i].t_s for i in v.done), default=0.0)
+        if times:
+            left = max(left, max(times) - now)
+    seen = seen_matrix(ctx, snaps)
+    summary = coverage_summary(ctx, seen, ctx.scenario.k)
+    summary["meets_requirement"] = summary["k_covered"] >= _coverable(ctx)
+    need = max(1, ctx.scenario.k + 1 - n_lost)
+    summary["tolerated"] = bool((seen.sum(axis=0) >= need).sum() >= _coverable(ctx))
+    summary["remaining_time_s"] = left
+    return summary
+
+
+def _coverable(ctx) -> int:
+    """Targets some candidate viewpoint sees (the others nobody can cover)."""
+    return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
+
+
+def _in_parallel(fn, sysids) -> dict:
+    """Run fn(sysid) for each in its own thread; {sysid: exception or None}."""
+    errors = {}
+
+    def run(s):
+        try:
+            fn(s)
+            errors[s] = None
+        except Exception as exc:  # reported per vehicle by the caller
+            errors[s] = exc
+
+    threads = [threading.Thread(target=run, args=(s,), daemon=True) for s in sysids]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return errors
+
+
+class Retasker:
+    """Re-plans and re-uploads the survivors of a flight (see module doc)."""
+
+    def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions()):
+        self.ctx = ctx
+        self.monitor = monitor
+        self.mission_options = mission_options
+        self.home = False
+
+    def flying(self) -> list:
+        m = self.monitor
+        return [s for s, v in sorted(m.vehicles.items())
+                if v.state not in (LOST, LANDED)]
+
+    def retask(self, home: bool = False) -> Retask:
+        """Re-task every survivor still in the air; returns the record.
+
+        ``home``: no more coverage work, each flies home along a hidden path."""
+        self.home = home
+        m = self.monitor
+        lost = [s for s, v in sorted(m.vehicles.items()) if v.state == LOST]
+        record = Retask(t_s=round(m.now(), 3), lost=lost)
+        for attempt in range(1, MAX_ATTEMPTS + 1):
+            record.attempts = attempt
+            sysids = self.flying()
+            if not sysids:
+                m.event(None, "re-plan skipped: no survivor in the air")
+                return record
+            try:
+                self._attempt(record, sysids)
+                record.done_t_s = round(m.now(), 3)
+                m.event(None, "re-tasked", survivors=sysids, attempt=attempt)
+                return record
+            except _LostDuring as exc:
+                m.event(None, "loss during re-tasking: starting again", lost=exc.sysids)
+        raise RetaskError(f"re-tasking failed {MAX_ATTEMPTS} times in a row")
+
+    # -- one attempt --------------------------------------------------------------------
+    def _attempt(self, record, sysids) -> None:
+        m, ctx = self.monitor, self.ctx
+        self._step(sysids, self._hold)
+        self._settle(sysids)
+        t0 = time.perf_counter()
+        survivors, positions = [], {}
+        for s in sysids:
+            v, state = m.vehicles[s], m.links[s].state
+            launch = v.route.launch
+            positions[s] = [state.lon, state.lat, state.alt_amsl]
+            survivors.append(Survivor(v.vehicle_id, geo_to_xyz(ctx, *positions[s]),
+                                      geo_to_xyz(ctx, launch.lon, launch.lat, launch.alt_amsl)))
+        seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in sysids])
+        record.survivors, record.starts = list(sysids), positions
+        record.required_uavs = int(requirement(ctx, len(sysids))[1][0])
+        record.seen_before = coverage_summary(ctx, seen, ctx.scenario.k)
+        record.original = original_outlook(ctx, m, sysids, len(record.lost))
+        try:
+            required = np.zeros(ctx.visibility.n_targets, np.int32) if self.home else None
+            outcome = replan(ctx, survivors, seen, required=required)
+        except InputError as exc:
+            raise RetaskError(f"re-plan failed: {exc}") from None
+        record.planning_s = round(time.perf_counter() - t0, 3)
+        record.planned = dict(outcome.plan.metrics)
+        routes = dict(zip(sysids, outcome.plan.vehicles))
+        missions = {s: self._mission(s, routes[s]) for s in sysids}
+        record.routes = {s: [[w.lon, w.lat, w.alt_amsl] for w in r.waypoints]
+                         for s, r in routes.items()}
+        t1 = time.perf_counter()
+        self._step(sysids, lambda s: upload_verified(m.links[s], missions[s].items))
+        record.upload_s = round(time.perf_counter() - t1, 3)
+        for s in sysids:
+            m.new_mission(s, routes[s], missions[s])
+        self._step(sysids, lambda s: self._resume(s, missions[s]))
+        for s in sysids:
+            m.set_state(s, FLYING)
+
+    def _mission(self, sysid, route):
+        """The new mission, proven hidden and clear leg by leg before it is sent."""
+        from missions.check import check_mission
+
+        link = self.monitor.links[sysid]
+        mission = vehicle_mission(route, link.flavour, self.mission_options)
+        check_mission(mission, self.ctx.surface, self.ctx.scenario.clearance_m)
+        return mission
+
+    def _step(self, sysids, fn) -> None:
+        """fn on every survivor at once; a failure of a vehicle found lost restarts."""
+        errors = _in_parallel(fn, sysids)
+        newly = self.monitor.check_losses()
+        failed = {s: e for s, e in errors.items() if e is not None}
+        gone = [s for s in sysids if self.monitor.vehicles[s].state == LOST]
+        if gone or newly:
+            raise _LostDuring(sorted(set(gone) | set(newly)))
+        if failed:
+            s, exc = next(iter(failed.items()))
+            raise RetaskError(f"vehicle {s}: {exc}")
+
+    def _hold(self, sysid) -> None:
+        link = self.monitor.links[sysid]
+        commands.set_mode(link, HOLD_MODE.get(link.flavour, "GUIDED"))
+        self.monitor.set_state(sysid, HOLDING)
+
+    def _settle(self, sysids) -> None:
+        """Give held vehicles time to brake (ground speed from GLOBAL_POSITION_INT)."""
+        end = time.monotonic() + SETTLE_S
+        time.sleep(0.3)
+        while time.monotonic() < end:
+            speeds = [self.monitor.links[s].state.groundspeed for s in sysids]
+            if all(v is not None and v < SETTLED_MPS for v in speeds):
+                return
+            time.sleep(0.1)
+
+    def _resume(self, sysid, mission) -> None:
+        """Current item = the first item after home / the first item, then AUTO."""
+        link = self.monitor.links[sysid]
+        first = 1 if link.flavour == ARDUPILOT else 0
+        commands.set_current(link, first)
+        commands.set_mode(link, MISSION_MODE.get(link.flavour, "AUTO"))
+
+
+class _LostDuring(Exception):
+    def __init__(self, sysids):
+        self.sysids = sysids
+        super().__init__(f"lost during re-tasking: {sysids}")

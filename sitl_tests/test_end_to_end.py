@@ -1,0 +1,170 @@
+"""`gcs fly` end to end on the sample terrain with 4 vehicles (issue 6).
+
+Judged only from what the vehicles really flew (the simulator's recorded track,
+or the positions real SITL reported), never from what the ground station
+believes: every recorded segment hidden from every outpost (exact line of sight)
+and above terrain + clearance away from the vertical takeoff / landing at
+launch; coverage from the recorded snapshot positions, evaluated with the
+planner's sensor model, counting only survivors; every survivor lands at its
+launch point; a loss detected within --lost-after + 1 s of the kill.
+"""
+
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from conftest import start_backend
+from gcs.fly import Flight, FlyOptions
+from planner.exposure import segments_clear, segments_hidden
+from planner.replan import coverage_summary, seen_matrix
+
+LOST_AFTER_S = 3.0
+LAUNCH_RADIUS_M = 3.0        # takeoff and landing are vertical above launch
+CLEARANCE_TOL_M = 0.5        # the point mass may sag this much at a corner
+pytestmark = pytest.mark.timeout(240)
+
+
+def fly_case(planned, backend, workdir, kill=None):
+    """Fly ``planned`` on ``backend``; ``kill=(sysid, fraction)`` shoots ``sysid`` down
+    once it has reached that fraction of its waypoints. Returns a result dict."""
+    be = start_backend(backend, planned.plan, workdir)
+    out = workdir / "flight"
+    options = FlyOptions(output=out, lost_after_s=LOST_AFTER_S, timeout_s=180.0, live=False)
+    flight = Flight(planned.directory, be.urls(), options)
+    killed = {}
+    stop = threading.Event()
+
+    def killer(sysid, fraction):
+        while not stop.is_set():
+            v = flight.monitor.vehicles.get(sysid)
+            if v is not None and len(v.done) >= fraction * len(v.route.waypoints):
+                killed[sysid] = be.kill(sysid)
+                return
+            time.sleep(0.02)
+
+    if kill is not None:
+        threading.Thread(target=killer, args=kill, daemon=True).start()
+    start = time.time()
+    try:
+        report = flight.run()
+    finally:
+        stop.set()
+        be.stop()
+    wall = time.time() - start
+    return {"report": report, "tracks": be.tracks(out), "killed": killed, "wall_s": wall,
+            "flight": flight}
+
+
+def _xyz(ctx, lat, lon, alt):
+    x, y = ctx.terrain.from_lonlat(np.asarray(lon, float), np.asarray(lat, float))
+    return np.stack([x, y, np.asarray(alt, float)], axis=1)
+
+
+def assert_hidden_and_clear(planned, tracks):
+    ctx, surface = planned.ctx, planned.surface
+    for sysid, (t, lat, lon, alt, snaps, home) in tracks.items():
+        p = _xyz(ctx, lat, lon, alt)
+        a, b = p[:-1], p[1:]
+        moved = np.linalg.norm(b - a, axis=1) > 1e-6
+        a, b = a[moved], b[moved]
+        hidden = segments_hidden(surface, a, b)
+        assert hidden.all(), f"vehicle {sysid}: {int((~hidden).sum())} recorded segments seen"
+        hx, hy = ctx.terrain.from_lonlat(home[1], home[0])
+        away = (np.hypot(a[:, 0] - hx, a[:, 1] - hy) > LAUNCH_RADIUS_M) & \
+               (np.hypot(b[:, 0] - hx, b[:, 1] - hy) > LAUNCH_RADIUS_M)
+        lifted = a[away] + [0, 0, CLEARANCE_TOL_M], b[away] + [0, 0, CLEARANCE_TOL_M]
+        clear = segments_clear(surface, *lifted)
+        assert clear.all(), f"vehicle {sysid}: {int((~clear).sum())} segments below clearance"
+
+
+def assert_landed_at_launch(ctx, tracks, sysids):
+    for sysid in sysids:
+        t, lat, lon, alt, snaps, home = tracks[sysid]
+        end = _xyz(ctx, lat[-1:], lon[-1:], alt[-1:])[0]
+        launch = _xyz(ctx, [home[0]], [home[1]], [home[2]])[0]
+        assert np.hypot(*(end[:2] - launch[:2])) < LAUNCH_RADIUS_M, f"vehicle {sysid}"
+        assert abs(end[2] - launch[2]) < 1.0, f"vehicle {sysid} did not land"
+        assert alt.max() > launch[2] + 20.0, f"vehicle {sysid} never flew"
+
+
+def recorded_coverage(ctx, tracks, sysids, k) -> dict:
+    snaps = []
+    for sysid in sysids:
+        s = np.asarray(tracks[sysid][4], float).reshape(-1, 3)
+        snaps.append(_xyz(ctx, s[:, 0], s[:, 1], s[:, 2]) if len(s) else np.zeros((0, 3)))
+    return coverage_summary(ctx, seen_matrix(ctx, snaps), k)
+
+
+def coverable(ctx) -> int:
+    return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
+
+
+def loss_latency(result, sysid) -> float:
+    loss = next(x for x in result["report"]["losses"] if x["sysid"] == sysid)
+    detected = result["report"]["start_unix"] + loss["detected_s"]
+    return detected - result["killed"][sysid]
+
+
+def _print(name, result, cov, latency=None):
+    r = result["report"]
+    text = (f"\n{name}: wall {result['wall_s']:.1f} s, flight {r['duration_s']:.1f} s, "
+            f"coverage {cov['k_covered']}/{cov['targets']} by {cov['required_uavs']}, "
+            f"re-plans {len(r['replans'])}")
+    if latency is not None:
+        text += f", loss detected {latency:.2f} s after the kill"
+    for p in r["replans"]:
+        text += (f"\n  re-plan for {p['survivors']}: planning {p['planning_s']} s, upload "
+                 f"{p['upload_s']} s, planned coverage {p['planned'].get('coverage_time_s')}"
+                 f" s, original: tolerated {p['original'].get('tolerated')}, meets min(k+1, n) "
+                 f"{p['original'].get('meets_requirement')}, needs "
+                 f"{p['original'].get('remaining_time_s', 0):.0f} s more")
+    print(text)
+
+
+def test_no_loss_k0(planned, backend, tmp_path):
+    p = planned[0]
+    result = fly_case(p, backend, tmp_path)
+    report, tracks = result["report"], result["tracks"]
+    assert report["losses"] == [] and report["replans"] == []
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, list(tracks))
+    cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
+    _print("no loss, k=0", result, cov)
+    assert cov["k_covered"] == coverable(p.ctx)
+    assert report["coverage"]["survivors"]["k_covered"] == cov["k_covered"]
+
+
+def test_one_killed_k0_survivors_retasked(planned, backend, tmp_path):
+    p = planned[0]
+    result = fly_case(p, backend, tmp_path, kill=(2, 0.3))
+    report, tracks = result["report"], result["tracks"]
+    assert [x["sysid"] for x in report["losses"]] == [2]
+    latency = loss_latency(result, 2)
+    assert latency <= LOST_AFTER_S + 1.0
+    assert len(report["replans"]) >= 1
+    assert report["replans"][0]["survivors"] == [1, 3, 4]
+    survivors = [1, 3, 4]
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, survivors)
+    cov = recorded_coverage(p.ctx, tracks, survivors, k=0)
+    _print("one killed, k=0", result, cov, latency)
+    assert cov["k_covered"] == coverable(p.ctx)
+
+
+def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
+    p = planned[1]
+    result = fly_case(p, backend, tmp_path, kill=(3, 0.3))
+    report, tracks = result["report"], result["tracks"]
+    assert [x["sysid"] for x in report["losses"]] == [3]
+    latency = loss_latency(result, 3)
+    assert latency <= LOST_AFTER_S + 1.0
+    survivors = [1, 2, 4]
+    # k = 1: the original plan alone, flown by the survivors, still sees every target once
+    assert report["replans"][0]["original"]["tolerated"]
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, survivors)
+    cov = recorded_coverage(p.ctx, tracks, survivors, k=0)
+    _print("k=1, one killed", result, cov, latency)
+    assert cov["k_covered"] == coverable(p.ctx)

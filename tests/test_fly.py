@@ -1,0 +1,121 @@
+"""`gcs fly` pieces: vehicle assignment, loss detection on the wall clock, and a whole
+dry run through the command line against the built-in simulator (its recorded
+tracks are the reference)."""
+
+import json
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from gcs.cli import main
+from gcs.fly import assign_vehicles
+from gcs.monitor import LANDED, LOST, Monitor
+from gcs.sim import free_base_port, read_track, track_path
+from planner.errors import InputError
+from planner.geotiff import write_grid
+from planner.outposts import Outpost
+from planner.pipeline import plan_mission
+from planner.plan import TERRAIN_FILE, Plan
+from planner.scenario import Scenario
+from planner.synthetic import synthetic_terrain
+
+pytestmark = pytest.mark.timeout(120)
+N = 60
+
+
+@pytest.fixture(scope="module")
+def plan_dir(tmp_path_factory):
+    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+    x, y = terrain.xy(N // 2, N // 2)
+    lon, lat = terrain.to_lonlat(x, y)
+    outposts = [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
+    llon, llat = terrain.to_lonlat(*terrain.xy(6, 6))
+    scenario = Scenario(sample=True, uavs=3, sensor_range_m=500.0, ceiling_agl_m=150.0,
+                        clearance_m=20.0, hide_margin_m=5.0, launch=[(llat, llon)]).validate()
+    ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
+    d = tmp_path_factory.mktemp("plan")
+    outcome.plan.save(d)
+    write_grid(d / TERRAIN_FILE, terrain.height.astype(np.float32), terrain)
+    return d
+
+
+def test_assign_in_order_and_by_option(plan_dir):
+    plan = Plan.load(plan_dir)
+    by_order = assign_vehicles(plan, [7, 3, 5], {})
+    assert {s: r.id for s, r in by_order.items()} == {3: 1, 5: 2, 7: 3}
+    chosen = assign_vehicles(plan, [1, 2, 3], {3: 1, 1: 3})
+    assert {s: r.id for s, r in chosen.items()} == {3: 1, 1: 3}
+    with pytest.raises(InputError, match="no vehicle 9"):
+        assign_vehicles(plan, [1, 2, 3], {1: 9})
+    with pytest.raises(InputError, match="only 2 answered"):
+        assign_vehicles(plan, [1, 2], {})
+
+
+class _FakeLink:
+    def __init__(self, sysid):
+        self.sysid, self.flavour = sysid, "ardupilot"
+        self.state = SimpleNamespace(relative_alt=50.0, last_heartbeat=time.monotonic(),
+                                     mode="AUTO", mission_seq=1, battery_pct=90)
+        self.callbacks = []
+
+    def subscribe(self, cb):
+        self.callbacks.append(cb)
+        return lambda: None
+
+    def heartbeat_age(self):
+        return time.monotonic() - self.state.last_heartbeat
+
+    def beat(self, armed=True):
+        self.state.last_heartbeat = time.monotonic()
+        msg = SimpleNamespace(base_mode=128 if armed else 0, get_type=lambda: "HEARTBEAT")
+        for cb in self.callbacks:
+            cb(msg)
+
+
+def test_loss_after_silence_not_before(plan_dir):
+    plan = Plan.load(plan_dir)
+    m = Monitor(lost_after_s=0.5)
+    links = [_FakeLink(1), _FakeLink(2)]
+    for link, route in zip(links, plan.vehicles):
+        m.follow(link, route.id, route, SimpleNamespace(items=[], waypoint_of_item=[]))
+    end = time.monotonic() + 1.2
+    while time.monotonic() < end:
+        links[0].beat()
+        if time.monotonic() < end - 0.9:       # vehicle 2: a 0.3 s gap, then silence
+            links[1].beat()
+        assert m.check_losses() in ([], [2])
+        time.sleep(0.05)
+    assert m.vehicles[2].state == LOST and m.vehicles[1].state != LOST
+    # a short gap is no loss: vehicle 1 went 0.3 s without a heartbeat, still here
+    time.sleep(0.3)
+    links[0].beat()
+    assert m.check_losses() == [] and m.vehicles[1].state != LOST
+    # disarmed near the ground after flying: landed, not lost
+    links[0].state.relative_alt = 0.5
+    links[0].beat(armed=False)
+    assert m.vehicles[1].state == LANDED
+
+
+def test_cli_dry_run_with_a_kill(plan_dir, tmp_path):
+    out = tmp_path / "flight"
+    started = time.monotonic()
+    code = main(["fly", str(plan_dir), "--sim", "3", "--speedup", "100", "--kill", "2@item30",
+                 "--lost-after", "2", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)])
+    wall = time.monotonic() - started
+    assert code == 0
+    report = json.loads((out / "flight.json").read_text())
+    assert report["format"] == "gcs-flight/1"
+    assert [x["sysid"] for x in report["losses"]] == [2]
+    assert report["replans"] and report["replans"][0]["survivors"] == [1, 3]
+    assert (out / "flight.png").stat().st_size > 10000
+    assert all((out / f"vehicle_{s}.tlog").stat().st_size > 1000 for s in (1, 2, 3))
+    cov = report["coverage"]["survivors"]
+    assert cov["k_covered"] == report["coverage"]["coverable_targets"]
+    for sysid in (1, 3):       # the simulator's own record: landed where it took off
+        track = read_track(track_path(out / "tracks", sysid))
+        assert any(e["event"] == "landed" for e in track.events)
+        assert abs(track.alt[-1] - track.home[2]) < 1.0
+    assert read_track(track_path(out / "tracks", 2)).killed_at is not None
+    assert wall < 60

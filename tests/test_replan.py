@@ -1,0 +1,140 @@
+"""Re-planning for survivors: starts in the air, seen targets, requirement, hidden routes.
+
+References: a brute-force recount of coverage from the visibility sets, the exact
+hiddenness and clearance tests on every returned leg, and the saved plan reloaded
+from disk (terrain.tif, plan.json) for `context_for_plan`.
+"""
+
+import numpy as np
+import pytest
+
+from planner.exposure import segments_clear, segments_hidden
+from planner.geotiff import write_grid
+from planner.outposts import Outpost
+from planner.pipeline import plan_mission
+from planner.plan import TERRAIN_FILE, Plan
+from planner.replan import (Survivor, context_for_plan, coverage_summary, replan,
+                            scenario_from_params, seen_matrix, snapshot_sets, survivor_start)
+from planner.scenario import Scenario
+from planner.synthetic import synthetic_terrain
+
+N = 80
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    return synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+
+
+def _scenario(terrain, **kw):
+    lon, lat = terrain.to_lonlat(*terrain.xy(8, 8))
+    base = dict(sample=True, uavs=3, sensor_range_m=600.0, ceiling_agl_m=150.0,
+                clearance_m=20.0, hide_margin_m=5.0, launch=[(lat, lon)])
+    base.update(kw)
+    return Scenario(**base).validate()
+
+
+def _outposts(terrain):
+    x, y = terrain.xy(N // 2, N // 2)
+    lon, lat = terrain.to_lonlat(x, y)
+    return [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
+
+
+@pytest.fixture(scope="module")
+def planned(terrain):
+    return plan_mission(_scenario(terrain, k=1), terrain=terrain, outposts=_outposts(terrain))
+
+
+def _launch_xyz(ctx, vehicle):
+    x, y = ctx.terrain.from_lonlat(vehicle.launch.lon, vehicle.launch.lat)
+    return np.array([x, y, vehicle.launch.alt_amsl])
+
+
+def _midway(ctx, outcome, r):
+    """Survivor r half-way along its planned route, and the snapshots taken by then."""
+    poly = outcome.polylines[r]
+    vehicle = outcome.plan.vehicles[r]
+    half = len(poly) // 2
+    snaps = [poly[i] for i, w in enumerate(vehicle.waypoints[:half]) if w.snapshot]
+    return Survivor(vehicle.id, poly[half], _launch_xyz(ctx, vehicle)), np.array(snaps)
+
+
+def test_scenario_round_trip(planned):
+    ctx, outcome = planned
+    again = scenario_from_params(outcome.plan.params)
+    assert again.launch_points == ctx.scenario.launch_points
+    again.launch = ctx.scenario.launch      # plan.json holds one launch point per UAV
+    assert again == ctx.scenario
+
+
+def test_context_for_saved_plan(tmp_path, terrain, planned):
+    ctx, outcome = planned
+    outcome.plan.save(tmp_path)
+    write_grid(tmp_path / TERRAIN_FILE, terrain.height.astype(np.float32), terrain)
+    plan = Plan.load(tmp_path)
+    again = context_for_plan(tmp_path, plan)
+    assert again.visibility.n_targets == ctx.visibility.n_targets
+    assert np.allclose(again.viewpoints.xyz, ctx.viewpoints.xyz, atol=1e-3)
+
+
+def test_snapshot_sets_match_viewpoints(planned):
+    ctx, _ = planned
+    for j in (0, len(ctx.viewpoints) // 2, len(ctx.viewpoints) - 1):
+        exact = ctx.visibility.seen_by(j)
+        assert np.array_equal(snapshot_sets(ctx, ctx.viewpoints.xyz[j])[0], exact)
+        # away from any viewpoint: computed at the cell, still overlapping the set a lot
+        shifted = ctx.viewpoints.xyz[j] - [0.0, 0.0, 4.0]
+        computed = snapshot_sets(ctx, shifted)[0]
+        assert len(np.intersect1d(computed, exact)) >= 0.8 * len(exact)
+
+
+def test_one_loss_survivors_meet_requirement(planned):
+    ctx, outcome = planned
+    survivors, snaps = zip(*[_midway(ctx, outcome, r) for r in (0, 2)])
+    seen = seen_matrix(ctx, snaps)
+    new = replan(ctx, list(survivors), seen)
+    assert [v.id for v in new.plan.vehicles] == [1, 3]
+    # brute force: survivors' earlier snapshots plus the new snapshot points
+    total = seen.copy()
+    for r, (poly, vehicle) in enumerate(zip(new.polylines, new.plan.vehicles)):
+        pts = poly[[i for i, w in enumerate(vehicle.waypoints) if w.snapshot]]
+        total[r] |= seen_matrix(ctx, [pts])[0]
+    summary = coverage_summary(ctx, total, k=1)
+    coverable = np.diff(ctx.visibility.target_indptr) > 0
+    assert summary["required_uavs"] == 2
+    assert summary["k_covered"] == coverable.sum()
+    for poly, s in zip(new.polylines, survivors):
+        assert np.allclose(poly[0], s.xyz)
+        assert np.allclose(poly[-1, :2], s.launch[:2])
+        assert segments_hidden(ctx.surface, poly[:-1], poly[1:]).all()
+        assert segments_clear(ctx.surface, poly[:-1], poly[1:]).all()
+
+
+def test_one_survivor_of_k1_needs_one_view(planned):
+    ctx, outcome = planned
+    survivor, snaps = _midway(ctx, outcome, 1)
+    new = replan(ctx, [survivor], seen_matrix(ctx, [snaps]))
+    assert new.plan.metrics["k"] == 0
+    assert new.plan.metrics["k_covered"] == new.plan.metrics["covered"]
+
+
+def test_position_off_the_graph_is_snapped(planned):
+    ctx, outcome = planned
+    survivor, _ = _midway(ctx, outcome, 0)
+    low = survivor.xyz.copy()
+    row, col = ctx.terrain.rowcol(low[0], low[1])
+    low[:2] = ctx.terrain.xy(np.rint(row) + 0.45, np.rint(col) + 0.45)
+    low[2] -= 1.0
+    start = survivor_start(ctx, Survivor(1, low, survivor.launch))
+    assert start.xyz[2] <= np.nanmax(ctx.surface.ceiling)
+    assert ctx.graph.legs_ok(low, start.xyz)[0]
+
+
+def test_nothing_required_goes_straight_home(planned):
+    ctx, outcome = planned
+    survivor, _ = _midway(ctx, outcome, 0)
+    new = replan(ctx, [survivor], required=np.zeros(ctx.visibility.n_targets, np.int32))
+    poly = new.polylines[0]
+    assert not any(w.snapshot for w in new.plan.vehicles[0].waypoints)
+    assert np.allclose(poly[0], survivor.xyz) and np.allclose(poly[-1, :2], survivor.launch[:2])
+    assert segments_hidden(ctx.surface, poly[:-1], poly[1:]).all()
