@@ -224,7 +224,13 @@ def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s) -> None:
     if climb < 1.0:
         raise CommandError(link, f"takeoff altitude {takeoff_alt_amsl:.1f} m AMSL is not "
                                  f"above home ({home_alt:.1f} m AMSL)")
-    command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb)   # relative to home
+    try:
+        command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb)   # relative to home
+    except CommandError as exc:
+        # on a lossy link the first ACK may be lost; the retry is then refused
+        # because the takeoff is already under way
+        if exc.result is None or not _climbing(link):
+            raise
     target = climb - max(1.0, 0.05 * climb)
     _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) >= target,
                    climb_timeout_s, f"climbing to {climb:.1f} m above home")
@@ -244,6 +250,16 @@ def _start_px4(link, climb_timeout_s) -> None:
     arm(link)
     _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) > 1.0, climb_timeout_s,
                    "taking off")
+
+
+def _climbing(link, wait_s: float = 3.0) -> bool:
+    """Whether the vehicle is leaving the ground (within ``wait_s``)."""
+    deadline = time.monotonic() + wait_s
+    while time.monotonic() < deadline:
+        if (link.state.relative_alt or 0.0) > 0.5:
+            return True
+        time.sleep(0.05)
+    return False
 
 
 def _wait_airborne(link, armed_at, climbed, timeout_s, doing) -> None:

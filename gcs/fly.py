@@ -48,6 +48,7 @@ class FlyOptions:
     assign: dict = field(default_factory=dict)  # sysid -> plan vehicle id (default: in order)
     connect_timeout_s: float = 30.0
     ready_timeout_s: float = 60.0
+    protocol_timeout_s: float = 1.5  # mission protocol: wait per message before a retry
     timeout_s: float | None = None  # give up monitoring after this many wall seconds
     tlog: bool = True
     live: bool = True  # rich status table on a terminal, event lines otherwise
@@ -92,6 +93,7 @@ class Flight:
         self.start_unix = time.time()
         self.link = None
         self.retasks = []
+        self._lost_early = False  # a vehicle was lost before monitoring began
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
         self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
         self.ctx = None
@@ -161,7 +163,8 @@ class Flight:
         m = self.monitor
 
         def one(sysid):
-            upload_verified(m.links[sysid], m.vehicles[sysid].mission.items)
+            upload_verified(m.links[sysid], m.vehicles[sysid].mission.items,
+                            timeout_s=self.options.protocol_timeout_s)
             m.event(sysid, "mission uploaded and verified")
 
         self._all(one, "upload", MissionError)
@@ -181,30 +184,31 @@ class Flight:
     def _all(self, fn, what, expected) -> None:
         """fn on every vehicle at once. A vehicle that fails and then falls silent
         was lost during this stage (the flight goes on); any other failure stops it."""
-        errors = _in_parallel(fn, sorted(self.monitor.vehicles))
+        m = self.monitor
+        sysids = [s for s, v in sorted(m.vehicles.items()) if v.state != LOST]
+        errors = _in_parallel(fn, sysids, m)  # a vehicle falling silent is not waited for
         failed = {s: e for s, e in errors.items() if e is not None}
-        if not failed:
-            return
         end = time.monotonic() + self.options.lost_after_s + 1.0
-        while time.monotonic() < end and any(self.monitor.vehicles[s].state != LOST
-                                             for s in failed):
-            self.monitor.check_losses()
+        while failed and time.monotonic() < end and any(m.vehicles[s].state != LOST
+                                                        for s in failed):
+            m.check_losses()
             time.sleep(LOOP_S)
         for sysid, exc in sorted(failed.items()):
-            if self.monitor.vehicles[sysid].state == LOST:
-                self.monitor.event(sysid, f"lost during {what}", error=str(exc))
-                continue
-            if isinstance(exc, expected):
-                raise FlightError(f"{what} failed: {exc}") from None
-            raise exc
-        self._lost_early = True
+            if m.vehicles[sysid].state != LOST:
+                if isinstance(exc, expected):
+                    raise FlightError(f"{what} failed: {exc}") from None
+                raise exc
+        lost = [s for s in sysids if m.vehicles[s].state == LOST]
+        for sysid in lost:
+            m.event(sysid, f"lost during {what}", error=str(errors.get(sysid)))
+        self._lost_early = self._lost_early or bool(lost)
 
     def watch(self, status=None) -> None:
         """Monitor until every vehicle has landed or is lost; re-task on each loss."""
         m = self.monitor
         end = None if self.options.timeout_s is None else time.monotonic() + \
             self.options.timeout_s
-        if getattr(self, "_lost_early", False):
+        if self._lost_early:
             self._lost_early = False
             self.retask()
         while not m.all_finished():
@@ -227,7 +231,8 @@ class Flight:
             raise FlightError(f"cannot re-plan: {exc}") from None
         m.event(None, "re-planning", survivors=m.survivors())
         try:
-            record = Retasker(ctx, m, self.mission_options).retask(home)
+            record = Retasker(ctx, m, self.mission_options,
+                              self.options.protocol_timeout_s).retask(home)
         except RetaskError as exc:
             raise FlightError(str(exc)) from None
         self.retasks.append(record)

@@ -116,8 +116,11 @@ def _coverable(ctx) -> int:
     return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
 
 
-def _in_parallel(fn, sysids) -> dict:
-    """Run fn(sysid) for each in its own thread; {sysid: exception or None}."""
+def _in_parallel(fn, sysids, monitor=None) -> dict:
+    """Run fn(sysid) for each in its own thread; {sysid: exception or None}.
+
+    With a ``monitor``, losses are checked while waiting, and a vehicle found
+    lost is not waited for (its commands would only time out)."""
     errors = {}
 
     def run(s):
@@ -127,21 +130,28 @@ def _in_parallel(fn, sysids) -> dict:
         except Exception as exc:  # reported per vehicle by the caller
             errors[s] = exc
 
-    threads = [threading.Thread(target=run, args=(s,), daemon=True) for s in sysids]
-    for t in threads:
+    threads = {s: threading.Thread(target=run, args=(s,), daemon=True) for s in sysids}
+    for t in threads.values():
         t.start()
-    for t in threads:
-        t.join()
-    return errors
+    while True:
+        waiting = [s for s, t in threads.items() if t.is_alive()]
+        if monitor is not None:
+            monitor.check_losses()
+            waiting = [s for s in waiting if monitor.vehicles[s].state != LOST]
+        if not waiting:
+            return errors
+        threads[waiting[0]].join(timeout=0.1)
 
 
 class Retasker:
     """Re-plans and re-uploads the survivors of a flight (see module doc)."""
 
-    def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions()):
+    def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions(),
+                 protocol_timeout_s: float = 1.5):
         self.ctx = ctx
         self.monitor = monitor
         self.mission_options = mission_options
+        self.protocol_timeout_s = protocol_timeout_s
         self.home = False
 
     def flying(self) -> list:
@@ -202,7 +212,8 @@ class Retasker:
         record.routes = {s: [[w.lon, w.lat, w.alt_amsl] for w in r.waypoints]
                          for s, r in routes.items()}
         t1 = time.perf_counter()
-        self._step(sysids, lambda s: upload_verified(m.links[s], missions[s].items))
+        self._step(sysids, lambda s: upload_verified(m.links[s], missions[s].items,
+                                                     timeout_s=self.protocol_timeout_s))
         record.upload_s = round(time.perf_counter() - t1, 3)
         for s in sysids:
             m.new_mission(s, routes[s], missions[s])
@@ -221,7 +232,7 @@ class Retasker:
 
     def _step(self, sysids, fn) -> None:
         """fn on every survivor at once; a failure of a vehicle found lost restarts."""
-        errors = _in_parallel(fn, sysids)
+        errors = _in_parallel(fn, sysids, self.monitor)
         newly = self.monitor.check_losses()
         failed = {s: e for s, e in errors.items() if e is not None}
         gone = [s for s in sysids if self.monitor.vehicles[s].state == LOST]
@@ -241,6 +252,7 @@ class Retasker:
         end = time.monotonic() + SETTLE_S
         time.sleep(0.3)
         while time.monotonic() < end:
+            self.monitor.check_losses()  # found by the next step, on time
             speeds = [self.monitor.links[s].state.groundspeed for s in sysids]
             if all(v is not None and v < SETTLED_MPS for v in speeds):
                 return

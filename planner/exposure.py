@@ -7,7 +7,8 @@ straight segment from the eye to P does not pass below the terrain surface,
 with GDAL's earth curvature and refraction (``curvature_coeff``). Visibility is
 monotone in altitude, so each outpost has a lowest seen altitude per cell; E is
 the minimum over outposts, capped at ``ground + ceiling_agl``. A cell is
-flyable when ``E - hide_margin >= ground + clearance``.
+flyable when ``E - hide_margin >= ground + clearance``; the connected regions
+of flyable cells off the grid's outer ring are where the fleet flies.
 
 ``compute_exposure`` uses a fast ring sweep that is a proven lower bound of the
 exact lowest seen altitude (the safe side; see planner.exposure_kernels).
@@ -44,7 +45,7 @@ class ExposureSurface:
     lowest_seen: np.ndarray
     exposure: np.ndarray  # float64 [rows, cols]: E, m AMSL; NaN where not flyable
     flyable: np.ndarray  # bool [rows, cols]
-    regions: np.ndarray  # int32 [rows, cols]: connected flyable regions 1..n, 0 = not flyable
+    regions: np.ndarray  # int32 [rows, cols]: connected flyable regions 1..n (outer ring: 0)
 
     @property
     def ceiling(self) -> np.ndarray:
@@ -86,7 +87,11 @@ def surface_from_lowest(terrain, outposts, params, lowest) -> ExposureSurface:
     with np.errstate(invalid="ignore"):
         capped = np.minimum(lowest, ground + params.ceiling_agl_m)
         flyable = terrain.valid & (capped - params.hide_margin_m >= ground + params.clearance_m)
-    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
+    # regions leave out the grid's outer ring: the bilinear surface ends at the outer
+    # cell centres, and a point there leaves the grid once rounded for MAVLink
+    inner = np.zeros_like(flyable)
+    inner[1:-1, 1:-1] = flyable[1:-1, 1:-1]
+    regions, _ = ndimage.label(inner, structure=np.ones((3, 3), bool))
     return ExposureSurface(terrain=terrain, outposts=list(outposts), params=params,
                            lowest_seen=lowest, exposure=np.where(flyable, capped, np.nan),
                            flyable=flyable, regions=regions.astype(np.int32))

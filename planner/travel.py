@@ -7,12 +7,13 @@ A leg's time is the slower of its horizontal motion at ``speed_mps`` and its
 vertical motion at ``climb_mps`` up or ``descent_mps`` down, so times are
 directed.
 
-Graph: one node per flyable cell, at the cell's ceiling ``E - hide_margin``
-(the highest hidden altitude there); edges to the 8 or 16 neighbouring cells
-of the same region, kept when the straight 3-D leg between the two nodes
-passes the exact clearance test (planner.los.gap_range) and
-``segments_hidden``; when it fails, the edge may still "dip": descend to the
-higher of the two floors, fly level (checked the same way), climb back.
+Graph: one node per cell of a flyable region (`ExposureSurface.regions`), at
+the cell's ceiling ``E - hide_margin`` (the highest hidden altitude there);
+edges to the 8 or 16 neighbouring cells of the same region, kept when the
+straight 3-D leg between the two nodes passes the exact clearance test
+(planner.los.gap_range) and ``segments_hidden``; when it fails, the edge may
+still "dip": descend to the higher of the two floors, fly level (checked the
+same way), climb back.
 Different regions are never joined, so their times are infinite.
 
 Paths found on the graph are smoothed by string pulling: a run of vertices
@@ -81,7 +82,7 @@ class TravelGraph:
         self.params = params
         terrain = surface.terrain
         self._h = np.ascontiguousarray(terrain.height, np.float64)
-        rows, cols = np.nonzero(surface.flyable)
+        rows, cols = np.nonzero(surface.regions > 0)
         self.node_rows = rows.astype(np.int64)
         self.node_cols = cols.astype(np.int64)
         self.node_of_cell = np.full(surface.flyable.shape, -1, np.int64)

@@ -125,11 +125,16 @@ class SimBackend:
         self.fleet = SimFleet(FleetConfig(
             vehicles=len(homes), firmware="ardupilot", homes=homes, speedup=speedup,
             base_port=free_base_port(10, len(homes)), track_dir=self.track_dir,
-            warmup_s=1.0)).start()
+            warmup_s=1.0, auto_disarm_s=50.0 * speedup)).start()
+        # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be
+        # 0.1 s of wall time, shorter than one command retry on a lossy link
         self.boot_unix = time.time()
 
     def urls(self) -> list:
         return self.fleet.urls()
+
+    def set_drop(self, pct: float) -> None:
+        self.fleet.set_drop(pct)
 
     def kill(self, sysid: int) -> float:
         """Shoot a vehicle down; returns the wall time (time.time()) it went silent."""

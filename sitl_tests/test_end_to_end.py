@@ -26,26 +26,36 @@ CLEARANCE_TOL_M = 0.5        # the point mass may sag this much at a corner
 pytestmark = pytest.mark.timeout(240)
 
 
-def fly_case(planned, backend, workdir, kill=None):
-    """Fly ``planned`` on ``backend``; ``kill=(sysid, fraction)`` shoots ``sysid`` down
-    once it has reached that fraction of its waypoints. Returns a result dict."""
+def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, protocol_timeout_s=1.5):
+    """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
+    fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
+    to shoot it down as soon as a re-plan starts (a loss during re-tasking).
+    ``drop_pct``: packets lost both ways throughout. Returns a result dict."""
     be = start_backend(backend, planned.plan, workdir)
+    if drop_pct:
+        be.set_drop(drop_pct)
     out = workdir / "flight"
-    options = FlyOptions(output=out, lost_after_s=LOST_AFTER_S, timeout_s=180.0, live=False)
+    options = FlyOptions(output=out, lost_after_s=LOST_AFTER_S, timeout_s=180.0, live=False,
+                         protocol_timeout_s=protocol_timeout_s)
     flight = Flight(planned.directory, be.urls(), options)
     killed = {}
     stop = threading.Event()
 
-    def killer(sysid, fraction):
+    def due(sysid, when):
+        if when == "re-planning":
+            return any(e["event"] == "re-planning" for e in list(flight.monitor.events))
+        v = flight.monitor.vehicles.get(sysid)
+        return v is not None and len(v.done) >= when * len(v.route.waypoints)
+
+    def killer(sysid, when):
         while not stop.is_set():
-            v = flight.monitor.vehicles.get(sysid)
-            if v is not None and len(v.done) >= fraction * len(v.route.waypoints):
+            if due(sysid, when):
                 killed[sysid] = be.kill(sysid)
                 return
             time.sleep(0.02)
 
-    if kill is not None:
-        threading.Thread(target=killer, args=kill, daemon=True).start()
+    for sysid, when in kills:
+        threading.Thread(target=killer, args=(sysid, when), daemon=True).start()
     start = time.time()
     try:
         report = flight.run()
@@ -138,7 +148,7 @@ def test_no_loss_k0(planned, backend, tmp_path):
 
 def test_one_killed_k0_survivors_retasked(planned, backend, tmp_path):
     p = planned[0]
-    result = fly_case(p, backend, tmp_path, kill=(2, 0.3))
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3)])
     report, tracks = result["report"], result["tracks"]
     assert [x["sysid"] for x in report["losses"]] == [2]
     latency = loss_latency(result, 2)
@@ -155,7 +165,7 @@ def test_one_killed_k0_survivors_retasked(planned, backend, tmp_path):
 
 def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
     p = planned[1]
-    result = fly_case(p, backend, tmp_path, kill=(3, 0.3))
+    result = fly_case(p, backend, tmp_path, kills=[(3, 0.3)])
     report, tracks = result["report"], result["tracks"]
     assert [x["sysid"] for x in report["losses"]] == [3]
     latency = loss_latency(result, 3)
@@ -167,4 +177,22 @@ def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
     assert_landed_at_launch(p.ctx, tracks, survivors)
     cov = recorded_coverage(p.ctx, tracks, survivors, k=0)
     _print("k=1, one killed", result, cov, latency)
+    assert cov["k_covered"] == coverable(p.ctx)
+
+
+def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
+    """Vehicle 2 shot down mid-mission, vehicle 4 as soon as the re-plan starts:
+    the re-plan starts again and the last two finish the job."""
+    p = planned[0]
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (4, "re-planning")])
+    report, tracks = result["report"], result["tracks"]
+    assert sorted(x["sysid"] for x in report["losses"]) == [2, 4]
+    for sysid in (2, 4):
+        assert loss_latency(result, sysid) <= LOST_AFTER_S + 1.0
+    survivors = [1, 3]
+    assert report["replans"][-1]["survivors"] == survivors
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, survivors)
+    cov = recorded_coverage(p.ctx, tracks, survivors, k=0)
+    _print("two losses, one during re-tasking", result, cov)
     assert cov["k_covered"] == coverable(p.ctx)

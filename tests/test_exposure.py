@@ -92,7 +92,10 @@ def test_lowest_seen_is_a_tight_lower_bound_of_the_exact_one(seed, posts, curvat
     assert np.array_equal(surface.flyable, flyable)
     assert np.array_equal(surface.exposure[flyable], capped[flyable])
     assert np.isnan(surface.exposure[~flyable]).all()
-    assert np.array_equal(surface.regions > 0, flyable)
+    # regions: the flyable cells off the outer ring (a rounded point there may leave the grid)
+    inner = np.zeros_like(flyable)
+    inner[1:-1, 1:-1] = flyable[1:-1, 1:-1]
+    assert np.array_equal(surface.regions > 0, inner)
     np.testing.assert_allclose(surface.ceiling[flyable], capped[flyable] - params.hide_margin_m)
     np.testing.assert_allclose(surface.floor, ground + params.clearance_m)
 

@@ -467,10 +467,10 @@ def test_packet_drop_and_link_cut():
             return got
 
         assert acked(20) == 20
-        everything = len(c.pump(1.0))
+        everything = len(c.pump(3.0))
         fleet.set_drop(50)
         assert 0 < acked(30, 0.1) < 20                     # about a quarter get there and back
-        lossy = len(c.pump(1.0))
+        lossy = len(c.pump(3.0))
         assert 0 < lossy < 0.8 * everything
         fleet.set_drop(0)
         fleet.cut_link(1, 1.0)

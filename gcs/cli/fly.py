@@ -31,6 +31,9 @@ def add_arguments(parser) -> None:
                         help="wait this long for every vehicle's HEARTBEAT")
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wait this long for pre-arm readiness (EKF/GPS)")
+    parser.add_argument("--protocol-timeout", type=float, default=1.5, metavar="S",
+                        help="mission protocol: wait this long for each answer before "
+                             "resending (MAVLink recommends 1.5 s; shorter on fast links)")
     parser.add_argument("--timeout", type=float, metavar="S",
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
@@ -65,8 +68,10 @@ def _assignments(texts) -> dict:
 def options_from_args(args):
     from gcs.fly import FlyOptions
 
-    if args.lost_after <= 0:
-        raise InputError("--lost-after", "must be positive")
+    for flag, value in (("--lost-after", args.lost_after),
+                        ("--protocol-timeout", args.protocol_timeout)):
+        if not value > 0:
+            raise InputError(flag, f"must be positive, got {value}")
     key = None
     if args.signing_key:
         from gcs.signing import load_key
@@ -74,6 +79,7 @@ def options_from_args(args):
     return FlyOptions(output=Path(args.output), lost_after_s=args.lost_after, signing_key=key,
                       assign=_assignments(args.assign), connect_timeout_s=args.connect_timeout,
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
+                      protocol_timeout_s=args.protocol_timeout,
                       tlog=not args.no_tlog)
 
 
