@@ -217,8 +217,8 @@ def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
 def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s) -> None:
     set_current(link, 1)                    # item 0 is home
     set_mode(link, "GUIDED")
-    armed_at = time.monotonic()
     arm(link)
+    armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
     home_alt = _home_alt(link)
     climb = takeoff_alt_amsl - home_alt
     if climb < 1.0:
@@ -246,8 +246,8 @@ def _start_px4(link, climb_timeout_s) -> None:
         if exc.result is None:
             raise
         set_mode(link, "AUTO.MISSION")
-    armed_at = time.monotonic()
     arm(link)
+    armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
     _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) > 1.0, climb_timeout_s,
                    "taking off")
 

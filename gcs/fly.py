@@ -49,10 +49,16 @@ class FlyOptions:
     connect_timeout_s: float = 30.0
     ready_timeout_s: float = 60.0
     protocol_timeout_s: float = 1.5  # mission protocol: wait per message before a retry
+    protocol_retries: int = 5  # mission protocol: resends per message before giving up
     timeout_s: float | None = None  # give up monitoring after this many wall seconds
     tlog: bool = True
     live: bool = True  # rich status table on a terminal, event lines otherwise
     plot: bool = True
+
+    @property
+    def protocol(self) -> dict:
+        """Keyword arguments of the mission protocol calls (timeouts and retries)."""
+        return {"timeout_s": self.protocol_timeout_s, "retries": self.protocol_retries}
 
 
 class FlightError(Exception):
@@ -164,7 +170,7 @@ class Flight:
 
         def one(sysid):
             upload_verified(m.links[sysid], m.vehicles[sysid].mission.items,
-                            timeout_s=self.options.protocol_timeout_s)
+                            **self.options.protocol)
             m.event(sysid, "mission uploaded and verified")
 
         self._all(one, "upload", MissionError)
@@ -232,7 +238,7 @@ class Flight:
         m.event(None, "re-planning", survivors=m.survivors())
         try:
             record = Retasker(ctx, m, self.mission_options,
-                              self.options.protocol_timeout_s).retask(home)
+                              self.options.protocol).retask(home)
         except RetaskError as exc:
             raise FlightError(str(exc)) from None
         self.retasks.append(record)

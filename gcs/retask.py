@@ -147,11 +147,11 @@ class Retasker:
     """Re-plans and re-uploads the survivors of a flight (see module doc)."""
 
     def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions(),
-                 protocol_timeout_s: float = 1.5):
+                 protocol=None):
         self.ctx = ctx
         self.monitor = monitor
         self.mission_options = mission_options
-        self.protocol_timeout_s = protocol_timeout_s
+        self.protocol = protocol or {}  # timeout_s / retries of the mission protocol
         self.home = False
 
     def flying(self) -> list:
@@ -213,7 +213,7 @@ class Retasker:
                          for s, r in routes.items()}
         t1 = time.perf_counter()
         self._step(sysids, lambda s: upload_verified(m.links[s], missions[s].items,
-                                                     timeout_s=self.protocol_timeout_s))
+                                                     **self.protocol))
         record.upload_s = round(time.perf_counter() - t1, 3)
         for s in sysids:
             m.new_mission(s, routes[s], missions[s])

@@ -43,7 +43,7 @@ VEHICLES = 4
 RESOLUTION_M = 100.0          # coarse: the whole plan takes a few seconds
 CROP = (190, 130, 80)         # row, col, size of the sample-terrain window (8 km, 2 outposts)
 SENSOR_RANGE_M = 1000.0
-SPEEDUP = {"sim": 100.0, "ardupilot": 10.0, "px4": 10.0}
+SPEEDUP = {"sim": 100.0, "sim-px4": 100.0, "ardupilot": 10.0, "px4": 10.0}
 
 ARDUPILOT_BIN = os.environ.get("ARDUPILOT_SITL_BIN") or os.environ.get("ARDUPILOT_SITL")
 PX4_BIN = os.environ.get("PX4_SITL_BIN") or os.environ.get("PX4_SITL")
@@ -116,16 +116,21 @@ class SimBackend:
     """The built-in simulated ArduPilot copters; tracks recorded by the simulator."""
 
     name = "sim"
+    firmware = "ardupilot"
 
     def __init__(self, plan: Plan, workdir: Path, speedup: float):
         from gcs.sim import FleetConfig, SimFleet, free_base_port
 
         homes = [(v.launch.lat, v.launch.lon, v.launch.alt_amsl) for v in plan.vehicles]
         self.track_dir = workdir / "tracks"
+        ports = {"base_port": free_base_port(10, len(homes))}
+        if self.firmware == "px4":  # instances listen on UDP P+1.. and all send to P
+            first = free_base_port(1, len(homes) + 1, udp=True)
+            ports = {"gcs_port": first, "base_port": first + 1}
         self.fleet = SimFleet(FleetConfig(
-            vehicles=len(homes), firmware="ardupilot", homes=homes, speedup=speedup,
-            base_port=free_base_port(10, len(homes)), track_dir=self.track_dir,
-            warmup_s=1.0, auto_disarm_s=50.0 * speedup)).start()
+            vehicles=len(homes), firmware=self.firmware, homes=homes, speedup=speedup,
+            track_dir=self.track_dir, warmup_s=1.0, auto_disarm_s=50.0 * speedup,
+            **ports)).start()
         # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be
         # 0.1 s of wall time, shorter than one command retry on a lossy link
         self.boot_unix = time.time()
@@ -247,7 +252,14 @@ class Px4Backend(ProcessBackend):
         return ["udpin:0.0.0.0:14550"]
 
 
-BACKENDS = {"sim": (SimBackend, None), "ardupilot": (ArduPilotBackend, ARDUPILOT_BIN),
+class SimPx4Backend(SimBackend):
+    """The built-in simulated copters with PX4's modes, start sequence and UDP ports."""
+
+    name = "sim-px4"
+    firmware = "px4"
+
+
+BACKENDS = {"sim": (SimBackend, None), "sim-px4": (SimPx4Backend, None), "ardupilot": (ArduPilotBackend, ARDUPILOT_BIN),
             "px4": (Px4Backend, PX4_BIN)}
 
 

@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from gcs.cli.upload import add_connection_arguments, open_link
+from gcs.cli.upload import add_connection_arguments, open_link, protocol_from_args
 from planner.errors import InputError
 
 HELP = "download the mission a vehicle holds to a QGroundControl .plan or .waypoints file"
@@ -25,11 +25,12 @@ def run(args) -> int:
     output = Path(args.output)
     if output.suffix.lower() not in SUFFIXES:
         raise InputError(output, f"unknown mission file type; use {' or '.join(SUFFIXES)}")
+    protocol = protocol_from_args(args)
     link = open_link(args, {args.sysid} if args.sysid is not None else None)
     try:
         vehicle = _choose(link.vehicles, args.sysid)
         try:
-            items = mp.download(vehicle)
+            items = mp.download(vehicle, **protocol)
         except mp.MissionError as exc:
             print(f"gcs download: error: {exc}", file=sys.stderr)
             return 1

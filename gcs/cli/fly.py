@@ -6,6 +6,7 @@ from pathlib import Path
 from rich.live import Live
 from rich.table import Table
 
+from gcs.cli.upload import add_protocol_arguments, protocol_from_args
 from gcs.progress import console
 from planner.errors import InputError
 
@@ -31,9 +32,7 @@ def add_arguments(parser) -> None:
                         help="wait this long for every vehicle's HEARTBEAT")
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wait this long for pre-arm readiness (EKF/GPS)")
-    parser.add_argument("--protocol-timeout", type=float, default=1.5, metavar="S",
-                        help="mission protocol: wait this long for each answer before "
-                             "resending (MAVLink recommends 1.5 s; shorter on fast links)")
+    add_protocol_arguments(parser)
     parser.add_argument("--timeout", type=float, metavar="S",
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
@@ -68,10 +67,9 @@ def _assignments(texts) -> dict:
 def options_from_args(args):
     from gcs.fly import FlyOptions
 
-    for flag, value in (("--lost-after", args.lost_after),
-                        ("--protocol-timeout", args.protocol_timeout)):
-        if not value > 0:
-            raise InputError(flag, f"must be positive, got {value}")
+    if not args.lost_after > 0:
+        raise InputError("--lost-after", f"must be positive, got {args.lost_after}")
+    protocol = protocol_from_args(args)
     key = None
     if args.signing_key:
         from gcs.signing import load_key
@@ -79,7 +77,8 @@ def options_from_args(args):
     return FlyOptions(output=Path(args.output), lost_after_s=args.lost_after, signing_key=key,
                       assign=_assignments(args.assign), connect_timeout_s=args.connect_timeout,
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
-                      protocol_timeout_s=args.protocol_timeout,
+                      protocol_timeout_s=protocol["timeout_s"],
+                      protocol_retries=protocol["retries"],
                       tlog=not args.no_tlog)
 
 

@@ -36,6 +36,26 @@ def add_connection_arguments(parser) -> None:
                              "none: nothing is signed")
     parser.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
                         help="seconds (wall clock) to wait for the vehicles' HEARTBEATs")
+    add_protocol_arguments(parser)
+
+
+def add_protocol_arguments(parser) -> None:
+    """--protocol-timeout, --protocol-retries: shared by upload, download and fly."""
+    parser.add_argument("--protocol-timeout", type=float, default=1.5, metavar="S",
+                        help="mission protocol: wait this long for each answer before "
+                             "resending (MAVLink recommends 1.5 s; shorter on fast links)")
+    parser.add_argument("--protocol-retries", type=int, default=5, metavar="N",
+                        help="mission protocol: resend each message up to N times before "
+                             "giving up (MAVLink recommends 5; more on very lossy links)")
+
+
+def protocol_from_args(args) -> dict:
+    """Keyword arguments (timeout_s, retries) of the gcs.mission_protocol calls."""
+    if not args.protocol_timeout > 0:
+        raise InputError("--protocol-timeout", f"must be positive, got {args.protocol_timeout}")
+    if args.protocol_retries < 0:
+        raise InputError("--protocol-retries", f"must be 0 or more, got {args.protocol_retries}")
+    return {"timeout_s": args.protocol_timeout, "retries": args.protocol_retries}
 
 
 def add_arguments(parser) -> None:
@@ -158,11 +178,12 @@ def open_link(args, expect):
 def run(args) -> int:
     routes = load_routes(args.sources)
     assign = parse_assignments(args.assign)
+    protocol = protocol_from_args(args)
     expect = set(assign) if len(assign) >= len(routes) else len(routes)
     link = open_link(args, expect)
     try:
         pairs = match(list(link.vehicles), routes, assign)
-        results = _upload_all(link, pairs, args.firmware)
+        results = _upload_all(link, pairs, args.firmware, protocol)
     finally:
         link.close()
     Console().print(_summary(results))
@@ -172,18 +193,18 @@ def run(args) -> int:
     return 1 if failed else 0
 
 
-def _upload_all(link, pairs, firmware_choice) -> list:
+def _upload_all(link, pairs, firmware_choice, protocol) -> list:
     bars = Progress(TextColumn("{task.description:<28}"), BarColumn(),
                     TextColumn("{task.completed:>4.0f}/{task.total:.0f}"), console=console,
                     disable=not console.is_terminal)
     vehicles = link.vehicles
     with bars, ThreadPoolExecutor(max_workers=max(1, len(pairs))) as pool:
-        jobs = [pool.submit(_upload_one, vehicles[s], route, firmware_choice, bars)
+        jobs = [pool.submit(_upload_one, vehicles[s], route, firmware_choice, bars, protocol)
                 for s, route in pairs]
         return [job.result() for job in jobs]
 
 
-def _upload_one(vehicle, route, firmware_choice, bars) -> dict:
+def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
     from gcs import mission_protocol as mp
     from gcs.mavlink import ARDUPILOT, PX4
 
@@ -197,7 +218,7 @@ def _upload_one(vehicle, route, firmware_choice, bars) -> dict:
         result["items"] = len(items)
         task = bars.add_task(f"vehicle {vehicle.sysid} <- route {route.id}",
                              total=2 * len(items))
-        mp.upload_verified(vehicle, items,
+        mp.upload_verified(vehicle, items, **protocol,
                            progress=lambda done, total: bars.update(task, completed=done))
     except (mp.MissionError, InputError) as exc:
         result["error"] = str(exc)
