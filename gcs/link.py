@@ -553,10 +553,12 @@ class GroundLink:
 
     # -- sending ------------------------------------------------------------------
     def _transmit(self, conn: Connection, msg, addr=None) -> None:
-        with self._send_lock:            # sequence numbers and signing timestamps
+        # sequence numbers and signing timestamps, and the write too: a signed packet
+        # overtaken by a later-stamped one is dropped by the vehicle as a replay
+        with self._send_lock:
             packet = bytes(msg.pack(self._packer))
             self._packer.seq = (self._packer.seq + 1) % 256
-        conn.write(packet, addr)
+            conn.write(packet, addr)
 
     def _heartbeats(self) -> None:
         hb = build_message("HEARTBEAT", {"type": M.MAV_TYPE_GCS,
@@ -577,7 +579,7 @@ class GroundLink:
                 self._dispatch(msg, conn, addr)
 
     def _dispatch(self, msg, conn, addr) -> None:
-        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
+        sysid = msg.get_srcSystem()
         vehicle = self._vehicles.get(sysid)
         if vehicle is None:
             vehicle = self._discover(msg, conn, addr)

@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import EARTH_RADIUS_M, gap_range, sees
+from .los import EARTH_RADIUS_M, gap_range, line_over_patch, sees
 
 FULL_RINGS = 4  # rings around the outpost whose rays are evaluated exactly in full
 DISTINCT = 2  # two horizons closer than this (rings) count as one feature
@@ -53,18 +53,8 @@ def _piece(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
     is (a t + c1 + e / t) / length_m, a = c2 - curv L^2 / 2R, e = c0 - z0,
     whose only interior stationary point is t* = sqrt(e / a).
     """
-    h00 = h[j, i]
-    h10 = h[j, i + 1]
-    h01 = h[j + 1, i]
-    h11 = h[j + 1, i + 1]
-    cx = h10 - h00
-    cy = h01 - h00
-    cxy = h00 - h10 - h01 + h11
-    au = u0 - i
-    av = v0 - j
-    c0 = h00 + cx * au + cy * av + cxy * au * av
-    c1 = cx * du + cy * dv + cxy * (au * dv + av * du)
-    a = cxy * du * dv - curv * length_m * length_m / (2.0 * EARTH_RADIUS_M)
+    c0, c1, c2 = line_over_patch(h, i, j, u0, v0, du, dv)
+    a = c2 - curv * length_m * length_m / (2.0 * EARTH_RADIUS_M)
     e = c0 - z0
     best = (a * ta + c1 + e / ta) / length_m
     t_best = ta

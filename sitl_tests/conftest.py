@@ -119,18 +119,14 @@ class SimBackend:
     firmware = "ardupilot"
 
     def __init__(self, plan: Plan, workdir: Path, speedup: float):
-        from gcs.sim import FleetConfig, SimFleet, free_base_port
+        from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
 
         homes = [(v.launch.lat, v.launch.lon, v.launch.alt_amsl) for v in plan.vehicles]
         self.track_dir = workdir / "tracks"
-        ports = {"base_port": free_base_port(10, len(homes))}
-        if self.firmware == "px4":  # instances listen on UDP P+1.. and all send to P
-            first = free_base_port(1, len(homes) + 1, udp=True)
-            ports = {"gcs_port": first, "base_port": first + 1}
         self.fleet = SimFleet(FleetConfig(
             vehicles=len(homes), firmware=self.firmware, homes=homes, speedup=speedup,
             track_dir=self.track_dir, warmup_s=1.0, auto_disarm_s=50.0 * speedup,
-            **ports)).start()
+            **free_fleet_ports(self.firmware, len(homes)))).start()
         # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be
         # 0.1 s of wall time, shorter than one command retry on a lossy link
         self.boot_unix = time.time()

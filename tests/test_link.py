@@ -11,7 +11,7 @@ import pytest
 from gcs import commands, signing
 from gcs.link import GroundLink, LinkError, build_message
 from gcs.mavlink import M, mavutil, mode_name, mode_number
-from gcs.sim import FleetConfig, SimFleet, free_base_port
+from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports
 from planner.errors import InputError
 
 pytestmark = pytest.mark.timeout(60)
@@ -20,11 +20,7 @@ FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=10.0)
 
 
 def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
-    if firmware == "ardupilot":
-        ports = dict(base_port=free_base_port(10, vehicles))
-    else:
-        ports = dict(base_port=free_base_port(1, vehicles, udp=True),
-                     gcs_port=free_base_port(1, 1, udp=True))
+    ports = free_fleet_ports(firmware, vehicles)
     return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
 
 
@@ -75,7 +71,7 @@ def test_open_without_expect_waits_for_every_vehicle_on_a_shared_port(fleet_of):
 def test_udpout_reaches_a_vehicle_that_waits_to_be_spoken_to(fleet_of):
     # The PX4 flavour answers whoever spoke last: our GCS HEARTBEAT opens the way.
     cfg = fleet_config("px4", 1)
-    fleet = fleet_of(cfg)
+    fleet_of(cfg)  # started, stopped by the fixture
     with GroundLink.open([f"udpout:127.0.0.1:{cfg.base_port}"], expect=1, timeout_s=10) as link:
         v = link.vehicles[1]
         v.send("MISSION_REQUEST_LIST", mission_type=0)

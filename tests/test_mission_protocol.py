@@ -10,7 +10,8 @@ import pytest
 from gcs import commands, mission_protocol as mp
 from gcs.link import GroundLink
 from gcs.mavlink import M
-from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
+from gcs.sim import (FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track,
+                     track_path)
 from missions.build import MissionOptions, vehicle_mission
 from missions.items import MissionItem
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
@@ -24,11 +25,7 @@ FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=20.0)
 
 # -- helpers ---------------------------------------------------------------------------
 def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
-    if firmware == "ardupilot":
-        ports = dict(base_port=free_base_port(10, vehicles))
-    else:
-        ports = dict(base_port=free_base_port(1, vehicles, udp=True),
-                     gcs_port=free_base_port(1, 1, udp=True))
+    ports = free_fleet_ports(firmware, vehicles)
     return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
 
 

@@ -8,11 +8,12 @@ of what the ground station believes.
 """
 
 from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
-from gcs.sim.fleet import FleetConfig, SimFleet, fleet_for_plan, free_base_port, terrain_ground, vehicle_url
+from gcs.sim.fleet import (FleetConfig, SimFleet, fleet_for_plan, free_base_port,
+                           free_fleet_ports, terrain_ground, vehicle_url)
 from gcs.sim.physics import Limits
 from gcs.sim.track import Track, read_track, track_path
 from gcs.sim.vehicle import SimVehicle, VehicleConfig
 
 __all__ = ["FaultPlan", "FleetConfig", "Limits", "SimFleet", "SimVehicle", "Track",
-           "VehicleConfig", "fleet_for_plan", "free_base_port", "parse_cut", "parse_kill", "read_track", "terrain_ground", "track_path",
-           "vehicle_url"]
+           "VehicleConfig", "fleet_for_plan", "free_base_port", "free_fleet_ports", "parse_cut",
+           "parse_kill", "read_track", "terrain_ground", "track_path", "vehicle_url"]

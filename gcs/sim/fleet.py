@@ -198,6 +198,15 @@ def free_base_port(step: int = 10, count: int = 1, udp: bool = False) -> int:
     raise OSError("no free range of local ports")
 
 
+def free_fleet_ports(firmware: str, vehicles: int) -> dict:
+    """FleetConfig port fields for ``vehicles`` of ``firmware`` on free local ports:
+    ArduPilot TCP P + 10*i; PX4 UDP P + 1 + i, all sending to UDP P."""
+    if firmware == "ardupilot":
+        return {"base_port": free_base_port(10, vehicles)}
+    first = free_base_port(1, vehicles + 1, udp=True)
+    return {"gcs_port": first, "base_port": first + 1}
+
+
 def _bindable(port: int, kind) -> bool:
     with socket.socket(socket.AF_INET, kind) as s:
         try:
