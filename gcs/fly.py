@@ -206,7 +206,8 @@ class Flight:
                 raise exc
         lost = [s for s in sysids if m.vehicles[s].state == LOST]
         for sysid in lost:
-            m.event(sysid, f"lost during {what}", error=str(errors.get(sysid)))
+            error = errors.get(sysid)  # none when it fell silent before failing
+            m.event(sysid, f"lost during {what}", **({"error": str(error)} if error else {}))
         self._lost_early = self._lost_early or bool(lost)
 
     def watch(self, status=None) -> None:

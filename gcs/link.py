@@ -582,27 +582,33 @@ class GroundLink:
         sysid = msg.get_srcSystem()
         vehicle = self._vehicles.get(sysid)
         if vehicle is None:
-            vehicle = self._discover(msg, conn, addr)
-            if vehicle is None:
-                return
+            self._discover(msg, conn, addr)
+        else:
+            self._deliver(vehicle, msg, conn, addr)
+
+    def _deliver(self, vehicle, msg, conn, addr) -> None:
         if self._tlog is not None:
-            self._tlog.write(sysid, bytes(msg.get_msgbuf()))
+            self._tlog.write(vehicle.sysid, bytes(msg.get_msgbuf()))
         vehicle._deliver(msg, next(self._counter), conn, addr)
 
-    def _discover(self, msg, conn, addr):
-        """A HEARTBEAT from an autopilot makes a vehicle; everything else waits for one."""
+    def _discover(self, msg, conn, addr) -> None:
+        """A HEARTBEAT from an autopilot makes a vehicle; everything else waits for one.
+        The HEARTBEAT is delivered before the vehicle is published: one seen
+        without it would look silent since forever (and be declared lost)."""
         if msg.get_type() != "HEARTBEAT" or msg.autopilot == M.MAV_AUTOPILOT_INVALID \
                 or msg.type in NOT_VEHICLES:
-            return None
+            return
         with self._new_vehicle:
             vehicle = self._vehicles.get(msg.get_srcSystem())
-            if vehicle is None:
-                vehicle = VehicleLink(self, msg.get_srcSystem(), msg.get_srcComponent(),
-                                      msg, conn, addr)
-                self._vehicles[vehicle.sysid] = vehicle
-                self._new_vehicle.notify_all()
-                vehicle.request_streams()
-        return vehicle
+            if vehicle is not None:       # found meanwhile on another connection
+                self._deliver(vehicle, msg, conn, addr)
+                return
+            vehicle = VehicleLink(self, msg.get_srcSystem(), msg.get_srcComponent(),
+                                  msg, conn, addr)
+            self._deliver(vehicle, msg, conn, addr)
+            self._vehicles[vehicle.sysid] = vehicle
+            self._new_vehicle.notify_all()
+            vehicle.request_streams()
 
     # -- closing ------------------------------------------------------------------
     def close(self) -> None:

@@ -270,6 +270,6 @@ def backend(request):
     return name
 
 
-def start_backend(name: str, plan: Plan, workdir: Path):
+def start_backend(name: str, plan: Plan, workdir: Path, speedup: float | None = None):
     cls, _ = BACKENDS[name]
-    return cls(plan, workdir, SPEEDUP[name])
+    return cls(plan, workdir, speedup or SPEEDUP[name])

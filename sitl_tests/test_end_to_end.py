@@ -9,6 +9,7 @@ planner's sensor model, counting only survivors; every survivor lands at its
 launch point; a loss detected within --lost-after + 1 s of the kill.
 """
 
+import _thread
 import threading
 import time
 
@@ -26,13 +27,16 @@ CLEARANCE_TOL_M = 0.5        # the point mass may sag this much at a corner
 pytestmark = pytest.mark.timeout(240)
 
 
-def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, **options):
+def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
+             **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
-    ``drop_pct``: packets lost both ways throughout; ``options``: `FlyOptions`
-    fields to change. Returns a result dict."""
-    be = start_backend(backend, planned.plan, workdir)
+    ``interrupt``: (sysid, fraction) for a Ctrl-C then, answered "home".
+    ``drop_pct``: packets lost both ways throughout; ``speedup``: of the simulation
+    (default: the backend's); ``options``: `FlyOptions` fields to change.
+    Returns a result dict."""
+    be = start_backend(backend, planned.plan, workdir, speedup)
     if drop_pct:
         be.set_drop(drop_pct)
     out = workdir / "flight"
@@ -48,18 +52,25 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, **options):
         v = flight.monitor.vehicles.get(sysid)
         return v is not None and len(v.done) >= when * len(v.route.waypoints)
 
-    def killer(sysid, when):
+    def when_due(sysid, when, action):
         while not stop.is_set():
             if due(sysid, when):
-                killed[sysid] = be.kill(sysid)
+                action()
                 return
             time.sleep(0.02)
 
+    def kill(sysid):
+        killed[sysid] = be.kill(sysid)
+
     for sysid, when in kills:
-        threading.Thread(target=killer, args=(sysid, when), daemon=True).start()
+        threading.Thread(target=when_due, args=(sysid, when, lambda s=sysid: kill(s)),
+                         daemon=True).start()
+    if interrupt is not None:  # Ctrl-C: KeyboardInterrupt in the main thread
+        threading.Thread(target=when_due, args=(*interrupt, _thread.interrupt_main),
+                         daemon=True).start()
     start = time.time()
     try:
-        report = flight.run()
+        report = flight.run(on_interrupt=lambda: "home")
     finally:
         stop.set()
         be.stop()
@@ -118,6 +129,12 @@ def loss_latency(result, sysid) -> float:
     return detected - result["killed"][sysid]
 
 
+def still_flying(report, sysids, t_s) -> list:
+    """Those of ``sysids`` that had not landed by ``t_s`` (flight time)."""
+    landed = {e["sysid"] for e in report["events"] if e["event"] == "landed" and e["t_s"] <= t_s}
+    return [s for s in sysids if s not in landed]
+
+
 def assert_one_loss_retasked(planned, result, sysid, lost_after_s=LOST_AFTER_S) -> dict:
     """Only ``sysid`` lost, detected on time; the survivors re-tasked, hidden and
     clear, landed, and covering every coverable target. Returns the coverage."""
@@ -126,9 +143,7 @@ def assert_one_loss_retasked(planned, result, sysid, lost_after_s=LOST_AFTER_S) 
     assert loss_latency(result, sysid) <= lost_after_s + 1.0
     survivors = [s for s in tracks if s != sysid]
     replan = report["replans"][0]
-    landed = {e["sysid"] for e in report["events"]
-              if e["event"] == "landed" and e["t_s"] <= replan["t_s"]}
-    assert replan["survivors"] == [s for s in survivors if s not in landed]
+    assert replan["survivors"] == still_flying(report, survivors, replan["t_s"])
     assert_hidden_and_clear(planned, tracks)
     assert_landed_at_launch(planned.ctx, tracks, survivors)
     cov = recorded_coverage(planned.ctx, tracks, survivors, k=0)
@@ -185,11 +200,14 @@ def test_one_killed_with_20_percent_packet_loss_throughout(planned, backend, tmp
     """Every packet, both ways, dropped with probability 0.2 from boot to landing.
     A HEARTBEAT missing 3 times in a row is then common (0.8 % per second), so
     --lost-after is 8 s (1e-6 of a false loss per second); the mission protocol
-    resends after 0.3 s and up to 10 times (5 would fail an item 0.2 % of the time)."""
+    resends after 0.3 s and up to 10 times (5 would fail an item 0.2 % of the time).
+    At 40x the flights last about 30 s of wall time, so the survivors are still in
+    the air when the loss is found 8 s after the kill (landed vehicles are not
+    sent up again)."""
     if backend != "sim":
         pytest.skip("packet loss is injected by the simulated vehicles")
     p = planned[0]
-    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3)], drop_pct=20.0,
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.15)], drop_pct=20.0, speedup=40.0,
                       lost_after_s=8.0, protocol_timeout_s=0.3, protocol_retries=10)
     cov = assert_one_loss_retasked(p, result, 2, lost_after_s=8.0)
     _print("one killed, 20 % packet loss", result, cov, loss_latency(result, 2))
@@ -222,3 +240,20 @@ def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
     cov = recorded_coverage(p.ctx, tracks, survivors, k=0)
     _print("two losses, one during re-tasking", result, cov)
     assert cov["k_covered"] == coverable(p.ctx)
+
+
+def test_ctrl_c_brings_every_vehicle_home_hidden(planned, backend, tmp_path):
+    """Ctrl-C answered "home": every vehicle is re-tasked home along hidden paths
+    (never plain RTL, which would climb and fly straight) and lands at launch."""
+    p = planned[0]
+    result = fly_case(p, backend, tmp_path, interrupt=(1, 0.3))
+    report, tracks = result["report"], result["tracks"]
+    assert any(e["event"] == "interrupted: home" for e in report["events"])
+    assert report["losses"] == []
+    home = report["replans"][-1]
+    assert home["survivors"] == still_flying(report, sorted(tracks), home["t_s"])
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, list(tracks))
+    cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
+    _print("Ctrl-C, home", result, cov)
+    assert cov["k_covered"] < coverable(p.ctx)  # they came home early

@@ -52,6 +52,9 @@ def test_vehicles_found_by_heartbeat(fleet_of, firmware):
     fleet = fleet_of(fleet_config(firmware, 3))
     with GroundLink.open(fleet.urls(), expect=3, timeout_s=10) as link:
         assert sorted(link.vehicles) == [1, 2, 3]
+        # found by a HEARTBEAT, so never "silent since forever" (a monitor would
+        # declare such a vehicle lost at once)
+        assert all(v.heartbeat_age() < 2.0 for v in link.vehicles.values())
         for sysid, v in link.vehicles.items():
             assert (v.sysid, v.compid, v.flavour) == (sysid, 1, firmware)
             assert wait_until(lambda: v.state.ready and v.state.lat is not None)
