@@ -37,7 +37,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import EARTH_RADIUS_M, gap_range, line_over_patch, sees
+from .los import EARTH_RADIUS_M, gap_range, line_over_patch, next_patch, sees
 
 FULL_RINGS = 4  # rings around the outpost whose rays are evaluated exactly in full
 DISTINCT = 2  # two horizons closer than this (rings) count as one feature
@@ -75,7 +75,7 @@ def _piece(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
 @njit(cache=True)
 def ray_max(h, cell, u0, v0, z0, u1, v1, ta, tb, curv):
     """Exact (max, argmax t) of the apparent slope seen from (u0, v0, z0) along
-    the segment to (u1, v1), over t in [ta, tb]; (-inf, ta) if empty.
+    the segment to (u1, v1), over t in [ta, tb] (tb <= 1); (-inf, ta) if empty.
 
     Patches touching a NaN height are skipped, as in planner.los.max_slope.
     """
@@ -89,21 +89,8 @@ def ray_max(h, cell, u0, v0, z0, u1, v1, ta, tb, curv):
         return best, t_best
     t = max(ta, 1e-12)
     while t < tb:
-        um = u0 + (t + 1e-9) * du
-        vm = v0 + (t + 1e-9) * dv
-        i = min(max(int(math.floor(um)), 0), n_cols - 2)
-        j = min(max(int(math.floor(vm)), 0), n_rows - 2)
-        t_next = tb
-        if du > 0.0:
-            t_next = min(t_next, (i + 1 - u0) / du)
-        elif du < 0.0:
-            t_next = min(t_next, (i - u0) / du)
-        if dv > 0.0:
-            t_next = min(t_next, (j + 1 - v0) / dv)
-        elif dv < 0.0:
-            t_next = min(t_next, (j - v0) / dv)
-        if t_next <= t:
-            t_next = min(tb, t + 1e-9)
+        i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
+        t_next = min(t_next, tb)
         s, ts = _piece(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m, curv)
         if s > best:
             best = s

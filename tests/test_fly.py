@@ -53,6 +53,18 @@ def test_assign_in_order_and_by_option(plan_dir):
         assign_vehicles(plan, [1, 2], {})
 
 
+@pytest.mark.parametrize("texts, problem", [(["1=2", "1=3"], "system id 1 given twice"),
+                                             (["1:2"], "expected SYSID=VEHICLE")])
+def test_cli_bad_assignments(plan_dir, tmp_path, capsys, texts, problem):
+    args = [a for t in texts for a in ("--assign", t)]
+    out = tmp_path / "flight"
+    assert main(["fly", str(plan_dir), "--connect", "tcp:127.0.0.1:1", *args,
+                 "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "--assign" in err and problem in err
+    assert not out.exists()
+
+
 class _FakeLink:
     def __init__(self, sysid):
         self.sysid, self.flavour = sysid, "ardupilot"

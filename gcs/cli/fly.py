@@ -6,7 +6,7 @@ from pathlib import Path
 from rich.live import Live
 from rich.table import Table
 
-from gcs.cli.upload import add_protocol_arguments, protocol_from_args
+from gcs.cli.upload import add_protocol_arguments, parse_assignments, protocol_from_args
 from gcs.progress import console
 from planner.errors import InputError
 
@@ -54,16 +54,6 @@ def add_arguments(parser) -> None:
                      help="PX4 flavour: UDP port the simulated vehicles send to")
 
 
-def _assignments(texts) -> dict:
-    out = {}
-    for text in texts:
-        sysid, sep, vehicle = text.partition("=")
-        if not sep or not sysid.strip().isdigit() or not vehicle.strip().isdigit():
-            raise InputError("--assign", f"expected SYSID=VEHICLE, got {text!r}")
-        out[int(sysid)] = int(vehicle)
-    return out
-
-
 def options_from_args(args):
     from gcs.fly import FlyOptions
 
@@ -75,7 +65,8 @@ def options_from_args(args):
         from gcs.signing import load_key
         key = load_key(args.signing_key)
     return FlyOptions(output=Path(args.output), lost_after_s=args.lost_after, signing_key=key,
-                      assign=_assignments(args.assign), connect_timeout_s=args.connect_timeout,
+                      assign=parse_assignments(args.assign, "--assign", "VEHICLE"),
+                      connect_timeout_s=args.connect_timeout,
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
                       protocol_timeout_s=protocol["timeout_s"],
                       protocol_retries=protocol["retries"],

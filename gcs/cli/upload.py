@@ -128,14 +128,15 @@ def _file_builder(path: Path):
 
 
 # -- matching ----------------------------------------------------------------------------
-def parse_assignments(texts) -> dict:
+def parse_assignments(texts, flag="--vehicle", target="ROUTE") -> dict:
+    """{system id: route}: ``SYSID=N`` texts of option ``flag`` (shared with gcs fly)."""
     out = {}
     for text in texts:
         sysid, sep, route = text.partition("=")
         if not sep or not sysid.strip().isdigit() or not route.strip().isdigit():
-            raise InputError("--vehicle", f"expected SYSID=ROUTE, got {text!r}")
+            raise InputError(flag, f"expected SYSID={target}, got {text!r}")
         if int(sysid) in out:
-            raise InputError("--vehicle", f"system id {sysid} given twice")
+            raise InputError(flag, f"system id {sysid} given twice")
         out[int(sysid)] = int(route)
     return out
 
