@@ -20,8 +20,6 @@ from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
-import numpy as np
-
 from gcs import commands
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError, upload_verified
@@ -31,7 +29,7 @@ from missions.build import MissionOptions, vehicle_mission
 from planner.errors import InputError
 from planner.fileio import write_text_atomic
 from planner.plan import Plan
-from planner.replan import context_for_plan, coverage_summary, seen_matrix
+from planner.replan import context_for_plan, coverable_targets, coverage_summary, seen_matrix
 
 FORMAT = "gcs-flight/1"
 FLIGHT_FILE = "flight.json"
@@ -280,8 +278,7 @@ class Flight:
         k = int(self.plan.metrics.get("k", ctx.scenario.k))
         alive = [v for _, v in sorted(m.vehicles.items()) if v.state != LOST]
         every = [v for _, v in sorted(m.vehicles.items())]
-        coverable = int((np.diff(ctx.visibility.target_indptr) > 0).sum())
-        out = {"coverable_targets": coverable}
+        out = {"coverable_targets": coverable_targets(ctx)}
         for name, group in (("survivors", alive), ("all_vehicles", every)):
             seen = seen_matrix(ctx, [snapshot_xyz(ctx, v) for v in group])
             out[name] = coverage_summary(ctx, seen, k)

@@ -25,7 +25,8 @@ from gcs.mission_protocol import upload_verified
 from gcs.monitor import FLYING, HOLDING, LANDED, LOST
 from missions.build import MissionOptions, vehicle_mission
 from planner.errors import InputError
-from planner.replan import (Survivor, coverage_summary, replan, requirement, seen_matrix)
+from planner.replan import (Survivor, coverable_targets, coverage_summary, replan, requirement,
+                            seen_matrix)
 
 HOLD_MODE = {ARDUPILOT: "GUIDED", PX4: "AUTO.LOITER"}
 MISSION_MODE = {ARDUPILOT: "AUTO", PX4: "AUTO.MISSION"}
@@ -63,25 +64,25 @@ def geo_to_xyz(ctx, lon, lat, alt) -> np.ndarray:
     return np.array([float(x), float(y), float(alt)])
 
 
+def points_xyz(ctx, points) -> np.ndarray:
+    """(n, 3) projected x, y and altitude AMSL of points with lon, lat, alt_amsl."""
+    if not points:
+        return np.zeros((0, 3))
+    x, y = ctx.terrain.from_lonlat(np.array([p.lon for p in points], float),
+                                   np.array([p.lat for p in points], float))
+    return np.stack([x, y, [p.alt_amsl for p in points]], axis=1)
+
+
 def snapshot_xyz(ctx, progress) -> np.ndarray:
     """(n, 3) projected positions of the snapshots a vehicle has taken."""
-    if not progress.snapshots:
-        return np.zeros((0, 3))
-    lon = np.array([s.lon for s in progress.snapshots])
-    lat = np.array([s.lat for s in progress.snapshots])
-    x, y = ctx.terrain.from_lonlat(lon, lat)
-    return np.stack([x, y, [s.alt_amsl for s in progress.snapshots]], axis=1)
+    return points_xyz(ctx, progress.snapshots)
 
 
 def remaining_snapshot_xyz(ctx, progress) -> np.ndarray:
     """Snapshots of the mission being flown that are not taken yet."""
-    route = progress.route
-    idx = [i for i, w in enumerate(route.waypoints) if w.snapshot and i not in progress.done]
-    if not idx:
-        return np.zeros((0, 3))
-    w = [route.waypoints[i] for i in idx]
-    x, y = ctx.terrain.from_lonlat(np.array([p.lon for p in w]), np.array([p.lat for p in w]))
-    return np.stack([x, y, [p.alt_amsl for p in w]], axis=1)
+    waypoints = progress.route.waypoints
+    return points_xyz(ctx, [w for i, w in enumerate(waypoints)
+                            if w.snapshot and i not in progress.done])
 
 
 def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
@@ -104,16 +105,11 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
             left = max(left, max(times) - now)
     seen = seen_matrix(ctx, snaps)
     summary = coverage_summary(ctx, seen, ctx.scenario.k)
-    summary["meets_requirement"] = summary["k_covered"] >= _coverable(ctx)
+    summary["meets_requirement"] = summary["k_covered"] >= coverable_targets(ctx)
     need = max(1, ctx.scenario.k + 1 - n_lost)
-    summary["tolerated"] = bool((seen.sum(axis=0) >= need).sum() >= _coverable(ctx))
+    summary["tolerated"] = bool((seen.sum(axis=0) >= need).sum() >= coverable_targets(ctx))
     summary["remaining_time_s"] = left
     return summary
-
-
-def _coverable(ctx) -> int:
-    """Targets some candidate viewpoint sees (the others nobody can cover)."""
-    return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
 
 
 def _in_parallel(fn, sysids, monitor=None) -> dict:

@@ -128,6 +128,11 @@ def seen_matrix(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
     return seen
 
 
+def coverable_targets(ctx: PlanningContext) -> int:
+    """Targets some candidate viewpoint sees (the others nobody can cover)."""
+    return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
+
+
 def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
     """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per target)."""
     counts = seen.sum(axis=0) if len(seen) else np.zeros(ctx.visibility.n_targets, int)
