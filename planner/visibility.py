@@ -14,6 +14,7 @@ target (who sees g), target ids 0..n_targets-1 indexing ``target_cells``.
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from . import visibility_kernels as K
@@ -94,7 +95,7 @@ class VisibilityMatrix:
 
 
 def compute_visibility(surface, viewpoints, sensor=SensorParams(), method="sweep",
-                       band_m=0.25) -> VisibilityMatrix:
+                       band_m=0.05) -> VisibilityMatrix:
     """Visibility sets of ``viewpoints`` (above their cells) over ``surface.terrain``.
 
     ``method="exact"`` runs planner.los per (viewpoint, cell), stopping at the
@@ -135,9 +136,13 @@ def compute_visibility(surface, viewpoints, sensor=SensorParams(), method="sweep
         ptr = np.concatenate([[0], np.cumsum(counts[-1])])
         flats.append(np.empty(ptr[-1], np.int32))  # grids stay far below 2**31 cells
         K.fill_rows(buf, rows[a:b], cols[a:b], off_r, off_c, n_cols, ptr, flats[-1])
+        del buf
     indptr = np.concatenate([[0], np.cumsum(np.concatenate(counts))]).astype(np.int64)
-    target_cells, indices = K.flat_to_targets(np.concatenate(flats), n_rows * n_cols)
-    t_ptr, t_vp = K.transpose_csr(indptr, indices, target_cells.shape[0])
+    indices = flats[1] if len(flats) == 2 else np.concatenate(flats)
+    del flats
+    target_cells = K.flat_to_targets(indices, n_rows * n_cols)  # indices: now target ids
+    t_ptr, t_vp = K.transpose_csr(indptr, indices, target_cells.shape[0],
+                                  min(numba.get_num_threads(), 8))
     return VisibilityMatrix(indptr=indptr, indices=indices, target_indptr=t_ptr,
                             target_viewpoints=t_vp, target_cells=target_cells,
                             grid_shape=(n_rows, n_cols))

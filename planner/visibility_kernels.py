@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import _piece_max_slope, curvature_drop, next_patch
+from .los import EARTH_RADIUS_M, _piece_max_slope, curvature_drop, line_over_patch, next_patch
 
 
 @njit(cache=True)
@@ -111,21 +111,51 @@ def fill_rows(seen_bytes, centre_r, centre_c, off_r, off_c, n_cols, indptr, flat
 
 
 @njit(cache=True)
-def transpose_csr(indptr, indices, n_cols):
-    """CSC of a CSR pattern (counting sort): per column, the rows in ascending order."""
+def _row_blocks(indptr, n_blocks):
+    """Row bounds of n_blocks consecutive blocks holding about equal nonzeros."""
     n_rows = indptr.shape[0] - 1
+    bounds = np.empty(n_blocks + 1, np.int64)
+    bounds[0] = 0
+    r = 0
+    for b in range(1, n_blocks):
+        goal = indptr[n_rows] * b // n_blocks
+        while r < n_rows and indptr[r] < goal:
+            r += 1
+        bounds[b] = r
+    bounds[n_blocks] = n_rows
+    return bounds
+
+
+@njit(cache=True, parallel=True)
+def transpose_csr(indptr, indices, n_cols, n_blocks):
+    """CSC of a CSR pattern: per column, the rows in ascending order.
+
+    A counting sort in parallel over n_blocks blocks of rows: each block counts
+    its entries per column, a column's entries are laid out block after block
+    (so rows ascend), then each block fills its own slots.
+    """
+    bounds = _row_blocks(indptr, n_blocks)
+    start = np.zeros((n_blocks, n_cols), np.int64)
+    for b in prange(n_blocks):
+        for p in range(indptr[bounds[b]], indptr[bounds[b + 1]]):
+            start[b, indices[p]] += 1
     col_ptr = np.zeros(n_cols + 1, np.int64)
-    for p in range(indices.shape[0]):
-        col_ptr[indices[p] + 1] += 1
+    total = 0
     for j in range(n_cols):
-        col_ptr[j + 1] += col_ptr[j]
-    fill = col_ptr[:-1].copy()
+        col_ptr[j] = total
+        for b in range(n_blocks):
+            count = start[b, j]
+            start[b, j] = total
+            total += count
+    col_ptr[n_cols] = total
     rows = np.empty(indices.shape[0], np.int32)
-    for i in range(n_rows):
-        for p in range(indptr[i], indptr[i + 1]):
-            j = indices[p]
-            rows[fill[j]] = i
-            fill[j] += 1
+    for b in prange(n_blocks):
+        fill = start[b]
+        for i in range(bounds[b], bounds[b + 1]):
+            for p in range(indptr[i], indptr[i + 1]):
+                j = indices[p]
+                rows[fill[j]] = i
+                fill[j] += 1
     return col_ptr, rows
 
 
@@ -164,11 +194,12 @@ def sweep_geometry(m, cell, range_m, curv):
     du = np.zeros(n)
     dv = np.zeros(n)
     length = np.zeros(n)
+    inv_d = np.zeros(n)
+    a_curv = np.zeros(n)
     n_pieces = np.zeros(n, np.int64)
     piece_i = np.zeros((n, 3), np.int64)
     piece_j = np.zeros((n, 3), np.int64)
-    piece_ta = np.zeros((n, 3))
-    piece_tb = np.zeros((n, 3))
+    piece_t = np.zeros((n, 3, 4))  # ta, tb, 1 / ta, 1 / tb
     for q in range(n):
         dr = order_r[q]
         dc = order_c[q]
@@ -183,6 +214,8 @@ def sweep_geometry(m, cell, range_m, curv):
         du[q] = t_end * dc
         dv[q] = t_end * dr
         length[q] = cell * math.sqrt(du[q] ** 2 + dv[q] ** 2)
+        inv_d[q] = 1.0 / d
+        a_curv[q] = curv * length[q] ** 2 / (2.0 * EARTH_RADIUS_M)
         t = 1e-12
         if k >= 2:
             if abs(dc) >= abs(dr):
@@ -220,12 +253,31 @@ def sweep_geometry(m, cell, range_m, curv):
             p = n_pieces[q]
             piece_i[q, p] = i
             piece_j[q, p] = j
-            piece_ta[q, p] = t
-            piece_tb[q, p] = t_next
+            piece_t[q, p, 0] = t
+            piece_t[q, p, 1] = t_next
+            piece_t[q, p, 2] = 1.0 / t
+            piece_t[q, p, 3] = 1.0 / t_next
             n_pieces[q] = p + 1
             t = t_next
-    return (order_r[:n], order_c[:n], pos, par_a, par_b, wb, dist, drop, du, dv, length,
-            n_pieces, piece_i, piece_j, piece_ta, piece_tb)
+    return (order_r[:n], order_c[:n], pos, par_a, par_b, wb, dist, drop, du, dv, length, inv_d,
+            a_curv, n_pieces, piece_i, piece_j, piece_t)
+
+
+@njit(cache=True, inline="always")
+def _piece_scaled_max(h, i, j, u0, v0, du, dv, t, z0, a_curv):
+    """``length_m`` times los._piece_max_slope, t = (ta, tb, 1 / ta, 1 / tb) precomputed.
+
+    slope * length = a t + c1 + e / t peaks inside (ta, tb) only where it is
+    concave (a < 0 and e < 0), at t* = sqrt(e / a).
+    """
+    c0, c1, c2 = line_over_patch(h, i, j, u0, v0, du, dv)
+    a = c2 - a_curv
+    e = c0 - z0
+    best = max(a * t[0] + c1 + e * t[2], a * t[1] + c1 + e * t[3])
+    if a < 0.0 and e < 0.0 and a * t[0] * t[0] > e > a * t[1] * t[1]:
+        ts = math.sqrt(e / a)
+        best = max(best, a * ts + c1 + e / ts)
+    return best
 
 
 @njit(cache=True)
@@ -242,8 +294,8 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
     its margin against the interpolated part is within ``band_m`` metres, the
     cell is decided by the exact test (sees_early_exit) instead.
     """
-    (off_r, off_c, pos, par_a, par_b, wb, dist, drop, du, dv, length, n_pieces,
-     piece_i, piece_j, piece_ta, piece_tb) = geo
+    (off_r, off_c, pos, par_a, par_b, wb, dist, drop, du, dv, length, inv_d, a_curv, n_pieces,
+     piece_i, piece_j, piece_t) = geo
     n_rows, n_cols = h.shape
     u0 = float(c0)
     v0 = float(r0)
@@ -266,10 +318,10 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
         for k in range(n_pieces[q]):
             i = min(max(c0 + piece_i[q, k], 0), n_cols - 2)
             j = min(max(r0 + piece_j[q, k], 0), n_rows - 2)
-            s = _piece_max_slope(h, i, j, u0, v0, du[q], dv[q], piece_ta[q, k],
-                                 piece_tb[q, k], z0, length[q], curv)
+            s = _piece_scaled_max(h, i, j, u0, v0, du[q], dv[q], piece_t[q, k], z0, a_curv[q])
             if s > local:
                 local = s
+        local /= length[q]
         approx = -np.inf
         if par_a[q] >= 0:
             approx = (1.0 - wb[q]) * horizon[par_a[q]] + wb[q] * horizon[par_b[q]]
@@ -279,7 +331,7 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
         z1 = g + target_height
         if not _off_nadir_ok(d, z0, z1, tan_max):
             continue
-        target = (z1 - drop[q] - z0) / d + 1e-12
+        target = (z1 - drop[q] - z0) * inv_d[q] + 1e-12
         if (local - target) * d > 1e-9:
             continue  # blocked by the exactly computed last piece
         if (local < target and math.isfinite(approx)
@@ -305,22 +357,22 @@ def visible_bytes_sweep(h, centre_r, centre_c, vz, m, slot, n_off, cell, range_m
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def flat_to_targets(flat, n_cells):
-    """Target cells (ascending flat indices of every cell seen) and each entry's target id."""
-    target_of = np.full(n_cells, -1, np.int32)
-    for p in range(flat.shape[0]):
-        target_of[flat[p]] = 0
+    """Target cells (ascending flat indices of every cell seen); ``flat`` is
+    overwritten in place by each entry's target id (saves a copy of the largest array)."""
+    seen = np.zeros(n_cells, np.uint8)
+    for p in prange(flat.shape[0]):
+        seen[flat[p]] = 1  # threads may write the same 1 twice: harmless
+    target_of = np.empty(n_cells, np.int32)
     n = 0
     for f in range(n_cells):
-        if target_of[f] == 0:
-            target_of[f] = n
-            n += 1
+        target_of[f] = n
+        n += seen[f]
     cells = np.empty(n, np.int64)
-    for f in range(n_cells):
-        if target_of[f] >= 0:
+    for f in prange(n_cells):
+        if seen[f]:
             cells[target_of[f]] = f
-    ids = np.empty(flat.shape[0], np.int32)
-    for p in range(flat.shape[0]):
-        ids[p] = target_of[flat[p]]
-    return cells, ids
+    for p in prange(flat.shape[0]):
+        flat[p] = target_of[flat[p]]
+    return cells

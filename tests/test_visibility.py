@@ -15,6 +15,7 @@ from planner.synthetic import synthetic_terrain
 from planner.terrain import Terrain
 from planner.viewpoints import candidate_viewpoints, fleet_region, viewpoints_at
 from planner.visibility import SensorParams, compute_visibility
+from planner.visibility_kernels import flat_to_targets, transpose_csr
 
 CELL = 30.0
 
@@ -99,6 +100,26 @@ def test_structure_csr_csc_and_targets_are_consistent():
         assert (np.diff(vis.seen_by(k)) > 0).all()
     assert vis.indices.dtype == np.int32 and vis.target_viewpoints.dtype == np.int32
     assert (vis.counts() == dense.sum(axis=1)).all()
+
+
+@given(st.integers(0, 2**32 - 1), st.integers(1, 5))
+@settings(max_examples=30, deadline=None)
+def test_parallel_csr_assembly_matches_scipy(seed, n_blocks):
+    """Target numbering and the block-parallel transpose against scipy's CSC."""
+    from scipy.sparse import csr_matrix
+    rng = np.random.default_rng(seed)
+    n_rows, n_cells = int(rng.integers(0, 12)), 40
+    rows = [np.sort(rng.choice(n_cells, int(rng.integers(0, 9)), replace=False))
+            for _ in range(n_rows)]
+    indptr = np.concatenate([[0], np.cumsum([len(r) for r in rows])]).astype(np.int64)
+    flat = np.concatenate(rows + [np.zeros(0)]).astype(np.int32)
+    ids = flat.copy()
+    cells = flat_to_targets(ids, n_cells)
+    assert (cells == np.unique(flat)).all() and (cells[ids] == flat).all()
+    col_ptr, col_rows = transpose_csr(indptr, ids, len(cells), n_blocks)
+    ref = csr_matrix((np.ones(len(ids)), ids, indptr), shape=(n_rows, len(cells))).tocsc()
+    ref.sort_indices()
+    assert (col_ptr == ref.indptr).all() and (col_rows == ref.indices).all()
 
 
 def test_off_nadir_limit_bounds_the_footprint():
