@@ -41,7 +41,8 @@ class ExposureSurface:
     outposts: list
     params: ExposureParams
     # float64 [rows, cols]: min over outposts of the lowest seen altitude, m AMSL
-    # (inf = never seen); a proven lower bound of the exact value (the safe side)
+    # (inf = never seen); a proven lower bound of the exact value (the safe side),
+    # tight up to ground + ceiling_agl and possibly loose above (E is capped there)
     lowest_seen: np.ndarray
     exposure: np.ndarray  # float64 [rows, cols]: E, m AMSL; NaN where not flyable
     flyable: np.ndarray  # bool [rows, cols]
@@ -74,7 +75,8 @@ def compute_exposure(terrain, outposts, params=ExposureParams(), progress=None) 
     for start in range(0, total, BATCH):
         batch = eyes[start:start + BATCH]
         grids = np.full((len(batch),) + h.shape, np.inf)
-        k.lowest_seen_batch(h, terrain.cell_size, batch, float(params.curvature_coeff), grids)
+        k.lowest_seen_batch(h, terrain.cell_size, batch, float(params.curvature_coeff),
+                            float(params.ceiling_agl_m), grids)
         k.min_over_outposts(grids, lowest)
         if progress is not None:
             progress(start + len(batch), total)

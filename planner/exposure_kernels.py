@@ -8,9 +8,9 @@ The fast surface: a *lower bound* of the horizon slope H(P) of every cell
 ----------------------------------------------------------------------------
 The lowest altitude an outpost sees at P is ``z0 + D H(P) + drop(D)``, H(P)
 the steepest apparent slope of the terrain along the ray O -> P. Every slope
-used here is the *exact* maximum of the apparent slope over some stretch of
-P's *own* ray (closed form per patch, as in planner.los). The maximum over part
-of the ray is never above the maximum over the whole ray, so the computed
+used here is the *exact* apparent slope at a point, or its exact maximum over a
+stretch (closed form per patch, as in planner.los), of P's *own* ray. The
+maximum over part of the ray is never above the maximum over the whole ray, so the computed
 altitude is never above the exact one (up to rounding, ~1e-10 m): safe by
 construction, whatever stretches are chosen. The choice only decides how tight
 the bound is, and that is measured (tests/test_exposure.py, benchmarks/).
@@ -19,17 +19,29 @@ Which stretches: a ring sweep (as in XDraw) visits cells by growing Chebyshev
 distance k ("ring") from the outpost cell, in four triangular sectors (right,
 down, left, up) that depend only on themselves, so they run in parallel. In a
 sector's frame a cell is (k, b), its ray crosses the ring lines a = 1..k-1,
-and between two ring lines it crosses one or two patches. Each cell evaluates
-  - its near terrain: the ray between ring line k - 1 and the cell itself;
-  - around the horizons of the two cells of ring k - 1 its ray passes between
-    ("parents"): between ring lines a* - 1 and a* + 1 for each parent's best
-    horizon a* (one window when they are close), and the same around the
-    second-best distinct feature of the nearer parent;
-and passes on its own best and second-best features (by nearest ring line).
+and between two ring lines it crosses one or two patches. Each cell passes on
+the rings of its best and second-best features (by nearest ring line); a cell
+then
+  - screens: the apparent slope of the terrain where its ray crosses the ring
+    lines a* - 1 .. a* + 1 around the horizons a* of the two cells of ring
+    k - 1 its ray passes between ("parents"), around the nearer parent's
+    second feature, and ring line k - 1, and at the cell itself. On a ring line
+    the bilinear surface is the linear interpolation of two cells, so each is
+    an exact point of the ray: a lower bound of its maximum for two loads.
+    When that bound already puts the cell above the ceiling (ground +
+    ceiling_agl), E is capped there and the cell is done;
+  - otherwise takes the exact maximum of its ray between ring lines a - 1 and
+    a + 1 around the parents' features and the two best screened ones, and
+    over its near terrain (ring line k - 1 to the cell). (Near the eye a
+    horizon peaks inside a patch, which ring-line points miss: there the
+    screen takes the first ring interval exactly too.)
 A horizon that wins is thus re-evaluated on every following ray and tracked
 as it drifts, one ring per step at most; it is lost only where features trade
 places between neighbouring rays, by the difference of their slopes there.
-Rays of the first FULL_RINGS rings are maximised in full.
+Rays of the first FULL_RINGS rings are maximised in full. Above the ceiling
+the bound may be loose (it is still a lower bound); at or below it, it is
+within 2 m of the exact value on all but a few hundredths of a percent of
+cells (benchmarks/bench_exposure.py).
 """
 
 import math
@@ -137,7 +149,7 @@ def _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc):
     The ray crosses at most a couple of lines across the sector; on each patch
     the bilinear surface along it is q0 + q1 X + q2 X^2, and the scaled slope
     (T - z0 - cc X^2) / X = (q2 - cc) X + q1 + (q0 - z0) / X peaks at an end
-    or at X* = sqrt((q0 - z0) / (q2 - cc)), as in planner.los.
+    or, where it is concave (both terms negative), at X* = sqrt((q0 - z0) / (q2 - cc)).
     """
     xl = a - fa  # the ring line
     x1 = max(xl, 1e-3)  # not at the eye itself: (T - z0) / X would be rounding noise
@@ -177,7 +189,7 @@ def _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc):
         s = slope_a * xb + q1 + e / xb
         if s > best:
             best, x_best = s, xb
-        if slope_a != 0.0 and e / slope_a > 0.0:
+        if slope_a < 0.0 and e < 0.0:  # concave: may peak inside
             xs = math.sqrt(e / slope_a)
             if xa < xs < xb:
                 s = slope_a * xs + q1 + e / xs
@@ -187,8 +199,8 @@ def _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc):
 
 
 @njit(cache=True, inline="always")
-def _window(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, m, inv_m, z0, cc,
-            curv, x_k, kappa, lo, hi, k, best_s, best_a, second_s, second_a):
+def _window(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, z0, cc, lo, hi, k, best_s, best_a,
+            second_s, second_a):
     """Fold the exact maximum of P's ray between ring lines lo and hi into the
     top two features (a feature is known by the ring line nearest to it)."""
     lo = max(lo, 0)
@@ -205,8 +217,53 @@ def _window(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, m, in
 
 
 @njit(cache=True, inline="always")
+def _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a, z0, cc, inv_a):
+    """Scaled apparent slope of the terrain where P's ray crosses ring line a
+    (a >= 1): the bilinear surface there is the linear interpolation of ring
+    a's two cells either side, so this is exact (a lower bound of the ray's max)."""
+    x = a - fa
+    y = fb + x * m
+    j = min(max(int(math.floor(y)), b_lo), b_hi - 1)
+    i = base + sa * a + sb * j
+    t = hf[i] + (y - j) * (hf[i + sb] - hf[i])
+    return (t - z0) * inv_a[a] - cc * x
+
+
+@njit(cache=True, inline="always")
+def _screen(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, z0, cc, inv_a, k, b, c1, c2, c3):
+    """Quick lower bound of the lowest seen altitude at sector cell (k, b), from
+    the ray's crossings of ring lines around the parents' horizons and second
+    feature, of ring k - 1, and its end. Returns (altitude, best and second
+    features' rings)."""
+    x_k = k - fa
+    best = (hf[base + sa * k + sb * b] - z0) * inv_a[k] - cc * x_k  # the cell itself
+    best_a = k - 1
+    second = -np.inf
+    second_a = -1
+    lo = min(c1, c2)
+    hi = max(c1, c2)
+    if lo < 0:
+        lo = hi
+    for a in range(max(lo - 1, 1), min(hi + 1, k - 2) + 1):
+        if a <= lo + 1 or a >= hi - 1:
+            s = _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a, z0, cc, inv_a)
+            best, best_a, second, second_a = _keep(a, s, best, best_a, second, second_a)
+    if 0 <= lo <= 1:  # a horizon next to the eye peaks inside a patch: take it exactly
+        inv_m = 1.0 / m if m != 0.0 else np.inf
+        for a in range(-1 if fa < 0.0 else 0, 1):
+            s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc)
+            best, best_a, second, second_a = _keep(0, s, best, best_a, second, second_a)
+    if c3 >= 1 and c3 < k - 1 and (c3 < lo - 1 or c3 > hi + 1):
+        s = _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c3, z0, cc, inv_a)
+        best, best_a, second, second_a = _keep(c3, s, best, best_a, second, second_a)
+    s = _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k - 1, z0, cc, inv_a)
+    best, best_a, second, second_a = _keep(k - 1, s, best, best_a, second, second_a)
+    return z0 + x_k * best + cc * x_k * x_k, best_a, second_a
+
+
+@njit(cache=True, inline="always")
 def _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, z0, k_cc, curv,
-          inv_a, r2, k, b, c1, c2, c3, c4):
+          inv_a, r2, cap_agl, k, b, c1, c2, c3, c4):
     """Lower bound of the lowest altitude seen at sector cell (k, b), grid (u1, v1).
 
     c1, c2: horizon rings inherited from the two parents (c1 from the one at
@@ -218,40 +275,42 @@ def _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, z0, k_c
     m = (b - fb) * inv_a[k]
     if x_k * x_k * (1.0 + m * m) > r2:
         return np.inf, -1, -1
-    inv_m = 1.0 / m if m != 0.0 else np.inf
     cc = k_cc * (1.0 + m * m)
-    kappa = cell * math.sqrt(1.0 + m * m)  # metres per ring along this ray
     if k <= FULL_RINGS:
+        kappa = cell * math.sqrt(1.0 + m * m)  # metres per ring along this ray
         s, t = ray_max(h, cell, u0, v0, z0, u1, v1, 0.0, 1.0, curv)
         a = min(max(int(math.floor(fa + t * x_k + 0.5)), 0), k)
         return z0 + x_k * s * kappa + cc * x_k * x_k, a, -1
-    # the near terrain: the last ring interval, up to the cell itself
+    # deep in shadow a few exact points of the ray already put the cell above the
+    # ceiling, where E is capped: no need to know by how much
+    z, a1, a2 = _screen(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, z0, cc, inv_a, k, b, c1, c2,
+                        c3 if c3 >= 0 else c4)
+    if z >= hf[base + sa * k + sb * b] + cap_agl:
+        return z, a1, a2
+    # else the exact maxima around the features, and of the near terrain
+    inv_m = 1.0 / m if m != 0.0 else np.inf
     near_s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, k - 1, z0, cc)
     near_a = int(math.floor(x + fa + 0.5))
     best_s = -np.inf
     best_a = -1
     second_s = -np.inf
     second_a = -1
-    # around the parents' horizons (one window when they are close) ...
-    lo = min(c1, c2)
-    hi = max(c1, c2)
-    if lo < 0:
-        lo = hi
-    if hi >= 0:
-        if hi - lo > 2:
+    # windows around the parents' features (exact argmax rings) and the screened ones
+    # (sampled argmax rings), each ring once: a feature is near a ring already done
+    rings = (np.int64(c1), np.int64(c2), np.int64(c3 if c3 >= 0 else c4), np.int64(a1),
+             np.int64(a2))
+    for n in range(5):
+        a = rings[n]
+        if a < 0:
+            continue
+        new = True
+        for n_done in range(n):
+            if rings[n_done] >= 0 and abs(rings[n_done] - a) <= 1:
+                new = False
+        if new:
             best_s, best_a, second_s, second_a = _window(
-                h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, m, inv_m, z0,
-                cc, curv, x_k, kappa, hi - 1, hi + 1, k, best_s, best_a, second_s, second_a)
-            hi = lo
-        best_s, best_a, second_s, second_a = _window(
-            h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, m, inv_m, z0, cc,
-            curv, x_k, kappa, lo - 1, hi + 1, k, best_s, best_a, second_s, second_a)
-    # ... and around the second feature of the parent nearer the ray
-    a = c3 if c3 >= 0 else c4
-    if a >= 0 and abs(a - c1) > 1 and abs(a - c2) > 1:
-        best_s, best_a, second_s, second_a = _window(
-            h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, m, inv_m, z0, cc,
-            curv, x_k, kappa, a - 1, a + 1, k, best_s, best_a, second_s, second_a)
+                hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, z0, cc, a - 1, a + 1, k,
+                best_s, best_a, second_s, second_a)
     # the near terrain wins, or only fills an empty second place: the next ring
     # sees it again as its own near terrain anyway
     if near_s > best_s:
@@ -260,11 +319,11 @@ def _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, z0, k_c
         best_s, best_a = near_s, near_a
     elif second_a < 0:
         second_a = near_a
-    return z0 + x_k * best_s + cc * x_k * x_k, best_a, second_a
+    return max(z0 + x_k * best_s + cc * x_k * x_k, z), best_a, second_a  # both lower bounds
 
 
 @njit(cache=True)
-def _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, out):
+def _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, cap_agl, out):
     """Lower-bound lowest visible altitude for the cells of one sector.
 
     Sectors 1 and 3 (down, up) run ring by ring, i.e. grid row by grid row;
@@ -298,15 +357,15 @@ def _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, out):
     r2 = range_cells * range_cells * (1.0 + 1e-9)  # at the limit: in range (safe side)
     if q == 1 or q == 3:
         _by_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa, fb,
-                  z0, k_cc, curv, inv_a, r2)
+                  z0, k_cc, curv, inv_a, r2, cap_agl)
     else:
         _across_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa,
-                      fb, z0, k_cc, curv, inv_a, r2)
+                      fb, z0, k_cc, curv, inv_a, r2, cap_agl)
 
 
 @njit(cache=True)
 def _by_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa, fb, z0,
-              k_cc, curv, inv_a, r2):
+              k_cc, curv, inv_a, r2, cap_agl):
     width = 2 * a_last + 3
     off = a_last + 1
     prev = np.full((2, width), -1, np.int32)  # horizon rings of ring k-1's cells, by b
@@ -322,7 +381,7 @@ def _by_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, 
             p1 = min(max(int(math.floor(y)) + 1, -k + 2), k - 1) + off
             dc, dr = _rotate(q, k, b)
             z, a1, a2 = _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, c_o + dc, r_o + dr,
-                              fa, fb, z0, k_cc, curv, inv_a, r2, k, b,
+                              fa, fb, z0, k_cc, curv, inv_a, r2, cap_agl, k, b,
                               prev[0, p0], prev[0, p1], prev[1, p0], prev[1, p1])
             cur[0, b + off] = a1
             cur[1, b + off] = a2
@@ -333,7 +392,7 @@ def _by_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, 
 
 @njit(cache=True)
 def _across_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa,
-                  fb, z0, k_cc, curv, inv_a, r2):
+                  fb, z0, k_cc, curv, inv_a, r2, cap_agl):
     # rows b = 0, 1, 2, ... then -1, -2, ...; a parent row is this row or the one
     # before it in that order, at ring a - 1
     row0 = np.full((2, a_last + 1), -1, np.int32)
@@ -362,8 +421,8 @@ def _across_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_
                 c4 = cur[1, a - 1] if p1 == b else prev[1, a - 1]
                 dc, dr = _rotate(q, a, b)
                 z, a1, a2 = _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, c_o + dc,
-                                  r_o + dr, fa, fb, z0, k_cc, curv, inv_a, r2, a, b, c1, c2, c3,
-                                  c4)
+                                  r_o + dr, fa, fb, z0, k_cc, curv, inv_a, r2, cap_agl, a, b, c1,
+                                  c2, c3, c4)
                 cur[0, a] = a1
                 cur[1, a] = a2
                 if z < np.inf:
@@ -387,8 +446,9 @@ def _keep(a, s, best_s, best_a, second_s, second_a):
 
 
 @njit(cache=True, parallel=True)
-def lowest_seen_batch(h, cell, eyes, curv, out):
-    """Lower bounds of the lowest seen altitude, one grid per outpost.
+def lowest_seen_batch(h, cell, eyes, curv, cap_agl, out):
+    """Lower bounds of the lowest seen altitude, one grid per outpost; tight
+    where at most ``cap_agl`` above the ground (above it E is capped anyway).
 
     eyes: float64 [n, 4] = (u, v, z_eye, range_m); out: float64 [n, rows, cols],
     filled with +inf by the caller. The four sectors of every outpost run in
@@ -404,7 +464,7 @@ def lowest_seen_batch(h, cell, eyes, curv, out):
         r_o = min(max(int(math.floor(v0 + 0.5)), 0), n_rows - 1)
         if q == 0:
             out[o, r_o, c_o] = -np.inf
-        _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, out[o])
+        _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, cap_agl, out[o])
 
 
 @njit(cache=True, parallel=True)

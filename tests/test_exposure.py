@@ -77,17 +77,19 @@ def test_lowest_seen_is_a_tight_lower_bound_of_the_exact_one(seed, posts, curvat
     ours = surface.lowest_seen
     # safe side: never above the exact value (the brief allows 0.5 m; we are exact-or-below)
     assert np.all(ours <= exact + 1e-6)
-    # and tight: nearly all cells within 2 m. These terrains have cell-scale
+    # and tight up to the ceiling (above it E is capped, and the sweep stops
+    # refining): nearly all cells within 2 m. These terrains have cell-scale
     # roughness (white noise up to 15 m per cell), the hard case for tracking
-    # horizons from ray to ray: 99.6 % within 2 m on average over 120 random
-    # cases, 95 % at worst in 300; benchmarks/ measures realistic terrains.
+    # horizons from ray to ray: 99.6 % within 2 m on average over 300 random
+    # cases, 98.3 % at worst; benchmarks/ measures realistic terrains.
+    ground = terrain.height
+    capped = np.minimum(ours, ground + params.ceiling_agl_m)
     seen = np.isfinite(exact)
     assert np.all(np.isfinite(ours[seen]) | np.isneginf(ours[seen]))
     if seen.any():
-        assert np.mean(ours[seen] >= exact[seen] - 2.0) >= 0.93
+        exact_capped = np.minimum(exact, ground + params.ceiling_agl_m)
+        assert np.mean(capped[seen] >= exact_capped[seen] - 2.0) >= 0.93
     # the surface derived from it
-    ground = terrain.height
-    capped = np.minimum(ours, ground + params.ceiling_agl_m)
     flyable = capped - params.hide_margin_m >= ground + params.clearance_m
     assert np.array_equal(surface.flyable, flyable)
     assert np.array_equal(surface.exposure[flyable], capped[flyable])
@@ -164,10 +166,13 @@ def test_ridge_shadow_follows_the_line_over_the_crest():
     ours = surface.lowest_seen
     assert np.all(ours[behind] <= expected[behind] + 1e-6)
     # where the rings run along the crest (|d row| <= |d col|) the crest is on a
-    # ring line and the sweep finds it exactly; elsewhere within 2 m
+    # ring line and the sweep finds it exactly; elsewhere within 2 m (up to the
+    # ceiling, above which E is capped and the sweep stops refining)
     along = behind & (np.abs(row - v0) <= np.abs(col - u0))
-    np.testing.assert_allclose(ours[along], expected[along], atol=1e-6)
-    assert np.mean(ours[behind] >= expected[behind] - 2.0) >= 0.99
+    cap = h + 120.0
+    np.testing.assert_allclose(np.minimum(ours, cap)[along], np.minimum(expected, cap)[along],
+                               atol=1e-6)
+    assert np.mean(np.minimum(ours, cap)[behind] >= np.minimum(expected, cap)[behind] - 2.0) >= 0.99
     # flyable behind the ridge where the line leaves room for clearance and margin
     room = np.minimum(expected, h + 120.0) - 10.0 >= h + 30.0
     assert np.array_equal(surface.flyable[along], room[along])
