@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import EARTH_RADIUS_M, _piece_max_slope, curvature_drop, line_over_patch, next_patch
+from .los import _piece_max_slope, curvature_drop, next_patch
 
 
 @njit(cache=True)
@@ -194,12 +194,11 @@ def sweep_geometry(m, cell, range_m, curv):
     du = np.zeros(n)
     dv = np.zeros(n)
     length = np.zeros(n)
-    inv_d = np.zeros(n)
-    a_curv = np.zeros(n)
     n_pieces = np.zeros(n, np.int64)
     piece_i = np.zeros((n, 3), np.int64)
     piece_j = np.zeros((n, 3), np.int64)
-    piece_t = np.zeros((n, 3, 4))  # ta, tb, 1 / ta, 1 / tb
+    piece_ta = np.zeros((n, 3))
+    piece_tb = np.zeros((n, 3))
     for q in range(n):
         dr = order_r[q]
         dc = order_c[q]
@@ -214,8 +213,6 @@ def sweep_geometry(m, cell, range_m, curv):
         du[q] = t_end * dc
         dv[q] = t_end * dr
         length[q] = cell * math.sqrt(du[q] ** 2 + dv[q] ** 2)
-        inv_d[q] = 1.0 / d
-        a_curv[q] = curv * length[q] ** 2 / (2.0 * EARTH_RADIUS_M)
         t = 1e-12
         if k >= 2:
             if abs(dc) >= abs(dr):
@@ -253,31 +250,12 @@ def sweep_geometry(m, cell, range_m, curv):
             p = n_pieces[q]
             piece_i[q, p] = i
             piece_j[q, p] = j
-            piece_t[q, p, 0] = t
-            piece_t[q, p, 1] = t_next
-            piece_t[q, p, 2] = 1.0 / t
-            piece_t[q, p, 3] = 1.0 / t_next
+            piece_ta[q, p] = t
+            piece_tb[q, p] = t_next
             n_pieces[q] = p + 1
             t = t_next
-    return (order_r[:n], order_c[:n], pos, par_a, par_b, wb, dist, drop, du, dv, length, inv_d,
-            a_curv, n_pieces, piece_i, piece_j, piece_t)
-
-
-@njit(cache=True, inline="always")
-def _piece_scaled_max(h, i, j, u0, v0, du, dv, t, z0, a_curv):
-    """``length_m`` times los._piece_max_slope, t = (ta, tb, 1 / ta, 1 / tb) precomputed.
-
-    slope * length = a t + c1 + e / t peaks inside (ta, tb) only where it is
-    concave (a < 0 and e < 0), at t* = sqrt(e / a).
-    """
-    c0, c1, c2 = line_over_patch(h, i, j, u0, v0, du, dv)
-    a = c2 - a_curv
-    e = c0 - z0
-    best = max(a * t[0] + c1 + e * t[2], a * t[1] + c1 + e * t[3])
-    if a < 0.0 and e < 0.0 and a * t[0] * t[0] > e > a * t[1] * t[1]:
-        ts = math.sqrt(e / a)
-        best = max(best, a * ts + c1 + e / ts)
-    return best
+    return (order_r[:n], order_c[:n], pos, par_a, par_b, wb, dist, drop, du, dv, length,
+            n_pieces, piece_i, piece_j, piece_ta, piece_tb)
 
 
 @njit(cache=True)
@@ -294,8 +272,8 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
     its margin against the interpolated part is within ``band_m`` metres, the
     cell is decided by the exact test (sees_early_exit) instead.
     """
-    (off_r, off_c, pos, par_a, par_b, wb, dist, drop, du, dv, length, inv_d, a_curv, n_pieces,
-     piece_i, piece_j, piece_t) = geo
+    (off_r, off_c, pos, par_a, par_b, wb, dist, drop, du, dv, length, n_pieces,
+     piece_i, piece_j, piece_ta, piece_tb) = geo
     n_rows, n_cols = h.shape
     u0 = float(c0)
     v0 = float(r0)
@@ -318,10 +296,10 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
         for k in range(n_pieces[q]):
             i = min(max(c0 + piece_i[q, k], 0), n_cols - 2)
             j = min(max(r0 + piece_j[q, k], 0), n_rows - 2)
-            s = _piece_scaled_max(h, i, j, u0, v0, du[q], dv[q], piece_t[q, k], z0, a_curv[q])
+            s = _piece_max_slope(h, i, j, u0, v0, du[q], dv[q], piece_ta[q, k],
+                                 piece_tb[q, k], z0, length[q], curv)
             if s > local:
                 local = s
-        local /= length[q]
         approx = -np.inf
         if par_a[q] >= 0:
             approx = (1.0 - wb[q]) * horizon[par_a[q]] + wb[q] * horizon[par_b[q]]
@@ -331,7 +309,7 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
         z1 = g + target_height
         if not _off_nadir_ok(d, z0, z1, tan_max):
             continue
-        target = (z1 - drop[q] - z0) * inv_d[q] + 1e-12
+        target = (z1 - drop[q] - z0) / d + 1e-12
         if (local - target) * d > 1e-9:
             continue  # blocked by the exactly computed last piece
         if (local < target and math.isfinite(approx)
