@@ -164,7 +164,7 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="fewer seeds and fleets")
     ap.add_argument("--sweep", action="store_true", help="also sweep the step cap th_ra")
     ap.add_argument("--large", action="store_true", help="also time the 3000 x 50000 problem")
-    args = ap.parse_args(argv)
+    args, _ = ap.parse_known_args(argv)  # options of other benchmarks run with it
     params = CoverageParams()
     t0 = time.perf_counter()
     rows = run_suite(args.quick, params)

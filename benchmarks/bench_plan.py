@@ -70,7 +70,7 @@ def compare_methods(quick):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="k = 0 only")
-    args = ap.parse_args(argv)
+    args, _ = ap.parse_known_args(argv)  # options of other benchmarks run with it
     warnings.simplefilter("ignore", UserWarning)
     time_gcs_plan()
     print()
