@@ -283,8 +283,9 @@ def _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, z0, k_c
         return z0 + x_k * s * kappa + cc * x_k * x_k, a, -1
     # deep in shadow a few exact points of the ray already put the cell above the
     # ceiling, where E is capped: no need to know by how much
+    c_second = c3 if c3 >= 0 else c4  # the nearer parent's second feature, else the other's
     z, a1, a2 = _screen(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, z0, cc, inv_a, k, b, c1, c2,
-                        c3 if c3 >= 0 else c4)
+                        c_second)
     if z >= hf[base + sa * k + sb * b] + cap_agl:
         return z, a1, a2
     # else the exact maxima around the features, and of the near terrain
@@ -297,8 +298,7 @@ def _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, z0, k_c
     second_a = -1
     # windows around the parents' features (exact argmax rings) and the screened ones
     # (sampled argmax rings), each ring once: a feature is near a ring already done
-    rings = (np.int64(c1), np.int64(c2), np.int64(c3 if c3 >= 0 else c4), np.int64(a1),
-             np.int64(a2))
+    rings = (np.int64(c1), np.int64(c2), np.int64(c_second), np.int64(a1), np.int64(a2))
     for n in range(5):
         a = rings[n]
         if a < 0:
