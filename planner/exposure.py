@@ -10,21 +10,21 @@ the minimum over outposts, capped at ``ground + ceiling_agl``. A cell is
 flyable when ``E - hide_margin >= ground + clearance``; the connected regions
 of flyable cells off the grid's outer ring are where the fleet flies.
 
-``compute_exposure`` uses a fast ring sweep that is a proven lower bound of the
-exact lowest seen altitude (the safe side; see planner.exposure_kernels).
+``compute_exposure`` uses a fast ring sweep (``lowest_seen``, alone) that is a
+proven lower bound of the exact lowest seen altitude (the safe side; see
+planner.exposure_kernels).
 ``is_hidden``, ``segment_hidden`` and ``segment_clear`` are exact or
 conservative checks used to prove that a flown leg is hidden and clear.
 """
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 from scipy import ndimage
 
 from . import exposure_kernels as k
 from .los import DEFAULT_CURVATURE_COEFF
-
-BATCH = 4  # outposts swept at once (4 sectors each run in parallel)
 
 
 @dataclass(frozen=True)
@@ -68,19 +68,24 @@ def compute_exposure(terrain, outposts, params=ExposureParams(), progress=None) 
 
     ``progress``: optional callable(done, total) called as outposts are swept.
     """
+    lowest = lowest_seen(terrain, outposts, params, progress)
+    return surface_from_lowest(terrain, outposts, params, lowest)
+
+
+def lowest_seen(terrain, outposts, params=ExposureParams(), progress=None) -> np.ndarray:
+    """float64 [rows, cols]: the minimum over outposts of the lowest altitude
+    each sees at every cell, m AMSL (+inf: never seen), as a proven lower bound
+    (the safe side), tight up to ground + ceiling_agl (E is capped above)."""
     h = _heights(terrain)
     eyes = _eyes(terrain, outposts)
     lowest = np.full(h.shape, np.inf)
-    total = len(eyes)
-    for start in range(0, total, BATCH):
-        batch = eyes[start:start + BATCH]
-        grids = np.full((len(batch),) + h.shape, np.inf)
-        k.lowest_seen_batch(h, terrain.cell_size, batch, float(params.curvature_coeff),
-                            float(params.ceiling_agl_m), grids)
-        k.min_over_outposts(grids, lowest)
+    threads = numba.get_num_threads()
+    for n, eye in enumerate(eyes):
+        k.lowest_seen_into(h, terrain.cell_size, eye, float(params.curvature_coeff),
+                           float(params.ceiling_agl_m), lowest, threads)
         if progress is not None:
-            progress(start + len(batch), total)
-    return surface_from_lowest(terrain, outposts, params, lowest)
+            progress(n + 1, len(eyes))
+    return lowest
 
 
 def surface_from_lowest(terrain, outposts, params, lowest) -> ExposureSurface:

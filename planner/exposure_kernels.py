@@ -8,40 +8,37 @@ The fast surface: a *lower bound* of the horizon slope H(P) of every cell
 ----------------------------------------------------------------------------
 The lowest altitude an outpost sees at P is ``z0 + D H(P) + drop(D)``, H(P)
 the steepest apparent slope of the terrain along the ray O -> P. Every slope
-used here is the *exact* apparent slope at a point, or its exact maximum over a
-stretch (closed form per patch, as in planner.los), of P's *own* ray. The
-maximum over part of the ray is never above the maximum over the whole ray, so the computed
-altitude is never above the exact one (up to rounding, ~1e-10 m): safe by
-construction, whatever stretches are chosen. The choice only decides how tight
+used here is the *exact* apparent slope at a point of P's *own* ray, or its
+exact maximum over a stretch of it (closed form per patch, as in planner.los).
+Neither is above the maximum over the whole ray, so the computed altitude is
+never above the exact one (up to rounding, ~1e-10 m): safe by construction,
+whatever points and stretches are chosen. The choice only decides how tight
 the bound is, and that is measured (tests/test_exposure.py, benchmarks/).
 
-Which stretches: a ring sweep (as in XDraw) visits cells by growing Chebyshev
+Which points: a ring sweep (as in XDraw) visits cells by growing Chebyshev
 distance k ("ring") from the outpost cell, in four triangular sectors (right,
-down, left, up) that depend only on themselves, so they run in parallel. In a
-sector's frame a cell is (k, b), its ray crosses the ring lines a = 1..k-1,
-and between two ring lines it crosses one or two patches. Each cell passes on
-the rings of its best and second-best features (by nearest ring line); a cell
-then
-  - screens: the apparent slope of the terrain where its ray crosses the ring
-    lines a* - 1 .. a* + 1 around the horizons a* of the two cells of ring
-    k - 1 its ray passes between ("parents"), around the nearer parent's
-    second feature, and ring line k - 1, and at the cell itself. On a ring line
-    the bilinear surface is the linear interpolation of two cells, so each is
-    an exact point of the ray: a lower bound of its maximum for two loads.
-    When that bound already puts the cell above the ceiling (ground +
-    ceiling_agl), E is capped there and the cell is done;
-  - otherwise takes the exact maximum of its ray between ring lines a - 1 and
-    a + 1 around the parents' features and the two best screened ones, and
-    over its near terrain (ring line k - 1 to the cell). (Near the eye a
-    horizon peaks inside a patch, which ring-line points miss: there the
-    screen takes the first ring interval exactly too.)
-A horizon that wins is thus re-evaluated on every following ray and tracked
-as it drifts, one ring per step at most; it is lost only where features trade
-places between neighbouring rays, by the difference of their slopes there.
-Rays of the first FULL_RINGS rings are maximised in full. Above the ceiling
-the bound may be loose (it is still a lower bound); at or below it, it is
-within 2 m of the exact value on all but a few hundredths of a percent of
-cells (benchmarks/bench_exposure.py).
+down, left, up), each cut into WEDGES wedges of rays that only depend on
+themselves, so wedges run in parallel. In a sector's frame a cell is (k, b);
+its ray crosses the ring lines a = 1..k-1, where the bilinear surface is the
+linear interpolation of two cells: an exact point for two loads. Each cell
+passes on the ring of its horizon (its best point) to the next ring; a cell
+  - screens the points of its ray on the ring lines of its two parents'
+    horizons (the cells of ring k - 1 its ray passes between), on ring line
+    k - 1 and at itself (XDraw's neighbours, but on the cell's own ray);
+  - if that leaves it below the ceiling (ground + ceiling_agl, where E is
+    capped) and below what earlier outposts gave it (E is their minimum), is
+    refined: the exact maximum over its near stretch (ring line k - 1 to the
+    cell) unless the patch's highest corner cannot beat the best point; then
+    around the horizon, which drifts from ray to ray: on smooth terrain the
+    ring lines either side follow it; where the terrain bends enough between
+    ring lines to matter at the cell (REFINE_TOL_M, magnified by x_k / x_horizon)
+    the exact maxima between the ring lines around its and its parents' horizons.
+A horizon within NEAR_RINGS of the eye can peak inside a patch and is
+magnified most: rays whose parents' horizon is there take that stretch exactly.
+Rays of the first FULL_RINGS rings are maximised in full. Above the ceiling the
+bound may be loose (it is still a lower bound); below it, it is within 2 m of
+the exact value on all but a few tenths of a percent of cells
+(benchmarks/bench_exposure.py).
 """
 
 import math
@@ -52,7 +49,11 @@ from numba import njit, prange
 from .los import EARTH_RADIUS_M, gap_range, line_over_patch, next_patch, sees
 
 FULL_RINGS = 4  # rings around the outpost whose rays are evaluated exactly in full
-DISTINCT = 2  # two horizons closer than this (rings) count as one feature
+WEDGES = 4  # wedges per sector: tasks for the threads
+NEAR_RINGS = 2  # horizons this close to the eye (rings) are taken exactly
+REFINE_TOL_M = 0.5  # terrain bending less than this (seen at the cell): ring lines suffice
+NEAR_BIT = 1 << 20  # flag in a cell's horizon ring: its horizon is that close
+RING_MASK = NEAR_BIT - 1
 
 
 # --- exact maximum of the apparent slope over part of a ray ---------------------------
@@ -199,283 +200,309 @@ def _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc):
 
 
 @njit(cache=True, inline="always")
-def _window(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, z0, cc, lo, hi, k, best_s, best_a,
-            second_s, second_a):
-    """Fold the exact maximum of P's ray between ring lines lo and hi into the
-    top two features (a feature is known by the ring line nearest to it)."""
-    lo = max(lo, 0)
-    hi = min(hi, k - 1)  # the last ring interval is the cell's own near terrain
-    if lo >= hi:
-        return best_s, best_a, second_s, second_a
-    if lo == 0 and fa < 0.0:
-        lo = -1  # the eye is behind ring line 0
-    for a in range(lo, hi):
-        s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc)
-        best_s, best_a, second_s, second_a = _keep(
-            int(math.floor(x + fa + 0.5)), s, best_s, best_a, second_s, second_a)
-    return best_s, best_a, second_s, second_a
-
-
-@njit(cache=True, inline="always")
-def _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a, z0, cc, inv_a):
-    """Scaled apparent slope of the terrain where P's ray crosses ring line a
-    (a >= 1): the bilinear surface there is the linear interpolation of ring
-    a's two cells either side, so this is exact (a lower bound of the ray's max)."""
+def _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a, z0, cc, inv_a):
+    """Scaled apparent slope where P's ray crosses ring line a (1 <= a < P's
+    ring): the linear interpolation of ring a's two cells either side."""
     x = a - fa
     y = fb + x * m
     j = min(max(int(math.floor(y)), b_lo), b_hi - 1)
     i = base + sa * a + sb * j
-    t = hf[i] + (y - j) * (hf[i + sb] - hf[i])
-    return (t - z0) * inv_a[a] - cc * x
+    # unsigned indices: numba then skips its negative-index wraparound (measured
+    # ~15 % of the sweep)
+    h0 = hf[np.uint64(i)]
+    t = h0 + (y - j) * (hf[np.uint64(i + sb)] - h0)
+    return (t - z0) * inv_a[np.uint64(a)] - cc * x
 
 
 @njit(cache=True, inline="always")
-def _screen(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, z0, cc, inv_a, k, b, c1, c2, c3):
-    """Quick lower bound of the lowest seen altitude at sector cell (k, b), from
-    the ray's crossings of ring lines around the parents' horizons and second
-    feature, of ring k - 1, and its end. Returns (altitude, best and second
-    features' rings)."""
-    x_k = k - fa
-    best = (hf[base + sa * k + sb * b] - z0) * inv_a[k] - cc * x_k  # the cell itself
-    best_a = k - 1
-    second = -np.inf
-    second_a = -1
-    lo = min(c1, c2)
-    hi = max(c1, c2)
-    if lo < 0:
-        lo = hi
-    for a in range(max(lo - 1, 1), min(hi + 1, k - 2) + 1):
-        if a <= lo + 1 or a >= hi - 1:
-            s = _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a, z0, cc, inv_a)
-            best, best_a, second, second_a = _keep(a, s, best, best_a, second, second_a)
-    if 0 <= lo <= 1:  # a horizon next to the eye peaks inside a patch: take it exactly
-        inv_m = 1.0 / m if m != 0.0 else np.inf
-        for a in range(-1 if fa < 0.0 else 0, 1):
-            s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc)
-            best, best_a, second, second_a = _keep(0, s, best, best_a, second, second_a)
-    if c3 >= 1 and c3 < k - 1 and (c3 < lo - 1 or c3 > hi + 1):
-        s = _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c3, z0, cc, inv_a)
-        best, best_a, second, second_a = _keep(c3, s, best, best_a, second, second_a)
-    s = _crossing(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k - 1, z0, cc, inv_a)
-    best, best_a, second, second_a = _keep(k - 1, s, best, best_a, second, second_a)
-    return z0 + x_k * best + cc * x_k * x_k, best_a, second_a
+def _bend(hf, base, sa, sb, b_lo, b_hi, a, y):
+    """How far the terrain around ring a, b = y can rise above a straight line
+    between points a cell apart: a quarter of its largest second difference
+    (along and across the rings, and the patches' twist)."""
+    if b_hi - b_lo < 3:
+        return np.inf  # too narrow to look around: take it exactly
+    j = min(max(int(math.floor(y)), b_lo + 1), b_hi - 2)
+    i = base + sa * a + sb * j
+    h0 = hf[np.uint64(i)]
+    h1 = hf[np.uint64(i + sb)]
+    d = abs(hf[np.uint64(i - sa)] - 2.0 * h0 + hf[np.uint64(i + sa)])
+    d = max(d, abs(hf[np.uint64(i - sa + sb)] - 2.0 * h1 + hf[np.uint64(i + sa + sb)]))
+    d = max(d, abs(hf[np.uint64(i - sb)] - 2.0 * h0 + h1))
+    d = max(d, abs(h0 - 2.0 * h1 + hf[np.uint64(i + 2 * sb)]))
+    d = max(d, abs(hf[np.uint64(i + sa + sb)] - hf[np.uint64(i + sa)] - h1 + h0))
+    d = max(d, abs(h1 - h0 - hf[np.uint64(i - sa + sb)] + hf[np.uint64(i - sa)]))
+    return 0.25 * d
 
 
 @njit(cache=True, inline="always")
-def _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, u1, v1, fa, fb, z0, k_cc, curv,
-          inv_a, r2, cap_agl, k, b, c1, c2, c3, c4):
-    """Lower bound of the lowest altitude seen at sector cell (k, b), grid (u1, v1).
+def _near_patch_bound(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k, z0, cc, inv_a):
+    """Upper bound of the scaled apparent slope over P's near stretch (ring
+    line k - 1 to P): it crosses one patch, the surface is at most its highest
+    corner, and 1 / x and -cc x are largest at ring line k - 1."""
+    j = min(max(int(math.floor(fb + (k - 1 - fa) * m)), b_lo), b_hi - 1)
+    i = base + sa * (k - 1) + sb * j
+    top = max(max(hf[np.uint64(i)], hf[np.uint64(i + sb)]),
+              max(hf[np.uint64(i + sa)], hf[np.uint64(i + sa + sb)]))
+    inv = inv_a[np.uint64(k - 1)] if top >= z0 else inv_a[np.uint64(k)]
+    return (top - z0) * inv - cc * (k - 1 - fa)
 
-    c1, c2: horizon rings inherited from the two parents (c1 from the one at
-    floor of the ray's crossing), c3, c4: their second features (-1 = none).
-    Returns (altitude, or +inf beyond range; its horizon ring; the second
-    feature's ring).
-    """
-    x_k = k - fa
-    m = (b - fb) * inv_a[k]
-    if x_k * x_k * (1.0 + m * m) > r2:
-        return np.inf, -1, -1
-    cc = k_cc * (1.0 + m * m)
-    if k <= FULL_RINGS:
-        kappa = cell * math.sqrt(1.0 + m * m)  # metres per ring along this ray
-        s, t = ray_max(h, cell, u0, v0, z0, u1, v1, 0.0, 1.0, curv)
-        a = min(max(int(math.floor(fa + t * x_k + 0.5)), 0), k)
-        return z0 + x_k * s * kappa + cc * x_k * x_k, a, -1
-    # deep in shadow a few exact points of the ray already put the cell above the
-    # ceiling, where E is capped: no need to know by how much
-    c_second = c3 if c3 >= 0 else c4  # the nearer parent's second feature, else the other's
-    z, a1, a2 = _screen(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, z0, cc, inv_a, k, b, c1, c2,
-                        c_second)
-    if z >= hf[base + sa * k + sb * b] + cap_agl:
-        return z, a1, a2
-    # else the exact maxima around the features, and of the near terrain
-    inv_m = 1.0 / m if m != 0.0 else np.inf
-    near_s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, k - 1, z0, cc)
-    near_a = int(math.floor(x + fa + 0.5))
-    best_s = -np.inf
-    best_a = -1
-    second_s = -np.inf
-    second_a = -1
-    # windows around the parents' features (exact argmax rings) and the screened ones
-    # (sampled argmax rings), each ring once: a feature is near a ring already done
-    rings = (np.int64(c1), np.int64(c2), np.int64(c_second), np.int64(a1), np.int64(a2))
-    for n in range(5):
-        a = rings[n]
-        if a < 0:
-            continue
-        new = True
-        for n_done in range(n):
-            if rings[n_done] >= 0 and abs(rings[n_done] - a) <= 1:
-                new = False
-        if new:
-            best_s, best_a, second_s, second_a = _window(
-                hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, z0, cc, a - 1, a + 1, k,
-                best_s, best_a, second_s, second_a)
-    # the near terrain wins, or only fills an empty second place: the next ring
-    # sees it again as its own near terrain anyway
-    if near_s > best_s:
-        if best_a >= 0:
-            second_a = best_a
-        best_s, best_a = near_s, near_a
-    elif second_a < 0:
-        second_a = near_a
-    return max(z0 + x_k * best_s + cc * x_k * x_k, z), best_a, second_a  # both lower bounds
+
+@njit(cache=True, inline="always")
+def _better(a, s, best, a_best):
+    """(slope, ring) of the higher of a new point and the best so far."""
+    if s > best:
+        return s, a
+    return best, a_best
+
+
+@njit(cache=True, inline="always")
+def _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi):
+    """Cells b_first..b_last of ring k with m_lo <= b / k < m_hi (the first and
+    last wedges reach the sector's edges), inside the grid. By the cell, not
+    the eye's offset (fa, fb): a re-planned outpost a rounding error away must
+    get the same wedges."""
+    lo = -k + 1 if first else int(math.ceil(k * m_lo))
+    hi = k if last else int(math.ceil(k * m_hi)) - 1
+    return max(lo, -k + 1, b_lo), min(hi, k, b_hi)
 
 
 @njit(cache=True)
-def _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, cap_agl, out):
-    """Lower-bound lowest visible altitude for the cells of one sector.
+def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last, b_lo, b_hi,
+                 fa, fb, k_cc, curv, inv_a, r2, cap_agl, m_lo, m_hi, first, last, fprev, fcur,
+                 todo_b, todo_s):
+    """Lower the lowest seen altitudes ``acc`` (flat) over one wedge of sector q.
 
-    Sectors 1 and 3 (down, up) run ring by ring, i.e. grid row by grid row;
-    sectors 0 and 2 (right, left) run across the rings, grid row by grid row
-    outwards from the outpost's row, so that memory is always read along rows.
+    fprev / fcur: scratch, the horizon ring of each cell of rings k - 1 and k
+    by b (+ NEAR_BIT when next to the eye; -1 = none); todo_b / todo_s:
+    scratch, ring k's cells to refine and their screened slopes (refined after
+    the screen of the whole ring, which measured faster than in line).
+    """
+    off = a_last + 1
+    plo, phi = 0, -1  # ring k - 1's cells in this wedge
+    for k in range(1, a_last + 1):
+        lo, hi = _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi)
+        x_k = k - fa
+        ia = inv_a[k]
+        if k <= FULL_RINGS:
+            _full_rays(h, cell, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, fa, fb, k_cc,
+                       curv, ia, r2, k, lo, hi, off, fcur)
+            plo, phi = lo, hi
+            fprev, fcur = fcur, fprev
+            continue
+        if plo > phi:  # no parents in this wedge: a dummy slot holding no horizon
+            plo = phi = -off
+            fprev[0] = -1
+        n_todo = 0
+        for b in range(lo, hi + 1):
+            m = (b - fb) * ia
+            if x_k * x_k * (1.0 + m * m) > r2:
+                fcur[b + off] = -1  # out of range
+                continue
+            cc = k_cc * (1.0 + m * m)
+            p0 = min(max(int(math.floor(fb + (k - 1 - fa) * m)), plo), phi)
+            p1 = min(p0 + 1, phi)
+            f0 = fprev[np.uint64(p0 + off)]
+            f1 = fprev[np.uint64(p1 + off)]
+            near = f0 >= NEAR_BIT or f1 >= NEAR_BIT
+            c0 = min(max(f0 & RING_MASK if f0 >= 0 else -1, 1), k - 1)
+            c1 = min(max(f1 & RING_MASK if f1 >= 0 else -1, 1), k - 1)
+            i = np.uint64(base + sa * k + sb * b)
+            g = hf[i]
+            # the cell itself, ring line k - 1 and the parents' horizons
+            best = (g - z0) * ia - cc * x_k
+            a_best = k
+            s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k - 1, z0, cc, inv_a)
+            best, a_best = _better(k - 1, s, best, a_best)
+            if c0 != k - 1:
+                s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c0, z0, cc, inv_a)
+                best, a_best = _better(c0, s, best, a_best)
+            if c1 != c0 and c1 != k - 1:
+                s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c1, z0, cc, inv_a)
+                best, a_best = _better(c1, s, best, a_best)
+            z = z0 + x_k * best + cc * x_k * x_k
+            fcur[np.uint64(b + off)] = a_best + NEAR_BIT if near else a_best
+            low = acc[i]
+            if z < min(g + cap_agl, low):  # it matters: refine it below
+                todo_b[n_todo] = b
+                todo_s[n_todo] = best
+                n_todo += 1
+            elif z < low:
+                acc[i] = z
+        for n in range(n_todo):
+            b = todo_b[n]
+            best = todo_s[n]
+            f = fcur[np.uint64(b + off)]
+            near = f >= NEAR_BIT
+            a_best = f & RING_MASK
+            a0 = a_best
+            m = (b - fb) * ia
+            cc = k_cc * (1.0 + m * m)
+            i = np.uint64(base + sa * k + sb * b)
+            inv_m = 1.0 / m if m != 0.0 else np.inf
+            # the near stretch: exactly, unless its patch's highest corner could
+            # not outdo the best point
+            if _near_patch_bound(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k, z0, cc,
+                                 inv_a) > best:
+                s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, k - 1, z0,
+                                 cc)
+                best, a_best = _better(int(math.floor(x + fa + 0.5)), s, best, a_best)
+            if 2 <= a0 <= k - 2:
+                # around the horizon, which drifts from ray to ray: on smooth terrain
+                # the ring lines either side find it; where the terrain bends enough
+                # between them to matter at the cell (times x_k / x_horizon), exact
+                # maxima around the horizons of the cell and of its parents
+                bend = _bend(hf, base, sa, sb, b_lo, b_hi, a0, fb + (a0 - fa) * m)
+                if bend * x_k * inv_a[np.uint64(a0)] <= REFINE_TOL_M:
+                    s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a0 - 1, z0, cc, inv_a)
+                    best, a_best = _better(a0 - 1, s, best, a_best)
+                    s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a0 + 1, z0, cc, inv_a)
+                    best, a_best = _better(a0 + 1, s, best, a_best)
+                else:
+                    p0 = min(max(int(math.floor(fb + (k - 1 - fa) * m)), plo), phi)
+                    c0 = fprev[np.uint64(p0 + off)] & RING_MASK
+                    c1 = fprev[np.uint64(min(p0 + 1, phi) + off)] & RING_MASK
+                    for n_ring in range(3):
+                        r = a0 if n_ring == 0 else (c0 if n_ring == 1 else c1)
+                        if r < 1 or r > k - 2 or (n_ring >= 1 and abs(r - a0) <= 1) or (
+                                n_ring == 2 and abs(r - c0) <= 1):
+                            continue
+                        for a in range(r - 1, min(r + 1, k - 1)):
+                            s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a,
+                                             z0, cc)
+                            best, a_best = _better(int(math.floor(x + fa + 0.5)), s, best,
+                                                   a_best)
+            if near:  # next to the eye a horizon peaks inside a patch: take it exactly
+                s_near = -np.inf
+                for a in range(-1 if fa < 0.0 else 0, NEAR_RINGS):
+                    s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0,
+                                     cc)
+                    s_near = max(s_near, s)
+                near = s_near >= best
+                if near:
+                    best = s_near
+            z = z0 + x_k * best + cc * x_k * x_k
+            fcur[np.uint64(b + off)] = a_best + NEAR_BIT if near else a_best
+            if z < acc[i]:
+                acc[i] = z
+        plo, phi = lo, hi
+        fprev, fcur = fcur, fprev
+
+
+@njit(cache=True)
+def _full_rays(h, cell, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, fa, fb, k_cc, curv, ia, r2,
+               k, lo, hi, off, fcur):
+    """Cells lo..hi of ring k (one of the first FULL_RINGS): the exact maximum
+    over the whole ray, and its ring."""
+    x_k = k - fa
+    for b in range(lo, hi + 1):
+        m = (b - fb) * ia
+        fcur[b + off] = -1
+        if x_k * x_k * (1.0 + m * m) > r2:
+            continue
+        dc, dr = _rotate(q, k, b)
+        s, t = ray_max(h, cell, u0, v0, z0, c_o + dc, r_o + dr, 0.0, 1.0, curv)
+        z = z0 + x_k * s * cell * math.sqrt(1.0 + m * m) + k_cc * (1.0 + m * m) * x_k * x_k
+        a = min(max(int(math.floor(fa + t * x_k + 0.5)), 0), k)
+        fcur[b + off] = a + NEAR_BIT if t * x_k < NEAR_RINGS else a
+        i = base + sa * k + sb * b
+        if z < acc[i]:
+            acc[i] = z
+
+
+@njit(cache=True, inline="always")
+def _eye_frame(q, u0, v0, c_o, r_o):
+    """The eye's offset from its cell centre in sector q's frame (fa, fb)."""
+    fu = u0 - c_o
+    fv = v0 - r_o
+    if q == 0:
+        return fu, fv
+    if q == 1:
+        return fv, -fu
+    if q == 2:
+        return -fu, -fv
+    return -fv, fu
+
+
+@njit(cache=True)
+def _wedge_cells(a_last, m_lo, m_hi, first, last, b_lo, b_hi):
+    n = 0
+    for k in range(1, a_last + 1):
+        lo, hi = _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi)
+        n += max(hi - lo + 1, 0)
+    return n
+
+
+@njit(cache=True, inline="always")
+def _last_ring(a_end, range_cells):
+    """The last ring to sweep: the grid's edge, or just beyond the range."""
+    if range_cells + 2.0 < a_end:
+        return int(range_cells + 2.0)
+    return a_end
+
+
+@njit(cache=True, inline="always")
+def _wedge_slopes(w):
+    return -1.0 + 2.0 * w / WEDGES, -1.0 + 2.0 * (w + 1) / WEDGES
+
+
+@njit(cache=True, parallel=True)
+def lowest_seen_into(h, cell, eye, curv, cap_agl, acc, n_slots):
+    """acc = min(acc, a lower bound of the lowest altitude the eye
+    (u, v, z_eye, range_m) sees at each cell), tight where below both
+    ``cap_agl`` above the ground and acc's old value (elsewhere the minimum, or
+    E capped, does not need it). The outpost's own cell is seen at any altitude
+    (-inf). Wedges run in parallel on ``n_slots`` threads, the largest first
+    onto the least loaded.
     """
     n_rows, n_cols = h.shape
     hf = h.ravel()
-    of = out.ravel()
-    a_last, b_lo, b_hi, sa, sb = _sector_frame(q, c_o, r_o, n_rows, n_cols)
-    base = r_o * n_cols + c_o
-    fu = u0 - c_o  # outpost offset from its cell centre, in the sector's frame
-    fv = v0 - r_o
-    if q == 0:
-        fa, fb = fu, fv
-    elif q == 1:
-        fa, fb = fv, -fu
-    elif q == 2:
-        fa, fb = -fu, -fv
-    else:
-        fa, fb = -fv, fu
+    af = acc.ravel()
+    u0, v0, z0, range_m = eye[0], eye[1], eye[2], eye[3]
+    c_o = min(max(int(math.floor(u0 + 0.5)), 0), n_cols - 1)
+    r_o = min(max(int(math.floor(v0 + 0.5)), 0), n_rows - 1)
+    af[r_o * n_cols + c_o] = -np.inf
     range_cells = range_m / cell
-    if range_cells + 2.0 < a_last:
-        a_last = int(range_cells + 2.0)
-    if a_last < 1 or b_hi <= b_lo:
-        return
-    inv_a = np.empty(a_last + 1)
-    for a in range(1, a_last + 1):
-        inv_a[a] = 1.0 / (a - fa)
+    n_w = 4 * WEDGES
+    counts = np.zeros(n_w, np.int64)
+    for q in range(4):
+        a_end, b_lo, b_hi, sa, sb = _sector_frame(q, c_o, r_o, n_rows, n_cols)
+        a_last = _last_ring(a_end, range_cells)
+        for w in range(WEDGES):
+            m_lo, m_hi = _wedge_slopes(w)
+            if a_last >= 1 and b_hi > b_lo:
+                counts[q * WEDGES + w] = _wedge_cells(a_last, m_lo, m_hi, w == 0,
+                                                      w == WEDGES - 1, b_lo, b_hi)
+    order = np.argsort(-counts)
+    slot_of = np.empty(n_w, np.int64)
+    load = np.zeros(n_slots, np.int64)
+    for n in range(n_w):
+        s = np.argmin(load)
+        slot_of[order[n]] = s
+        load[s] += counts[order[n]]
     k_cc = curv * cell * cell / (2.0 * EARTH_RADIUS_M)
     r2 = range_cells * range_cells * (1.0 + 1e-9)  # at the limit: in range (safe side)
-    if q == 1 or q == 3:
-        _by_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa, fb,
-                  z0, k_cc, curv, inv_a, r2, cap_agl)
-    else:
-        _across_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa,
-                      fb, z0, k_cc, curv, inv_a, r2, cap_agl)
-
-
-@njit(cache=True)
-def _by_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa, fb, z0,
-              k_cc, curv, inv_a, r2, cap_agl):
-    width = 2 * a_last + 3
-    off = a_last + 1
-    prev = np.full((2, width), -1, np.int32)  # horizon rings of ring k-1's cells, by b
-    cur = np.full((2, width), -1, np.int32)
-    for k in range(1, a_last + 1):
-        lo = max(b_lo, -k + 1)
-        hi = min(b_hi, k)
-        cur[:, :] = -1
-        for b in range(lo, hi + 1):
-            # the previous ring's cells either side of the ray
-            y = fb + (k - 1 - fa) * (b - fb) * inv_a[k]
-            p0 = min(max(int(math.floor(y)), -k + 2), k - 1) + off
-            p1 = min(max(int(math.floor(y)) + 1, -k + 2), k - 1) + off
-            dc, dr = _rotate(q, k, b)
-            z, a1, a2 = _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, c_o + dc, r_o + dr,
-                              fa, fb, z0, k_cc, curv, inv_a, r2, cap_agl, k, b,
-                              prev[0, p0], prev[0, p1], prev[1, p0], prev[1, p1])
-            cur[0, b + off] = a1
-            cur[1, b + off] = a2
-            if z < np.inf:
-                of[base + sa * k + sb * b] = z
-        prev, cur = cur, prev
-
-
-@njit(cache=True)
-def _across_rings(h, cell, hf, of, q, c_o, r_o, u0, v0, base, sa, sb, a_last, b_lo, b_hi, fa,
-                  fb, z0, k_cc, curv, inv_a, r2, cap_agl):
-    # rows b = 0, 1, 2, ... then -1, -2, ...; a parent row is this row or the one
-    # before it in that order, at ring a - 1
-    row0 = np.full((2, a_last + 1), -1, np.int32)
-    prev = np.full((2, a_last + 1), -1, np.int32)
-    cur = np.full((2, a_last + 1), -1, np.int32)
-    for direction in (1, -1):
-        if direction == 1:
-            b, b_end = 0, min(b_hi, a_last)
-        else:
-            b, b_end = -1, max(b_lo, -a_last + 1)
-            prev[:, :] = row0
-        while direction * (b_end - b) >= 0:
-            cur[:, :] = -1
-            b_near = b - direction if b != 0 else 0  # the row before, towards the outpost
-            lo_p = min(b, b_near)
-            hi_p = max(b, b_near)
-            a_first = b if b > 0 else 1 - b
-            for a in range(max(a_first, 1), a_last + 1):
-                y = fb + (a - 1 - fa) * (b - fb) * inv_a[a]
-                fl = int(math.floor(y))
-                p0 = min(max(fl, lo_p, -a + 2), hi_p, a - 1)
-                p1 = min(max(fl + 1, lo_p, -a + 2), hi_p, a - 1)
-                c1 = cur[0, a - 1] if p0 == b else prev[0, a - 1]
-                c3 = cur[1, a - 1] if p0 == b else prev[1, a - 1]
-                c2 = cur[0, a - 1] if p1 == b else prev[0, a - 1]
-                c4 = cur[1, a - 1] if p1 == b else prev[1, a - 1]
-                dc, dr = _rotate(q, a, b)
-                z, a1, a2 = _cell(h, cell, hf, base, sa, sb, b_lo, b_hi, u0, v0, c_o + dc,
-                                  r_o + dr, fa, fb, z0, k_cc, curv, inv_a, r2, cap_agl, a, b, c1,
-                                  c2, c3, c4)
-                cur[0, a] = a1
-                cur[1, a] = a2
-                if z < np.inf:
-                    of[base + sa * a + sb * b] = z
-            if b == 0:
-                row0[:, :] = cur
-            prev, cur = cur, prev
-            b += direction
-
-
-@njit(cache=True, inline="always")
-def _keep(a, s, best_s, best_a, second_s, second_a):
-    """Insert (slope s at ring a) into the top two of distinct features."""
-    if s > best_s:
-        if abs(a - best_a) >= DISTINCT:
-            second_s, second_a = best_s, best_a
-        best_s, best_a = s, a
-    elif s > second_s and abs(a - best_a) >= DISTINCT:
-        second_s, second_a = s, a
-    return best_s, best_a, second_s, second_a
-
-
-@njit(cache=True, parallel=True)
-def lowest_seen_batch(h, cell, eyes, curv, cap_agl, out):
-    """Lower bounds of the lowest seen altitude, one grid per outpost; tight
-    where at most ``cap_agl`` above the ground (above it E is capped anyway).
-
-    eyes: float64 [n, 4] = (u, v, z_eye, range_m); out: float64 [n, rows, cols],
-    filled with +inf by the caller. The four sectors of every outpost run in
-    parallel; the outpost's own cell is seen at any altitude (-inf).
-    """
-    n_rows, n_cols = h.shape
-    n = eyes.shape[0]
-    for task in prange(4 * n):
-        o = task // 4
-        q = task % 4
-        u0, v0, z0, range_m = eyes[o, 0], eyes[o, 1], eyes[o, 2], eyes[o, 3]
-        c_o = min(max(int(math.floor(u0 + 0.5)), 0), n_cols - 1)
-        r_o = min(max(int(math.floor(v0 + 0.5)), 0), n_rows - 1)
-        if q == 0:
-            out[o, r_o, c_o] = -np.inf
-        _sweep_sector(h, cell, u0, v0, z0, c_o, r_o, q, range_m, curv, cap_agl, out[o])
-
-
-@njit(cache=True, parallel=True)
-def min_over_outposts(grids, into):
-    """into = min(into, min over the first axis of grids)."""
-    n, n_rows, n_cols = grids.shape
-    for r in prange(n_rows):
-        for o in range(n):
-            for c in range(n_cols):
-                if grids[o, r, c] < into[r, c]:
-                    into[r, c] = grids[o, r, c]
+    for slot in prange(n_slots):
+        width = 2 * max(n_rows, n_cols) + 8
+        fprev = np.full(width, -1, np.int32)
+        fcur = np.full(width, -1, np.int32)
+        todo_b = np.empty(width, np.int64)
+        todo_s = np.empty(width)
+        for wq in range(n_w):
+            if slot_of[wq] != slot or counts[wq] == 0:
+                continue
+            q = wq // WEDGES
+            w = wq % WEDGES
+            a_end, b_lo, b_hi, sa, sb = _sector_frame(q, c_o, r_o, n_rows, n_cols)
+            a_last = _last_ring(a_end, range_cells)
+            fa, fb = _eye_frame(q, u0, v0, c_o, r_o)
+            inv_a = np.empty(a_last + 1)
+            inv_a[0] = 0.0
+            for a in range(1, a_last + 1):
+                inv_a[a] = 1.0 / (a - fa)
+            m_lo, m_hi = _wedge_slopes(w)
+            _sweep_wedge(h, cell, hf, af, q, c_o, r_o, u0, v0, z0, r_o * n_cols + c_o, sa, sb,
+                         a_last, b_lo, b_hi, fa, fb, k_cc, curv, inv_a, r2, cap_agl, m_lo, m_hi,
+                         w == 0, w == WEDGES - 1, fprev, fcur, todo_b, todo_s)
 
 
 # --- points -----------------------------------------------------------------------------------

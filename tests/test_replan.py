@@ -13,8 +13,9 @@ from planner.geotiff import write_grid
 from planner.outposts import Outpost
 from planner.pipeline import plan_mission
 from planner.plan import TERRAIN_FILE, Plan
-from planner.replan import (Survivor, context_for_plan, coverage_summary, replan,
-                            scenario_from_params, seen_matrix, snapshot_sets, survivor_start)
+from planner.replan import (SNAP_TO_VIEWPOINT_M, Survivor, context_for_plan, coverage_summary,
+                            replan, scenario_from_params, seen_matrix, snapshot_sets,
+                            survivor_start)
 from planner.scenario import Scenario
 from planner.synthetic import synthetic_terrain
 
@@ -74,7 +75,14 @@ def test_context_for_saved_plan(tmp_path, terrain, planned):
     plan = Plan.load(tmp_path)
     again = context_for_plan(tmp_path, plan)
     assert again.visibility.n_targets == ctx.visibility.n_targets
-    assert np.allclose(again.viewpoints.xyz, ctx.viewpoints.xyz, atol=1e-3)
+    assert np.allclose(again.viewpoints.xyz[:, :2], ctx.viewpoints.xyz[:, :2], atol=1e-3)
+    # altitudes: E - hide margin, where E is a lower bound whose refinement choices
+    # can flip when the outposts come back from lon/lat a rounding error away, the
+    # heights from float32: nearly all identical, the rest well within the
+    # distance at which a flown snapshot is matched to its viewpoint
+    dz = np.abs(again.viewpoints.xyz[:, 2] - ctx.viewpoints.xyz[:, 2])
+    assert np.mean(dz <= 1e-3) >= 0.99
+    assert dz.max() < SNAP_TO_VIEWPOINT_M / 3
 
 
 def test_snapshot_sets_match_viewpoints(planned):
