@@ -425,6 +425,7 @@ def _eye_frame(q, u0, v0, c_o, r_o):
 
 @njit(cache=True)
 def _wedge_cells(a_last, m_lo, m_hi, first, last, b_lo, b_hi):
+    """How many cells a wedge holds: its share of the work."""
     n = 0
     for k in range(1, a_last + 1):
         lo, hi = _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi)
@@ -442,6 +443,7 @@ def _last_ring(a_end, range_cells):
 
 @njit(cache=True, inline="always")
 def _wedge_slopes(w):
+    """Wedge w's range of b / k: equal slices of the sector's [-1, 1]."""
     return -1.0 + 2.0 * w / WEDGES, -1.0 + 2.0 * (w + 1) / WEDGES
 
 
