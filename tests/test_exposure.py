@@ -127,6 +127,20 @@ def test_tight_on_average():
     assert np.mean(shares) >= 0.98
 
 
+@settings(max_examples=60, deadline=None)
+@given(seed=st.integers(0, 10_000), rows=st.integers(2, 8), cols=st.integers(2, 40),
+       transpose=st.booleans(), eye=st.floats(0, 10), curvature=st.sampled_from([0.0, K]))
+def test_narrow_grids_stay_safe(seed, rows, cols, transpose, eye, curvature):
+    """Grids a few cells wide: sectors and wedges with next to no cells across."""
+    rng = np.random.default_rng(seed)
+    if transpose:
+        rows, cols = cols, rows
+    terrain = _terrain(300.0 + rng.normal(0.0, 20.0, (rows, cols)))
+    post = _outpost(terrain, rng.uniform(0, rows - 1), rng.uniform(0, cols - 1), eye)
+    surface = compute_exposure(terrain, [post], ExposureParams(curvature_coeff=curvature))
+    assert np.all(surface.lowest_seen <= _exact_lowest(terrain, [post], curvature) + 1e-6)
+
+
 def test_progress_reports_every_outpost():
     terrain = _terrain(_rough(1))
     outposts = [_outpost(terrain, 3 + i, 4 + 2 * i) for i in range(6)]
