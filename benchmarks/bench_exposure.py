@@ -69,9 +69,8 @@ def _case(name, terrain, params):
     gdal_seconds, gdal_min = _gdal(terrain, cells)
     rows = []
     for n in COUNTS:
-        best = _best_time(lambda: lowest_seen(terrain, outposts[:n], params))
-        surface_s = _best_time(lambda: compute_exposure(terrain, outposts[:n], params))
-        lowest = lowest_seen(terrain, outposts[:n], params)
+        best, lowest = _best_time(lambda: lowest_seen(terrain, outposts[:n], params))
+        surface_s, _ = _best_time(lambda: compute_exposure(terrain, outposts[:n], params))
         exact = _exact_sampled(terrain, cells[:n], s_rows, s_cols)
         keep = np.isfinite(exact)
         cap = terrain.height[s_rows, s_cols][keep] + params.ceiling_agl_m
@@ -87,12 +86,13 @@ def _case(name, terrain, params):
 
 
 def _best_time(run):
+    """(best seconds of REPEATS runs, the last run's result)."""
     best = math.inf
     for _ in range(REPEATS):
         start = time.perf_counter()
-        run()
+        result = run()
         best = min(best, time.perf_counter() - start)
-    return best
+    return best, result
 
 
 def _print_table(rows):
