@@ -371,15 +371,17 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
                                              z0, cc)
                             best, a_best = _better(int(math.floor(x + fa + 0.5)), s, best,
                                                    a_best)
-            if near:  # next to the eye a horizon peaks inside a patch: take it exactly
-                s_near = -np.inf
-                for a in range(-1 if fa < 0.0 else 0, NEAR_RINGS):
-                    s, x = _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0,
-                                     cc)
-                    s_near = max(s_near, s)
-                near = s_near >= best
-                if near:
-                    best = s_near
+            if near:  # next to the eye a horizon peaks inside a patch: take it exactly,
+                # from the eye itself as planner.los does (a 0 m eye on a rise is
+                # blocked by the first millimetres), up to ring line NEAR_RINGS
+                dc, dr = _rotate(q, k, b)
+                s, x = ray_max(h, cell, u0, v0, z0, c_o + dc, r_o + dr, 0.0,
+                               min((NEAR_RINGS - fa) / x_k, 1.0), curv)
+                s_near = s * cell * math.sqrt(1.0 + m * m)  # per metre -> scaled
+                # still the horizon, or a sampled point there is (computed another
+                # way it may tie s_near to within rounding)
+                near = s_near >= best or a_best <= NEAR_RINGS
+                best = max(best, s_near)
             z = z0 + x_k * best + cc * x_k * x_k
             fcur[np.uint64(b + off)] = a_best + NEAR_BIT if near else a_best
             if z < acc[i]:
