@@ -143,10 +143,10 @@ def _rotate(q, a, b):
 @njit(cache=True, inline="always")
 def _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc):
     """Exact (max, argmax X) of the scaled apparent slope of P's ray between
-    ring lines a and a + 1 (a >= -1, a + 1 <= P's ring), beyond the eye.
+    ring lines a and a + 1 (a >= 0, a + 1 <= P's ring), from 1e-3 rings
+    beyond the eye on (the stretch at the eye itself is ray_max's).
 
-    X = distance from the outpost in rings (a - fa at ring line a; ring line -1
-    only matters when the eye lies behind ring line 0, and is then on the grid).
+    X = distance from the outpost in rings (a - fa at ring line a).
     The ray crosses at most a couple of lines across the sector; on each patch
     the bilinear surface along it is q0 + q1 X + q2 X^2, and the scaled slope
     (T - z0 - cc X^2) / X = (q2 - cc) X + q1 + (q0 - z0) / X peaks at an end
