@@ -114,11 +114,23 @@ def _silence(link) -> str:
 # -- modes and arming ------------------------------------------------------------------
 def set_mode(link, name: str, confirm=True, timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
     """Switch to mode `name` (ArduPilot: "GUIDED", "AUTO", ...; PX4: "AUTO.MISSION",
-    "AUTO.LOITER", "POSCTL", ...), then wait until the HEARTBEAT shows it."""
+    "AUTO.LOITER", "POSCTL", ...), then wait until the HEARTBEAT shows it.
+
+    HEARTBEATs (1 Hz) get lost too: when none shows the mode within CONFIRM_S, the
+    command goes out again (up to `retries` times; asking twice is harmless)."""
     try:
         custom, main, sub = mode_number(link.flavour, name, link.mav_type)
     except KeyError as exc:
         raise CommandError(link, exc.args[0]) from None
+    for _ in range(retries + 1):
+        _request_mode(link, custom, main, sub, timeout_s, retries)
+        if not confirm or _until(link, lambda s: s.custom_mode == custom, CONFIRM_S):
+            return
+    raise CommandError(link, f"mode is still {link.state.mode} after asking for "
+                             f"{name.upper()} {retries + 1} times")
+
+
+def _request_mode(link, custom, main, sub, timeout_s, retries) -> None:
     flag = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     try:
         if link.flavour == PX4:
@@ -131,9 +143,6 @@ def set_mode(link, name: str, confirm=True, timeout_s=TIMEOUT_S, retries=RETRIES
         if exc.result != M.MAV_RESULT_UNSUPPORTED:
             raise
         link.send("SET_MODE", base_mode=flag, custom_mode=custom)   # older firmware
-    if confirm:
-        _wait_for(link, lambda s: s.custom_mode == custom, CONFIRM_S,
-                  lambda s: f"mode is still {s.mode} after asking for {name.upper()}")
 
 
 def arm(link, timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
@@ -192,11 +201,18 @@ def _readiness(s) -> str:
 
 
 def _wait_for(link, predicate, timeout_s, problem) -> None:
+    if not _until(link, predicate, timeout_s):
+        raise CommandError(link, problem(link.state))
+
+
+def _until(link, predicate, timeout_s) -> bool:
+    """Whether ``predicate(link.state)`` comes true within ``timeout_s``."""
     deadline = time.monotonic() + timeout_s
     while not predicate(link.state):
         if time.monotonic() >= deadline:
-            raise CommandError(link, problem(link.state))
+            return False
         time.sleep(0.05)
+    return True
 
 
 # -- the start sequence ----------------------------------------------------------------

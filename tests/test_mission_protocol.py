@@ -252,6 +252,20 @@ def test_start_mission_flies_it(opened, firmware, tmp_path):
         assert wanted <= reached
 
 
+def test_mode_changes_over_a_lossy_link(opened, monkeypatch):
+    """A lost HEARTBEAT must not fail a mode change the vehicle made: with half the
+    packets dropped and one HEARTBEAT period to confirm, most first confirmations
+    miss; the command is then sent again until the HEARTBEAT shows the mode."""
+    monkeypatch.setattr(commands, "CONFIRM_S", 1.0)
+    fleet, link = opened(fleet_config("ardupilot", 1, seed=5))
+    vehicle = link.vehicles[1]
+    commands.wait_ready(vehicle, 10)
+    fleet.set_drop(50.0)
+    for mode in ["GUIDED", "LOITER"] * 2:
+        commands.set_mode(vehicle, mode, timeout_s=0.2, retries=20)
+        assert fleet.vehicle(1).mode == mode
+
+
 def test_refused_arming_is_explained(opened):
     fleet, link = opened(fleet_config("ardupilot", 1))
     vehicle = link.vehicles[1]
