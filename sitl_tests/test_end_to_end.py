@@ -10,6 +10,7 @@ launch point; a loss detected within --lost-after + 1 s of the kill.
 """
 
 import _thread
+import signal
 import threading
 import time
 
@@ -90,9 +91,11 @@ def assert_hidden_and_clear(planned, tracks):
         p = _xyz(ctx, lat, lon, alt)
         a, b = p[:-1], p[1:]
         moved = np.linalg.norm(b - a, axis=1) > 1e-6
-        a, b = a[moved], b[moved]
+        a, b, t0 = a[moved], b[moved], np.asarray(t)[:-1][moved]
         hidden = segments_hidden(surface, a, b)
-        assert hidden.all(), f"vehicle {sysid}: {int((~hidden).sum())} recorded segments seen"
+        seen = np.flatnonzero(~hidden)
+        assert not seen.size, (f"vehicle {sysid}: {seen.size} recorded segments seen, the first "
+                               f"at t = {t0[seen[0]]:.1f} s from {a[seen[0]].round(1)}")
         hx, hy = ctx.terrain.from_lonlat(home[1], home[0])
         away = (np.hypot(a[:, 0] - hx, a[:, 1] - hy) > LAUNCH_RADIUS_M) & \
                (np.hypot(b[:, 0] - hx, b[:, 1] - hy) > LAUNCH_RADIUS_M)
@@ -245,8 +248,14 @@ def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
 def test_ctrl_c_brings_every_vehicle_home_hidden(planned, backend, tmp_path):
     """Ctrl-C answered "home": every vehicle is re-tasked home along hidden paths
     (never plain RTL, which would climb and fly straight) and lands at launch."""
+    # Python's own SIGINT handler, which a shell's background job does not get
+    # (SIGINT ignored): without it interrupt_main() does nothing
     p = planned[0]
-    result = fly_case(p, backend, tmp_path, interrupt=(1, 0.3))
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        result = fly_case(p, backend, tmp_path, interrupt=(1, 0.3))
+    finally:
+        signal.signal(signal.SIGINT, previous)
     report, tracks = result["report"], result["tracks"]
     assert any(e["event"] == "interrupted: home" for e in report["events"])
     assert report["losses"] == []
