@@ -53,8 +53,11 @@ class PlanningContext:
 
     @property
     def travel_params(self) -> TravelParams:
-        s = self.scenario
-        return TravelParams(s.speed_mps, s.climb_mps, s.descent_mps)
+        return travel_params(self.scenario)
+
+
+def travel_params(s: Scenario) -> TravelParams:
+    return TravelParams(s.speed_mps, s.climb_mps, s.descent_mps, s.track_tolerance_m)
 
 
 @contextmanager
@@ -89,8 +92,7 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
                                    progress=_fraction(progress, "exposure"))
     launch_xy = _launch_xy(terrain, s)
     with _stage("travel graph", timing, progress):
-        graph = build_travel_graph(surface, TravelParams(s.speed_mps, s.climb_mps,
-                                                         s.descent_mps))
+        graph = build_travel_graph(surface, travel_params(s))
     with _stage("viewpoints", timing, progress):
         regions = fleet_region(surface, launch_xy)
         candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,

@@ -148,19 +148,25 @@ def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
 def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
     """A survivor's start: its own position when the hidden graph can take it from
     there, else the nearest graph node reachable by a straight hidden leg (the
-    time of that leg counted as ``climb_s``)."""
+    time of that leg counted as ``climb_s``).
+
+    A vehicle held where it strayed from its leg may have no first leg with the
+    whole track tolerance around it; that one short leg is then proven on its
+    own (the vehicle is there already)."""
     graph = ctx.graph
     xyz = np.asarray(survivor.xyz, float)
     launch = np.asarray(survivor.launch, float)
     node = _node_under(graph, xyz)
-    if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node])[0]:
-        return Start(xyz, launch, 0.0)
-    target = _nearest_reachable_node(graph, xyz)
-    if target is None:
-        raise InputError(f"vehicle {survivor.vehicle_id}",
-                         "its position is not joined to the hidden volume by a hidden leg")
-    d = target - xyz
-    return Start(target, launch, float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)))
+    for within_tolerance in (True, False):
+        if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node], within_tolerance)[0]:
+            return Start(xyz, launch, 0.0)
+        target = _nearest_reachable_node(graph, xyz, within_tolerance)
+        if target is not None:
+            d = target - xyz
+            return Start(target, launch,
+                         float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)))
+    raise InputError(f"vehicle {survivor.vehicle_id}",
+                     "its position is not joined to the hidden volume by a hidden leg")
 
 
 def _node_under(graph, xyz) -> int:
@@ -172,10 +178,11 @@ def _node_under(graph, xyz) -> int:
     return -1
 
 
-def _nearest_reachable_node(graph, xyz):
+def _nearest_reachable_node(graph, xyz, within_tolerance):
     d = np.linalg.norm(graph.node_xyz - xyz, axis=1)
     near = np.argsort(d)[:SNAP_CANDIDATES]
-    ok = graph.legs_ok(np.repeat(xyz[None], len(near), axis=0), graph.node_xyz[near])
+    ok = graph.legs_ok(np.repeat(xyz[None], len(near), axis=0), graph.node_xyz[near],
+                       within_tolerance)
     hits = near[ok]
     return graph.node_xyz[hits[0]].copy() if hits.size else None
 

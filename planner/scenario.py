@@ -42,6 +42,7 @@ class Scenario:
     speed_mps: float = 12.0
     climb_mps: float = 3.0
     descent_mps: float = 2.0
+    track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
     firmware: str = "ardupilot"
     # [method]
     method: str = "rt"
@@ -73,7 +74,8 @@ class Scenario:
         checks += [(_positive(getattr(self, n)), f"{n} must be a positive number")
                    for n in positive]
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
-                    for n in ("clearance_m", "hide_margin_m", "curvature_coeff")]
+                    for n in ("clearance_m", "hide_margin_m", "curvature_coeff",
+                              "track_tolerance_m")]
         for ok, problem in checks:
             if not ok:
                 raise InputError(source, problem)
@@ -97,7 +99,8 @@ SECTIONS = {
     "outposts": ("outposts",),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
-    "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "firmware"),
+    "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
+              "firmware"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "seed"),
 }
 _ALIASES = {("outposts", "file"): "outposts", ("method", "name"): "method",

@@ -3,6 +3,9 @@
 The UAV flies inside the hidden volume: at every point of its path it is at
 least ``clearance_m`` above the terrain, at most ``ceiling_agl_m`` above it,
 and hidden from every outpost (planner.exposure.segments_hidden, a proof).
+Every point within ``track_tolerance_m`` of a leg horizontally is hidden and
+``clearance_m`` above the terrain too (`raised_terrain`), so a vehicle that
+strays that far (cross-track error, overshoot at a corner) is still safe.
 A leg's time is the slower of its horizontal motion at ``speed_mps`` and its
 vertical motion at ``climb_mps`` up or ``descent_mps`` down, so times are
 directed.
@@ -12,8 +15,8 @@ the cell's ceiling ``E - hide_margin`` (the highest hidden altitude there);
 edges to the 8 or 16 neighbouring cells of the same region, kept when the
 straight 3-D leg between the two nodes passes the exact clearance test
 (planner.los.gap_range) and ``segments_hidden``; when it fails, the edge may
-still "dip": descend to the higher of the two floors, fly level (checked the
-same way), climb back.
+still "dip": descend to the higher of the two floors (on the raised terrain),
+fly level (checked the same way), climb back.
 Different regions are never joined, so their times are infinite.
 
 Paths found on the graph are smoothed by string pulling: a run of vertices
@@ -26,16 +29,18 @@ straight legs fly below the ceiling where they cut across dips of E.
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import maximum_filter
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from . import exposure
+from . import exposure, exposure_kernels
 from . import travel_kernels as K
 from .errors import InputError
 
 #: MISSION_ITEM_INT carries lat/lon in 1e-7 degree (<= 1.1 cm): every planned leg is
-#: proven hidden with this much room around it, so the rounded leg is hidden too
+#: proven hidden with this much room around it on top of the track tolerance, so the
+#: rounded leg is hidden too
 ROUNDING_SLACK_M = 0.05
 
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
@@ -48,11 +53,22 @@ class TravelParams:
     speed_mps: float = 12.0
     climb_mps: float = 3.0
     descent_mps: float = 2.0
+    #: how far (horizontally) a vehicle may stray from a planned leg and stay hidden and
+    #: clear: cross-track error and corner overshoot (the simulator's copter: up to 4 m)
+    track_tolerance_m: float = 5.0
 
     def __post_init__(self):
         for name in ("speed_mps", "climb_mps", "descent_mps"):
             if not getattr(self, name) > 0:
                 raise InputError(name, f"must be positive, got {getattr(self, name)}")
+        if not self.track_tolerance_m >= 0:
+            raise InputError("track_tolerance_m", f"must not be negative, got "
+                                                  f"{self.track_tolerance_m}")
+
+    @property
+    def slack_m(self) -> float:
+        """Room around every leg that must be hidden too (segments_hidden's slack_m)."""
+        return self.track_tolerance_m + ROUNDING_SLACK_M
 
 
 def leg_time(horizontal_m, dz_m, params=TravelParams()):
@@ -82,6 +98,7 @@ class TravelGraph:
         self.params = params
         terrain = surface.terrain
         self._h = np.ascontiguousarray(terrain.height, np.float64)
+        self._h_clear = raised_terrain(self._h, terrain.cell_size, params.track_tolerance_m)
         rows, cols = np.nonzero(surface.regions > 0)
         self.node_rows = rows.astype(np.int64)
         self.node_cols = cols.astype(np.int64)
@@ -111,8 +128,11 @@ class TravelGraph:
         return int(self.csr.nnz)
 
     # --- legs -----------------------------------------------------------------------
-    def legs_ok(self, a, b) -> np.ndarray:
-        """Which straight legs a[k] -> b[k] (projected x, y, alt) are flyable hidden."""
+    def legs_ok(self, a, b, within_tolerance=True) -> np.ndarray:
+        """Which straight legs a[k] -> b[k] (projected x, y, alt) are flyable hidden:
+        at least clearance_m and at most ceiling_agl_m above the terrain, and hidden.
+        ``within_tolerance``: every point within track_tolerance_m of the leg too
+        (hidden, and clearance_m above the terrain); else the leg itself, rounded."""
         a = np.atleast_2d(np.asarray(a, float))
         b = np.atleast_2d(np.asarray(b, float))
         terrain = self.surface.terrain
@@ -120,10 +140,14 @@ class TravelGraph:
         ra, ca = terrain.rowcol(a[:, 0], a[:, 1])
         rb, cb = terrain.rowcol(b[:, 0], b[:, 1])
         inside = terrain.contains_xy(a[:, 0], a[:, 1]) & terrain.contains_xy(b[:, 0], b[:, 1])
-        lo, hi = K.legs_gaps(self._h, ca, ra, a[:, 2].copy(), cb, rb, b[:, 2].copy())
+        h_clear, slack_m = ((self._h_clear, self.params.slack_m) if within_tolerance
+                            else (self._h, ROUNDING_SLACK_M))
+        za, zb = a[:, 2].copy(), b[:, 2].copy()
+        lo = K.legs_gaps(h_clear, ca, ra, za, cb, rb, zb)[0]
+        hi = K.legs_gaps(self._h, ca, ra, za, cb, rb, zb)[1]
         ok = inside & (lo >= p.clearance_m - 1e-6) & (hi <= p.ceiling_agl_m + 1e-6)
         idx = np.flatnonzero(ok)
-        ok[idx] = _segments_hidden(self.surface, a[idx], b[idx])
+        ok[idx] = _segments_hidden(self.surface, a[idx], b[idx], slack_m)
         return ok
 
     def _edges(self, half_offsets):
@@ -138,12 +162,12 @@ class TravelGraph:
         p = self.surface.params
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
         z = np.ascontiguousarray(self.node_xyz[:, 2])
-        ok = K.grid_legs_within(self._h, self.node_rows, self.node_cols, z, src, dst,
-                                p.clearance_m, p.ceiling_agl_m)
+        ok = K.grid_legs_within(self._h_clear, self._h, self.node_rows, self.node_cols, z,
+                                src, dst, p.clearance_m, p.ceiling_agl_m)
         idx = np.flatnonzero(ok)
         ok[idx] = _segments_hidden(self.surface, self.node_xyz[src[idx]],
-                                   self.node_xyz[dst[idx]])
-        floor = self._h[self.node_rows, self.node_cols] + p.clearance_m
+                                   self.node_xyz[dst[idx]], self.params.slack_m)
+        floor = self._h_clear[self.node_rows, self.node_cols] + p.clearance_m
         low = np.maximum(floor[src], floor[dst])
         dip = np.full(src.shape[0], np.nan)
         idx = np.flatnonzero(~ok & (low < np.minimum(z[src], z[dst])))
@@ -351,6 +375,23 @@ def build_travel_graph(surface, params=TravelParams(), neighbours=16) -> TravelG
     return TravelGraph(surface, params, neighbours)
 
 
+def raised_terrain(h, cell, tolerance_m) -> np.ndarray:
+    """Heights whose bilinear surface is, at every point, at least the terrain's
+    highest point within ``tolerance_m`` of it horizontally: h + tolerance_m times
+    the steepest slope of the patches a point that far away can lie in (each
+    vertex takes the largest patch slope bound over a window wide enough for any
+    point of its four patches). Patches touching a void take the steepest slope
+    found anywhere (voids themselves stay voids)."""
+    if tolerance_m <= 0:
+        return h
+    slope = exposure_kernels.patch_gradient_bound(h, cell)
+    finite = np.isfinite(slope)
+    slope[~finite] = slope[finite].max(initial=0.0)
+    reach = int(np.ceil(tolerance_m / cell))
+    spread = maximum_filter(np.pad(slope, 1), size=2 * reach + 3, mode="constant")
+    return h + tolerance_m * spread[:h.shape[0], :h.shape[1]]
+
+
 def _edge_time(horiz, z_from, z_low, z_to, params):
     """Time of a vertical move z_from -> z_low, a level leg, and z_low -> z_to
     (z_low = min(z_from, z_to) makes it one straight leg's time)."""
@@ -361,12 +402,12 @@ def _edge_time(horiz, z_from, z_low, z_to, params):
     return np.where(direct, straight, dip)
 
 
-def _segments_hidden(surface, a, b) -> np.ndarray:
-    """exposure.segments_hidden (proven hidden from every outpost), for many legs,
-    with `ROUNDING_SLACK_M`: a planned leg stays hidden once MAVLink rounds it."""
+def _segments_hidden(surface, a, b, slack_m) -> np.ndarray:
+    """exposure.segments_hidden (proven hidden from every outpost, with every point
+    within ``slack_m`` of the leg), for many legs."""
     if len(a) == 0:
         return np.zeros(0, bool)
-    return np.asarray(exposure.segments_hidden(surface, a, b, ROUNDING_SLACK_M), bool)
+    return np.asarray(exposure.segments_hidden(surface, a, b, slack_m), bool)
 
 
 def _dedupe(poly):

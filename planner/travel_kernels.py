@@ -197,16 +197,19 @@ def grid_neighbours(node_of_cell, node_region, half_offsets):
 
 
 @njit(cache=True, parallel=True)
-def grid_legs_within(h, node_rows, node_cols, node_z, src, dst, clearance, agl_cap):
-    """Legs between nodes (cell centres) that keep clearance and stay under the AGL cap."""
+def grid_legs_within(h_clear, h, node_rows, node_cols, node_z, src, dst, clearance, agl_cap):
+    """Legs between nodes (cell centres) that keep clearance above ``h_clear`` and stay
+    under the AGL cap above ``h``."""
     n = src.shape[0]
     out = np.empty(n, np.bool_)
     for k in prange(n):
         a = src[k]
         b = dst[k]
-        lo, hi = gap_range(h, float(node_cols[a]), float(node_rows[a]), node_z[a],
-                           float(node_cols[b]), float(node_rows[b]), node_z[b])
-        out[k] = lo >= clearance - 1e-6 and hi <= agl_cap + 1e-6
+        ua, va, ub, vb = float(node_cols[a]), float(node_rows[a]), float(node_cols[b]), \
+            float(node_rows[b])
+        lo = gap_range(h_clear, ua, va, node_z[a], ub, vb, node_z[b])[0]
+        out[k] = lo >= clearance - 1e-6 and \
+            gap_range(h, ua, va, node_z[a], ub, vb, node_z[b])[1] <= agl_cap + 1e-6
     return out
 
 

@@ -91,6 +91,12 @@ def test_k_not_below_the_number_of_uavs(tmp_path, capsys):
     _assert_clean_failure(status, err, out, "k = 3", "uavs = 3")
 
 
+def test_negative_track_tolerance(tmp_path, capsys):
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--sample", "--track-tolerance", "-1", "-o", str(out))
+    _assert_clean_failure(status, err, out, "track_tolerance_m must not be negative")
+
+
 def test_refused_plan_leaves_an_existing_directory_as_it_was(tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()

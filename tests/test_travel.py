@@ -10,7 +10,7 @@ from planner.exposure import (ExposureParams, compute_exposure, segment_clear,
                               segment_hidden)
 from planner.outposts import Outpost
 from planner.terrain import Terrain, bilinear
-from planner.travel import TravelGraph, TravelParams, leg_time, polyline_time
+from planner.travel import TravelGraph, TravelParams, leg_time, polyline_time, raised_terrain
 from planner.los import gap_range
 from planner.viewpoints import candidate_viewpoints
 
@@ -137,3 +137,23 @@ def test_gap_range_matches_dense_sampling(seed, a, b, za, zb):
     # sampling can only miss extremes: it bounds the exact range from inside
     assert lo <= gap.min() + 1e-9 and hi >= gap.max() - 1e-9
     assert gap.min() - lo < 0.01 and hi - gap.max() < 0.01
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10_000), rough=st.floats(1, 40), tol=st.floats(0.5, 70),
+       cell=st.sampled_from([10.0, 30.0, 90.0]))
+def test_raised_terrain_bounds_the_ground_within_the_tolerance(seed, rough, tol, cell):
+    """Brute force: at random points p, the raised surface is at least the terrain
+    at many points within ``tol`` of p (on rings and inside the disc)."""
+    rng = np.random.default_rng(seed)
+    h = 100 + rng.normal(0, rough, (9, 11))
+    up = raised_terrain(h, cell, tol)
+    p = rng.uniform([0, 0], [8, 10], (200, 2))               # (row, col)
+    ang = rng.uniform(0, 2 * np.pi, (200, 64))
+    rad = tol / cell * np.sqrt(rng.uniform(0, 1, (200, 64)))
+    rad[:, :16] = tol / cell                                 # on the edge of the disc too
+    q = p[:, None, :] + rad[..., None] * np.stack([np.sin(ang), np.cos(ang)], -1)
+    inside = (q[..., 0] >= 0) & (q[..., 0] <= 8) & (q[..., 1] >= 0) & (q[..., 1] <= 10)
+    ground = np.where(inside, bilinear(h, q[..., 0], q[..., 1]), -np.inf)
+    assert (bilinear(up, p[:, 0], p[:, 1]) >= ground.max(axis=1) - 1e-9).all()
+    assert (up >= h).all() and (raised_terrain(h, cell, 0.0) == h).all()

@@ -27,6 +27,8 @@ HELP = {
     "speed_mps": "horizontal cruise speed, m/s",
     "climb_mps": "climb rate, m/s",
     "descent_mps": "descent rate, m/s",
+    "track_tolerance_m": "how far a vehicle may stray from its planned legs, metres: "
+                         "every point that close to a leg is proven hidden too",
     "firmware": "mission flavour of the exported files",
     "method": "coverage method: rt (the paper), rt+ls (rt + our local search), "
               "rd, b, c (baselines)",
@@ -76,7 +78,7 @@ def add_scenario_arguments(parser, with_scenario_file=True) -> None:
     groups = {
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
-        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps"),
+        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "seed"),
     }
     for title, names in groups.items():
