@@ -22,8 +22,10 @@ Different regions are never joined, so their times are infinite.
 Paths found on the graph are smoothed by string pulling: a run of vertices
 is replaced by one straight 3-D leg whenever that leg passes the same checks.
 Leg time is subadditive (a straight leg never has more horizontal or vertical
-motion than the run it replaces), so smoothing never makes a path slower; the
-straight legs fly below the ceiling where they cut across dips of E.
+motion than the run it replaces), so smoothing never makes a path slower. Only
+the vertices sit at or under the ceiling ``E - hide_margin``: a straight leg
+may pass above the ceiling of a cell it crosses where E dips (it is proven
+hidden, not held hide_margin below E).
 """
 
 from dataclasses import dataclass
