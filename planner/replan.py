@@ -150,17 +150,17 @@ def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
     there, else the nearest graph node reachable by a straight hidden leg (the
     time of that leg counted as ``climb_s``).
 
-    A vehicle held where it strayed from its leg may have no first leg with the
-    whole track tolerance around it; that one short leg is then proven on its
-    own (the vehicle is there already)."""
+    A vehicle held where it strayed from its leg may have no first leg that
+    passes the planner's strict checks (track tolerance, ceiling); that one
+    short leg is then proven on its own (the vehicle is there already)."""
     graph = ctx.graph
     xyz = np.asarray(survivor.xyz, float)
     launch = np.asarray(survivor.launch, float)
     node = _node_under(graph, xyz)
-    for within_tolerance in (True, False):
-        if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node], within_tolerance)[0]:
+    for strict in (True, False):
+        if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node], strict)[0]:
             return Start(xyz, launch, 0.0)
-        target = _nearest_reachable_node(graph, xyz, within_tolerance)
+        target = _nearest_reachable_node(graph, xyz, strict)
         if target is not None:
             d = target - xyz
             return Start(target, launch,
@@ -178,11 +178,11 @@ def _node_under(graph, xyz) -> int:
     return -1
 
 
-def _nearest_reachable_node(graph, xyz, within_tolerance):
+def _nearest_reachable_node(graph, xyz, strict):
     d = np.linalg.norm(graph.node_xyz - xyz, axis=1)
     near = np.argsort(d)[:SNAP_CANDIDATES]
     ok = graph.legs_ok(np.repeat(xyz[None], len(near), axis=0), graph.node_xyz[near],
-                       within_tolerance)
+                       strict)
     hits = near[ok]
     return graph.node_xyz[hits[0]].copy() if hits.size else None
 

@@ -13,8 +13,8 @@ directed.
 Graph: one node per cell of a flyable region (`ExposureSurface.regions`), at
 the cell's ceiling ``E - hide_margin`` (the highest hidden altitude there);
 edges to the 8 or 16 neighbouring cells of the same region, kept when the
-straight 3-D leg between the two nodes passes the exact clearance test
-(planner.los.gap_range) and ``segments_hidden``; when it fails, the edge may
+straight 3-D leg between the two nodes passes the exact clearance and ceiling
+tests (planner.los.gap_range) and ``segments_hidden``; when it fails, the edge may
 still "dip": descend to the higher of the two floors (on the raised terrain),
 fly level (checked the same way), climb back.
 Different regions are never joined, so their times are infinite.
@@ -22,10 +22,10 @@ Different regions are never joined, so their times are infinite.
 Paths found on the graph are smoothed by string pulling: a run of vertices
 is replaced by one straight 3-D leg whenever that leg passes the same checks.
 Leg time is subadditive (a straight leg never has more horizontal or vertical
-motion than the run it replaces), so smoothing never makes a path slower. Only
-the vertices sit at or under the ceiling ``E - hide_margin``: a straight leg
-may pass above the ceiling of a cell it crosses where E dips (it is proven
-hidden, not held hide_margin below E).
+motion than the run it replaces), so smoothing never makes a path slower. Every
+leg stays under the ceiling ``E - hide_margin`` all along (its bilinear surface,
+checked exactly like the clearance), not only at its vertices: hidden alone, a
+straight leg could pass up to the sight lines where E dips under it.
 """
 
 from dataclasses import dataclass
@@ -101,6 +101,7 @@ class TravelGraph:
         terrain = surface.terrain
         self._h = np.ascontiguousarray(terrain.height, np.float64)
         self._h_clear = raised_terrain(self._h, terrain.cell_size, params.track_tolerance_m)
+        self._ceiling = _ceiling_everywhere(surface, self._h)
         rows, cols = np.nonzero(surface.regions > 0)
         self.node_rows = rows.astype(np.int64)
         self.node_cols = cols.astype(np.int64)
@@ -130,11 +131,12 @@ class TravelGraph:
         return int(self.csr.nnz)
 
     # --- legs -----------------------------------------------------------------------
-    def legs_ok(self, a, b, within_tolerance=True) -> np.ndarray:
+    def legs_ok(self, a, b, strict=True) -> np.ndarray:
         """Which straight legs a[k] -> b[k] (projected x, y, alt) are flyable hidden:
         at least clearance_m and at most ceiling_agl_m above the terrain, and hidden.
-        ``within_tolerance``: every point within track_tolerance_m of the leg too
-        (hidden, and clearance_m above the terrain); else the leg itself, rounded."""
+        ``strict`` (every planned leg): also under the ceiling E - hide_margin all
+        along, and every point within track_tolerance_m of the leg hidden and
+        clearance_m above the terrain; else the leg alone, rounded."""
         a = np.atleast_2d(np.asarray(a, float))
         b = np.atleast_2d(np.asarray(b, float))
         terrain = self.surface.terrain
@@ -142,12 +144,14 @@ class TravelGraph:
         ra, ca = terrain.rowcol(a[:, 0], a[:, 1])
         rb, cb = terrain.rowcol(b[:, 0], b[:, 1])
         inside = terrain.contains_xy(a[:, 0], a[:, 1]) & terrain.contains_xy(b[:, 0], b[:, 1])
-        h_clear, slack_m = ((self._h_clear, self.params.slack_m) if within_tolerance
+        h_clear, slack_m = ((self._h_clear, self.params.slack_m) if strict
                             else (self._h, ROUNDING_SLACK_M))
         za, zb = a[:, 2].copy(), b[:, 2].copy()
         lo = K.legs_gaps(h_clear, ca, ra, za, cb, rb, zb)[0]
         hi = K.legs_gaps(self._h, ca, ra, za, cb, rb, zb)[1]
         ok = inside & (lo >= p.clearance_m - 1e-6) & (hi <= p.ceiling_agl_m + 1e-6)
+        if strict:
+            ok &= K.legs_gaps(self._ceiling, ca, ra, za, cb, rb, zb)[1] <= 1e-6
         idx = np.flatnonzero(ok)
         ok[idx] = _segments_hidden(self.surface, a[idx], b[idx], slack_m)
         return ok
@@ -164,8 +168,8 @@ class TravelGraph:
         p = self.surface.params
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
         z = np.ascontiguousarray(self.node_xyz[:, 2])
-        ok = K.grid_legs_within(self._h_clear, self._h, self.node_rows, self.node_cols, z,
-                                src, dst, p.clearance_m, p.ceiling_agl_m)
+        ok = K.grid_legs_within(self._h_clear, self._h, self._ceiling, self.node_rows,
+                                self.node_cols, z, src, dst, p.clearance_m, p.ceiling_agl_m)
         idx = np.flatnonzero(ok)
         ok[idx] = _segments_hidden(self.surface, self.node_xyz[src[idx]],
                                    self.node_xyz[dst[idx]], self.params.slack_m)
@@ -375,6 +379,13 @@ class TravelGraph:
 
 def build_travel_graph(surface, params=TravelParams(), neighbours=16) -> TravelGraph:
     return TravelGraph(surface, params, neighbours)
+
+
+def _ceiling_everywhere(surface, h) -> np.ndarray:
+    """E - hide_margin on every cell, flyable or not (NaN on voids only): a leg must
+    stay under its bilinear surface, not only at its vertices."""
+    cap = h + surface.params.ceiling_agl_m
+    return np.minimum(surface.lowest_seen, cap) - surface.params.hide_margin_m
 
 
 def raised_terrain(h, cell, tolerance_m) -> np.ndarray:

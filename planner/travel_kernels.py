@@ -197,9 +197,10 @@ def grid_neighbours(node_of_cell, node_region, half_offsets):
 
 
 @njit(cache=True, parallel=True)
-def grid_legs_within(h_clear, h, node_rows, node_cols, node_z, src, dst, clearance, agl_cap):
-    """Legs between nodes (cell centres) that keep clearance above ``h_clear`` and stay
-    under the AGL cap above ``h``."""
+def grid_legs_within(h_clear, h, ceiling, node_rows, node_cols, node_z, src, dst, clearance,
+                     agl_cap):
+    """Legs between nodes (cell centres) that keep clearance above ``h_clear``, stay
+    under the AGL cap above ``h`` and under the ``ceiling`` surface."""
     n = src.shape[0]
     out = np.empty(n, np.bool_)
     for k in prange(n):
@@ -209,7 +210,8 @@ def grid_legs_within(h_clear, h, node_rows, node_cols, node_z, src, dst, clearan
             float(node_rows[b])
         lo = gap_range(h_clear, ua, va, node_z[a], ub, vb, node_z[b])[0]
         out[k] = lo >= clearance - 1e-6 and \
-            gap_range(h, ua, va, node_z[a], ub, vb, node_z[b])[1] <= agl_cap + 1e-6
+            gap_range(h, ua, va, node_z[a], ub, vb, node_z[b])[1] <= agl_cap + 1e-6 and \
+            gap_range(ceiling, ua, va, node_z[a], ub, vb, node_z[b])[1] <= 1e-6
     return out
 
 

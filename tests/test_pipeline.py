@@ -9,6 +9,7 @@ from planner.outposts import Outpost
 from planner.pipeline import plan_mission
 from planner.scenario import Scenario
 from planner.synthetic import synthetic_terrain
+from planner.terrain import bilinear
 from planner.travel import TravelParams, polyline_time
 
 N = 96
@@ -54,6 +55,22 @@ def test_routes_are_hidden_and_clear(planned):
         for a, b in zip(poly[:-1], poly[1:]):
             assert segment_hidden(ctx.surface, a, b)
             assert segment_clear(ctx.surface, a, b)
+
+
+def test_legs_stay_under_the_ceiling_all_along(planned):
+    """z <= E - hide_margin at every point, E between cell centres being the bilinear
+    surface of its cell values (dense sampling; E recomputed from lowest_seen)."""
+    ctx, outcome = planned
+    s, h = ctx.surface, ctx.terrain.height
+    ceiling = np.minimum(s.lowest_seen, h + s.params.ceiling_agl_m) - s.params.hide_margin_m
+    t = np.linspace(0, 1, 401)[:, None]
+    worst = -np.inf
+    for poly in outcome.polylines:
+        for a, b in zip(poly[:-1], poly[1:]):
+            p = a + t * (b - a)
+            row, col = ctx.terrain.rowcol(p[:, 0], p[:, 1])
+            worst = max(worst, np.max(p[:, 2] - bilinear(ceiling, row, col)))
+    assert worst <= 1e-6
 
 
 def test_legs_stay_hidden_within_the_track_tolerance():
