@@ -163,10 +163,14 @@ class TravelGraph:
         that leg fails, a "dip": descend vertically to ``dip`` = the higher
         of the two floors, fly level, climb to the other node. The vertical
         parts need no check (lower is never less hidden, and they stay above
-        the floor); the level part is checked like any leg.
+        the floor); the level part is checked like any leg. A node must pass the
+        checks itself (its track-tolerance disc): a dip's vertical part does not
+        prove it.
         """
         p = self.surface.params
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
+        fine = self.legs_ok(self.node_xyz, self.node_xyz)
+        src, dst = src[fine[src] & fine[dst]], dst[fine[src] & fine[dst]]
         z = np.ascontiguousarray(self.node_xyz[:, 2])
         ok = K.grid_legs_within(self._h_clear, self._h, self._ceiling, self.node_rows,
                                 self.node_cols, z, src, dst, p.clearance_m, p.ceiling_agl_m)

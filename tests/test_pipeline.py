@@ -91,6 +91,10 @@ def test_legs_stay_hidden_within_the_track_tolerance():
     assert len(legs) > 50
     assert segments_hidden(ctx.surface, a, b).all()
     assert segments_clear(ctx.surface, a, b).all()
+    # so is every node with an edge (a dip's unchecked vertical part starts there)
+    graph = ctx.graph
+    linked = np.diff(graph.csr.indptr) > 0
+    assert graph.legs_ok(graph.node_xyz[linked], graph.node_xyz[linked]).all()
 
 
 def test_times_follow_the_travel_model(planned):
