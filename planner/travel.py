@@ -288,7 +288,24 @@ class TravelGraph:
         local = K.bounded_times(self._indptr, self._nbr, self.csr.data, nodes, slot, n, limit,
                                 _n_threads())
         indptr, nbr, w = K.dense_to_csr(local, K.undominated_edges(local))
-        return dijkstra(csr_matrix((w, nbr, indptr), shape=(n, n)), directed=True)
+        times = dijkstra(csr_matrix((w, nbr, indptr), shape=(n, n)), directed=True)
+        return self._fill_missed(times, nodes)
+
+    def _fill_missed(self, times, nodes):
+        """Exact times where the overlay found no path but the graph has one: a point
+        whose only ways in (or out) are longer than the radius is joined to no other.
+        Whole columns (reverse Dijkstra) first, then whole rows."""
+        _, labels = connected_components(self.csr, directed=True, connection="strong")
+        part = labels[nodes]
+        missed = ~np.isfinite(times) & (part[:, None] == part[None, :])
+        cols = np.flatnonzero(missed.sum(axis=0) > 1)
+        if cols.size:
+            times[:, cols] = self._rows(self._reverse(), nodes[cols], nodes).T
+            missed[:, cols] = False
+        rows = np.flatnonzero(missed.any(axis=1))
+        if rows.size:
+            times[rows] = self._rows(self.csr, nodes[rows], nodes)
+        return times
 
     # --- paths ------------------------------------------------------------------------
     def node_path(self, a_node, b_node) -> np.ndarray:

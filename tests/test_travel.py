@@ -113,6 +113,9 @@ def test_overlay_matrix_is_exact_nearby_and_an_upper_bound_beyond():
     # the overlay's radius: twice the median nearest-neighbour spacing (150 m here)
     near = f & (exact <= 2.0 * 150.0 / graph.params.speed_mps)
     assert np.allclose(overlay[near], exact[near])
+    # a radius that joins no two points: every pair the graph joins is filled exactly
+    lonely = graph.time_matrix(vp.xyz, method="overlay", radius_factor=0.01)
+    assert np.allclose(lonely[f], exact[f]) and not np.isfinite(lonely[~f]).any()
     # route polylines: viewpoints stay vertices, every leg hidden
     order = np.flatnonzero(vp.region == vp.region[0])[:4]
     poly, stops = graph.route_polyline(vp.xyz[order])
