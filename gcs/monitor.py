@@ -119,9 +119,10 @@ class Monitor:
         return entry
 
     def set_state(self, sysid: int, state: str) -> None:
+        """Move to ``state``; LANDED and LOST are final (a landed vehicle is not re-launched)."""
         with self._lock:
             v = self.vehicles[sysid]
-            if v.state != state and v.state != LOST:
+            if v.state != state and not v.finished:
                 v.state = state
                 self.event(sysid, state)
 

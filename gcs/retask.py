@@ -151,9 +151,12 @@ class Retasker:
         self.home = False
 
     def flying(self) -> list:
+        """Vehicles to re-task: not lost, not landed, and not disarmed after flying
+        (touched down at the end of a mission: it stays down)."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
-                if v.state not in (LOST, LANDED)]
+                if v.state not in (LOST, LANDED)
+                and not (v.airborne and not m.links[s].state.armed)]
 
     def retask(self, home: bool = False) -> Retask:
         """Re-task every survivor still in the air; returns the record.
@@ -175,7 +178,8 @@ class Retasker:
                 m.event(None, "re-tasked", survivors=sysids, attempt=attempt)
                 return record
             except _LostDuring as exc:
-                m.event(None, "loss during re-tasking: starting again", lost=exc.sysids)
+                m.event(None, f"{exc.what} during re-tasking: starting again",
+                        **{exc.what: exc.sysids})
         raise RetaskError(f"re-tasking failed {MAX_ATTEMPTS} times in a row")
 
     # -- one attempt --------------------------------------------------------------------
@@ -183,6 +187,8 @@ class Retasker:
         m, ctx = self.monitor, self.ctx
         self._step(sysids, self._hold)
         self._settle(sysids)
+        if self.flying() != sysids:     # one touched down before it was held
+            raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
         t0 = time.perf_counter()
         survivors, positions = [], {}
         for s in sysids:
@@ -263,6 +269,8 @@ class Retasker:
 
 
 class _LostDuring(Exception):
-    def __init__(self, sysids):
-        self.sysids = sysids
-        super().__init__(f"lost during re-tasking: {sysids}")
+    """Survivors ``what`` ("lost" or "landed") while re-tasking: start again."""
+
+    def __init__(self, sysids, what="lost"):
+        self.sysids, self.what = sysids, what
+        super().__init__(f"{what} during re-tasking: {sysids}")

@@ -136,7 +136,7 @@ def launch_starts(ctx: PlanningContext) -> Optional[list]:
     starts = []
     for x, y in xy:
         ground = np.array([x, y, float(ctx.terrain.ground(x, y)[0])])
-        top = _above(ctx, ground)
+        top = above_launch(ctx, ground)
         climb = float(leg_time(0.0, top[2] - ground[2], ctx.travel_params))
         starts.append(Start(top, ground, climb))
     return starts
@@ -163,7 +163,7 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
         climb = np.array([s.climb_s for s in starts])[:, None]
         out = ctx.graph.times_between(np.stack([s.xyz for s in starts]), vp) + climb
         if all(s.launch is not None for s in starts):
-            tops = np.stack([_above(ctx, s.launch) for s in starts])
+            tops = np.stack([above_launch(ctx, s.launch) for s in starts])
             ground = np.array([s.launch[2] for s in starts])
             land = leg_time(0.0, ground - tops[:, 2], ctx.travel_params)[:, None]
             back = ctx.graph.times_between(vp, tops).T + land
@@ -171,7 +171,7 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
                                     back, n_uavs, k, visibility, required, seen)
 
 
-def _above(ctx, ground_xyz) -> np.ndarray:
+def above_launch(ctx, ground_xyz) -> np.ndarray:
     """The takeoff (and landing approach) point above a launch point, at the hidden ceiling."""
     row, col = ctx.terrain.rowcol(ground_xyz[0], ground_xyz[1])
     top = float(ctx.surface.ceiling[int(np.rint(row)), int(np.rint(col))])
@@ -211,7 +211,7 @@ def _routes(ctx, routes, starts):
         if start is not None:
             points = [start.xyz] + points
             if start.launch is not None:
-                points.append(_above(ctx, start.launch))
+                points.append(above_launch(ctx, start.launch))
         if not points:
             polylines.append(np.zeros((0, 3)))
             arrivals.append((np.zeros(0), np.zeros(0, np.int64)))

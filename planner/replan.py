@@ -21,7 +21,8 @@ from scipy.spatial import cKDTree
 
 from .errors import InputError
 from .geotiff import read_terrain
-from .pipeline import PlanningContext, Start, allocate, plan_outposts, prepare
+from .exposure import segments_hidden
+from .pipeline import PlanningContext, Start, above_launch, allocate, plan_outposts, prepare
 from .plan import TERRAIN_FILE, Plan
 from .scenario import Scenario
 from .travel import leg_time
@@ -31,6 +32,8 @@ from .visibility import SensorParams, compute_visibility
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
 #: autopilots accept a waypoint within about 2 m
 SNAP_TO_VIEWPOINT_M = 3.0
+#: a held vehicle this close (m, horizontally) to its launch point is over it
+LAUNCH_COLUMN_M = 3.0
 #: nearest graph nodes tried when a survivor's position must be snapped
 SNAP_CANDIDATES = 32
 
@@ -148,18 +151,23 @@ def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
 def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
     """A survivor's start: its own position when the hidden graph can take it from
     there, else the nearest graph node reachable by a straight hidden leg (the
-    time of that leg counted as ``climb_s``).
+    time of that leg counted as ``climb_s``). A vehicle held over its launch
+    point on its final descent climbs back to the takeoff top instead.
 
     A vehicle held where it strayed from its leg may have no first leg that
     passes the planner's strict checks (track tolerance, ceiling); that one
-    short leg is then proven on its own (the vehicle is there already)."""
+    short leg is then proven on its own (the vehicle is there already) and the
+    route starts at that leg's node: routes start with a strict leg otherwise."""
     graph = ctx.graph
     xyz = np.asarray(survivor.xyz, float)
     launch = np.asarray(survivor.launch, float)
+    climb = _climb_at_launch(ctx, xyz, launch)
+    if climb is not None:
+        return climb
     node = _node_under(graph, xyz)
+    if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node])[0]:
+        return Start(xyz, launch, 0.0)
     for strict in (True, False):
-        if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node], strict)[0]:
-            return Start(xyz, launch, 0.0)
         target = _nearest_reachable_node(graph, xyz, strict)
         if target is not None:
             d = target - xyz
@@ -167,6 +175,18 @@ def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
                          float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)))
     raise InputError(f"vehicle {survivor.vehicle_id}",
                      "its position is not joined to the hidden volume by a hidden leg")
+
+
+def _climb_at_launch(ctx, xyz, launch):
+    """A vehicle held over its launch point below the takeoff top (on its final
+    descent): its start is that top, reached by climbing straight back up as at
+    takeoff (hidden because the top is; exempt from the clearance rule)."""
+    top = above_launch(ctx, launch)
+    if np.hypot(*(xyz[:2] - launch[:2])) > LAUNCH_COLUMN_M or xyz[2] >= top[2]:
+        return None
+    if not segments_hidden(ctx.surface, xyz[None], top[None])[0]:
+        return None
+    return Start(top, launch, float(leg_time(0.0, top[2] - xyz[2], ctx.travel_params)))
 
 
 def _node_under(graph, xyz) -> int:

@@ -11,7 +11,7 @@ import pytest
 
 from gcs.cli import main
 from gcs.fly import assign_vehicles
-from gcs.monitor import LANDED, LOST, Monitor
+from gcs.monitor import HOLDING, LANDED, LOST, Monitor
 from gcs.sim import free_base_port, read_track, track_path
 from planner.errors import InputError
 from planner.geotiff import write_grid
@@ -107,6 +107,9 @@ def test_loss_after_silence_not_before(plan_dir):
     # disarmed near the ground after flying: landed, not lost
     links[0].state.relative_alt = 0.5
     links[0].beat(armed=False)
+    assert m.vehicles[1].state == LANDED
+    # and stays landed: a re-task that held it as it touched down does not revive it
+    m.set_state(1, HOLDING)
     assert m.vehicles[1].state == LANDED
 
 

@@ -138,6 +138,39 @@ def test_position_off_the_graph_is_snapped(planned):
     assert ctx.graph.legs_ok(low, start.xyz)[0]
 
 
+def test_survivor_above_the_ceiling_starts_from_a_node(planned):
+    """A vehicle that strayed up into the hide margin has no leg the strict checks
+    accept; its one leg down is proven alone, and the route starts at that node."""
+    ctx, outcome = planned
+    survivor, snaps = _midway(ctx, outcome, 0)
+    high = survivor.xyz.copy()
+    row, col = np.rint(ctx.terrain.rowcol(high[0], high[1])).astype(int)
+    high[2] = ctx.surface.ceiling[row, col] + 0.5 * ctx.scenario.hide_margin_m
+    assert not ctx.graph.legs_ok(high, high)[0]
+    stray = Survivor(survivor.vehicle_id, high, survivor.launch)
+    new = replan(ctx, [stray], seen_matrix(ctx, [snaps]))
+    poly = new.polylines[0]
+    assert ctx.graph.legs_ok(high, poly[0], strict=False)[0]
+    assert ctx.graph.legs_ok(poly[:-1], poly[1:]).all()
+
+
+def test_survivor_on_its_final_descent_climbs_back(planned):
+    """Held over its launch point below the takeoff top: no leg to the graph clears
+    the terrain; it climbs straight back up (as at takeoff) and the route starts there."""
+    ctx, outcome = planned
+    survivor, snaps = _midway(ctx, outcome, 0)
+    low = survivor.launch + [1.0, -1.0, 12.0]
+    new = replan(ctx, [Survivor(survivor.vehicle_id, low, survivor.launch)],
+                 seen_matrix(ctx, [snaps]))
+    poly = new.polylines[0]
+    assert np.allclose(poly[0, :2], survivor.launch[:2]) and poly[0, 2] > low[2] + 20.0
+    assert segments_hidden(ctx.surface, low[None], poly[:1])[0]
+    assert ctx.graph.legs_ok(poly[:-1], poly[1:]).all()
+    climb = (poly[0, 2] - low[2]) / ctx.travel_params.climb_mps
+    first = new.plan.vehicles[0].waypoints[0]
+    assert first.t_s == pytest.approx(climb, rel=0.05)
+
+
 def test_nothing_required_goes_straight_home(planned):
     ctx, outcome = planned
     survivor, _ = _midway(ctx, outcome, 0)
