@@ -217,23 +217,24 @@ def _until(link, predicate, timeout_s) -> bool:
 
 # -- the start sequence ----------------------------------------------------------------
 def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
-                  climb_timeout_s: float = 120.0) -> None:
+                  climb_timeout_s: float = 120.0, retries: int = RETRIES) -> None:
     """Take off and start the uploaded mission, as the vehicle's firmware expects.
 
     takeoff_alt_amsl: where ArduPilot climbs in GUIDED before AUTO (m AMSL; the
     mission's own takeoff item then completes at once). PX4 flies its mission's
-    takeoff item itself. Returns once the vehicle is airborne in its mission mode."""
+    takeoff item itself. Returns once the vehicle is airborne in its mission mode.
+    retries: resends of each command (more on a lossy link)."""
     wait_ready(link, ready_timeout_s)
     if link.flavour == ARDUPILOT:
-        _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s)
+        _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s, retries)
     else:
-        _start_px4(link, climb_timeout_s)
+        _start_px4(link, climb_timeout_s, retries)
 
 
-def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s) -> None:
-    set_current(link, 1)                    # item 0 is home
-    set_mode(link, "GUIDED")
-    arm(link)
+def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s, retries) -> None:
+    set_current(link, 1, retries=retries)   # item 0 is home
+    set_mode(link, "GUIDED", retries=retries)
+    arm(link, retries=retries)
     armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
     home_alt = _home_alt(link)
     climb = takeoff_alt_amsl - home_alt
@@ -241,7 +242,8 @@ def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s) -> None:
         raise CommandError(link, f"takeoff altitude {takeoff_alt_amsl:.1f} m AMSL is not "
                                  f"above home ({home_alt:.1f} m AMSL)")
     try:
-        command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb)   # relative to home
+        command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,  # relative to home
+                     retries=retries)
     except CommandError as exc:
         # on a lossy link the first ACK may be lost; the retry is then refused
         # because the takeoff is already under way
@@ -250,19 +252,19 @@ def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s) -> None:
     target = climb - max(1.0, 0.05 * climb)
     _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) >= target,
                    climb_timeout_s, f"climbing to {climb:.1f} m above home")
-    set_mode(link, "AUTO")
-    command_long(link, M.MAV_CMD_MISSION_START, 0, 0)
+    set_mode(link, "AUTO", retries=retries)
+    command_long(link, M.MAV_CMD_MISSION_START, 0, 0, retries=retries)
 
 
-def _start_px4(link, climb_timeout_s) -> None:
-    set_current(link, 0)
+def _start_px4(link, climb_timeout_s, retries) -> None:
+    set_current(link, 0, retries=retries)
     try:
-        command_long(link, M.MAV_CMD_MISSION_START, 0, 0)
+        command_long(link, M.MAV_CMD_MISSION_START, 0, 0, retries=retries)
     except CommandError as exc:
         if exc.result is None:
             raise
-        set_mode(link, "AUTO.MISSION")
-    arm(link)
+        set_mode(link, "AUTO.MISSION", retries=retries)
+    arm(link, retries=retries)
     armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
     _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) > 1.0, climb_timeout_s,
                    "taking off")

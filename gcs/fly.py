@@ -47,7 +47,7 @@ class FlyOptions:
     connect_timeout_s: float = 30.0
     ready_timeout_s: float = 60.0
     protocol_timeout_s: float = 1.5  # mission protocol: wait per message before a retry
-    protocol_retries: int = 5  # mission protocol: resends per message before giving up
+    protocol_retries: int = 5  # mission protocol and commands: resends before giving up
     timeout_s: float | None = None  # give up monitoring after this many wall seconds
     tlog: bool = True
     live: bool = True  # rich status table on a terminal, event lines otherwise
@@ -180,7 +180,8 @@ class Flight:
             v = m.vehicles[sysid]
             m.set_state(sysid, STARTING)
             commands.start_mission(m.links[sysid], v.route.waypoints[0].alt_amsl,
-                                   ready_timeout_s=self.options.ready_timeout_s)
+                                   ready_timeout_s=self.options.ready_timeout_s,
+                                   retries=self.options.protocol_retries)
             m.set_state(sysid, FLYING)
 
         self._all(one, "start", commands.CommandError)

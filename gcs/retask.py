@@ -148,6 +148,7 @@ class Retasker:
         self.monitor = monitor
         self.mission_options = mission_options
         self.protocol = protocol or {}  # timeout_s / retries of the mission protocol
+        self._retries = self.protocol.get("retries", commands.RETRIES)  # of each command
         self.home = False
 
     def flying(self) -> list:
@@ -246,7 +247,7 @@ class Retasker:
 
     def _hold(self, sysid) -> None:
         link = self.monitor.links[sysid]
-        commands.set_mode(link, HOLD_MODE.get(link.flavour, "GUIDED"))
+        commands.set_mode(link, HOLD_MODE.get(link.flavour, "GUIDED"), retries=self._retries)
         self.monitor.set_state(sysid, HOLDING)
 
     def _settle(self, sysids) -> None:
@@ -264,8 +265,8 @@ class Retasker:
         """Current item = the first item after home / the first item, then AUTO."""
         link = self.monitor.links[sysid]
         first = 1 if link.flavour == ARDUPILOT else 0
-        commands.set_current(link, first)
-        commands.set_mode(link, MISSION_MODE.get(link.flavour, "AUTO"))
+        commands.set_current(link, first, retries=self._retries)
+        commands.set_mode(link, MISSION_MODE.get(link.flavour, "AUTO"), retries=self._retries)
 
 
 class _LostDuring(Exception):

@@ -45,8 +45,9 @@ def add_protocol_arguments(parser) -> None:
                         help="mission protocol: wait this long for each answer before "
                              "resending (MAVLink recommends 1.5 s; shorter on fast links)")
     parser.add_argument("--protocol-retries", type=int, default=5, metavar="N",
-                        help="mission protocol: resend each message up to N times before "
-                             "giving up (MAVLink recommends 5; more on very lossy links)")
+                        help="mission protocol (and fly's commands): resend each message up "
+                             "to N times before giving up (MAVLink recommends 5; more on "
+                             "very lossy links)")
 
 
 def protocol_from_args(args) -> dict:
