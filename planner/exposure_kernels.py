@@ -175,28 +175,30 @@ def _interval(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, inv_m, a, z0, cc):
                 continue
         jj = min(max(j, b_lo), b_hi - 1)
         i00 = base + sa * a + sb * jj
-        h00 = hf[i00]
-        cx = hf[i00 + sa] - h00
-        cy = hf[i00 + sb] - h00
-        cxy = -cx - hf[i00 + sb] + hf[i00 + sa + sb]
+        h00 = hf[np.uint64(i00)]
+        cx = hf[np.uint64(i00 + sa)] - h00
+        cy = hf[np.uint64(i00 + sb)] - h00
+        cxy = -cx - hf[np.uint64(i00 + sb)] + hf[np.uint64(i00 + sa + sb)]
         b0 = fb - jj  # across-coordinate in the patch: b0 + m X; along: X - xl
         q0 = h00 - cx * xl + cy * b0 - cxy * xl * b0
         q1 = cx + cy * m + cxy * (b0 - xl * m)
         slope_a = cxy * m - cc
         e = q0 - z0
-        s = slope_a * xa + q1 + e / xa
-        if s > best:
-            best, x_best = s, xa
-        s = slope_a * xb + q1 + e / xb
-        if s > best:
-            best, x_best = s, xb
+        best, x_best = _higher(slope_a * xa + q1 + e / xa, xa, best, x_best)
+        best, x_best = _higher(slope_a * xb + q1 + e / xb, xb, best, x_best)
         if slope_a < 0.0 and e < 0.0:  # concave: may peak inside
             xs = math.sqrt(e / slope_a)
             if xa < xs < xb:
-                s = slope_a * xs + q1 + e / xs
-                if s > best:
-                    best, x_best = s, xs
+                best, x_best = _higher(slope_a * xs + q1 + e / xs, xs, best, x_best)
     return best, x_best
+
+
+@njit(cache=True, inline="always")
+def _higher(s, x, best, x_best):
+    """(slope, where) of the higher of a new point and the best so far, as a
+    select rather than a branch (see _better)."""
+    gt = s > best
+    return (s if gt else best), (x if gt else x_best)
 
 
 @njit(cache=True, inline="always")
@@ -249,10 +251,12 @@ def _near_patch_bound(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k, z0, cc, inv_a)
 
 @njit(cache=True, inline="always")
 def _better(a, s, best, a_best):
-    """(slope, ring) of the higher of a new point and the best so far."""
-    if s > best:
-        return s, a
-    return best, a_best
+    """(slope, ring) of the higher of a new point and the best so far.
+
+    Without a branch: on rough terrain which point wins is a coin toss, and the
+    mispredictions measured 20 % of the sample's sweep."""
+    gt = s > best
+    return (s if gt else best), a_best + np.int64(gt) * (a - a_best)
 
 
 @njit(cache=True, inline="always")
@@ -313,9 +317,9 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
             a_best = k
             s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k - 1, z0, cc, inv_a)
             best, a_best = _better(k - 1, s, best, a_best)
-            if c0 != k - 1:
-                s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c0, z0, cc, inv_a)
-                best, a_best = _better(c0, s, best, a_best)
+            # c0 even when it is k - 1 (no branch to mispredict; measured faster)
+            s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c0, z0, cc, inv_a)
+            best, a_best = _better(c0, s, best, a_best)
             if c1 != c0 and c1 != k - 1:
                 s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c1, z0, cc, inv_a)
                 best, a_best = _better(c1, s, best, a_best)
