@@ -51,7 +51,7 @@ from .los import EARTH_RADIUS_M, gap_range, line_over_patch, next_patch, sees
 FULL_RINGS = 4  # rings around the outpost whose rays are evaluated exactly in full
 WEDGES = 4  # wedges per sector: tasks for the threads
 NEAR_RINGS = 2  # horizons this close to the eye (rings) are taken exactly
-REFINE_TOL_M = 0.5  # terrain bending less than this (seen at the cell): ring lines suffice
+REFINE_TOL_M = 1.0  # terrain bending less than this (seen at the cell): ring lines suffice
 NEAR_BIT = 1 << 20  # flag in a cell's horizon ring: its horizon is that close
 RING_MASK = NEAR_BIT - 1
 
