@@ -6,7 +6,7 @@ sample terrain: seconds of our sweep, `lowest_seen` (warm: numba compiled by
 an earlier run; the minimum over the outposts included), and of GDAL's
 ViewshedGenerate (both best of REPEATS runs) in "minimum visible height above ground" mode for the same
 observers (Debian's python3-gdal in a subprocess, timed in-process there, no
-file I/O; n outposts = n viewsheds): the same quantity. "surface s" is the
+file I/O; n outposts = n viewsheds): the same quantity. "surface ms" is the
 whole `compute_exposure` (the sweep, then the cap, flyable cells and connected
 regions), for reference. Both are
 compared on a few thousand random cells with the exact lowest visible altitude
@@ -96,8 +96,8 @@ def _best_time(run):
 
 
 def _print_table(rows):
-    head = (f"{'terrain':<20}{'posts':>6}{'ours s':>9}{'GDAL s':>9}{'ours/GDAL':>10}"
-            f"{'surface s':>10}{'unsafe':>8}{'lost':>8}{'lost E':>8}"
+    head = (f"{'terrain':<20}{'posts':>6}{'ours ms':>9}{'GDAL ms':>9}{'ours/GDAL':>10}"
+            f"{'surface ms':>11}{'unsafe':>8}{'lost':>8}{'lost E':>8}"
             f"{'GDAL unsafe':>12}{'GDAL lost':>10}{'lost E':>8}")
     print("\nExposure surface (lowest seen altitude) vs exact line of sight on sampled cells;")
     print("unsafe: > 0.5 m above exact, lost: > 2 m below exact, lost E: > 2 m below once")
@@ -107,10 +107,10 @@ def _print_table(rows):
     print("-" * len(head))
     for r in rows:
         g = "gdal_s" in r
-        print(f"{r['terrain']:<20}{r['n']:>6}{r['ours_s']:>9.3f}"
-              f"{r['gdal_s'] if g else math.nan:>9.3f}"
+        print(f"{r['terrain']:<20}{r['n']:>6}{1e3 * r['ours_s']:>9.2f}"
+              f"{1e3 * r['gdal_s'] if g else math.nan:>9.2f}"
               f"{r['ours_s'] / r['gdal_s'] if g else math.nan:>10.2f}"
-              f"{r['surface_s']:>10.3f}"
+              f"{1e3 * r['surface_s']:>11.2f}"
               f"{r['ours'][0]:>8.2%}{r['ours'][1]:>8.2%}{r['ours'][2]:>8.2%}"
               f"{r['gdal'][0] if g else math.nan:>12.2%}{r['gdal'][1] if g else math.nan:>10.2%}"
               f"{r['gdal'][2] if g else math.nan:>8.2%}")
