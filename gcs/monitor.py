@@ -31,6 +31,14 @@ TRACK_PERIOD_S = 0.2
 DISARM_REPORTS = 3
 
 
+def _note_airborne(v, armed: bool, agl) -> None:
+    """Armed away from home height, above it or below it (a route over lower ground
+    than the launch point): flying. Judged on every position report too: at a high
+    speed-up a heartbeat may come only after the vehicle has dropped below home."""
+    if armed and agl is not None and abs(agl) > LANDED_AGL_M:
+        v.airborne = True
+
+
 @dataclass
 class Snapshot:
     t_s: float  # seconds since the flight started (wall clock)
@@ -147,10 +155,8 @@ class Monitor:
     def _heartbeat(self, v, msg) -> None:
         v.last_heartbeat_s = self.now()
         armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
-        link = self.links[v.sysid]
-        agl = link.state.relative_alt
-        if armed and agl is not None and agl > LANDED_AGL_M:
-            v.airborne = True
+        agl = self.links[v.sysid].state.relative_alt
+        _note_airborne(v, armed, agl)
         if v.airborne and not armed and v.state != LANDED and v.disarmed_at_s is None:
             # position reports lag the touchdown: judge by the next ones
             v.disarmed_at_s = self.now()
@@ -168,6 +174,7 @@ class Monitor:
 
     def _position(self, v, msg) -> None:
         t = self.now()
+        _note_airborne(v, self.links[v.sysid].state.armed, msg.relative_alt * 1e-3)
         if v.disarmed_at_s is not None and v.state != LANDED:
             v.disarmed_reports += 1
             self._judge_disarm(v, msg.relative_alt * 1e-3)

@@ -69,7 +69,7 @@ class _FakeLink:
     def __init__(self, sysid):
         self.sysid, self.flavour = sysid, "ardupilot"
         self.state = SimpleNamespace(relative_alt=50.0, last_heartbeat=time.monotonic(),
-                                     mode="AUTO", mission_seq=1, battery_pct=90)
+                                     mode="AUTO", mission_seq=1, battery_pct=90, armed=True)
         self.callbacks = []
 
     def subscribe(self, cb):
@@ -81,7 +81,16 @@ class _FakeLink:
 
     def beat(self, armed=True):
         self.state.last_heartbeat = time.monotonic()
-        msg = SimpleNamespace(base_mode=128 if armed else 0, get_type=lambda: "HEARTBEAT")
+        self.state.armed = armed
+        self._send(SimpleNamespace(base_mode=128 if armed else 0, get_type=lambda: "HEARTBEAT"))
+
+    def report(self, relative_alt):
+        """A GLOBAL_POSITION_INT at ``relative_alt`` m above home."""
+        self.state.relative_alt = relative_alt
+        self._send(SimpleNamespace(relative_alt=relative_alt * 1e3, lat=0, lon=0, alt=0,
+                                   get_type=lambda: "GLOBAL_POSITION_INT"))
+
+    def _send(self, msg):
         for cb in self.callbacks:
             cb(msg)
 
@@ -110,6 +119,29 @@ def test_loss_after_silence_not_before(plan_dir):
     assert m.vehicles[1].state == LANDED
     # and stays landed: a re-task that held it as it touched down does not revive it
     m.set_state(1, HOLDING)
+    assert m.vehicles[1].state == LANDED
+
+
+def test_landing_after_flying_only_below_home(plan_dir):
+    """A route over ground lower than the launch point: every heartbeat may come
+    while the vehicle is below home height (at 150x the climb above it lasts a
+    fraction of a second). It still flew, so its touchdown is a landing (the demo
+    once waited for vehicle 1 until it gave up)."""
+    plan = Plan.load(plan_dir)
+    m = Monitor(lost_after_s=5.0)
+    link = _FakeLink(1)
+    m.follow(link, plan.vehicles[0].id, plan.vehicles[0],
+              SimpleNamespace(items=[], waypoint_of_item=[]))
+    link.state.relative_alt = 0.0
+    link.beat()                          # armed on the ground
+    assert not m.vehicles[1].airborne
+    link.report(25.0)                    # the climb, between two heartbeats
+    for agl in (-40.0, -120.0, -60.0):
+        link.report(agl)
+        link.beat()
+    assert m.vehicles[1].airborne
+    link.report(-0.1)                    # back at home height, then disarmed
+    link.beat(armed=False)
     assert m.vehicles[1].state == LANDED
 
 
