@@ -2,13 +2,13 @@
 
 For 1, 4 and 16 outposts (eye 2 m above a cell centre, unlimited range,
 curvature coefficient 0.85714) on 512^2 and 1024^2 synthetic terrains and on the
-sample terrain: seconds of our sweep, `lowest_seen` (warm: numba compiled by
-an earlier run; the minimum over the outposts included), and of GDAL's
-ViewshedGenerate (both best of REPEATS runs) in "minimum visible height above ground" mode for the same
+sample terrain: milliseconds of our sweep, `lowest_seen` (warm: numba compiled
+by an earlier run; the minimum over the outposts included), and of GDAL's
+ViewshedGenerate in "minimum visible height above ground" mode for the same
 observers (Debian's python3-gdal in a subprocess, timed in-process there, no
-file I/O; n outposts = n viewsheds): the same quantity. "surface ms" is the
-whole `compute_exposure` (the sweep, then the cap, flyable cells and connected
-regions), for reference. Both are
+file I/O; n outposts = n viewsheds): the same quantity, both best of REPEATS
+runs. "surface ms" is the whole `compute_exposure` (the sweep, then the cap,
+flyable cells and connected regions), for reference. Both are
 compared on a few thousand random cells with the exact lowest visible altitude
 (planner.los): "unsafe" = more than 0.5 m above exact (a UAV flying below it is
 seen), "lost" = more than 2 m below exact, "lost E" = the same once both are

@@ -9,9 +9,10 @@ DEM.npy: float64 heights [rows, cols], row 0 north. request.json:
 range_m or null], ...], "prefixes": [1, 4, 16], "repeats": 3}``. Each observer
 stands on the centre of cell (row, col), ``height_m`` above it. Prints JSON:
 GDAL's version and the seconds of each observer's ViewshedGenerate call, best
-of ``repeats`` (in memory, timed in-process; no file I/O). With OUT.npz, also saves for every prefix n the minimum over the first n
-observers of GDAL's lowest visible altitude (ground + GVOT_MIN_TARGET_HEIGHT_FROM_GROUND,
-metres AMSL; inf where out of range), as float64 arrays "min_<n>".
+of ``repeats`` (in memory, timed in-process; no file I/O). With OUT.npz, also
+saves for every prefix n the minimum over the first n observers of GDAL's lowest
+visible altitude (ground + GVOT_MIN_TARGET_HEIGHT_FROM_GROUND, metres AMSL; inf
+where out of range), as float64 arrays "min_<n>".
 """
 
 import json
