@@ -39,7 +39,7 @@ COUNTS = (1, 4, 16)
 SAMPLES = 3000
 EYE_M = 2.0
 CURVATURE = 0.85714
-REPEATS = 5  # both: best of this many runs (ours warm; GDAL's first call is its cold one)
+REPEATS = 9  # both: best of this many runs (ours warm; GDAL's first call is its cold one)
 
 
 def main(argv=None):
