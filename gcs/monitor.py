@@ -174,10 +174,11 @@ class Monitor:
 
     def _position(self, v, msg) -> None:
         t = self.now()
-        _note_airborne(v, self.links[v.sysid].state.armed, msg.relative_alt * 1e-3)
+        agl = msg.relative_alt * 1e-3
+        _note_airborne(v, self.links[v.sysid].state.armed, agl)
         if v.disarmed_at_s is not None and v.state != LANDED:
             v.disarmed_reports += 1
-            self._judge_disarm(v, msg.relative_alt * 1e-3)
+            self._judge_disarm(v, agl)
         if v.track and t - v.track[-1][0] < TRACK_PERIOD_S:
             return
         v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3))
