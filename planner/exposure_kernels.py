@@ -272,7 +272,9 @@ def _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi):
     return max(lo, -k + 1, b_lo), min(hi, k, b_hi)
 
 
-@njit(cache=True)
+# FMA contraction only (one rounding where there were two, ~1e-13 m): 8-12 % faster
+# on every bench row, the same tightness; no other fast-math flag (inf and NaN matter)
+@njit(cache=True, fastmath={'contract'})
 def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last, b_lo, b_hi,
                  fa, fb, k_cc, curv, inv_a, r2, cap_agl, m_lo, m_hi, first, last, fprev, fcur,
                  todo_b, todo_s):
