@@ -219,6 +219,20 @@ def test_ardupilot_banner_heartbeat_and_endpoints():
         fleet.stop()
 
 
+def test_too_fast_for_the_machine_slows_mission_time_not_the_link():
+    """At a speedup no machine keeps up with, a vehicle still streams at
+    wall-clock rates (a ground station must not judge it lost), and mission
+    time still runs faster than the wall clock, only slower than asked."""
+    config = FleetConfig(base_port=free_base_port(10, 1), speedup=1e6, **FAST)
+    with fleet_and_clients(config) as (_, (c,)):
+        start = c.wait("GLOBAL_POSITION_INT").time_boot_ms
+        c.pump(3.5)
+    beats = [m._timestamp for m in c.seen("HEARTBEAT")]
+    assert len(beats) >= 3 and np.diff(beats).max() < 1.5     # 1 Hz of wall time
+    ran_ms = c.seen("GLOBAL_POSITION_INT")[-1].time_boot_ms - start
+    assert 3e3 * 20 < ran_ms < 3.5e3 * 1e6
+
+
 def test_ardupilot_arming_rules():
     base = free_base_port()
     config = FleetConfig(base_port=base, warmup_s=3.0)

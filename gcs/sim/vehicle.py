@@ -27,6 +27,7 @@ from gcs.sim.transport import ARDUPILOT_BANNER, TcpServerLink, UdpLink
 M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
 PHYSICS_STEP_S = 0.05    # largest mission-time step of the point mass
+STEP_BUDGET_S = TICK_S   # wall time one tick may spend stepping mission time
 FLUSH_S = 2.0            # wall period of track file writes
 FORCE_DISARM = 21196
 LAND_SLOW_AGL_M = 10.0
@@ -206,8 +207,11 @@ class SimVehicle:
 
     # -- time -------------------------------------------------------------------------
     def _advance(self, wall_dt: float, now: float) -> None:
+        # a machine too slow for `speedup` gets slower mission time, not a vehicle
+        # that falls ever further behind and stops streaming (no HEARTBEAT: 'lost')
         remaining = wall_dt * self.cfg.speedup
-        while remaining > 1e-9 and not self.dead:
+        give_up = time.monotonic() + STEP_BUDGET_S
+        while remaining > 1e-9 and not self.dead and time.monotonic() < give_up:
             dt = min(PHYSICS_STEP_S, remaining)
             remaining -= dt
             self.t += dt
