@@ -272,7 +272,7 @@ def _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi):
     return max(lo, -k + 1, b_lo), min(hi, k, b_hi)
 
 
-# FMA contraction only (one rounding where there were two, ~1e-13 m): 8-12 % faster
+# FMA contraction only (one rounding where there were two, ~1e-13 m): 9-16 % faster
 # on every bench row, the same tightness; no other fast-math flag (inf and NaN matter)
 @njit(cache=True, fastmath={'contract'})
 def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last, b_lo, b_hi,
@@ -324,6 +324,9 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
             a_best = k
             s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c0, z0, cc, inv_a)
             best, a_best = _better(c0, s, best, a_best)
+            # c1 on ring line k - 1 is left out too: taking it there makes it the
+            # horizon handed on, which skips the windows around the real one
+            # (measured: 300 rough terrains 98.75 -> 98.69 % within 2 m)
             if c1 != c0 and c1 != k - 1:
                 s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c1, z0, cc, inv_a)
                 best, a_best = _better(c1, s, best, a_best)
