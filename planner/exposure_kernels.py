@@ -48,7 +48,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import EARTH_RADIUS_M, gap_range, line_over_patch, next_patch, sees
+from .los import EARTH_RADIUS_M, EYE_GAP_M, gap_range, line_over_patch, next_patch, sees
 
 FULL_RINGS = 4  # rings around the outpost whose rays are evaluated exactly in full
 WEDGES = 4  # wedges per sector: tasks for the threads
@@ -102,7 +102,7 @@ def ray_max(h, cell, u0, v0, z0, u1, v1, ta, tb, curv):
     t_best = ta
     if length_m <= 0.0:
         return best, t_best
-    t = max(ta, 1e-12)
+    t = max(ta, EYE_GAP_M / length_m)
     while t < tb:
         i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
         t_next = min(t_next, tb)
@@ -383,8 +383,8 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
                             best, a_best = _better(int(math.floor(x + fa + 0.5)), s, best,
                                                    a_best)
             if near:  # next to the eye a horizon peaks inside a patch: take it exactly,
-                # from the eye itself as planner.los does (a 0 m eye on a rise is
-                # blocked by the first millimetres), up to ring line NEAR_RINGS
+                # from a millimetre off the eye as planner.los does (a 0 m eye on a
+                # rise is blocked by the first centimetres), up to ring line NEAR_RINGS
                 dc, dr = _rotate(q, k, b)
                 s, x = ray_max(h, cell, u0, v0, z0, c_o + dc, r_o + dr, 0.0,
                                min((NEAR_RINGS - fa) / x_k, 1.0), curv)

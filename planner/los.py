@@ -20,6 +20,11 @@ import numpy as np
 from numba import njit, prange
 
 EARTH_RADIUS_M = 6378137.0
+# Sight lines start this far from the eye: the apparent slope there, (T - z0) / d,
+# divides the rounding of T - z0 (an ulp of the terrain height, ~6e-14 m at 300 m)
+# by d; from 1e-12 of a ray that was 0.06 m of lowest seen altitude, of either sign,
+# for an eye 0 m above the ground. From a millimetre on it is below 1e-6 m.
+EYE_GAP_M = 1e-3
 DEFAULT_CURVATURE_COEFF = 0.85714
 
 
@@ -149,7 +154,7 @@ def max_slope(h, cell, u0, v0, z0, u1, v1, t_from, curvature_coeff):
     best = -np.inf
     if length_m <= 0.0:
         return best
-    t = max(t_from, 1e-12)
+    t = max(t_from, EYE_GAP_M / length_m)
     while t < 1.0:
         i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
         s = _piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m,
