@@ -78,7 +78,7 @@ def lowest_seen(terrain, outposts, params=ExposureParams(), progress=None) -> np
     (the safe side), tight up to ground + ceiling_agl (E is capped above)."""
     h = _heights(terrain)
     eyes = _eyes(terrain, outposts)
-    lowest = np.full(h.shape, np.inf)
+    lowest = k.unseen(*h.shape)
     threads = numba.get_num_threads()
     for n, eye in enumerate(eyes):
         k.lowest_seen_into(h, terrain.cell_size, eye, float(params.curvature_coeff),
@@ -172,14 +172,15 @@ def _heights(terrain) -> np.ndarray:
 
 def _eyes(terrain, outposts) -> np.ndarray:
     """float64 [n, 4]: grid (u, v), eye altitude AMSL and range of each outpost."""
-    eyes = np.empty((len(outposts), 4))
-    for n, o in enumerate(outposts):
-        row, col = terrain.rowcol(o.x, o.y)
-        ground = terrain.ground(o.x, o.y)[0]
-        if not np.isfinite(ground):
+    x = np.array([o.x for o in outposts], float)
+    y = np.array([o.y for o in outposts], float)
+    row, col = terrain.rowcol(x, y)
+    ground = terrain.ground(x, y)
+    for o, g in zip(outposts, ground):
+        if not np.isfinite(g):
             raise ValueError(f"outpost {o.name or (o.x, o.y)} is off the terrain or on a void")
-        eyes[n] = (float(col), float(row), ground + o.height_m, o.range_m)
-    return eyes
+    return np.stack([col, row, ground + np.array([o.height_m for o in outposts], float),
+                     np.array([o.range_m for o in outposts], float)], axis=1).reshape(-1, 4)
 
 
 def _legs_grid(terrain, a_xyz, b_xyz):
