@@ -281,7 +281,7 @@ def _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi):
 
 # FMA contraction only (one rounding where there were two, ~1e-13 m): 9-16 % faster
 # on every bench row, the same tightness; no other fast-math flag (inf and NaN matter)
-@njit(cache=True, fastmath={'contract'})
+@njit(cache=True, fastmath={"contract"}, error_model="numpy")
 def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last, b_lo, b_hi,
                  fa, fb, k_cc, curv, inv_a, r2, cap_agl, m_lo, m_hi, first, last, fprev, fcur,
                  todo_b, todo_s):
@@ -295,6 +295,8 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
     """
     off = a_last + 1
     plo, phi = 0, -1  # ring k - 1's cells in this wedge
+    hz0 = np.empty_like(fcur)  # the horizons of each cell's two parents, by b
+    hz1 = np.empty_like(fcur)
     for k in range(1, a_last + 1):
         lo, hi = _wedge_ring(k, m_lo, m_hi, first, last, b_lo, b_hi)
         x_k = k - fa
@@ -308,6 +310,15 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
         if plo > phi:  # no parents in this wedge: a dummy slot holding no horizon
             plo = phi = -off
             fprev[0] = 0
+        # the parents' horizons first, in a loop of their own: a cell's chain of
+        # dependent steps (parent, its horizon, the crossing there, its heights)
+        # is longer than the processor can overlap across cells; split in two it
+        # overlaps (measured 12-17 % faster on every bench row)
+        for b in range(lo, hi + 1):
+            m = (b - fb) * ia
+            p0 = min(max(int(math.floor(fb + (k - 1 - fa) * m)), plo), phi)
+            hz0[np.uint64(b + off)] = fprev[np.uint64(p0 + off)]
+            hz1[np.uint64(b + off)] = fprev[np.uint64(min(p0 + 1, phi) + off)]
         n_todo = 0
         for b in range(lo, hi + 1):
             m = (b - fb) * ia
@@ -315,10 +326,8 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
                 fcur[b + off] = 0  # out of range
                 continue
             cc = k_cc * (1.0 + m * m)
-            p0 = min(max(int(math.floor(fb + (k - 1 - fa) * m)), plo), phi)
-            p1 = min(p0 + 1, phi)
-            f0 = fprev[np.uint64(p0 + off)]
-            f1 = fprev[np.uint64(p1 + off)]
+            f0 = hz0[np.uint64(b + off)]
+            f1 = hz1[np.uint64(b + off)]
             near = (f0 | f1) >= NEAR_BIT
             c0 = max(f0 & RING_MASK, 1)  # ring k - 1 hands on rings up to k - 1
             c1 = max(f1 & RING_MASK, 1)
