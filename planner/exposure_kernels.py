@@ -259,6 +259,13 @@ def _near_patch_bound(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, k, z0, cc, inv_a)
 
 
 @njit(cache=True, inline="always")
+def _beyond(b, fb, ia, x_k, r2):
+    """Whether cell b of the ring at x_k is out of range."""
+    m = (b - fb) * ia
+    return x_k * x_k * (1.0 + m * m) > r2
+
+
+@njit(cache=True, inline="always")
 def _better(a, s, best, a_best):
     """(slope, ring) of the higher of a new point and the best so far.
 
@@ -310,25 +317,29 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
         if plo > phi:  # no parents in this wedge: a dummy slot holding no horizon
             plo = phi = -off
             fprev[0] = 0
+        # cells out of range are at the ends of the ring (distance grows with |b - fb|)
+        first_b, last_b = lo, hi
+        while first_b <= last_b and _beyond(first_b, fb, ia, x_k, r2):
+            fcur[first_b + off] = 0
+            first_b += 1
+        while last_b >= first_b and _beyond(last_b, fb, ia, x_k, r2):
+            fcur[last_b + off] = 0
+            last_b -= 1
         # the parents' horizons first, in a loop of their own: a cell's chain of
         # dependent steps (parent, its horizon, the crossing there, its heights)
         # is longer than the processor can overlap across cells; split in two it
         # overlaps (measured 12-17 % faster on every bench row)
-        for b in range(lo, hi + 1):
+        for b in range(first_b, last_b + 1):
             m = (b - fb) * ia
             p0 = min(max(int(math.floor(fb + (k - 1 - fa) * m)), plo), phi)
             hz0[np.uint64(b + off)] = fprev[np.uint64(p0 + off)]
             hz1[np.uint64(b + off)] = fprev[np.uint64(min(p0 + 1, phi) + off)]
         n_todo = 0
-        for b in range(lo, hi + 1):
+        for b in range(first_b, last_b + 1):
             m = (b - fb) * ia
-            if x_k * x_k * (1.0 + m * m) > r2:
-                fcur[b + off] = 0  # out of range
-                continue
             cc = k_cc * (1.0 + m * m)
             f0 = hz0[np.uint64(b + off)]
             f1 = hz1[np.uint64(b + off)]
-            near = (f0 | f1) >= NEAR_BIT
             c0 = max(f0 & RING_MASK, 1)  # ring k - 1 hands on rings up to k - 1
             c1 = max(f1 & RING_MASK, 1)
             i = np.uint64(base + sa * k + sb * b)
@@ -348,7 +359,7 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
                 s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, c1, z0, cc, inv_a)
                 best, a_best = _better(c1, s, best, a_best)
             z = z0 + x_k * best + cc * x_k * x_k
-            fcur[np.uint64(b + off)] = a_best + NEAR_BIT if near else a_best
+            fcur[np.uint64(b + off)] = a_best | ((f0 | f1) & NEAR_BIT)  # near if a parent is
             low = acc[i]
             if z < min(g + cap_agl, low):  # it matters: refine it below
                 todo_b[n_todo] = b
@@ -429,10 +440,10 @@ def _full_rays(h, cell, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, fa, fb, k_cc
     over the whole ray, and its ring."""
     x_k = k - fa
     for b in range(lo, hi + 1):
-        m = (b - fb) * ia
         fcur[b + off] = 0
-        if x_k * x_k * (1.0 + m * m) > r2:
+        if _beyond(b, fb, ia, x_k, r2):
             continue
+        m = (b - fb) * ia
         dc, dr = _rotate(q, k, b)
         s, t = ray_max(h, cell, u0, v0, z0, c_o + dc, r_o + dr, 0.0, 1.0, curv)
         z = z0 + x_k * s * cell * math.sqrt(1.0 + m * m) + k_cc * (1.0 + m * m) * x_k * x_k
