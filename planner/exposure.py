@@ -78,11 +78,13 @@ def lowest_seen(terrain, outposts, params=ExposureParams(), progress=None) -> np
     (the safe side), tight up to ground + ceiling_agl (E is capped above)."""
     h = _heights(terrain)
     eyes = _eyes(terrain, outposts)
-    lowest = k.unseen(*h.shape)
+    if len(eyes) == 0:
+        return np.full(h.shape, np.inf)
+    lowest = np.empty(h.shape)  # the first outpost writes it
     threads = numba.get_num_threads()
     for n, eye in enumerate(eyes):
         k.lowest_seen_into(h, terrain.cell_size, eye, float(params.curvature_coeff),
-                           float(params.ceiling_agl_m), lowest, threads)
+                           float(params.ceiling_agl_m), lowest, threads, n == 0)
         if progress is not None:
             progress(n + 1, len(eyes))
     return lowest
