@@ -371,7 +371,7 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
             elif z < low:
                 acc[i] = z
             elif fresh:
-                acc[i] = np.inf  # next to a void
+                acc[i] = np.inf  # a void cell (z is NaN): unseen, as when not fresh
         a_bent, j_bent, bend = -1, 0, 0.0
         for n in range(n_todo):
             b = todo_b[n]
@@ -503,10 +503,11 @@ def lowest_seen_into(h, cell, eye, curv, cap_agl, acc, n_slots, fresh):
     (u, v, z_eye, range_m) sees at each cell), tight where below both
     ``cap_agl`` above the ground and acc's old value (elsewhere the minimum, or
     E capped, does not need it); ``fresh``: acc's old values are ignored (as if
-    +inf). The outpost's own cell is seen at any altitude (-inf). Wedges run in parallel on ``n_slots`` threads, each taking the next
-    wedge, the largest first, when it is done with one: refinement makes some
-    wedges cost more per cell, and a split made in advance by cell counts lost
-    up to a fifth of two threads' time.
+    +inf). The outpost's own cell is seen at any altitude (-inf). Wedges run in
+    parallel on ``n_slots`` threads, each taking the next wedge, the largest
+    first, when it is done with one: refinement makes some wedges cost more per
+    cell, and a split made in advance by cell counts lost up to a fifth of two
+    threads' time.
     """
     n_rows, n_cols = h.shape
     hf = h.ravel()
