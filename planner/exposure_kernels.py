@@ -406,9 +406,8 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
                     s = _cross(hf, base, sa, sb, b_lo, b_hi, fa, fb, m, a0 + 1, z0, cc, inv_a)
                     best, a_best = _better(a0 + 1, s, best, a_best)
                 else:
-                    p0 = min(max(int(math.floor(fb + (k - 1 - fa) * m)), plo), phi)
-                    c0 = fprev[np.uint64(p0 + off)] & RING_MASK
-                    c1 = fprev[np.uint64(min(p0 + 1, phi) + off)] & RING_MASK
+                    c0 = hz0[np.uint64(b + off)] & RING_MASK
+                    c1 = hz1[np.uint64(b + off)] & RING_MASK
                     for n_ring in range(3):
                         r = a0 if n_ring == 0 else (c0 if n_ring == 1 else c1)
                         if r < 1 or r > k - 2 or (n_ring >= 1 and abs(r - a0) <= 1) or (
