@@ -8,6 +8,14 @@
 2. Every method on the sample terrain problems (the full DEM without launch
    points, and the demo area with one base), k = 0 and 1: coverage time, ratio
    to RT and to the makespan lower bound, snapshots, planning seconds.
+3. What conservative resampling costs (planner.dem): a DEM that must be
+   resampled (a geographic one) is planned on two surfaces that bracket it, so
+   its exposure surface is safe against the DEM itself. Rows: the uncropped
+   sample against the same grid resampled naively (the bracket's midpoint,
+   which is what planning used before: not safe), and a synthetic terrain
+   written as a 1" geographic GeoTIFF against the same heights in a UTM
+   GeoTIFF kept on its own lattice (no resampling). Flyable area, targets,
+   plan time.
 """
 
 import argparse
@@ -67,6 +75,69 @@ def compare_methods(quick):
                       f"{m['snapshots']:9d} {seconds:7.1f}", flush=True)
 
 
+def _plan_row(name, scenario, terrain=None, outposts=None):
+    t0 = time.perf_counter()
+    ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
+    seconds = time.perf_counter() - t0
+    cell_km2 = (ctx.terrain.cell_size / 1000) ** 2
+    m = outcome.plan.metrics
+    print(f"{name:<44} | {ctx.surface.flyable.sum() * cell_km2:9.1f} {m['targets']:8d} "
+          f"{m['coverage_time_s'] / 60:9.1f} {seconds:7.1f}", flush=True)
+    return ctx
+
+
+def resampling_cost():
+    import json
+    import tempfile
+
+    import numpy as np
+    from affine import Affine
+    from pyproj import Transformer
+
+    from planner.synthetic import synthetic_terrain
+    from planner.terrain import Terrain
+
+    head = f"{'DEM (4 UAVs, k = 1, rt)':<44} | {'flyable km2':>11} {'targets':>8} {'cover min':>9} {'plan s':>7}"
+    print(head)
+    print("-" * len(head))
+    sample = Scenario(sample=True, uavs=4, k=1).validate()
+    ctx = _plan_row("sample, conservative (lower/upper surfaces)", sample)
+    t = ctx.terrain
+    naive = Terrain((t.height + t.upper) / 2, t.transform, t.crs)
+    _plan_row("sample, naive midpoint (not safe)", sample, naive, ctx.outposts)
+    synthetic = synthetic_terrain(400, 400, cell=30.0, seed=7, family="mixed")
+    with tempfile.TemporaryDirectory() as tmp:
+        utm = Path(tmp) / "utm.tif"
+        geo = Path(tmp) / "geo.tif"
+        _write(utm, synthetic.height, synthetic.transform, synthetic.crs)
+        # the same surface sampled on a 1" geographic grid over the same ground
+        to_ll = Transformer.from_crs(synthetic.crs, "EPSG:4326", always_xy=True)
+        (w, n), (e, s) = (to_ll.transform(*synthetic.xy(r, c)) for r, c in ((20, 20), (380, 380)))
+        d = 1 / 3600
+        lon, lat = np.meshgrid(np.arange(w, e, d) + d / 2, np.arange(n, s, -d) - d / 2)
+        height = synthetic.ground(*synthetic.from_lonlat(lon, lat)).reshape(lon.shape)
+        _write(geo, height, Affine(d, 0, w, 0, -d, n), "EPSG:4326")
+        area = (s + 0.01, w + 0.01, n - 0.01, e - 0.01)
+        posts = Path(tmp) / "posts.geojson"
+        posts.write_text(json.dumps({"type": "FeatureCollection", "features": [
+            {"type": "Feature", "properties": {"height_m": 10.0},
+             "geometry": {"type": "Point", "coordinates": [w + fx * (e - w), s + fy * (n - s)]}}
+            for fx, fy in ((0.3, 0.3), (0.7, 0.35), (0.5, 0.7), (0.2, 0.8))]}))
+        for name, dem in (("synthetic, 1\" geographic (conservative)", geo),
+                          ("synthetic, UTM on its own lattice (exact)", utm)):
+            _plan_row(name, Scenario(dem=[str(dem)], area=area, uavs=4, k=1,
+                                     outposts=str(posts)).validate())
+
+
+def _write(path, height, transform, crs):
+    import rasterio
+
+    with rasterio.open(path, "w", driver="GTiff", width=height.shape[1], height=height.shape[0],
+                       count=1, dtype="float64", crs=crs, transform=transform,
+                       nodata=float("nan")) as ds:
+        ds.write(height, 1)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="k = 0 only")
@@ -75,6 +146,8 @@ def main(argv=None):
     time_gcs_plan()
     print()
     compare_methods(args.quick)
+    print()
+    resampling_cost()
 
 
 if __name__ == "__main__":

@@ -26,7 +26,7 @@ from pathlib import Path
 import numpy as np
 import rasterio
 from affine import Affine
-from pyproj import CRS, Transformer
+from pyproj import CRS, Proj, Transformer
 from rasterio.crs import CRS as RioCRS
 from rasterio.errors import NotGeoreferencedWarning, RasterioIOError
 from rasterio.warp import transform_bounds
@@ -34,6 +34,7 @@ from rasterio.windows import Window, from_bounds
 from scipy import ndimage, sparse
 from scipy.sparse.linalg import spsolve
 
+from . import dem_kernels
 from .errors import InputError
 from .terrain import Terrain, bilinear
 
@@ -306,38 +307,147 @@ def _to_terrain(grids, area, resolution, source: str) -> Terrain:
         warnings.warn(f"{source}: filled {n_filled} small void(s) ({sum(f[1] for f in filled)} "
                       f"cells) by interpolation; {sum(f[2] for f in filled)} larger void(s) "
                       "left as no data (not flyable, not targets)", stacklevel=3)
-    crs, transform, shape = _target_grid(groups, area, resolution, source)
-    height = np.full(shape, np.nan)
-    for g in groups:
-        np.copyto(height, _warp(g, crs, transform, shape), where=np.isnan(height))
-    height, transform = _trim(height, transform)
-    if height is None:
-        raise InputError(source, "no DEM data inside the area")
     meta = {"filled_voids": n_filled, "filled_cells": sum(f[1] for f in filled),
             "unfilled_voids": sum(f[2] for f in filled),
             "sources": [g.source for g in grids]}
-    return Terrain(height, transform, crs, source=source, meta=meta)
+    own = _own_lattice(groups, area, resolution)
+    if own is not None:
+        height, transform, crs = own
+        height, transform = _trim(height, transform)
+        if height is None:
+            raise InputError(source, "no DEM data inside the area")
+        return Terrain(height, transform, crs, source=source,
+                       meta={**meta, "resampled": False})
+    crs, transform, shape = _target_grid(groups, area, resolution, source)
+    lower = np.full(shape, np.nan)
+    upper = np.full(shape, np.nan)
+    for g in groups:  # the first file wins where files overlap
+        g_lower, g_upper = _warp(g, crs, transform, shape)
+        empty = np.isnan(lower) & np.isnan(upper)
+        np.copyto(lower, g_lower, where=empty)
+        np.copyto(upper, g_upper, where=empty)
+    (lower, upper), transform = _trim_all((lower, upper), transform)
+    if lower is None:
+        raise InputError(source, "no DEM data inside the area")
+    both = np.isfinite(lower) & np.isfinite(upper)
+    band = upper[both] - lower[both]
+    meta.update(resampled=True,
+                envelope_mean_m=float(band.mean()) if band.size else 0.0,
+                envelope_max_m=float(band.max()) if band.size else 0.0)
+    return Terrain(lower, transform, crs, source=source, meta=meta, height_upper=upper,
+                   source_surface=SourceSurface(tuple(groups), crs))
 
 
-def _warp(g: _Grid, crs: str, transform: Affine, shape) -> np.ndarray:
-    """``g`` sampled at the working-grid cell centres: exact coordinates, bilinear
-    between source centres, NaN outside the source footprint or next to a void."""
+@dataclass(frozen=True, eq=False)
+class SourceSurface:
+    """The source DEM's own bilinear surface at working-grid points (the first file
+    wins where files overlap): exact ground for points that need it, such as the
+    outposts' eyes (a working grid's surface only brackets it)."""
+
+    groups: tuple  # of _Grid
+    crs: str  # the working grid's CRS
+
+    def ground(self, x, y) -> np.ndarray:
+        x, y = np.asarray(x, float), np.asarray(y, float)
+        out = np.full(x.shape, np.nan)
+        for g in self.groups:
+            to_source = Transformer.from_crs(self.crs, CRS.from_wkt(g.crs.to_wkt()),
+                                             always_xy=True)
+            u, v = ~g.transform @ to_source.transform(x, y)
+            np.copyto(out, bilinear(g.height, v - 0.5, u - 0.5), where=np.isnan(out))
+        return out
+
+
+def _own_lattice(groups, area, resolution):
+    """(heights, transform, CRS) of the source grid itself, cropped to the area,
+    when it can be the working grid: one lattice, north up with square cells in
+    metres of a projected CRS whose scale is that of the ground (UTM and the
+    like, not Web Mercator), at the working resolution. None otherwise."""
+    if len(groups) != 1:
+        return None
+    g = groups[0]
+    t = g.transform
+    if t.b or t.d or not (t.a > 0 > t.e) or abs(t.a + t.e) > 1e-9 * t.a:
+        return None
+    if resolution is not None and abs(float(resolution) - t.a) > 1e-6 * t.a:
+        return None
+    crs = CRS.from_wkt(g.crs.to_wkt())
+    if not crs.is_projected or crs.axis_info[0].unit_name not in ("metre", "meter"):
+        return None
+    if not _true_scale(crs, g):
+        return None
+    height = g.height
+    if area is not None:
+        bounds = _transform_bounds(WGS84, g.crs, (area[1], area[0], area[3], area[2]))
+        if bounds is None:
+            return None
+        # cells whose centres lie within the area grown by a cell
+        c0, r0 = ~t @ (bounds[0] - t.a, bounds[3] + t.a)
+        c1, r1 = ~t @ (bounds[2] + t.a, bounds[1] - t.a)
+        r0, c0 = max(int(np.ceil(r0 - 0.5)), 0), max(int(np.ceil(c0 - 0.5)), 0)
+        r1 = min(int(np.floor(r1 - 0.5)) + 1, height.shape[0])
+        c1 = min(int(np.floor(c1 - 0.5)) + 1, height.shape[1])
+        if r1 <= r0 or c1 <= c0:
+            return None
+        height = height[r0:r1, c0:c1]
+        t = t @ Affine.translation(c0, r0)
+    epsg = crs.to_epsg()
+    return np.array(height, np.float64), t, f"EPSG:{epsg}" if epsg else crs.to_wkt()
+
+
+def _true_scale(crs, g: _Grid) -> bool:
+    """Whether the projection's scale at the grid's centre is within 0.15 % of 1
+    (the most UTM departs from it), so that its metres are metres on the ground."""
+    n_rows, n_cols = g.height.shape
+    x, y = g.transform @ (n_cols / 2, n_rows / 2)
+    lon, lat = Transformer.from_crs(crs, "EPSG:4326", always_xy=True).transform(x, y)
+    try:
+        factors = Proj(crs).get_factors(lon, lat)
+    except Exception:  # noqa: BLE001 - PROJ cannot tell: do not trust the metres
+        return False
+    scales = (factors.meridional_scale, factors.parallel_scale)
+    return all(np.isfinite(k) and abs(k - 1.0) <= 1.5e-3 for k in scales)
+
+
+def _warp(g: _Grid, crs: str, transform: Affine, shape):
+    """(lower, upper): ``g``'s bilinear surface sampled at the working-grid cell
+    centres (exact coordinates, pyproj), lowered and raised by what the working
+    grid's own bilinear surface departs from it over the patches around each
+    centre (`dem_kernels.resampling_error`), so that the working surfaces of
+    ``lower`` and ``upper`` bracket the source surface everywhere. NaN where a
+    patch around the centre leaves the source footprint or touches a void."""
     to_source = Transformer.from_crs(crs, CRS.from_wkt(g.crs.to_wkt()), always_xy=True)
     to_pixel = ~g.transform
     n_rows, n_cols = shape
     src_rows, src_cols = g.height.shape
-    out = np.empty(shape)
+    row = np.empty(shape)
+    col = np.empty(shape)
     step = max(WARP_CHUNK_CELLS // n_cols, 1)
     cols = np.arange(n_cols) + 0.5
-    for r0 in range(0, n_rows, step):  # chunks of rows bound the memory used
+    for r0 in range(0, n_rows, step):  # chunks of rows bound the memory pyproj uses
         rows = np.arange(r0, min(r0 + step, n_rows))[:, None] + 0.5
         x, y = transform @ (cols[None, :], rows)
         u, v = to_pixel @ to_source.transform(x, y)  # pixel edges: centres at k + 0.5
-        row, col = v - 0.5, u - 0.5
-        # The footprint reaches half a cell beyond the outer centres: hold the edge there.
-        inside = (row >= -0.5) & (row <= src_rows - 0.5) & (col >= -0.5) & (col <= src_cols - 0.5)
-        value = bilinear(g.height, np.clip(row, 0, src_rows - 1), np.clip(col, 0, src_cols - 1))
-        out[r0:r0 + len(rows)] = np.where(inside, value, np.nan)
+        row[r0:r0 + len(rows)], col[r0:r0 + len(rows)] = v - 0.5, u - 0.5
+    inside = (row >= 0) & (row <= src_rows - 1) & (col >= 0) & (col <= src_cols - 1)
+    value = np.where(inside, bilinear(g.height, row, col), np.nan)
+    above, below = dem_kernels.resampling_error(g.height, row, col, value)
+    return value - _around_vertices(above), value + _around_vertices(below)
+
+
+def _around_vertices(patch):
+    """Per cell centre: the largest value over the (up to four) patches around it;
+    NaN if any of them is NaN or it has none."""
+    n_rows, n_cols = patch.shape[0] + 1, patch.shape[1] + 1
+    out = np.full((n_rows, n_cols), -np.inf)  # stays -inf where no patch is around
+    void = np.zeros((n_rows, n_cols), bool)
+    nan = np.isnan(patch)
+    for dr in (0, 1):
+        for dc in (0, 1):
+            window = (slice(dr, dr + patch.shape[0]), slice(dc, dc + patch.shape[1]))
+            np.fmax(out[window], patch, out=out[window])
+            void[window] |= nan
+    out[void | np.isinf(out)] = np.nan
     return out
 
 
@@ -474,12 +584,20 @@ def _spacing_m(g: _Grid, utm: str) -> float:
 
 def _trim(height, transform):
     """Drop all-NaN border rows and columns; None if nothing is left."""
-    rows = np.nonzero(np.isfinite(height).any(axis=1))[0]
-    cols = np.nonzero(np.isfinite(height).any(axis=0))[0]
+    (height,), transform = _trim_all((height,), transform)
+    return height, transform
+
+
+def _trim_all(grids, transform):
+    """`_trim` of grids of one shape, by where any of them has data."""
+    finite = np.logical_or.reduce([np.isfinite(g) for g in grids])
+    rows = np.nonzero(finite.any(axis=1))[0]
+    cols = np.nonzero(finite.any(axis=0))[0]
     if len(rows) == 0:
-        return None, transform
-    height = height[rows[0]:rows[-1] + 1, cols[0]:cols[-1] + 1]
-    return np.ascontiguousarray(height), transform @ Affine.translation(cols[0], rows[0])
+        return (None,) * len(grids), transform
+    window = (slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
+    return (tuple(np.ascontiguousarray(g[window]) for g in grids),
+            transform @ Affine.translation(cols[0], rows[0]))
 
 
 def _check_area(area):

@@ -7,8 +7,11 @@ straight segment from the eye to P does not pass below the terrain surface,
 with GDAL's earth curvature and refraction (``curvature_coeff``). Visibility is
 monotone in altitude, so each outpost has a lowest seen altitude per cell; E is
 the minimum over outposts, capped at ``ground + ceiling_agl``. A cell is
-flyable when ``E - hide_margin >= ground + clearance``; the connected regions
-of flyable cells off the grid's outer ring are where the fleet flies.
+flyable when ``E - hide_margin >= ground + clearance`` and the surface is known
+all around it (`Terrain.solid`); the connected regions of flyable cells are
+where the fleet flies. On a resampled DEM, sight lines are occluded by the
+terrain's lower surface and the outposts' eyes and the clearance stand on its
+upper surface (`planner.terrain`), so E is safe against the source DEM too.
 
 ``compute_exposure`` uses a fast ring sweep (``lowest_seen``, alone) that is a
 proven lower bound of the exact lowest seen altitude (the safe side; see
@@ -46,7 +49,7 @@ class ExposureSurface:
     lowest_seen: np.ndarray
     exposure: np.ndarray  # float64 [rows, cols]: E, m AMSL; NaN where not flyable
     flyable: np.ndarray  # bool [rows, cols]
-    regions: np.ndarray  # int32 [rows, cols]: connected flyable regions 1..n (outer ring: 0)
+    regions: np.ndarray  # int32 [rows, cols]: connected flyable regions 1..n (0: not flyable)
 
     @property
     def ceiling(self) -> np.ndarray:
@@ -55,8 +58,8 @@ class ExposureSurface:
 
     @property
     def floor(self) -> np.ndarray:
-        """Lowest altitude flown (ground + clearance)."""
-        return self.terrain.height + self.params.clearance_m
+        """Lowest altitude flown (ground + clearance, on the upper ground)."""
+        return self.terrain.upper + self.params.clearance_m
 
     @property
     def n_regions(self) -> int:
@@ -91,16 +94,16 @@ def lowest_seen(terrain, outposts, params=ExposureParams(), progress=None) -> np
 
 
 def surface_from_lowest(terrain, outposts, params, lowest) -> ExposureSurface:
-    """Cap, flyable rule and regions from the lowest seen altitude grid."""
-    ground = terrain.height
+    """Cap, flyable rule and regions from the lowest seen altitude grid.
+
+    Only solid cells are flyable (`Terrain.solid`: the surface is known all
+    around them): not next to nodata, voids or the grid's edge, where a
+    waypoint rounded for MAVLink could leave what is proven."""
     with np.errstate(invalid="ignore"):
-        capped = np.minimum(lowest, ground + params.ceiling_agl_m)
-        flyable = terrain.valid & (capped - params.hide_margin_m >= ground + params.clearance_m)
-    # regions leave out the grid's outer ring: the bilinear surface ends at the outer
-    # cell centres, and a point there leaves the grid once rounded for MAVLink
-    inner = np.zeros_like(flyable)
-    inner[1:-1, 1:-1] = flyable[1:-1, 1:-1]
-    regions, _ = ndimage.label(inner, structure=np.ones((3, 3), bool))
+        capped = np.minimum(lowest, terrain.height + params.ceiling_agl_m)
+        flyable = terrain.solid & (capped - params.hide_margin_m
+                                   >= terrain.upper + params.clearance_m)
+    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
     return ExposureSurface(terrain=terrain, outposts=list(outposts), params=params,
                            lowest_seen=lowest, exposure=np.where(flyable, capped, np.nan),
                            flyable=flyable, regions=regions.astype(np.int32))
@@ -154,14 +157,15 @@ def segments_hidden(surface, a_xyz, b_xyz, slack_m=0.0) -> np.ndarray:
 
 
 def segment_clear(surface, a_xyz, b_xyz) -> bool:
-    """Exact: every point of the leg a -> b is at least clearance_m above the terrain."""
+    """Exact: every point of the leg a -> b is at least clearance_m above the
+    terrain (its upper surface); False over a void."""
     return bool(segments_clear(surface, [a_xyz], [b_xyz])[0])
 
 
 def segments_clear(surface, a_xyz, b_xyz) -> np.ndarray:
     terrain = surface.terrain
     a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
-    lowest = k.legs_min_height(_heights(terrain), a, b)
+    lowest = k.legs_min_height(np.ascontiguousarray(terrain.upper, np.float64), a, b)
     with np.errstate(invalid="ignore"):
         return inside & (lowest >= surface.params.clearance_m - 1e-6)
 
@@ -177,7 +181,9 @@ def _eyes(terrain, outposts) -> np.ndarray:
     x = np.array([o.x for o in outposts], float)
     y = np.array([o.y for o in outposts], float)
     row, col = terrain.rowcol(x, y)
-    ground = terrain.ground(x, y)
+    # the source DEM's ground where known, else the upper surface (a higher eye sees more)
+    ground = np.array([o.ground_m for o in outposts], float).reshape(-1)
+    ground = np.where(np.isfinite(ground), ground, terrain.ground(x, y, upper=True))
     for o, g in zip(outposts, ground):
         if not np.isfinite(g):
             raise ValueError(f"outpost {o.name or (o.x, o.y)} is off the terrain or on a void")

@@ -19,7 +19,9 @@ class Outpost:
     """An observer post: a UAV it sees is shot at.
 
     ``x, y`` are in the terrain grid's projected CRS; ``height_m`` is the eye
-    height above ground; ``range_m`` is the detection range (inf = unlimited).
+    height above ground; ``range_m`` is the detection range (inf = unlimited);
+    ``ground_m`` is the ground under the eye, m AMSL, from the source DEM itself
+    (NaN: take it from the working grid's upper surface).
     """
 
     x: float
@@ -29,6 +31,7 @@ class Outpost:
     lon: float = float("nan")
     lat: float = float("nan")
     name: str = ""
+    ground_m: float = float("nan")
 
 
 # --- GeoJSON -------------------------------------------------------------------------------
@@ -126,10 +129,11 @@ def _outpost(index: int, feature, terrain, source) -> Outpost:
     x, y = terrain.from_lonlat(lon, lat)
     if not terrain.contains_xy(x, y):
         fail(f"lon {lon:.6f}, lat {lat:.6f} is outside the DEM")
-    if not np.isfinite(terrain.ground(x, y)[0]):
+    ground = float(terrain.exact_ground(x, y)[0])
+    if not (np.isfinite(terrain.ground(x, y)[0]) and np.isfinite(ground)):
         fail(f"lon {lon:.6f}, lat {lat:.6f} is on a void of the DEM (no ground height)")
     return Outpost(x=float(x), y=float(y), height_m=height, range_m=range_m, lon=lon, lat=lat,
-                   name=str(name) if name else f"O{index + 1}")
+                   name=str(name) if name else f"O{index + 1}", ground_m=ground)
 
 
 def _number(props, key, default, fail, minimum, strict=False) -> float:

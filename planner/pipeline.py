@@ -17,7 +17,7 @@ import numpy as np
 from . import coverage
 from .dem import load_dem, sample_terrain
 from .errors import InputError
-from .exposure import ExposureParams, compute_exposure
+from .exposure import ExposureParams, compute_exposure, segments_clear, segments_hidden
 from .outposts import load_outposts, sample_outposts
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
@@ -91,14 +91,19 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
         surface = compute_exposure(terrain, outposts, params,
                                    progress=_fraction(progress, "exposure"))
     launch_xy = _launch_xy(terrain, s)
+    regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
     with _stage("travel graph", timing, progress):
         graph = build_travel_graph(surface, travel_params(s))
     with _stage("viewpoints", timing, progress):
-        regions = fleet_region(surface, launch_xy)
         candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
                                           s.sensor_range_m)
-        launch_xyz = None if launch_xy is None else np.c_[launch_xy, np.zeros(len(launch_xy))]
-        viewpoints = candidates.subset(graph.reachable(launch_xyz)[graph.nodes_of(candidates.xyz)])
+        tops = None if launch_xy is None else launch_tops(graph, launch_xy)
+        viewpoints = candidates.subset(graph.reachable(tops)[graph.nodes_of(candidates.xyz)])
+        if not len(viewpoints):
+            raise InputError("exposure", "no viewpoint can be reached by hidden flight: the "
+                             "hidden region is too thin or too broken up for legs that keep "
+                             "the clearance and the track tolerance (try a larger --area, "
+                             "a lower --clearance or --track-tolerance)")
     with _stage("visibility", timing, progress):
         sensor = SensorParams(s.sensor_range_m, s.max_off_nadir_deg)
         visibility = compute_visibility(surface, viewpoints, sensor)
@@ -127,6 +132,28 @@ def _launch_xy(terrain, s: Scenario):
     return np.stack([x, y], axis=1)
 
 
+def launch_tops(graph, launch_xy) -> np.ndarray:
+    """(n, 3): the top of the takeoff above each launch point, the highest altitude
+    there hidden and clear with the track tolerance, which a hidden leg joins to
+    the travel graph. InputError naming the launch point where there is none."""
+    tops = []
+    for i, (x, y) in enumerate(np.asarray(launch_xy, float).reshape(-1, 2)):
+        top = np.array([x, y, graph.column_top(x, y)])
+        if not np.isfinite(top[2]):
+            why = ("no altitude above it is hidden from the outposts and clear of the "
+                   "terrain with the track tolerance")
+        elif graph.attach(top) is None:
+            why = "no hidden leg joins the takeoff above it to the hidden cells around it"
+        else:
+            tops.append(top)
+            continue
+        lon, lat = graph.surface.terrain.to_lonlat(x, y)
+        raise InputError("launch", f"launch point {i + 1} ({float(lat):.6f},{float(lon):.6f})"
+                                   f": {why}; move it further into the hidden area (see "
+                                   "exposure.tif) or lower --track-tolerance")
+    return np.array(tops).reshape(-1, 3)
+
+
 def launch_starts(ctx: PlanningContext) -> Optional[list]:
     """Starts at the scenario's launch points: vertical takeoff to the hidden ceiling."""
     xy = _launch_xy(ctx.terrain, ctx.scenario)
@@ -134,9 +161,8 @@ def launch_starts(ctx: PlanningContext) -> Optional[list]:
         return None
     launch_cells(ctx.surface, xy)  # every launch point must be flyable hidden
     starts = []
-    for x, y in xy:
-        ground = np.array([x, y, float(ctx.terrain.ground(x, y)[0])])
-        top = above_launch(ctx, ground)
+    for (x, y), top in zip(xy, launch_tops(ctx.graph, xy)):
+        ground = np.array([x, y, float(ctx.terrain.ground(x, y, upper=True)[0])])
         climb = float(leg_time(0.0, top[2] - ground[2], ctx.travel_params))
         starts.append(Start(top, ground, climb))
     return starts
@@ -172,10 +198,8 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
 
 
 def above_launch(ctx, ground_xyz) -> np.ndarray:
-    """The takeoff (and landing approach) point above a launch point, at the hidden ceiling."""
-    row, col = ctx.terrain.rowcol(ground_xyz[0], ground_xyz[1])
-    top = float(ctx.surface.ceiling[int(np.rint(row)), int(np.rint(col))])
-    return np.array([ground_xyz[0], ground_xyz[1], top])
+    """The takeoff (and landing approach) point above a launch point (`launch_tops`)."""
+    return launch_tops(ctx.graph, np.asarray(ground_xyz, float)[None, :2])[0]
 
 
 def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
@@ -203,23 +227,37 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
 
 
 def _routes(ctx, routes, starts):
-    """Hidden polylines through each route's viewpoints, and times at every vertex."""
-    polylines, arrivals = [], []
+    """Hidden polylines through each route's viewpoints, and times at every vertex.
+
+    Waypoints are rounded as MAVLink carries them (1e-7 degrees, float32
+    altitudes) and every leg is proven again, rounded, by the same tests the
+    mission check runs (`planner.exposure.segments_hidden`, `segments_clear`)."""
+    points = []
     for r, route in enumerate(routes):
         start = starts[r] if starts else None
-        points = [ctx.viewpoints.xyz[e] for e in route]
+        p = [ctx.viewpoints.xyz[e] for e in route]
         if start is not None:
-            points = [start.xyz] + points
+            p = [start.xyz] + p
             if start.launch is not None:
-                points.append(above_launch(ctx, start.launch))
-        if not points:
+                p.append(above_launch(ctx, start.launch))
+        points.append(np.array(p, float).reshape(-1, 3))
+    found = ctx.graph.route_polylines([p for p in points if len(p)])
+    found = iter(found)
+    polylines, arrivals = [], []
+    for r, (route, p) in enumerate(zip(routes, points)):
+        start = starts[r] if starts else None
+        if not len(p):
             polylines.append(np.zeros((0, 3)))
             arrivals.append((np.zeros(0), np.zeros(0, np.int64)))
             continue
-        found = ctx.graph.route_polyline(np.stack(points))
-        if found is None:
-            raise InputError("plan", f"UAV {r + 1}: no hidden path joins its viewpoints")
-        poly, stops = found
+        got = next(found)
+        if got is None:
+            raise InputError("plan", f"UAV {r + 1}: two of its viewpoints are not joined by a "
+                                     "hidden path (a defect: the planner only pairs reachable "
+                                     "viewpoints)")
+        poly, stops = got
+        poly = _rounded_for_mavlink(ctx, poly)
+        _prove(ctx, r, poly)
         d = np.diff(poly, axis=0)
         legs = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], ctx.travel_params)
         t = np.r_[0.0, np.cumsum(legs)] + (start.climb_s if start is not None else 0.0)
@@ -227,6 +265,32 @@ def _routes(ctx, routes, starts):
         polylines.append(poly)
         arrivals.append((t, snap))
     return polylines, arrivals
+
+
+def _rounded_for_mavlink(ctx, poly) -> np.ndarray:
+    """The polyline as MAVLink carries it: latitude and longitude in 1e-7 degrees,
+    altitudes as float32 rounded down (lower is never less hidden; the planner
+    keeps a clearance margin far larger than a float32 step)."""
+    lon, lat = ctx.terrain.to_lonlat(poly[:, 0], poly[:, 1])
+    lon = np.round(np.asarray(lon, float) * 1e7) / 1e7
+    lat = np.round(np.asarray(lat, float) * 1e7) / 1e7
+    alt = poly[:, 2].astype(np.float32)
+    alt = np.where(alt.astype(float) > poly[:, 2], np.nextafter(alt, np.float32(-np.inf)), alt)
+    x, y = ctx.terrain.from_lonlat(lon, lat)
+    return np.stack([np.asarray(x, float), np.asarray(y, float), alt.astype(float)], axis=1)
+
+
+def _prove(ctx, r, poly) -> None:
+    """Every leg hidden and clear, by the mission check's own tests."""
+    if len(poly) < 2:
+        return
+    ok = segments_hidden(ctx.surface, poly[:-1], poly[1:]) & \
+        segments_clear(ctx.surface, poly[:-1], poly[1:])
+    if not ok.all():
+        n = int(np.flatnonzero(~ok)[0])
+        raise InputError("plan", f"UAV {r + 1}: leg {n + 1} of its route fails the hidden and "
+                                 "clearance proof once rounded for MAVLink (a planner defect: "
+                                 "please report it with the scenario)")
 
 
 def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
@@ -272,7 +336,7 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
     return Plan(method=method, params=plan_params(s), crs=ctx.terrain.crs,
                 outposts=[{"lon": o.lon, "lat": o.lat, "height_m": o.height_m,
                            "range_m": o.range_m if np.isfinite(o.range_m) else None,
-                           "name": o.name}
+                           "name": o.name, "ground_amsl": o.ground_m}
                           for o in ctx.outposts],
                 vehicles=vehicles, metrics=metrics, timing_s=timing)
 
@@ -281,6 +345,7 @@ def _vehicle(ctx, r, poly, t, snap, start) -> VehicleRoute:
     snapshot = np.zeros(len(poly), bool)
     snapshot[snap] = True
     lon, lat = ctx.terrain.to_lonlat(poly[:, 0], poly[:, 1]) if len(poly) else ([], [])
+    lon, lat = np.round(np.asarray(lon) * 1e7) / 1e7, np.round(np.asarray(lat) * 1e7) / 1e7
     waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f))
                  for a, b, z, ts, f in zip(lon, lat, poly[:, 2], t, snapshot)]
     launch = None
@@ -346,5 +411,6 @@ def plan_outposts(terrain, plan: Plan) -> list:
     x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
     return [Outpost(float(xi), float(yi), float(o["height_m"]),
                     float("inf") if o.get("range_m") is None else float(o["range_m"]),
-                    float(o["lon"]), float(o["lat"]), o.get("name", ""))
+                    float(o["lon"]), float(o["lat"]), o.get("name", ""),
+                    float("nan") if o.get("ground_amsl") is None else float(o["ground_amsl"]))
             for xi, yi, o in zip(x, y, plan.outposts)]

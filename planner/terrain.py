@@ -4,12 +4,21 @@ Heights are metres AMSL at cell centres, row 0 at the north edge. The terrain
 *surface* between centres is the bilinear interpolation of the centres; every
 line-of-sight test in the planner uses that surface.
 
+When the working grid had to be resampled from the source DEM (a geographic
+DEM, tiles in several CRSs, a chosen resolution) the terrain carries two
+surfaces that bracket the source DEM's own bilinear surface everywhere:
+``height``, nowhere above it, occludes sight lines (a lower terrain hides
+less), and ``height_upper``, nowhere below it, is the ground for clearance and
+for the outposts' eyes (a higher eye sees more). On a DEM kept on its own
+lattice both are the source heights.
+
 Grid coordinates used by the numba kernels: ``u`` = column, ``v`` = row, both
 fractional, with the centre of cell (row r, col c) at (u, v) = (c, r).
 """
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Optional
 
 import numpy as np
 from affine import Affine
@@ -23,6 +32,10 @@ class Terrain:
     crs: str  # projected CRS of the grid, e.g. "EPSG:32616"
     source: str = ""  # where it came from, for messages
     meta: dict = field(default_factory=dict)  # e.g. {"filled_voids": 12}
+    #: float64 [row, col]: upper bound of the source surface (None: ``height`` is exact)
+    height_upper: Optional[np.ndarray] = None
+    #: the source DEM's own surface, ``.ground(x, y)``, when the grid was resampled
+    source_surface: Optional[object] = None
 
     def __post_init__(self):
         if abs(self.transform.a + self.transform.e) > 1e-9 * abs(self.transform.a):
@@ -37,8 +50,28 @@ class Terrain:
         return self.height.shape
 
     @property
+    def upper(self) -> np.ndarray:
+        """The ground for clearance and eyes: nowhere below the source surface."""
+        return self.height if self.height_upper is None else self.height_upper
+
+    @property
     def valid(self) -> np.ndarray:
-        return np.isfinite(self.height)
+        return np.isfinite(self.height) & np.isfinite(self.upper)
+
+    @cached_property
+    def solid(self) -> np.ndarray:
+        """Cells whose four patches (the 3 x 3 cells around) all have data: the
+        surface is known all around their centre. Cells on the outer ring are
+        not solid (the surface ends at their centre)."""
+        valid = self.valid
+        out = np.zeros_like(valid)
+        if valid.shape[0] >= 3 and valid.shape[1] >= 3:
+            core = np.ones((valid.shape[0] - 2, valid.shape[1] - 2), bool)
+            for dr in range(3):
+                for dc in range(3):
+                    core &= valid[dr:dr + core.shape[0], dc:dc + core.shape[1]]
+            out[1:-1, 1:-1] = core
+        return out
 
     # --- grid <-> projected metres -------------------------------------------------
     def xy(self, row, col):
@@ -73,10 +106,18 @@ class Terrain:
         n_rows, n_cols = self.shape
         return (row >= 0) & (row <= n_rows - 1) & (col >= 0) & (col <= n_cols - 1)
 
-    def ground(self, x, y) -> np.ndarray:
-        """Bilinear terrain height (m AMSL) at projected (x, y); NaN outside or near voids."""
+    def exact_ground(self, x, y) -> np.ndarray:
+        """The source DEM's own surface at projected (x, y) (m AMSL; NaN outside)."""
+        if self.source_surface is not None:
+            return self.source_surface.ground(np.atleast_1d(x), np.atleast_1d(y))
+        return self.ground(x, y)
+
+    def ground(self, x, y, upper=False) -> np.ndarray:
+        """Bilinear terrain height (m AMSL) at projected (x, y); NaN outside or near
+        voids. ``upper``: of the upper surface (clearance, eyes)."""
         row, col = self.rowcol(x, y)
-        return bilinear(self.height, np.atleast_1d(row), np.atleast_1d(col))
+        return bilinear(self.upper if upper else self.height, np.atleast_1d(row),
+                        np.atleast_1d(col))
 
 
 def bilinear(grid: np.ndarray, row: np.ndarray, col: np.ndarray) -> np.ndarray:

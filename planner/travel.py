@@ -28,6 +28,7 @@ checked exactly like the clearance), not only at its vertices: hidden alone, a
 straight leg could pass up to the sight lines where E dips under it.
 """
 
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -39,11 +40,18 @@ from scipy.spatial import cKDTree
 from . import exposure, exposure_kernels
 from . import travel_kernels as K
 from .errors import InputError
+from .terrain import bilinear
 
 #: MISSION_ITEM_INT carries lat/lon in 1e-7 degree (<= 1.1 cm): every planned leg is
-#: proven hidden with this much room around it on top of the track tolerance, so the
-#: rounded leg is hidden too
+#: proven hidden and clear with this much room around it on top of the track
+#: tolerance, so the rounded leg is too
 ROUNDING_SLACK_M = 0.05
+#: planned legs keep this much more than clearance_m above the ground, so that the
+#: mission check, which proves the rounded waypoints against clearance_m itself,
+#: never finds a leg exactly at the floor
+CLEARANCE_MARGIN_M = 0.05
+#: cells around a point searched for a node it can be joined to (`attach`)
+ATTACH_REACH_CELLS = 2
 
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
@@ -100,8 +108,13 @@ class TravelGraph:
         self.params = params
         terrain = surface.terrain
         self._h = np.ascontiguousarray(terrain.height, np.float64)
-        self._h_clear = raised_terrain(self._h, terrain.cell_size, params.track_tolerance_m)
+        ground = np.ascontiguousarray(terrain.upper, np.float64)
+        # clearance is proven over the ground within the track tolerance (strict) or
+        # within what rounding for MAVLink moves a point
+        self._h_clear = raised_terrain(ground, terrain.cell_size, params.slack_m)
+        self._h_round = raised_terrain(ground, terrain.cell_size, ROUNDING_SLACK_M)
         self._ceiling = _ceiling_everywhere(surface, self._h)
+        self._attached = {}
         rows, cols = np.nonzero(surface.regions > 0)
         self.node_rows = rows.astype(np.int64)
         self.node_cols = cols.astype(np.int64)
@@ -145,13 +158,16 @@ class TravelGraph:
         rb, cb = terrain.rowcol(b[:, 0], b[:, 1])
         inside = terrain.contains_xy(a[:, 0], a[:, 1]) & terrain.contains_xy(b[:, 0], b[:, 1])
         h_clear, slack_m = ((self._h_clear, self.params.slack_m) if strict
-                            else (self._h, ROUNDING_SLACK_M))
+                            else (self._h_round, ROUNDING_SLACK_M))
         za, zb = a[:, 2].copy(), b[:, 2].copy()
         lo = K.legs_gaps(h_clear, ca, ra, za, cb, rb, zb)[0]
         hi = K.legs_gaps(self._h, ca, ra, za, cb, rb, zb)[1]
-        ok = inside & (lo >= p.clearance_m - 1e-6) & (hi <= p.ceiling_agl_m + 1e-6)
+        with np.errstate(invalid="ignore"):  # NaN: the leg meets a void
+            ok = inside & (lo >= p.clearance_m + CLEARANCE_MARGIN_M) & \
+                (hi <= p.ceiling_agl_m + 1e-6)
         if strict:
-            ok &= K.legs_gaps(self._ceiling, ca, ra, za, cb, rb, zb)[1] <= 1e-6
+            with np.errstate(invalid="ignore"):
+                ok &= K.legs_gaps(self._ceiling, ca, ra, za, cb, rb, zb)[1] <= 1e-6
         idx = np.flatnonzero(ok)
         ok[idx] = _segments_hidden(self.surface, a[idx], b[idx], slack_m)
         return ok
@@ -173,11 +189,12 @@ class TravelGraph:
         src, dst = src[fine[src] & fine[dst]], dst[fine[src] & fine[dst]]
         z = np.ascontiguousarray(self.node_xyz[:, 2])
         ok = K.grid_legs_within(self._h_clear, self._h, self._ceiling, self.node_rows,
-                                self.node_cols, z, src, dst, p.clearance_m, p.ceiling_agl_m)
+                                self.node_cols, z, src, dst,
+                                p.clearance_m + CLEARANCE_MARGIN_M, p.ceiling_agl_m)
         idx = np.flatnonzero(ok)
         ok[idx] = _segments_hidden(self.surface, self.node_xyz[src[idx]],
                                    self.node_xyz[dst[idx]], self.params.slack_m)
-        floor = self._h_clear[self.node_rows, self.node_cols] + p.clearance_m
+        floor = self._floor_at_nodes()
         low = np.maximum(floor[src], floor[dst])
         dip = np.full(src.shape[0], np.nan)
         idx = np.flatnonzero(~ok & (low < np.minimum(z[src], z[dst])))
@@ -194,6 +211,14 @@ class TravelGraph:
     def nodes_of(self, xyz, what="point") -> np.ndarray:
         """Node of the cell under each point; InputError if that cell is not flyable."""
         xyz = np.atleast_2d(np.asarray(xyz, float))
+        nodes = self._cell_nodes(xyz)
+        if (nodes < 0).any():
+            k = int(np.flatnonzero(nodes < 0)[0])
+            raise InputError(what, f"({xyz[k, 0]:.0f}, {xyz[k, 1]:.0f}) is not over a flyable"
+                             " hidden cell")
+        return nodes
+
+    def _cell_nodes(self, xyz) -> np.ndarray:
         row, col = self.surface.terrain.rowcol(xyz[:, 0], xyz[:, 1])
         r = np.rint(row).astype(np.int64)
         c = np.rint(col).astype(np.int64)
@@ -201,11 +226,102 @@ class TravelGraph:
         inside = (r >= 0) & (r < n_rows) & (c >= 0) & (c < n_cols)
         nodes = np.full(len(xyz), -1, np.int64)
         nodes[inside] = self.node_of_cell[r[inside], c[inside]]
-        if (nodes < 0).any():
-            k = int(np.flatnonzero(nodes < 0)[0])
-            raise InputError(what, f"({xyz[k, 0]:.0f}, {xyz[k, 1]:.0f}) is not over a flyable"
-                             " hidden cell")
         return nodes
+
+    def _floor_at_nodes(self, nodes=slice(None)) -> np.ndarray:
+        """Lowest altitude a level leg may fly at each node (on the raised ground)."""
+        return (self._h_clear[self.node_rows[nodes], self.node_cols[nodes]]
+                + self.surface.params.clearance_m + 2 * CLEARANCE_MARGIN_M)
+
+    def column_top(self, x, y) -> float:
+        """The highest altitude above (x, y) where a vehicle is hidden and clear with
+        its track tolerance (the top of a takeoff there), or NaN if there is none.
+        Hidden only gets likelier lower down and clear higher up, so the altitudes
+        that pass form one interval: bisect for its top."""
+        terrain = self.surface.terrain
+        row, col = terrain.rowcol(x, y)
+        ceiling = float(bilinear(self._ceiling, np.atleast_1d(row), np.atleast_1d(col))[0])
+        low = float(terrain.ground(x, y, upper=True)[0]) + self.surface.params.clearance_m
+        if not (np.isfinite(ceiling) and np.isfinite(low)) or ceiling < low:
+            return float("nan")
+        if self._leg_ok([x, y, ceiling], [x, y, ceiling]):
+            return ceiling
+        lo, hi = low, ceiling
+        if not self._leg_ok([x, y, lo], [x, y, lo]):
+            return float("nan")
+        while hi - lo > 0.05:
+            mid = 0.5 * (lo + hi)
+            if self._leg_ok([x, y, mid], [x, y, mid]):
+                lo = mid
+            else:
+                hi = mid
+        return lo
+
+    def attach(self, xyz):
+        """How a point in the hidden volume joins the graph: (node, polyline from the
+        point to the node), or None. Nodes of the cells around the point are tried
+        nearest first, each by a straight leg or by a dip (down at the point to the
+        higher of the two floors, level, up at the node), every leg checked like the
+        graph's own. The point itself must pass the checks (its tolerance disc)."""
+        key = tuple(np.round(np.asarray(xyz, float), 6))
+        if key not in self._attached:
+            self._attached[key] = self._attach(np.asarray(xyz, float))
+        return self._attached[key]
+
+    def _attach(self, p):
+        node = int(self._cell_nodes(p[None])[0])
+        if node >= 0 and np.array_equal(self.node_xyz[node], p):
+            return node, p[None]  # a node itself (e.g. a viewpoint)
+        if not self._leg_ok(p, p):
+            return None
+        terrain = self.surface.terrain
+        row, col = terrain.rowcol(p[0], p[1])
+        reach = ATTACH_REACH_CELLS
+        r0, c0 = int(np.rint(row)), int(np.rint(col))
+        rows, cols = np.mgrid[r0 - reach:r0 + reach + 1, c0 - reach:c0 + reach + 1]
+        n_rows, n_cols = self.node_of_cell.shape
+        inside = (rows >= 0) & (rows < n_rows) & (cols >= 0) & (cols < n_cols)
+        nodes = self.node_of_cell[rows[inside], cols[inside]]
+        nodes = nodes[nodes >= 0]
+        if not nodes.size:
+            return None
+        nodes = nodes[np.argsort(np.hypot(*(self.node_xyz[nodes, :2] - p[:2]).T),
+                                 kind="stable")]
+        straight = self.legs_ok(np.repeat(p[None], len(nodes), axis=0), self.node_xyz[nodes])
+        if straight.any():
+            node = int(nodes[np.argmax(straight)])
+            return node, _dedupe(np.stack([p, self.node_xyz[node]]))
+        ground = float(terrain.ground(p[0], p[1], upper=True)[0])
+        low = np.maximum(self._floor_at_nodes(nodes),
+                         ground + self.surface.params.clearance_m + 2 * CLEARANCE_MARGIN_M)
+        for node, z in zip(nodes, low):
+            if z >= min(p[2], self.node_xyz[node, 2]):
+                continue
+            q = self.node_xyz[node]
+            if self.legs_ok([p[0], p[1], z], [q[0], q[1], z])[0]:
+                return int(node), np.array([p, [p[0], p[1], z], [q[0], q[1], z], q])
+        return None
+
+    def _attached_nodes(self, xyz, what="point") -> np.ndarray:
+        """`attach` node of each point; InputError naming the first that has none."""
+        xyz = np.atleast_2d(np.asarray(xyz, float))
+        nodes = np.empty(len(xyz), np.int64)
+        for k, p in enumerate(xyz):
+            found = self.attach(p)
+            if found is None:
+                lon, lat = self.surface.terrain.to_lonlat(p[0], p[1])
+                raise InputError(what, f"no hidden leg joins {float(lat):.6f},{float(lon):.6f}"
+                                 f" at {p[2]:.1f} m to the hidden flyable cells around it")
+            nodes[k] = found[0]
+        return nodes
+
+    def _attach_times(self, xyz, inbound=False) -> np.ndarray:
+        """Time of each point's attach polyline (to its node, or from it)."""
+        out = np.empty(len(xyz))
+        for k, p in enumerate(np.atleast_2d(xyz)):
+            poly = self.attach(p)[1]
+            out[k] = self.polyline_time(poly[::-1] if inbound else poly)
+        return out
 
     def reachable(self, xyz=None) -> np.ndarray:
         """Bool per node: in a strongly connected part holding a node under ``xyz``
@@ -215,7 +331,7 @@ class TravelGraph:
         its straight leg hidden, so a region can fall apart into several parts.
         """
         _, labels = connected_components(self.csr, directed=True, connection="strong")
-        keep = (np.unique(labels[self.nodes_of(xyz)]) if xyz is not None
+        keep = (np.unique(labels[self._attached_nodes(xyz)]) if xyz is not None
                 else [np.bincount(labels).argmax()])
         return np.isin(labels, keep)
 
@@ -234,12 +350,18 @@ class TravelGraph:
         return self._csr_reverse
 
     def times_between(self, src_xyz, dst_xyz) -> np.ndarray:
-        """[n_src, n_dst] shortest times (s); inf when unreachable (e.g. other regions)."""
-        src = self.nodes_of(src_xyz)
-        dst = self.nodes_of(dst_xyz)
+        """[n_src, n_dst] shortest times (s) between points joined to the graph by
+        `attach`; inf when unreachable (e.g. other regions)."""
+        src_xyz = np.atleast_2d(src_xyz)
+        dst_xyz = np.atleast_2d(dst_xyz)
+        src = self._attached_nodes(src_xyz)
+        dst = self._attached_nodes(dst_xyz)
         if len(src) <= len(dst):
-            return self._rows(self.csr, src, dst)
-        return self._rows(self._reverse(), dst, src).T
+            times = self._rows(self.csr, src, dst)
+        else:
+            times = self._rows(self._reverse(), dst, src).T
+        return (times + self._attach_times(src_xyz)[:, None]
+                + self._attach_times(dst_xyz, inbound=True)[None, :])
 
     def _rows(self, graph, sources, columns):
         """dijkstra(graph, sources)[:, columns], in chunks that bound the dense output."""
@@ -325,71 +447,89 @@ class TravelGraph:
 
     def path(self, a_xyz, b_xyz) -> np.ndarray:
         """Smoothed hidden 3-D polyline (n, 3) from a to b, or None if unreachable.
-
-        a and b enter the graph at the node of the cell under them; the legs
-        a -> node and node -> b must themselves be flyable hidden.
-        """
-        a_xyz = np.asarray(a_xyz, float)
-        b_xyz = np.asarray(b_xyz, float)
-        a, b = self.nodes_of(np.stack([a_xyz, b_xyz]))
-        nodes = self.node_path(a, b)
-        if nodes.size == 0:
-            return None
-        poly = np.vstack([a_xyz, self._expand(nodes), b_xyz])
-        ok = self.legs_ok(poly[[0, -2]], poly[[1, -1]])
-        if not ok.all():
-            raise InputError("path", "the leg between a point and its cell's node is not hidden")
-        return self.smooth(_dedupe(poly))
+        a and b join the graph by `attach`."""
+        found = self.route_polylines([np.stack([a_xyz, b_xyz])])[0]
+        return None if found is None else found[0]
 
     def route_polyline(self, xyz):
-        """Hidden polyline through the points in order, and each point's vertex index.
+        """`route_polylines` of one route."""
+        return self.route_polylines([xyz])[0]
 
-        Returns (poly (m, 3), stops (n,)); None if some pair is unreachable.
-        The points stay vertices (snapshots are taken there).
-        """
-        xyz = np.atleast_2d(np.asarray(xyz, float))
-        parts = [xyz[:1]]
-        stops = [0]
-        for p, q in zip(xyz[:-1], xyz[1:]):
-            leg = self.path(p, q)
-            if leg is None:
-                return None
-            parts.append(leg[1:])
-            stops.append(stops[-1] + len(leg) - 1)
-        return np.vstack(parts), np.array(stops, np.int64)
+    def route_polylines(self, routes) -> list:
+        """Per route (an (n, 3) array of points to visit in order): the hidden
+        polyline through them and each point's vertex index, (poly, stops), or
+        None if some pair is unreachable. The points stay vertices (snapshots are
+        taken there); the shortest paths between them are found on both cores and
+        smoothed all at once (`smooth_all`)."""
+        routes = [np.atleast_2d(np.asarray(r, float)) for r in routes]
+        pairs = [(p, q) for r in routes for p, q in zip(r[:-1], r[1:])]
+        raw = self._raw_paths(pairs)
+        smoothed = self.smooth_all([x for x in raw if x is not None])
+        legs = iter(smoothed)
+        out, k = [], 0
+        for r in routes:
+            parts, stops = [r[:1]], [0]
+            for _ in range(len(r) - 1):
+                leg = raw[k] if raw[k] is None else next(legs)
+                k += 1
+                if leg is None:
+                    parts = None
+                    continue
+                if parts is not None:
+                    parts.append(leg[1:])
+                    stops.append(stops[-1] + len(leg) - 1)
+            out.append(None if parts is None else (np.vstack(parts), np.array(stops, np.int64)))
+        return out
+
+    def _raw_paths(self, pairs) -> list:
+        """Unsmoothed polylines a -> b (attach legs, node path with its dips), None
+        where there is none."""
+        ends = [(self.attach(p), self.attach(q)) for p, q in pairs]
+        jobs = [(a[0], b[0]) for a, b in ends if a is not None and b is not None]
+        with ThreadPoolExecutor(_n_threads()) as pool:  # the kernel releases the GIL
+            found = iter(list(pool.map(lambda ab: self.node_path(*ab), jobs)))
+        out = []
+        for (p, q), (a, b) in zip(pairs, ends):
+            nodes = next(found) if a is not None and b is not None else np.zeros(0, np.int64)
+            if nodes.size == 0:
+                out.append(None)
+                continue
+            out.append(_dedupe(np.vstack([p, a[1], self._expand(nodes), b[1][::-1], q])))
+        return out
 
     def smooth(self, poly) -> np.ndarray:
+        """`smooth_all` of one polyline."""
+        return self.smooth_all([poly])[0]
+
+    def smooth_all(self, polys) -> list:
         """String pulling: from each kept vertex, jump to a far vertex that the
         straight leg reaches flyable hidden. The jump is found by galloping
         (1, 2, 4, ... vertices ahead) and bisecting between the last leg that
         passed and the first that failed: O(log n) checks per kept vertex, and
-        every kept leg is one that passed."""
-        poly = np.asarray(poly, float)
-        n = len(poly)
-        keep = [0]
-        i = 0
-        while i < n - 1:
-            good, step = i + 1, 1
-            bad = None
-            if self._leg_ok(poly[i], poly[n - 1]):
-                good = n - 1
-            else:
-                while good + step < n - 1:
-                    if not self._leg_ok(poly[i], poly[good + step]):
-                        bad = good + step
-                        break
-                    good += step
-                    step *= 2
-                bad = n - 1 if bad is None else bad
-                while bad - good > 1:
-                    mid = (good + bad) // 2
-                    if self._leg_ok(poly[i], poly[mid]):
-                        good = mid
-                    else:
-                        bad = mid
-            keep.append(good)
-            i = good
-        return poly[keep]
+        every kept leg is one that passed. All polylines advance together, their
+        legs checked in one batch per step."""
+        polys = [np.asarray(p, float) for p in polys]
+        walks = [_string_pull(len(p)) for p in polys]
+        kept = [None] * len(polys)
+        legs = [self._step(walks, kept, polys, k, None) for k in range(len(polys))]
+        while True:
+            active = [k for k, leg in enumerate(legs) if leg is not None]
+            if not active:
+                return kept
+            ok = self.legs_ok(np.array([polys[k][legs[k][0]] for k in active]),
+                              np.array([polys[k][legs[k][1]] for k in active]))
+            for k, passed in zip(active, ok):
+                legs[k] = self._step(walks, kept, polys, k, bool(passed))
+
+    @staticmethod
+    def _step(walks, kept, polys, k, passed):
+        """Advance walk k by the result of its last leg: its next leg, or None when
+        it is done (its kept vertices then in ``kept[k]``)."""
+        try:
+            return next(walks[k]) if passed is None else walks[k].send(passed)
+        except StopIteration as done:
+            kept[k] = polys[k][done.value]
+            return None
 
     def _leg_ok(self, a, b) -> bool:
         return bool(self.legs_ok(a, b)[0])
@@ -414,16 +554,23 @@ def raised_terrain(h, cell, tolerance_m) -> np.ndarray:
     highest point within ``tolerance_m`` of it horizontally: h + tolerance_m times
     the steepest slope of the patches a point that far away can lie in (each
     vertex takes the largest patch slope bound over a window wide enough for any
-    point of its four patches). Patches touching a void take the steepest slope
-    found anywhere (voids themselves stay voids)."""
+    point of its four patches). A vertex whose window holds a patch touching a
+    void, or reaches beyond the grid, is a void itself: the ground that close
+    is unknown."""
     if tolerance_m <= 0:
         return h
     slope = exposure_kernels.patch_gradient_bound(h, cell)
-    finite = np.isfinite(slope)
-    slope[~finite] = slope[finite].max(initial=0.0)
+    void = ~np.isfinite(slope)
+    slope[void] = 0.0
     reach = int(np.ceil(tolerance_m / cell))
-    spread = maximum_filter(np.pad(slope, 1), size=2 * reach + 3, mode="constant")
-    return h + tolerance_m * spread[:h.shape[0], :h.shape[1]]
+    # vertex v (padded index v + 1) bounds points of patches v-1..v, and their discs
+    # reach patches v-1-reach..v+reach: padded v-reach..v+reach+1
+    window = dict(size=2 * reach + 2, origin=-1, mode="constant")
+    spread = maximum_filter(np.pad(slope, 1), **window)[:h.shape[0], :h.shape[1]]
+    # beyond the grid's edge the ground is unknown too
+    near_void = maximum_filter(np.pad(void, 1, constant_values=True),
+                               **window)[:h.shape[0], :h.shape[1]]
+    return np.where(near_void, np.nan, h + tolerance_m * spread)
 
 
 def _edge_time(horiz, z_from, z_low, z_to, params):
@@ -442,6 +589,36 @@ def _segments_hidden(surface, a, b, slack_m) -> np.ndarray:
     if len(a) == 0:
         return np.zeros(0, bool)
     return np.asarray(exposure.segments_hidden(surface, a, b, slack_m), bool)
+
+
+def _string_pull(n):
+    """The vertex indices `TravelGraph.smooth_all` keeps of an n-vertex polyline:
+    a generator that yields each leg (i, j) to check and is sent whether it
+    passed; its return value is the list of kept indices."""
+    keep = [0]
+    i = 0
+    while i < n - 1:
+        good, step = i + 1, 1
+        bad = None
+        if (yield (i, n - 1)):
+            good = n - 1
+        else:
+            while good + step < n - 1:
+                if not (yield (i, good + step)):
+                    bad = good + step
+                    break
+                good += step
+                step *= 2
+            bad = n - 1 if bad is None else bad
+            while bad - good > 1:
+                mid = (good + bad) // 2
+                if (yield (i, mid)):
+                    good = mid
+                else:
+                    bad = mid
+        keep.append(good)
+        i = good
+    return keep
 
 
 def _dedupe(poly):

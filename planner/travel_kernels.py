@@ -8,12 +8,13 @@ from .los import gap_range
 
 @njit(cache=True)
 def legs_gaps(h, ua, va, za, ub, vb, zb):
-    """Lowest and highest height above the ground along each leg (few legs: serial)."""
+    """Lowest and highest height above the ground along each leg (few legs: serial);
+    NaN for a leg over a void (unknown ground is neither clear nor under a cap)."""
     n = ua.shape[0]
     lo = np.empty(n)
     hi = np.empty(n)
     for k in range(n):
-        lo[k], hi[k] = gap_range(h, ua[k], va[k], za[k], ub[k], vb[k], zb[k])
+        lo[k], hi[k] = gap_range(h, ua[k], va[k], za[k], ub[k], vb[k], zb[k], False)
     return lo, hi
 
 
@@ -122,7 +123,7 @@ def bounded_times(indptr, nbr, w, sources, slot_of_node, n_slots, limit, n_chunk
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def node_path(indptr, nbr, w, source, target):
     """Nodes of a shortest path source -> target (Dijkstra stopped once the
     target is settled); empty when unreachable."""
@@ -208,10 +209,11 @@ def grid_legs_within(h_clear, h, ceiling, node_rows, node_cols, node_z, src, dst
         b = dst[k]
         ua, va, ub, vb = float(node_cols[a]), float(node_rows[a]), float(node_cols[b]), \
             float(node_rows[b])
-        lo = gap_range(h_clear, ua, va, node_z[a], ub, vb, node_z[b])[0]
-        out[k] = lo >= clearance - 1e-6 and \
-            gap_range(h, ua, va, node_z[a], ub, vb, node_z[b])[1] <= agl_cap + 1e-6 and \
-            gap_range(ceiling, ua, va, node_z[a], ub, vb, node_z[b])[1] <= 1e-6
+        # NaN over a void: every comparison fails
+        lo = gap_range(h_clear, ua, va, node_z[a], ub, vb, node_z[b], False)[0]
+        out[k] = lo >= clearance and \
+            gap_range(h, ua, va, node_z[a], ub, vb, node_z[b], False)[1] <= agl_cap + 1e-6 \
+            and gap_range(ceiling, ua, va, node_z[a], ub, vb, node_z[b], False)[1] <= 1e-6
     return out
 
 

@@ -90,15 +90,14 @@ def test_lowest_seen_is_a_tight_lower_bound_of_the_exact_one(seed, posts, curvat
     assert np.all(np.isfinite(ours[seen]) | np.isneginf(ours[seen]))
     if seen.any():
         assert _within_2m(ours, exact, ground + params.ceiling_agl_m, seen) >= 0.88
-    # the surface derived from it
+    # the surface derived from it, on the cells off the outer ring (the surface ends
+    # at its centres: a rounded point there may leave the grid)
     flyable = capped - params.hide_margin_m >= ground + params.clearance_m
+    flyable[[0, -1], :] = flyable[:, [0, -1]] = False
     assert np.array_equal(surface.flyable, flyable)
     assert np.array_equal(surface.exposure[flyable], capped[flyable])
     assert np.isnan(surface.exposure[~flyable]).all()
-    # regions: the flyable cells off the outer ring (a rounded point there may leave the grid)
-    inner = np.zeros_like(flyable)
-    inner[1:-1, 1:-1] = flyable[1:-1, 1:-1]
-    assert np.array_equal(surface.regions > 0, inner)
+    assert np.array_equal(surface.regions > 0, flyable)
     np.testing.assert_allclose(surface.ceiling[flyable], capped[flyable] - params.hide_margin_m)
     np.testing.assert_allclose(surface.floor, ground + params.clearance_m)
 
@@ -189,8 +188,9 @@ def test_flat_ground_hides_nothing_within_range():
     assert not surface.flyable[inside].any()
     # beyond range E is the ceiling above ground: flyable everywhere
     assert np.isinf(surface.lowest_seen[~inside]).all()
-    np.testing.assert_allclose(surface.exposure[~inside], 250.0 + 120.0)
-    assert surface.flyable[~inside].all()
+    inner = ~inside & terrain.solid  # off the outer ring
+    np.testing.assert_allclose(surface.exposure[inner], 250.0 + 120.0)
+    assert surface.flyable[inner].all()
     assert surface.regions.max() == 1
 
 
@@ -238,7 +238,7 @@ def test_ridge_shadow_follows_the_line_over_the_crest():
                                atol=1e-6)
     assert np.mean(np.minimum(ours, cap)[behind] >= np.minimum(expected, cap)[behind] - 2.0) >= 0.99
     # flyable behind the ridge where the line leaves room for clearance and margin
-    room = np.minimum(expected, h + 120.0) - 10.0 >= h + 30.0
+    room = (np.minimum(expected, h + 120.0) - 10.0 >= h + 30.0) & terrain.solid
     assert np.array_equal(surface.flyable[along], room[along])
     assert surface.flyable[behind].any() and not surface.flyable[~behind].any()
 
@@ -253,6 +253,7 @@ def test_range_limit():
     assert np.isinf(surface.lowest_seen[beyond]).all()
     assert (surface.lowest_seen[~beyond] < np.inf).all()
     ground = terrain.height
+    beyond &= terrain.solid
     np.testing.assert_allclose(surface.exposure[beyond], ground[beyond] + 120.0)
     assert surface.flyable[beyond].all()
 
@@ -381,8 +382,9 @@ def test_segment_clear_against_dense_sampling(seed, a, b, za, zb):
 def test_no_outposts_everything_below_the_ceiling_is_flyable():
     terrain = _terrain(_rough(3))
     surface = compute_exposure(terrain, [], ExposureParams())
-    assert surface.flyable.all()
-    np.testing.assert_allclose(surface.ceiling, terrain.height + 110.0)
+    assert np.array_equal(surface.flyable, terrain.solid)  # all but the outer ring
+    np.testing.assert_allclose(surface.ceiling[terrain.solid], terrain.height[terrain.solid]
+                               + 110.0)
     assert segment_hidden(surface, [*terrain.xy(1, 1), 0.0], [*terrain.xy(20, 20), 0.0])
 
 

@@ -59,7 +59,9 @@ def test_routes_are_hidden_and_clear(planned):
 
 def test_legs_stay_under_the_ceiling_all_along(planned):
     """z <= E - hide_margin at every point, E between cell centres being the bilinear
-    surface of its cell values (dense sampling; E recomputed from lowest_seen)."""
+    surface of its cell values (dense sampling; E recomputed from lowest_seen), up
+    to what rounding the waypoints for MAVLink moves them (a centimetre at most
+    horizontally, times the ceiling's slope)."""
     ctx, outcome = planned
     s, h = ctx.surface, ctx.terrain.height
     ceiling = np.minimum(s.lowest_seen, h + s.params.ceiling_agl_m) - s.params.hide_margin_m
@@ -70,7 +72,7 @@ def test_legs_stay_under_the_ceiling_all_along(planned):
             p = a + t * (b - a)
             row, col = ctx.terrain.rowcol(p[:, 0], p[:, 1])
             worst = max(worst, np.max(p[:, 2] - bilinear(ceiling, row, col)))
-    assert worst <= 1e-6
+    assert worst <= 0.02
 
 
 def test_legs_stay_hidden_within_the_track_tolerance():
@@ -124,8 +126,9 @@ def test_k1_with_launch_points(terrain):
     for v in outcome.plan.vehicles:
         assert v.launch is not None
         first, last = v.waypoints[0], v.waypoints[-1]
-        assert (first.lon, first.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=1e-9)
-        assert (last.lon, last.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=1e-9)
+        # the same point, both rounded to MAVLink's 1e-7 degrees
+        assert (first.lon, first.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=2e-7)
+        assert (last.lon, last.lat) == pytest.approx((v.launch.lon, v.launch.lat), abs=2e-7)
         assert v.mission_time_s > v.coverage_time_s
     assert m["lower_bound_s"] <= m["coverage_time_s"]
 

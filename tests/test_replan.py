@@ -126,6 +126,13 @@ def test_one_survivor_of_k1_needs_one_view(planned):
     assert new.plan.metrics["k_covered"] == new.plan.metrics["covered"]
 
 
+def _assert_proven(ctx, poly):
+    """Every leg passes the mission check's own proofs (the polyline is rounded for
+    MAVLink, so the planner's stricter in-planning checks no longer apply)."""
+    assert segments_hidden(ctx.surface, poly[:-1], poly[1:]).all()
+    assert segments_clear(ctx.surface, poly[:-1], poly[1:]).all()
+
+
 def test_position_off_the_graph_is_snapped(planned):
     ctx, outcome = planned
     survivor, _ = _midway(ctx, outcome, 0)
@@ -151,7 +158,7 @@ def test_survivor_above_the_ceiling_starts_from_a_node(planned):
     new = replan(ctx, [stray], seen_matrix(ctx, [snaps]))
     poly = new.polylines[0]
     assert ctx.graph.legs_ok(high, poly[0], strict=False)[0]
-    assert ctx.graph.legs_ok(poly[:-1], poly[1:]).all()
+    _assert_proven(ctx, poly)
 
 
 def test_survivor_on_its_final_descent_climbs_back(planned):
@@ -165,7 +172,7 @@ def test_survivor_on_its_final_descent_climbs_back(planned):
     poly = new.polylines[0]
     assert np.allclose(poly[0, :2], survivor.launch[:2]) and poly[0, 2] > low[2] + 20.0
     assert segments_hidden(ctx.surface, low[None], poly[:1])[0]
-    assert ctx.graph.legs_ok(poly[:-1], poly[1:]).all()
+    _assert_proven(ctx, poly)
     climb = (poly[0, 2] - low[2]) / ctx.travel_params.climb_mps
     first = new.plan.vehicles[0].waypoints[0]
     assert first.t_s == pytest.approx(climb, rel=0.05)

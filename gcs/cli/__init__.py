@@ -7,7 +7,9 @@ printed as one line with exit status 2.
 
 import argparse
 import importlib
+import re
 import sys
+import warnings
 
 from gcs import __version__
 from planner.errors import InputError
@@ -47,11 +49,35 @@ def build_parser() -> argparse.ArgumentParser:
                              formatter_class=_HelpFormatter)
         module.add_arguments(cmd)
         cmd.set_defaults(_run=module.run)
+        cmd._negative_number_matcher = NEGATIVE_VALUE
     return parser
+
+
+#: what argparse takes for a negative number rather than an option: also lists such
+#: as "-35.36,149.16,584", so southern and western coordinates work as typed
+#: (argparse's own matcher knows only plain numbers; it is a private attribute,
+#: present from Python 3.2 to 3.13)
+NEGATIVE_VALUE = re.compile(r"^-\.?\d[\d.,eE+-]*$")
 
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    with warnings.catch_warnings():
+        warnings.showwarning = _one_line_warning(args.command)
+        return _run(args)
+
+
+def _one_line_warning(command):
+    """Warnings reach the user as one line in their words, not a Python warning with
+    its source line (which also breaks the progress bars)."""
+    from gcs.progress import console
+
+    def show(message, category, filename, lineno, file=None, line=None):
+        console.print(f"gcs {command}: warning: {message}", markup=False, highlight=False)
+    return show
+
+
+def _run(args) -> int:
     try:
         return int(args._run(args) or 0)
     except InputError as exc:

@@ -6,7 +6,6 @@ its outposts, 4 UAVs from one base, RT with k = 1), writes every output of
 down partway, re-tasks the survivors and ends with the coverage report.
 """
 
-import shutil
 from importlib import resources
 from pathlib import Path
 
@@ -41,8 +40,7 @@ def run(args) -> int:
     if not 0 < args.kill_at < 1:
         raise InputError("--kill-at", f"must be between 0 and 1, got {args.kill_at}")
     out = Path(args.output)
-    if out.exists():
-        shutil.rmtree(out)
+    plan_cmd.check_output_dir(out)  # files in it are replaced, never the folder wiped
     plan_dir, flight_dir = out / "plan", out / "flight"
     scenario_file = resources.files("gcs.data").joinpath(SCENARIO)
     with resources.as_file(scenario_file) as path:

@@ -11,8 +11,9 @@ from rich.table import Table
 from gcs.cli.options import add_scenario_arguments, scenario_from_args
 from gcs.plots import overview_png, view3d_png
 from gcs.progress import console, stage_progress
+from planner.errors import InputError
 from planner import plan as plan_files
-from planner.geotiff import write_grid
+from planner.geotiff import write_grid, write_terrain
 from planner.pipeline import plan_mission
 
 HELP = "plan hidden coverage routes for a UAV fleet and write the mission files"
@@ -26,6 +27,7 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     scenario = scenario_from_args(args)
+    check_output_dir(args.output)
     with stage_progress() as progress:
         ctx, outcome = plan_mission(scenario, progress)
         progress("write", 0.0)
@@ -44,6 +46,16 @@ def coverage_grid(ctx, counts) -> np.ndarray:
     return grid
 
 
+def check_output_dir(directory) -> None:
+    """Refuse an output folder that cannot be one before any work is done."""
+    path = Path(directory)
+    if path.exists() and not path.is_dir():
+        raise InputError("-o", f"{path} is a file, not a folder")
+    parent = next((p for p in [path, *path.parents] if p.exists()), Path("."))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError("-o", f"{path}: cannot write in {parent}")
+
+
 def write_outputs(directory, ctx, outcome) -> list:
     """Write every output into a staging folder, then move each into place.
 
@@ -57,15 +69,16 @@ def write_outputs(directory, ctx, outcome) -> list:
     staging = Path(tempfile.mkdtemp(prefix=".gcs-plan-", dir=directory))
     try:
         outcome.plan.save(staging)
+        write_terrain(staging / plan_files.TERRAIN_FILE, ctx.terrain)
         grids = [
-            (plan_files.TERRAIN_FILE, ctx.terrain.height.astype(np.float32), None,
-             "working-grid DEM, metres AMSL"),
             (plan_files.EXPOSURE_FILE, ctx.surface.exposure.astype(np.float32), None,
              "exposure surface E, metres AMSL, NaN where not flyable"),
             (plan_files.COVERAGE_FILE, coverage_grid(ctx, outcome.counts), -1,
              "distinct UAVs seeing each target cell, -1 = not a target"),
         ]
-        written = [(staging / plan_files.PLAN_FILE, "the plan: routes, times, metrics")]
+        written = [(staging / plan_files.PLAN_FILE, "the plan: routes, times, metrics"),
+                   (staging / plan_files.TERRAIN_FILE, "working-grid DEM, metres AMSL: "
+                    "band 1 for line of sight, band 2 for clearance")]
         for name, grid, nodata, what in grids:
             write_grid(staging / name, grid, ctx.terrain, nodata=nodata)
             written.append((staging / name, what))
@@ -80,9 +93,18 @@ def write_outputs(directory, ctx, outcome) -> list:
             target = directory / Path(path).name
             os.replace(path, target)
             moved.append((target, what))
+        _remove_stale_vehicle_files(directory, {target.name for target, _ in moved})
         return moved
     finally:
         shutil.rmtree(staging, ignore_errors=True)
+
+
+def _remove_stale_vehicle_files(directory, kept) -> None:
+    """A plan with fewer vehicles than the one it replaces: the old vehicles' mission
+    files go, so nothing in the folder belongs to another plan."""
+    for path in directory.glob("vehicle-*.*"):
+        if path.name not in kept and path.suffix in (".plan", ".waypoints"):
+            path.unlink()
 
 
 def print_summary(plan) -> None:

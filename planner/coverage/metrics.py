@@ -137,6 +137,8 @@ def _reach_bound(prep) -> float:
 
 def _packing_bound(prep) -> float:
     n = prep.problem.n_uavs
+    if prep.problem.n_viewpoints == 0:
+        return 0.0
     travel = prep.travel.copy()
     np.fill_diagonal(travel, np.inf)
     way_in = travel.min(axis=0)  # cheapest arrival at each viewpoint from another one
