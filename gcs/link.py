@@ -27,8 +27,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from gcs import signing
-from gcs.mavlink import (ARDUPILOT, GCS_COMPONENT_ID, GCS_SYSTEM_ID, M, flavour_of,
-                         mavutil, mode_name)
+from gcs.mavlink import (GCS_COMPONENT_ID, GCS_SYSTEM_ID, M, flavour_of, mavutil,
+                         mode_name, profile_of)
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
@@ -294,6 +294,7 @@ class VehicleLink:
         self.autopilot = heartbeat.autopilot
         self.mav_type = heartbeat.type
         self.flavour = flavour_of(heartbeat.autopilot)
+        self.profile = profile_of(self.flavour)     # autopilots profile; None: generic
         self.state = VehicleState()
         self.signs = False            # its packets carry signatures (seen without a key)
         self._route = (conn, addr)
@@ -326,7 +327,7 @@ class VehicleLink:
         """Ask for telemetry: ArduPilot streams on a port only what a ground station
         requests (MAVProxy does the same); PX4 streams to its GCS link by itself.
         Fire and forget: this runs on the reader thread, which must not wait."""
-        if self.flavour == ARDUPILOT:
+        if self.profile is not None and self.profile.request_streams:
             self.send("REQUEST_DATA_STREAM", req_stream_id=M.MAV_DATA_STREAM_ALL,
                       req_message_rate=rate_hz, start_stop=1)
 

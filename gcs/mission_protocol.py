@@ -9,14 +9,16 @@ as the spec recommends; every MAV_MISSION_RESULT error is reported by name.
 
 ArduPilot answers an upload in the first second after boot with
 MAV_MISSION_NO_SPACE ("Only 0 items are supported"); that is retried after a
-short wait. Its item 0 is home and always reads back as the real home, so a
-read-back comparison skips it.
+short wait. What a read-back keeps is the firmware's (`autopilots` profile:
+ArduPilot's item 0 is home and reads back as the real home, its commands
+without a position come back in frame 0); a read-back comparison looks at the
+rest, and any difference there is an error.
 """
 
 import math
 import time
 
-from gcs.mavlink import ARDUPILOT, M, mission_result_name
+from gcs.mavlink import M, mission_result_name, profile_of
 
 TIMEOUT_S = 1.5
 RETRIES = 5
@@ -218,7 +220,8 @@ def upload_verified(link, items, progress=None, attempts=2, timeout_s=TIMEOUT_S,
         except MissionError as exc:
             if not exc.timeout or attempt == attempts:
                 raise
-    problems = compare(items, back, getattr(link, "flavour", None))
+    problems = compare(items, back, getattr(link, "profile", None)
+                       or getattr(link, "flavour", None))
     if problems:
         raise MissionError(link, "mission read back differs from the upload: "
                                  + "; ".join(problems[:5])
@@ -229,14 +232,20 @@ def upload_verified(link, items, progress=None, attempts=2, timeout_s=TIMEOUT_S,
 
 def compare(sent, got, flavour=None) -> list:
     """Differences between two missions, one line per item (empty: the same), as
-    `MissionItem.differences` judges them. ArduPilot's item 0 is home and reads
-    back as the real home: not compared."""
+    `MissionItem.differences` judges them, on the fields the vehicle's firmware
+    keeps (``flavour``: a profile or a firmware name; None compares everything)."""
     if len(sent) != len(got):
         return [f"{len(sent)} items sent, {len(got)} read back"]
-    first = 1 if flavour == ARDUPILOT else 0
+    keeper = profile_of(flavour) if isinstance(flavour, str) or flavour is None else flavour
     out = []
-    for a, b in zip(sent[first:], got[first:]):
+    for a, b in zip(sent, got):
+        compared, frame_kept = (True, True) if keeper is None else \
+            keeper.kept_on_read_back(a.seq, a.command, a.frame)
+        if not compared:
+            continue
         diff = a.differences(b)
+        if not frame_kept:
+            diff = [d for d in diff if not d.startswith("frame ")]
         if diff:
             out.append(f"item {a.seq}: " + ", ".join(diff))
     return out

@@ -1,7 +1,7 @@
 """Re-tasking the survivors after a loss: hold, re-plan, upload in flight, resume.
 
 Sequence per loss (issue 5): every survivor still in the air is held where it
-is (ArduPilot GUIDED, PX4 AUTO.LOITER), because ArduPilot applies an upload
+is (its firmware's hold mode: ArduPilot GUIDED, PX4 AUTO.LOITER), because ArduPilot applies an upload
 item by item and would otherwise fly a half-written mission; the planner
 (`planner.replan`) re-plans from the held positions and the survivors'
 snapshots so far; each new mission is checked (hidden, clear) and uploaded
@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gcs import commands
-from gcs.mavlink import ARDUPILOT, PX4
 from gcs.mission_protocol import upload_verified
 from gcs.monitor import FLYING, HOLDING, LANDED, LOST
 from missions.build import MissionOptions, vehicle_mission
@@ -28,8 +27,6 @@ from planner.errors import InputError
 from planner.replan import (Survivor, coverable_targets, coverage_summary, replan, requirement,
                             seen_matrix)
 
-HOLD_MODE = {ARDUPILOT: "GUIDED", PX4: "AUTO.LOITER"}
-MISSION_MODE = {ARDUPILOT: "AUTO", PX4: "AUTO.MISSION"}
 #: wall seconds to let a held vehicle brake before its position is taken
 SETTLE_S = 3.0
 SETTLED_MPS = 0.5
@@ -247,7 +244,7 @@ class Retasker:
 
     def _hold(self, sysid) -> None:
         link = self.monitor.links[sysid]
-        commands.set_mode(link, HOLD_MODE.get(link.flavour, "GUIDED"), retries=self._retries)
+        commands.set_mode(link, commands.autopilot(link).hold_mode, retries=self._retries)
         self.monitor.set_state(sysid, HOLDING)
 
     def _settle(self, sysids) -> None:
@@ -262,11 +259,12 @@ class Retasker:
             time.sleep(0.1)
 
     def _resume(self, sysid, mission) -> None:
-        """Current item = the first item after home / the first item, then AUTO."""
+        """Current item = the first item flown (after home, where there is one), then
+        the firmware's mission mode."""
         link = self.monitor.links[sysid]
-        first = 1 if link.flavour == ARDUPILOT else 0
-        commands.set_current(link, first, retries=self._retries)
-        commands.set_mode(link, MISSION_MODE.get(link.flavour, "AUTO"), retries=self._retries)
+        profile = commands.autopilot(link)
+        commands.set_current(link, profile.first_item, retries=self._retries)
+        commands.set_mode(link, profile.mission_mode, retries=self._retries)
 
 
 class _LostDuring(Exception):

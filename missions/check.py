@@ -7,7 +7,8 @@ position is a valid latitude / longitude / finite altitude in MAV_FRAME_GLOBAL
 consecutive position items is hidden (`planner.exposure.segments_hidden`) and
 at least ``clearance_m`` above the terrain (`segments_clear`).
 
-How legs are flown: ArduPilot's home item (seq 0) is not flown to. A takeoff
+How legs are flown: a home item (seq 0, where the firmware's `autopilots`
+profile has one: ArduPilot) is not flown to. A takeoff
 climbs straight up at the launch point, hidden because the top of the climb is
 (visibility only grows with altitude) and exempt from the clearance rule; a
 landing first flies level to above its point (a checked leg) and then descends
@@ -18,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from autopilots import profile
 from planner.errors import InputError
 from planner.exposure import is_hidden, segments_clear, segments_hidden
 
@@ -38,7 +40,7 @@ UNPROVABLE = {
 def check_mission(mission, surface, clearance_m=None) -> None:
     """Raise InputError naming the vehicle and the first bad item or leg."""
     check_items(mission.items, surface, clearance_m, name=mission.name,
-                has_home=mission.firmware == "ardupilot")
+                has_home=profile(mission.firmware).home_item)
 
 
 def check_items(items, surface, clearance_m=None, name="mission", has_home=False) -> None:

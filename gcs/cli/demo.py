@@ -10,6 +10,7 @@ import shutil
 from importlib import resources
 from pathlib import Path
 
+from autopilots import ARDUPILOT, NAMES
 from gcs.cli import plan as plan_cmd
 from gcs.progress import console, stage_progress
 from planner.errors import InputError
@@ -25,7 +26,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", default="demo-out", metavar="DIR",
                         help="output directory: DIR/plan (gcs plan's files) and DIR/flight "
                              "(flight report, plot, tracks, tlogs); replaced if it exists")
-    parser.add_argument("--firmware", choices=("ardupilot", "px4"), default="ardupilot",
+    parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="autopilot the simulated vehicles imitate")
     parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
                         help="simulated time runs X times faster than the wall clock")

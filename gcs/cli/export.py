@@ -4,7 +4,8 @@ import argparse
 from pathlib import Path
 
 from gcs.progress import console
-from missions.build import FIRMWARES, MissionOptions
+from autopilots import NAMES as FIRMWARES
+from missions.build import MissionOptions
 from missions.export import FORMATS, export_plan_dir
 from planner.errors import InputError
 from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan

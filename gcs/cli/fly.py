@@ -6,6 +6,7 @@ from pathlib import Path
 from rich.live import Live
 from rich.table import Table
 
+from autopilots import ARDUPILOT, NAMES
 from gcs.cli.upload import add_protocol_arguments, parse_assignments, protocol_from_args
 from gcs.progress import console
 from planner.errors import InputError
@@ -41,7 +42,7 @@ def add_arguments(parser) -> None:
     sim.add_argument("--sim", type=int, metavar="N",
                      help="start N simulated vehicles with homes at the plan's launch points "
                           "and fly against them")
-    sim.add_argument("--firmware", choices=("ardupilot", "px4"),
+    sim.add_argument("--firmware", choices=NAMES,
                      help="simulated autopilot; none = the plan's firmware")
     sim.add_argument("--speedup", type=float, default=10.0, metavar="X",
                      help="simulated time runs X times faster than the wall clock")
@@ -93,7 +94,7 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         faults[sysid] = FaultPlan(kill_at_s=at_s, kill_at_item=at_item)
     try:
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
-            "firmware", "ardupilot"), speedup=args.speedup, base_port=args.sim_base_port,
+            "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
             gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks",
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
     except ValueError as exc:

@@ -2,7 +2,9 @@
 
 import time
 
+from autopilots import ARDUPILOT, NAMES
 from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
+from gcs.sim.flavours import flavour
 from gcs.sim.fleet import DEFAULT_HOME, FleetConfig, SimFleet, vehicle_port
 from gcs.sim.physics import Limits
 from planner.errors import InputError
@@ -12,7 +14,7 @@ HELP = "run simulated vehicles (ArduPilot: TCP 5760+10*i; PX4: UDP 18570+i -> 14
 
 def add_arguments(parser) -> None:
     parser.add_argument("--vehicles", type=int, default=1, metavar="N", help="number of vehicles")
-    parser.add_argument("--firmware", choices=("ardupilot", "px4"), default="ardupilot",
+    parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="which autopilot to behave like")
     parser.add_argument("--home", default=",".join(str(v) for v in DEFAULT_HOME),
                         metavar="LAT,LON[,ALT]",
@@ -154,7 +156,7 @@ def _describe(fleet) -> None:
     c = fleet.config
     for i, v in enumerate(fleet.vehicles):
         port = vehicle_port(c.firmware, i, c.base_port)
-        where = (f"TCP {c.bind_host}:{port}" if c.firmware == "ardupilot"
+        where = (f"TCP {c.bind_host}:{port}" if flavour(c.firmware).transport == "tcp"
                  else f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}")
         lat, lon, alt = v.cfg.home
         print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g}")

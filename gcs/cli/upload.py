@@ -17,11 +17,12 @@ from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn
 from rich.table import Table
 
+from autopilots import NAMES
 from gcs.progress import console
 from planner.errors import InputError
 
 HELP = "upload each vehicle's mission (plan directory or .plan/.waypoints files) and verify it"
-FIRMWARE_CHOICES = ("auto", "ardupilot", "px4")
+FIRMWARE_CHOICES = ("auto",) + NAMES
 
 
 def add_connection_arguments(parser) -> None:
@@ -207,11 +208,11 @@ def _upload_all(link, pairs, firmware_choice, protocol) -> list:
 
 
 def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
+    from autopilots import PX4
     from gcs import mission_protocol as mp
-    from gcs.mavlink import ARDUPILOT, PX4
 
     firmware = firmware_choice if firmware_choice != "auto" else \
-        (ARDUPILOT if vehicle.flavour == ARDUPILOT else PX4)
+        (vehicle.profile.name if vehicle.profile is not None else PX4)
     result = {"sysid": vehicle.sysid, "flavour": vehicle.flavour, "route": route.id,
               "firmware": firmware, "items": 0, "error": None, "seconds": 0.0}
     t0 = time.monotonic()
