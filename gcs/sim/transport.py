@@ -10,8 +10,6 @@ the poll timeout.
 import select
 import socket
 
-ARDUPILOT_BANNER = (b"Init ArduCopter V4.7.0-dev (simulated)\r\n"
-                    b"Free RAM: 65535\r\nFrame: QUAD/PLUS\r\n")
 
 
 class TcpServerLink:
