@@ -63,6 +63,8 @@ class FleetConfig:
     signing_key: bytes | None = None
     terrain: object = None                      # (lat, lon) -> ground m AMSL; None: flat
                                                 # at each home's altitude, as SITL
+    transport: str | None = None                # "pty": each vehicle on a serial line
+    serial_baud: int = 57600                    # what urls() asks a pty link for
 
     def vehicle_configs(self) -> list:
         flavour(self.firmware)                  # ValueError naming the choices
@@ -84,7 +86,8 @@ class FleetConfig:
                 camera=self.camera, auto_options=self.auto_options, drop_pct=self.drop_pct,
                 faults=replace(self.faults.get(sysid, FaultPlan())),
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
-                seed=self.seed, signing_key=self.signing_key, terrain=self.terrain))
+                seed=self.seed, signing_key=self.signing_key, terrain=self.terrain,
+                transport=self.transport))
         return configs
 
 
@@ -132,6 +135,8 @@ class SimFleet:
     def urls(self) -> list:
         """Ground-station URLs: one per vehicle (TCP: ArduPilot), one shared port (UDP: PX4)."""
         c = self.config
+        if c.transport == "pty":
+            return [f"{v.link.device},{c.serial_baud}" for v in self.vehicles]
         if flavour(c.firmware).transport == "udp":
             return [vehicle_url(c.firmware, 0, c.base_port, c.gcs_port)]
         return [vehicle_url(c.firmware, i, c.base_port) for i in range(c.vehicles)]

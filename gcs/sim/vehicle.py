@@ -23,7 +23,7 @@ from gcs.sim.faults import FaultPlan, LinkFaults
 from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
 from gcs.sim.physics import Limits, LocalFrame, PointMass
 from gcs.sim.track import TrackRecorder
-from gcs.sim.transport import TcpServerLink, UdpLink
+from gcs.sim.transport import PtyLink, TcpServerLink, UdpLink
 
 M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
@@ -63,6 +63,7 @@ class VehicleConfig:
     seed: int = 0
     signing_key: bytes | None = None           # sign what we send, require signed input
     terrain: Callable | None = None            # (lat, lon) -> ground m AMSL; None: flat
+    transport: str | None = None               # "pty": a serial line; None: the flavour's
 
 
 class _LinkWriter:
@@ -142,7 +143,9 @@ class SimVehicle:
     def open(self) -> None:
         """Bind the sockets (raises OSError if the port is taken) and boot."""
         cfg = self.cfg
-        if self.flavour.transport == "tcp":
+        if cfg.transport == "pty":
+            self.link = PtyLink()
+        elif self.flavour.transport == "tcp":
             self.link = TcpServerLink(cfg.port, cfg.bind_host, self.flavour.banner)
         else:
             self.link = UdpLink(cfg.port, tuple(cfg.gcs_address), cfg.bind_host)
