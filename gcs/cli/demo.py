@@ -88,8 +88,12 @@ def _fly(plan, plan_dir, flight_dir, args):
                            terrain=terrain_ground(read_terrain(plan_dir / TERRAIN_FILE)))
     longest = max(v.mission_time_s for v in plan.vehicles)
     options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
+    from gcs.fly import FlightError
+
     try:
         report = fly_plan(plan_dir, fleet.urls(), options)
+    except FlightError as exc:
+        raise InputError("gcs demo", f"the flight failed: {exc}") from None
     finally:
         fleet.stop()
     summary(report)
