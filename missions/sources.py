@@ -106,7 +106,7 @@ class _Plans:
         from planner.plan import Plan
 
         if directory is None:
-            return None, self._without(f"no {PLAN_FILE} beside {what} and no --plan", what)
+            return None, self._without(f"no {PLAN_FILE} beside it and no --plan", what)
         key = directory.resolve()
         if key not in self._proofs:
             plan = Plan.load(directory)
