@@ -332,5 +332,5 @@ def _home_alt(link) -> float:
     raise CommandError(link, "no home position or altitude reported yet")
 
 
-__all__ = ["CommandError", "arm", "autopilot", "command_int", "command_long", "disarm", "set_current",
-           "set_mode", "start_mission", "wait_ready"]
+__all__ = ["CommandError", "arm", "autopilot", "command_int", "command_long", "disarm",
+           "set_current", "set_mode", "start_mission", "wait_ready"]

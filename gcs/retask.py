@@ -1,16 +1,17 @@
 """Re-tasking the survivors after a loss: hold, re-plan, upload in flight, resume.
 
 Sequence per loss (issue 5): every survivor still in the air is held where it
-is (its firmware's hold mode: ArduPilot GUIDED, PX4 AUTO.LOITER), because ArduPilot applies an upload
-item by item and would otherwise fly a half-written mission; the planner
-(`planner.replan`) re-plans from the held positions and the survivors'
-snapshots so far; each new mission is checked (hidden, clear: a
+is (its firmware's hold mode: ArduPilot GUIDED, PX4 AUTO.LOITER), because
+ArduPilot applies an upload item by item and would otherwise fly a half-written
+mission; the planner (`planner.replan`) re-plans from the held positions and the
+survivors' snapshots so far; each new mission is checked (hidden, clear: a
 `missions.check.CheckedMission`, the only thing the upload takes) and uploaded
 with read-back; then the current item is set to the first new item and the
 vehicle goes back to AUTO. When the survivors' snapshots so far leave coverage
 short, landed survivors at their launch points join the re-plan, and those it
-gives something to see are started again (upload, start sequence, fly). Setting the current item is not optional:
-ArduPilot resumes at the old index after an upload.
+gives something to see are started again (upload, start sequence, fly).
+Setting the current item is not optional: ArduPilot resumes at the old index
+after an upload.
 
 A loss during any of this (another vehicle silent, an upload failing because
 its vehicle is gone) restarts the re-plan with the remaining survivors.

@@ -54,7 +54,8 @@ def plan_json(mission, speed_mps=None, outposts=(), home=None) -> dict:
     """The ``.plan`` document of a `missions.build.VehicleMission`.
 
     ``home``: (lat, lon, alt AMSL) where the firmware has no home item (PX4),
-    default the first position item (ArduPilot's is its item 0). ``outposts``: plan.outposts dicts; those with a range become
+    default the first position item (ArduPilot's is its item 0). ``outposts``:
+    plan.outposts dicts; those with a range become
     exclusion circles.
     """
     items = list(mission.items)

@@ -6,7 +6,6 @@ import json
 import time
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
 from gcs.cli import main
