@@ -5,18 +5,17 @@ up to 5 retries, `confirmation` counting up as the spec asks); a result other
 than ACCEPTED raises CommandError naming the MAV_RESULT and, where the vehicle
 explained itself in a STATUSTEXT ("PreArm: GPS 1: Bad fix"), its words.
 
-Start sequences (issue 5):
-- ArduPilot: GUIDED, arm, MAV_CMD_NAV_TAKEOFF, then AUTO + MISSION_START. It
-  refuses to arm in AUTO (unless AUTO_OPTIONS allows), and a copter armed on the
-  ground in AUTO waits for MISSION_START, so it takes off in GUIDED first.
-- PX4: MISSION_START (mode AUTO.MISSION), then arm: it takes off on its own.
-In both, the current item is set first: after a new upload ArduPilot would
-otherwise resume at the old index.
+Start sequences are each firmware's own, as steps in its `autopilots` profile
+(``start_sequence``), executed here: ArduPilot takes off in GUIDED and then
+switches to AUTO; PX4 starts the mission and then arms. In both the current
+item is set first (after a new upload ArduPilot would otherwise resume at the
+old index).
 """
 
 import time
 
-from gcs.mavlink import ARDUPILOT, PX4, M, command_name, mode_number, result_name
+from autopilots import ARDUPILOT
+from gcs.mavlink import M, command_name, profile_of, result_name
 
 TIMEOUT_S = 1.5
 RETRIES = 5
@@ -111,6 +110,23 @@ def _silence(link) -> str:
     return f" (no HEARTBEAT for {age:.0f} s)" if age > 3 else ""
 
 
+# -- the vehicle's firmware -------------------------------------------------------------
+def autopilot(link):
+    """The `autopilots` profile of a vehicle; CommandError for an autopilot with none."""
+    found = getattr(link, "profile", None) or profile_of(getattr(link, "flavour", None))
+    if found is None:
+        raise CommandError(link, f"its autopilot ({getattr(link, 'flavour', '?')}) is neither "
+                                 "ArduPilot nor PX4: no profile to command it with")
+    return found
+
+
+def _mode_profile(link):
+    """The profile that names and packs modes: a generic autopilot is asked in
+    ArduPilot's plain custom-mode numbers."""
+    return getattr(link, "profile", None) or profile_of(getattr(link, "flavour", None)) \
+        or profile_of(ARDUPILOT)
+
+
 # -- modes and arming ------------------------------------------------------------------
 def set_mode(link, name: str, confirm=True, timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
     """Switch to mode `name` (ArduPilot: "GUIDED", "AUTO", ...; PX4: "AUTO.MISSION",
@@ -118,27 +134,27 @@ def set_mode(link, name: str, confirm=True, timeout_s=TIMEOUT_S, retries=RETRIES
 
     HEARTBEATs (1 Hz) get lost too: when none shows the mode within CONFIRM_S, the
     command goes out again (up to `retries` times; asking twice is harmless)."""
+    modes = _mode_profile(link)
     try:
-        custom, main, sub = mode_number(link.flavour, name, link.mav_type)
+        custom, _, _ = modes.mode_number(name, link.mav_type)
+        params = modes.set_mode_params(name, link.mav_type)
     except KeyError as exc:
         raise CommandError(link, exc.args[0]) from None
     for _ in range(retries + 1):
-        _request_mode(link, custom, main, sub, timeout_s, retries)
+        _request_mode(link, custom, params, timeout_s, retries)
         if not confirm or _until(link, lambda s: s.custom_mode == custom, CONFIRM_S):
             return
     raise CommandError(link, f"mode is still {link.state.mode} after asking for "
                              f"{name.upper()} {retries + 1} times")
 
 
-def _request_mode(link, custom, main, sub, timeout_s, retries) -> None:
+def _request_mode(link, custom, params, timeout_s, retries) -> None:
+    """MAV_CMD_DO_SET_MODE with the firmware's params (ArduPilot: the custom mode;
+    PX4: main and sub mode)."""
     flag = M.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED
     try:
-        if link.flavour == PX4:
-            command_long(link, M.MAV_CMD_DO_SET_MODE, flag, main, sub,
-                         timeout_s=timeout_s, retries=retries)
-        else:
-            command_long(link, M.MAV_CMD_DO_SET_MODE, flag, custom,
-                         timeout_s=timeout_s, retries=retries)
+        command_long(link, M.MAV_CMD_DO_SET_MODE, flag, *params,
+                     timeout_s=timeout_s, retries=retries)
     except CommandError as exc:
         if exc.result != M.MAV_RESULT_UNSUPPORTED:
             raise
@@ -218,56 +234,70 @@ def _until(link, predicate, timeout_s) -> bool:
 # -- the start sequence ----------------------------------------------------------------
 def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
                   climb_timeout_s: float = 120.0, retries: int = RETRIES) -> None:
-    """Take off and start the uploaded mission, as the vehicle's firmware expects.
+    """Take off and start the uploaded mission, as the vehicle's firmware expects
+    (the steps of its profile's ``start_sequence``).
 
     takeoff_alt_amsl: where ArduPilot climbs in GUIDED before AUTO (m AMSL; the
     mission's own takeoff item then completes at once). PX4 flies its mission's
     takeoff item itself. Returns once the vehicle is airborne in its mission mode.
     retries: resends of each command (more on a lossy link)."""
+    profile = autopilot(link)
     wait_ready(link, ready_timeout_s)
-    if link.flavour == ARDUPILOT:
-        _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s, retries)
-    else:
-        _start_px4(link, climb_timeout_s, retries)
+    run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries)
+    for step in profile.start_sequence:
+        getattr(run, step.action)(step.argument)
 
 
-def _start_ardupilot(link, takeoff_alt_amsl, climb_timeout_s, retries) -> None:
-    set_current(link, 1, retries=retries)   # item 0 is home
-    set_mode(link, "GUIDED", retries=retries)
-    arm(link, retries=retries)
-    armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
-    home_alt = _home_alt(link)
-    climb = takeoff_alt_amsl - home_alt
-    if climb < 1.0:
-        raise CommandError(link, f"takeoff altitude {takeoff_alt_amsl:.1f} m AMSL is not "
-                                 f"above home ({home_alt:.1f} m AMSL)")
-    try:
-        command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,  # relative to home
-                     retries=retries)
-    except CommandError as exc:
-        # on a lossy link the first ACK may be lost; the retry is then refused
-        # because the takeoff is already under way
-        if exc.result is None or not _climbing(link):
-            raise
-    target = climb - max(1.0, 0.05 * climb)
-    _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) >= target,
-                   climb_timeout_s, f"climbing to {climb:.1f} m above home")
-    set_mode(link, "AUTO", retries=retries)
-    command_long(link, M.MAV_CMD_MISSION_START, 0, 0, retries=retries)
+class _StartRun:
+    """The steps a start sequence is made of (`autopilots.base.Step`)."""
 
+    def __init__(self, link, profile, takeoff_alt_amsl, climb_timeout_s, retries):
+        self.link, self.profile = link, profile
+        self.takeoff_alt_amsl = takeoff_alt_amsl
+        self.climb_timeout_s, self.retries = climb_timeout_s, retries
+        self.armed_at = None
 
-def _start_px4(link, climb_timeout_s, retries) -> None:
-    set_current(link, 0, retries=retries)
-    try:
-        command_long(link, M.MAV_CMD_MISSION_START, 0, 0, retries=retries)
-    except CommandError as exc:
-        if exc.result is None:
-            raise
-        set_mode(link, "AUTO.MISSION", retries=retries)
-    arm(link, retries=retries)
-    armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
-    _wait_airborne(link, armed_at, lambda s: (s.relative_alt or 0.0) > 1.0, climb_timeout_s,
-                   "taking off")
+    def set_current(self, _=None) -> None:
+        set_current(self.link, self.profile.first_item, retries=self.retries)
+
+    def mode(self, name) -> None:
+        set_mode(self.link, name, retries=self.retries)
+
+    def arm(self, _=None) -> None:
+        arm(self.link, retries=self.retries)
+        self.armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
+
+    def mission_start(self, fallback_mode=None) -> None:
+        try:
+            command_long(self.link, M.MAV_CMD_MISSION_START, 0, 0, retries=self.retries)
+        except CommandError as exc:
+            if fallback_mode is None or exc.result is None:
+                raise
+            set_mode(self.link, fallback_mode, retries=self.retries)
+
+    def takeoff(self, _=None) -> None:
+        """MAV_CMD_NAV_TAKEOFF relative to home, then wait for the climb."""
+        link = self.link
+        home_alt = _home_alt(link)
+        climb = self.takeoff_alt_amsl - home_alt
+        if climb < 1.0:
+            raise CommandError(link, f"takeoff altitude {self.takeoff_alt_amsl:.1f} m AMSL is "
+                                     f"not above home ({home_alt:.1f} m AMSL)")
+        try:
+            command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,
+                         retries=self.retries)
+        except CommandError as exc:
+            # on a lossy link the first ACK may be lost; the retry is then refused
+            # because the takeoff is already under way
+            if exc.result is None or not _climbing(link):
+                raise
+        target = climb - max(1.0, 0.05 * climb)
+        _wait_airborne(link, self.armed_at, lambda s: (s.relative_alt or 0.0) >= target,
+                       self.climb_timeout_s, f"climbing to {climb:.1f} m above home")
+
+    def airborne(self, _=None) -> None:
+        _wait_airborne(self.link, self.armed_at, lambda s: (s.relative_alt or 0.0) > 1.0,
+                       self.climb_timeout_s, "taking off")
 
 
 def _climbing(link, wait_s: float = 3.0) -> bool:
@@ -302,5 +332,5 @@ def _home_alt(link) -> float:
     raise CommandError(link, "no home position or altitude reported yet")
 
 
-__all__ = ["CommandError", "arm", "command_int", "command_long", "disarm", "set_current",
-           "set_mode", "start_mission", "wait_ready"]
+__all__ = ["CommandError", "arm", "autopilot", "command_int", "command_long", "disarm",
+           "set_current", "set_mode", "start_mission", "wait_ready"]

@@ -2,15 +2,21 @@
 
     report = fly(plan_dir, ["tcp:127.0.0.1:5760", ...], FlyOptions(output="flight"))
 
-Stages (each in its own module): `gcs.link` finds the vehicles; missions are
-built per vehicle for its own autopilot (`missions.build`) and uploaded with
-read-back (`gcs.mission_protocol.upload_verified`); `gcs.commands.start_mission`
-takes off; `gcs.monitor` follows them and detects losses; `gcs.retask`
-re-plans the survivors. At the end ``flight.json`` and ``flight.png`` are
-written to the output directory, with one ``.tlog`` per vehicle beside them.
+Stages (each in its own module): before any connection the plan is read and
+every route's mission built for each autopilot (`missions.build`) and proven
+hidden and clear against the plan's surface (`missions.check.checked`: only a
+`CheckedMission` is uploaded); `gcs.link` finds the vehicles; each gets its
+checked mission, uploaded with read-back (`gcs.mission_protocol.upload_verified`);
+`gcs.commands.start_mission` takes off; `gcs.monitor` follows them and detects
+losses (silence, a fall, a touchdown away from launch or before the last item,
+flight below the terrain); `gcs.retask` re-plans the survivors. At the end
+``flight.json`` and ``flight.png`` are written to the output directory, with
+one ``.tlog`` per vehicle beside them.
 
 Coverage at the end is re-evaluated from the snapshot positions with the
-planner's own sensor model; a lost vehicle's snapshots count as lost.
+planner's own sensor model; a lost vehicle's snapshots count as lost. The
+report's ``outcome`` says whether the flight did its job: the required
+coverage reached, no vehicle lost, none left in the air.
 """
 
 import json
@@ -20,15 +26,18 @@ from dataclasses import asdict, dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
+from autopilots import NAMES
 from gcs import commands
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError, upload_verified
 from gcs.monitor import FLYING, LANDED, LOST, STARTING, Monitor
 from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
 from missions.build import MissionOptions, vehicle_mission
+from missions.check import checked
+from missions.sources import saved_plan_surface
 from planner.errors import InputError
 from planner.fileio import write_text_atomic
-from planner.plan import Plan
+from planner.plan import PLAN_FILE, Plan
 from planner.replan import context_for_plan, coverable_targets, coverage_summary, seen_matrix
 
 FORMAT = "gcs-flight/1"
@@ -36,6 +45,8 @@ FLIGHT_FILE = "flight.json"
 PLOT_FILE = "flight.png"
 TLOG_PATTERN = "vehicle_{sysid}.tlog"
 LOOP_S = 0.1
+#: after a timeout brought the vehicles home, wait at least this long (wall s) for them
+HOME_WAIT_S = 60.0
 
 
 @dataclass
@@ -48,7 +59,7 @@ class FlyOptions:
     ready_timeout_s: float = 60.0
     protocol_timeout_s: float = 1.5  # mission protocol: wait per message before a retry
     protocol_retries: int = 5  # mission protocol and commands: resends before giving up
-    timeout_s: float | None = None  # give up monitoring after this many wall seconds
+    timeout_s: float | None = None  # after this many wall seconds: ask, or bring them home
     tlog: bool = True
     live: bool = True  # rich status table on a terminal, event lines otherwise
     plot: bool = True
@@ -61,6 +72,10 @@ class FlyOptions:
 
 class FlightError(Exception):
     """The flight could not go on (a vehicle refused its start, re-tasking failed)."""
+
+
+class _TimedOut(Exception):
+    """--timeout reached while vehicles were still flying."""
 
 
 def assign_vehicles(plan: Plan, sysids: list, assign: dict) -> dict:
@@ -91,7 +106,6 @@ class Flight:
         self.urls = list(urls)
         self.options = options
         self.output = Path(options.output)
-        self.output.mkdir(parents=True, exist_ok=True)
         self.log = log or (lambda text: None)
         self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
         self.start_unix = time.time()
@@ -103,35 +117,92 @@ class Flight:
         self.ctx = None
         self._ctx_ready = threading.Event()
         self._ctx_error = None
+        self.missions = None      # (route id, firmware) -> CheckedMission, once prepared
+        self.surface = None
+        self.timed_out = False
+        self.stopped = None       # why monitoring ended early ("interrupted", "timed out")
+        self.error = None         # what stopped the flight (FlightError)
 
     # -- stages -------------------------------------------------------------------------
-    def run(self, status=None, on_interrupt=None) -> dict:
+    def prepare(self) -> None:
+        """Read the plan and prove every route's mission, for each autopilot, before
+        any connection: InputError naming the plan and vehicle if one fails."""
+        if self.missions is not None:
+            return
+        self.surface = saved_plan_surface(self.plan_dir, self.plan)
+        clearance = self.plan.params.get("clearance_m")
+        missions = {}
+        for route in self.plan.vehicles:
+            if not route.waypoints:
+                continue
+            for firmware in NAMES:
+                mission = vehicle_mission(route, firmware, self.mission_options)
+                missions[route.id, firmware] = checked(
+                    mission, self.surface, clearance,
+                    name=f"{self.plan_dir / PLAN_FILE}: vehicle {route.id}")
+        self.missions = missions
+        terrain = self.surface.terrain
+
+        def ground(lat, lon):
+            x, y = terrain.from_lonlat(lon, lat)
+            return float(terrain.ground(x, y)[0])
+
+        self.monitor.ground = ground
+
+    def run(self, status=None, on_interrupt=None, on_timeout=None) -> dict:
         """Fly the plan to the end; returns the report (also written to flight.json).
 
-        Ctrl-C while monitoring calls ``on_interrupt()``: "home" re-tasks every
-        vehicle in the air home along hidden paths (never plain RTL) and keeps
-        monitoring; anything else leaves them on their missions and stops."""
+        Ctrl-C while monitoring calls ``on_interrupt()``, and the end of
+        ``timeout_s`` with vehicles still flying calls ``on_timeout()`` (default:
+        "home"): "home" re-tasks every vehicle in the air home along hidden paths
+        (never plain RTL) and keeps monitoring; anything else leaves them on their
+        missions and stops. A FlightError is re-raised after the report is written."""
+        self.prepare()
+        self.output.mkdir(parents=True, exist_ok=True)
         threading.Thread(target=self._prepare_context, daemon=True,
                          name="replan-context").start()
         try:
             self.connect()
             self.upload()
             self.start()
-            try:
-                self.watch(status)
-            except KeyboardInterrupt:
-                choice = on_interrupt() if on_interrupt is not None else "leave"
-                self.monitor.event(None, f"interrupted: {choice}")
-                if choice == "home":
-                    self.retask(home=True)
-                    self.watch(status)
+            self._watch_and_answer(status, on_interrupt, on_timeout or (lambda: "home"))
+        except FlightError as exc:
+            self.error = str(exc)
+            self.monitor.event(None, f"failed: {exc}")
         finally:
             self.monitor.close()
             if self.link is not None:
                 self.link.close()
         report = self.report()
         self.write(report)
+        if self.error is not None:
+            raise FlightError(self.error)
         return report
+
+    def _watch_and_answer(self, status, on_interrupt, on_timeout) -> None:
+        """Monitor; on Ctrl-C or the timeout ask what to do (once each time)."""
+        try:
+            self.watch(status, self.options.timeout_s)
+            return
+        except KeyboardInterrupt:
+            why = "interrupted"
+            choice = on_interrupt() if on_interrupt is not None else "leave"
+        except _TimedOut:
+            why = f"timed out after {self.options.timeout_s:g} s"
+            self.timed_out = True
+            choice = on_timeout()
+        self.monitor.event(None, f"{why}: {choice}")
+        self.stopped = why
+        if choice != "home":
+            return
+        self.retask(home=True)
+        bound = None if self.options.timeout_s is None else \
+            max(self.options.timeout_s, HOME_WAIT_S)
+        try:
+            self.watch(status, bound)          # bounded again: never forever
+            self.stopped = None
+        except (KeyboardInterrupt, _TimedOut):
+            self.monitor.event(None, "stopped while bringing the vehicles home")
 
     def _prepare_context(self) -> None:
         try:
@@ -158,7 +229,10 @@ class Flight:
         vehicles = self.link.vehicles
         for sysid, route in assign_vehicles(self.plan, list(vehicles), o.assign).items():
             link = vehicles[sysid]
-            mission = vehicle_mission(route, link.flavour, self.mission_options)
+            mission = self.missions.get((route.id, link.flavour))
+            if mission is None:
+                raise FlightError(f"vehicle {sysid}: its autopilot ({link.flavour}) is neither "
+                                  f"{' nor '.join(NAMES)}: no mission for it")
             self.monitor.follow(link, route.id, route, mission)
             self.monitor.event(sysid, "connected", flavour=link.flavour, vehicle=route.id,
                                items=len(mission.items))
@@ -167,8 +241,7 @@ class Flight:
         m = self.monitor
 
         def one(sysid):
-            upload_verified(m.links[sysid], m.vehicles[sysid].mission.items,
-                            **self.options.protocol)
+            upload_verified(m.links[sysid], m.vehicles[sysid].mission, **self.options.protocol)
             m.event(sysid, "mission uploaded and verified")
 
         self._all(one, "upload", MissionError)
@@ -209,11 +282,11 @@ class Flight:
             m.event(sysid, f"lost during {what}", **({"error": str(error)} if error else {}))
         self._lost_early = self._lost_early or bool(lost)
 
-    def watch(self, status=None) -> None:
-        """Monitor until every vehicle has landed or is lost; re-task on each loss."""
+    def watch(self, status=None, timeout_s=None) -> None:
+        """Monitor until every vehicle has landed or is lost; re-task on each loss.
+        _TimedOut after ``timeout_s`` wall seconds with vehicles still flying."""
         m = self.monitor
-        end = None if self.options.timeout_s is None else time.monotonic() + \
-            self.options.timeout_s
+        end = None if timeout_s is None else time.monotonic() + timeout_s
         if self._lost_early:
             self._lost_early = False
             self.retask()
@@ -222,9 +295,8 @@ class Flight:
                 self.retask()
             if status is not None:
                 status(m.status_rows())
-            if end is not None and time.monotonic() > end:
-                m.event(None, f"gave up after {self.options.timeout_s:g} s")
-                break
+            if end is not None and time.monotonic() > end and not m.all_finished():
+                raise _TimedOut()
             time.sleep(LOOP_S)
         if status is not None:
             status(m.status_rows())
@@ -250,15 +322,42 @@ class Flight:
         losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
                    "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason}
                   for _, v in sorted(m.vehicles.items()) if v.state == LOST]
+        coverage = self.coverage()
         return {
             "format": FORMAT, "plan": str(self.plan_dir),
             "started_utc": datetime.fromtimestamp(self.start_unix, timezone.utc).isoformat(),
             "start_unix": self.start_unix, "duration_s": round(m.now(), 3),
             "lost_after_s": self.options.lost_after_s, "k": int(self.plan.metrics.get("k", 0)),
+            "outcome": self.outcome(coverage),
             "vehicles": vehicles, "losses": losses,
             "replans": [asdict(r) for r in self.retasks],
-            "coverage": self.coverage(), "events": list(m.events),
+            "coverage": coverage, "events": list(m.events),
         }
+
+    def outcome(self, coverage: dict) -> dict:
+        """Did the flight do its job? ``ok`` only with the required coverage reached
+        (every coverable target seen by min(k + 1, survivors) survivors), no vehicle
+        lost and none left in the air; ``problems`` says what went wrong, one line each."""
+        m = self.monitor
+        lost = [s for s, v in sorted(m.vehicles.items()) if v.state == LOST]
+        in_air = [s for s, v in sorted(m.vehicles.items()) if not v.finished]
+        survivors = coverage.get("survivors")
+        reached = bool(survivors) and survivors["k_covered"] >= coverage["coverable_targets"]
+        problems = []
+        if self.error is not None:
+            problems.append(f"failed: {self.error}")
+        if lost:
+            problems.append(f"vehicle(s) {', '.join(map(str, lost))} lost")
+        if not reached:
+            problems.append("required coverage not reached: " + (
+                f"{survivors['k_covered']} of {coverage['coverable_targets']} coverable targets "
+                f"seen by {survivors['required_uavs']} surviving vehicle(s)" if survivors
+                else coverage.get("error", "no coverage computed")))
+        if in_air:
+            why = "timed out" if self.timed_out else (self.stopped or "stopped")
+            problems.append(f"{why} with vehicle(s) {', '.join(map(str, in_air))} in the air")
+        return {"ok": not problems, "coverage_reached": reached, "lost": lost,
+                "timed_out": self.timed_out, "in_air": in_air, "problems": problems}
 
     def _vehicle_report(self, v) -> dict:
         return {
@@ -288,6 +387,7 @@ class Flight:
         return out
 
     def write(self, report: dict) -> None:
+        self.output.mkdir(parents=True, exist_ok=True)
         write_text_atomic(self.output / FLIGHT_FILE, json.dumps(report, indent=1))
         if self.options.plot:
             from gcs.flight_plot import flight_png
@@ -305,9 +405,10 @@ class Flight:
 
 
 def fly(plan_dir, urls, options: FlyOptions = None, log=None, status=None,
-        on_interrupt=None) -> dict:
+        on_interrupt=None, on_timeout=None) -> dict:
     """Fly ``plan_dir`` on the vehicles at ``urls``; returns the flight report."""
-    return Flight(plan_dir, urls, options or FlyOptions(), log).run(status, on_interrupt)
+    return Flight(plan_dir, urls, options or FlyOptions(), log).run(status, on_interrupt,
+                                                                     on_timeout)
 
 
 __all__ = ["Flight", "FlightError", "FlyOptions", "LANDED", "LOST", "assign_vehicles", "fly"]

@@ -18,6 +18,7 @@ different senders never mix in one parse buffer.
 
 import collections
 import itertools
+import re
 import select
 import socket
 import struct
@@ -27,8 +28,8 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from gcs import signing
-from gcs.mavlink import (ARDUPILOT, GCS_COMPONENT_ID, GCS_SYSTEM_ID, M, flavour_of,
-                         mavutil, mode_name)
+from gcs.mavlink import (GCS_COMPONENT_ID, GCS_SYSTEM_ID, M, flavour_of, mavutil,
+                         mode_name, profile_of)
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
@@ -171,18 +172,56 @@ def _split_serial(url: str) -> tuple:
     return url, 115200
 
 
+#: network URL schemes pymavlink opens, and what each means
+SCHEMES = ("tcp:", "udp:", "udpin:", "udpout:", "udpbcast:")
+URL_FORMS = ("tcp:HOST:PORT (connect), udpin:HOST:PORT (listen), udpout:HOST:PORT (send to), "
+             "udpbcast:HOST:PORT, or a serial DEVICE,BAUD (/dev/ttyUSB0,57600; COM3,57600)")
+
+
+def parse_url(url: str) -> tuple:
+    """(device, baud) of a connection URL in a form pymavlink takes; LinkError
+    otherwise. A bare HOST:PORT is refused: pymavlink would read it as UDP (and
+    listen), not the TCP of ArduPilot SITL, and wait for nothing."""
+    url = url.strip()
+    if url.startswith(SCHEMES):
+        scheme, _, rest = url.partition(":")
+        host, sep, port = rest.rpartition(":")
+        if not sep or not host or not port.isdigit():
+            raise LinkError(f"{url}: expected {scheme}:HOST:PORT")
+        return url, 115200
+    head, comma, tail = url.rpartition(",")
+    device = head if comma else url
+    serial_like = (device.startswith("/") and ":" not in device) or \
+        re.fullmatch(r"(COM\d+|\\\\\.\\COM\d+)", device, re.IGNORECASE) is not None
+    if serial_like:
+        if comma and not tail.isdigit():
+            raise LinkError(f"{url}: the baud rate after the comma is not a number")
+        return _split_serial(url)
+    hint = ""
+    if ":" in url and url.rpartition(":")[2].isdigit():
+        hint = f" (for ArduPilot SITL: tcp:{url}; to listen: udpin:{url})"
+    raise LinkError(f"{url}: not a connection URL{hint}; pymavlink takes {URL_FORMS}")
+
+
 class Connection:
     """One pymavlink endpoint, read as raw bytes with the sender's address."""
 
     def __init__(self, url: str, signing_key: bytes | None = None, link_id: int = 0):
         self.url = url
-        device, baud = _split_serial(url)
+        device, baud = parse_url(url)
         try:
             self.conn = mavutil.mavlink_connection(
                 device, baud=baud, source_system=GCS_SYSTEM_ID,
                 source_component=GCS_COMPONENT_ID, autoreconnect=False, retries=1,
                 reconnect_delay=0.2)
         except (OSError, ValueError) as exc:
+            raise LinkError(f"{url}: cannot open: {exc}") from exc
+        except ImportError as exc:      # pymavlink imports pyserial only for serial links
+            raise LinkError(f"{url}: cannot open a serial link: {exc} (install pyserial)") \
+                from exc
+        except Exception as exc:        # pyserial's SerialException is an OSError subclass;
+            if type(exc).__name__ != "SerialException":   # anything else is a bug
+                raise
             raise LinkError(f"{url}: cannot open: {exc}") from exc
         self.kind = self._kind(device)
         self._key, self._link_id = signing_key, link_id
@@ -294,6 +333,7 @@ class VehicleLink:
         self.autopilot = heartbeat.autopilot
         self.mav_type = heartbeat.type
         self.flavour = flavour_of(heartbeat.autopilot)
+        self.profile = profile_of(self.flavour)     # autopilots profile; None: generic
         self.state = VehicleState()
         self.signs = False            # its packets carry signatures (seen without a key)
         self._route = (conn, addr)
@@ -326,7 +366,7 @@ class VehicleLink:
         """Ask for telemetry: ArduPilot streams on a port only what a ground station
         requests (MAVProxy does the same); PX4 streams to its GCS link by itself.
         Fire and forget: this runs on the reader thread, which must not wait."""
-        if self.flavour == ARDUPILOT:
+        if self.profile is not None and self.profile.request_streams:
             self.send("REQUEST_DATA_STREAM", req_stream_id=M.MAV_DATA_STREAM_ALL,
                       req_message_rate=rate_hz, start_stop=1)
 

@@ -14,6 +14,8 @@ os.environ["MAVLINK20"] = "1"      # before pymavlink is imported anywhere
 
 from pymavlink import mavutil  # noqa: E402
 
+from autopilots import ARDUPILOT, profile, profile_of_heartbeat  # noqa: E402
+
 mavutil.set_dialect("ardupilotmega")
 mavlink = mavutil.mavlink
 M = mavlink
@@ -21,15 +23,8 @@ M = mavlink
 GCS_SYSTEM_ID = 255                                   # as QGroundControl / MAVProxy
 GCS_COMPONENT_ID = M.MAV_COMP_ID_MISSIONPLANNER       # 190
 
-ARDUPILOT, PX4, GENERIC = "ardupilot", "px4", "generic"
-
-# PX4 packs its main mode in bits 16-23 of custom_mode and its sub mode in 24-31.
-_PX4_MAIN = {"MANUAL": 1, "ALTCTL": 2, "POSCTL": 3, "AUTO": 4, "ACRO": 5, "OFFBOARD": 6,
-             "STABILIZED": 7, "RATTITUDE": 8}
-_PX4_AUTO_SUB = {"READY": 1, "TAKEOFF": 2, "LOITER": 3, "MISSION": 4, "RTL": 5, "LAND": 6,
-                 "FOLLOW_TARGET": 8, "PRECLAND": 9}
-PX4_MODES = {name: (main, 0) for name, main in _PX4_MAIN.items() if name != "AUTO"}
-PX4_MODES.update({f"AUTO.{sub}": (_PX4_MAIN["AUTO"], num) for sub, num in _PX4_AUTO_SUB.items()})
+# What differs between firmwares lives in one profile each (`autopilots`).
+GENERIC = "generic"          # the flavour of an autopilot that is neither: no profile
 
 
 def enum_name(enum: str, value: int) -> str:
@@ -53,57 +48,32 @@ def command_name(command: int) -> str:
 
 
 def flavour_of(autopilot: int) -> str:
-    """The firmware flavour behind a HEARTBEAT's autopilot field."""
-    if autopilot == M.MAV_AUTOPILOT_ARDUPILOTMEGA:
-        return ARDUPILOT
-    if autopilot == M.MAV_AUTOPILOT_PX4:
-        return PX4
-    return GENERIC
+    """The firmware flavour behind a HEARTBEAT's autopilot field ("generic": no profile)."""
+    found = profile_of_heartbeat(autopilot)
+    return found.name if found is not None else GENERIC
 
 
-def px4_custom_mode(main: int, sub: int = 0) -> int:
-    return (int(main) << 16) | (int(sub) << 24)
-
-
-def ardupilot_modes(mav_type: int = M.MAV_TYPE_QUADROTOR) -> dict:
-    """ArduPilot mode name -> custom_mode for this vehicle type (copter by default)."""
-    return dict(mavutil.mode_mapping_byname(mav_type)
-                or mavutil.mode_mapping_byname(M.MAV_TYPE_QUADROTOR))
+def profile_of(flavour: str):
+    """The `autopilots` profile of a flavour name; None for "generic"."""
+    try:
+        return profile(flavour)
+    except KeyError:
+        return None
 
 
 def mode_number(flavour: str, name: str, mav_type: int = M.MAV_TYPE_QUADROTOR) -> tuple:
-    """(custom_mode, main, sub) of a mode name; raises KeyError naming the choices."""
-    name = name.upper()
-    if flavour == PX4:
-        if name not in PX4_MODES:
-            raise KeyError(f"unknown PX4 mode {name!r}; known: {', '.join(sorted(PX4_MODES))}")
-        main, sub = PX4_MODES[name]
-        return px4_custom_mode(main, sub), main, sub
-    modes = ardupilot_modes(mav_type)
-    if name not in modes:
-        raise KeyError(f"unknown ArduPilot mode {name!r}; known: {', '.join(sorted(modes))}")
-    return modes[name], modes[name], 0
+    """(custom_mode, main, sub) of a mode name; raises KeyError naming the choices.
+    A generic autopilot is asked in ArduPilot's numbers (plain custom modes)."""
+    return (profile_of(flavour) or profile(ARDUPILOT)).mode_number(name, mav_type)
 
 
 def mode_name(flavour: str, custom_mode: int, mav_type: int = M.MAV_TYPE_QUADROTOR) -> str:
     """The name of a HEARTBEAT custom_mode, "MODE(n)" when unknown."""
-    custom_mode = int(custom_mode)
-    if flavour == PX4:
-        main, sub = (custom_mode >> 16) & 0xFF, (custom_mode >> 24) & 0xFF
-        for name, (m, s) in PX4_MODES.items():
-            if (m, s) == (main, sub):
-                return name
-        if main == _PX4_MAIN["AUTO"] and sub == 0:
-            return "AUTO.LOITER"          # PX4 reports bare AUTO while holding
-        return f"MODE({main}.{sub})"
-    if flavour == ARDUPILOT:
-        for name, number in ardupilot_modes(mav_type).items():
-            if number == custom_mode:
-                return name
-    return f"MODE({custom_mode})"
+    found = profile_of(flavour)
+    return found.mode_name(custom_mode, mav_type) if found is not None \
+        else f"MODE({int(custom_mode)})"
 
 
-__all__ = ["ARDUPILOT", "GCS_COMPONENT_ID", "GCS_SYSTEM_ID", "GENERIC", "M", "PX4",
-           "PX4_MODES", "ardupilot_modes", "command_name", "enum_name", "flavour_of",
-           "mavlink", "mavutil", "mission_result_name", "mode_name", "mode_number",
-           "px4_custom_mode", "result_name"]
+__all__ = ["GCS_COMPONENT_ID", "GCS_SYSTEM_ID", "GENERIC", "M",
+           "command_name", "enum_name", "flavour_of", "mavlink", "mavutil",
+           "mission_result_name", "mode_name", "mode_number", "profile_of", "result_name"]

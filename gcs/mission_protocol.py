@@ -9,14 +9,20 @@ as the spec recommends; every MAV_MISSION_RESULT error is reported by name.
 
 ArduPilot answers an upload in the first second after boot with
 MAV_MISSION_NO_SPACE ("Only 0 items are supported"); that is retried after a
-short wait. Its item 0 is home and always reads back as the real home, so a
-read-back comparison skips it.
+short wait. What a read-back keeps is the firmware's (`autopilots` profile:
+ArduPilot's item 0 is home and reads back as the real home, its commands
+without a position come back in frame 0); a read-back comparison looks at the
+rest, and any difference there is an error.
+
+Only a checked mission is sent: `upload` and `upload_verified` take a
+`missions.check.CheckedMission` (made only by the mission check) checked for
+the vehicle's own firmware, and refuse anything else before a byte goes out.
 """
 
 import math
 import time
 
-from gcs.mavlink import ARDUPILOT, M, mission_result_name
+from gcs.mavlink import M, mission_result_name, profile_of
 
 TIMEOUT_S = 1.5
 RETRIES = 5
@@ -41,13 +47,41 @@ class _NoSpace(Exception):
     pass
 
 
+# -- the gate ----------------------------------------------------------------------------
+def _gate(link, mission) -> list:
+    """The items of a `CheckedMission` for this vehicle; TypeError for anything else,
+    MissionError when it was checked for another firmware than the vehicle's (a
+    home item is not flown by one and flown by the other)."""
+    from missions.check import CheckedMission
+
+    if not isinstance(mission, CheckedMission):
+        raise TypeError(f"only a checked mission is uploaded (missions.check.checked), "
+                        f"got {type(mission).__name__}")
+    vehicle = getattr(link, "profile", None)
+    flavour = getattr(link, "flavour", None)
+    if vehicle is None and flavour is not None:
+        vehicle = profile_of(flavour)
+    if vehicle is not None and vehicle.name != mission.firmware:
+        raise MissionError(link, f"{mission.name} was checked for {mission.firmware}, the "
+                                 f"vehicle is {vehicle.name}: not uploaded")
+    if vehicle is None and flavour is not None and profile_of(mission.firmware).home_item:
+        raise MissionError(link, f"{mission.name} has a home item ({mission.firmware}), and "
+                                 f"the vehicle's autopilot ({flavour}) may fly it: not uploaded")
+    return mission.items
+
+
 # -- upload ----------------------------------------------------------------------------
-def upload(link, items, progress=None, mission_type=M.MAV_MISSION_TYPE_MISSION,
+def upload(link, mission, progress=None, mission_type=M.MAV_MISSION_TYPE_MISSION,
            timeout_s=TIMEOUT_S, retries=RETRIES) -> None:
-    """Upload `items` (missions.items.MissionItem, seq 0..n-1) to the vehicle `link`.
+    """Upload ``mission`` (a `missions.check.CheckedMission`) to the vehicle `link`.
 
     progress(done, total) is called as items are sent. Raises MissionError."""
-    items = list(items)
+    items = _gate(link, mission)
+    _transfer(link, items, progress, mission_type, timeout_s, retries)
+
+
+def _transfer(link, items, progress, mission_type, timeout_s, retries) -> None:
+    """The upload transfer of `items` (seq 0..n-1), with ArduPilot's NO_SPACE retried."""
     for k, item in enumerate(items):
         if item.seq != k:
             raise ValueError(f"mission items must be numbered 0..{len(items) - 1}: "
@@ -56,9 +90,11 @@ def upload(link, items, progress=None, mission_type=M.MAV_MISSION_TYPE_MISSION,
         try:
             return _upload_once(link, items, progress, mission_type, timeout_s, retries)
         except _NoSpace:
-            if attempt == NO_SPACE_RETRIES:
+            # after boot ArduPilot says NO_SPACE for a while; past its capacity always
+            if attempt == NO_SPACE_RETRIES or _capacity(link, len(items)):
                 raise MissionError(link, f"upload of {len(items)} items refused: "
-                                         f"{mission_result_name(M.MAV_MISSION_NO_SPACE)}",
+                                         f"{mission_result_name(M.MAV_MISSION_NO_SPACE)}"
+                                         f"{_capacity(link, len(items))}",
                                    M.MAV_MISSION_NO_SPACE) from None
             time.sleep(NO_SPACE_WAIT_S)
 
@@ -97,8 +133,9 @@ def _upload_once(link, items, progress, mission_type, timeout_s, retries) -> Non
             if msg.type == M.MAV_MISSION_NO_SPACE and highest < 0:
                 raise _NoSpace()
             where = f"after item {highest}" if highest >= 0 else "at MISSION_COUNT"
+            more = _capacity(link, count) if msg.type == M.MAV_MISSION_NO_SPACE else ""
             raise MissionError(link, f"upload of {count} items refused {where}: "
-                                     f"{mission_result_name(msg.type)}{_said(link)}",
+                                     f"{mission_result_name(msg.type)}{more}{_said(link)}",
                                msg.type)
         if not 0 <= msg.seq < count:
             continue                             # not a request we can answer
@@ -193,6 +230,15 @@ def _timeout(link, problem, timeout_s, retries) -> MissionError:
     return MissionError(link, text, timeout=True)
 
 
+def _capacity(link, count) -> str:
+    """Why NO_SPACE may come: more items than the firmware holds by default."""
+    found = getattr(link, "profile", None)
+    capacity = getattr(found, "mission_capacity", None)
+    if capacity is not None and count > capacity:
+        return f" ({found.title} holds {capacity} items by default)"
+    return ""
+
+
 def _said(link) -> str:
     """The vehicle's last STATUSTEXT, which often says why (ArduPilot)."""
     texts = getattr(getattr(link, "state", None), "statustext", None)
@@ -200,25 +246,27 @@ def _said(link) -> str:
 
 
 # -- verified upload -------------------------------------------------------------------
-def upload_verified(link, items, progress=None, attempts=2, timeout_s=TIMEOUT_S,
+def upload_verified(link, mission, progress=None, attempts=2, timeout_s=TIMEOUT_S,
                     retries=RETRIES) -> list:
-    """Upload, read back, compare item by item; returns what was read back.
+    """Upload ``mission`` (a `missions.check.CheckedMission`), read back, compare item
+    by item; returns what was read back.
 
     progress(done, 2 * n) covers both halves. A transfer that times out is started
     again (up to `attempts` in all); a read-back that differs is an error."""
-    items = list(items)
+    items = _gate(link, mission)
     n = len(items)
     up = (lambda d, t: progress(d, 2 * n)) if progress else None
     down = (lambda d, t: progress(n + d, 2 * n)) if progress else None
     for attempt in range(1, attempts + 1):
         try:
-            upload(link, items, up, timeout_s=timeout_s, retries=retries)
+            _transfer(link, items, up, M.MAV_MISSION_TYPE_MISSION, timeout_s, retries)
             back = download(link, down, timeout_s=timeout_s, retries=retries)
             break
         except MissionError as exc:
             if not exc.timeout or attempt == attempts:
                 raise
-    problems = compare(items, back, getattr(link, "flavour", None))
+    problems = compare(items, back, getattr(link, "profile", None)
+                       or getattr(link, "flavour", None))
     if problems:
         raise MissionError(link, "mission read back differs from the upload: "
                                  + "; ".join(problems[:5])
@@ -229,14 +277,20 @@ def upload_verified(link, items, progress=None, attempts=2, timeout_s=TIMEOUT_S,
 
 def compare(sent, got, flavour=None) -> list:
     """Differences between two missions, one line per item (empty: the same), as
-    `MissionItem.differences` judges them. ArduPilot's item 0 is home and reads
-    back as the real home: not compared."""
+    `MissionItem.differences` judges them, on the fields the vehicle's firmware
+    keeps (``flavour``: a profile or a firmware name; None compares everything)."""
     if len(sent) != len(got):
         return [f"{len(sent)} items sent, {len(got)} read back"]
-    first = 1 if flavour == ARDUPILOT else 0
+    keeper = profile_of(flavour) if isinstance(flavour, str) or flavour is None else flavour
     out = []
-    for a, b in zip(sent[first:], got[first:]):
+    for a, b in zip(sent, got):
+        compared, frame_kept = (True, True) if keeper is None else \
+            keeper.kept_on_read_back(a.seq, a.command, a.frame)
+        if not compared:
+            continue
         diff = a.differences(b)
+        if not frame_kept:
+            diff = [d for d in diff if not d.startswith("frame ")]
         if diff:
             out.append(f"item {a.seq}: " + ", ".join(diff))
     return out

@@ -12,13 +12,21 @@ it comes, is kept beside it.
 Loss detection (`check_losses`, called by the flight loop on the wall clock):
 a vehicle is lost when no HEARTBEAT has arrived for ``lost_after_s`` seconds,
 or when it disarms in the air. A link that comes back earlier is not a loss.
+
+Touching the ground is a landing only at the launch point after the mission's
+last waypoint (the one above launch, before the landing). Anywhere else, or
+earlier, it is a crash: the vehicle is lost with its snapshots. So is a vehicle
+whose altitude goes below the terrain (the plan's DEM) + ``CRASH_MARGIN_M``
+away from its launch point, whether or not it disarms.
 """
 
+import math
 import threading
 import time
 from dataclasses import dataclass, field
 
 from gcs.mavlink import M
+from missions.items import NAV_LAND
 
 # Flight states of a vehicle, as shown in the status table and flight.json.
 WAITING, STARTING, FLYING, HOLDING, RETURNING, LANDED, LOST = (
@@ -29,6 +37,17 @@ LANDED_AGL_M = 3.0
 TRACK_PERIOD_S = 0.2
 #: position reports above LANDED_AGL_M after a disarm that make it a fall
 DISARM_REPORTS = 3
+#: within this distance (m, horizontally) of its launch point a vehicle takes off and lands
+LAUNCH_RADIUS_M = 10.0
+#: below the terrain + this (m) away from its launch point, a vehicle has hit the ground
+CRASH_MARGIN_M = 2.0
+
+
+def distance_m(lat1, lon1, lat2, lon2) -> float:
+    """Horizontal distance in metres (equirectangular: plenty over a few km)."""
+    dlat = math.radians(lat2 - lat1)
+    dlon = math.radians(lon2 - lon1) * math.cos(math.radians((lat1 + lat2) / 2))
+    return 6371008.8 * math.hypot(dlat, dlon)
 
 
 def _note_airborne(v, armed: bool, agl) -> None:
@@ -72,6 +91,7 @@ class VehicleProgress:
     landed_at_s: float | None = None
     disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
     disarmed_reports: int = 0  # position reports since
+    relaunched: int = 0  # times sent up again after landing
 
     @property
     def snapshot_total(self) -> int:
@@ -86,12 +106,32 @@ class VehicleProgress:
     def finished(self) -> bool:
         return self.state in (LANDED, LOST)
 
+    @property
+    def launch_point(self):
+        """(lat, lon) of where it takes off and lands: its route's launch point."""
+        launch = getattr(self.route, "launch", None)
+        return None if launch is None else (launch.lat, launch.lon)
+
+    def final_approach_seq(self) -> int | None:
+        """The mission item a proper landing comes after: the last waypoint (above
+        launch) before the final NAV_LAND, or the last position item."""
+        items = getattr(self.mission, "items", None) or []
+        positions = [it.seq for it in items if it.is_position]
+        if not positions:
+            return None
+        if items[positions[-1]].command == NAV_LAND and len(positions) > 1:
+            return positions[-2]
+        return positions[-1]
+
 
 class Monitor:
     """Telemetry of every vehicle of a flight, on one clock (seconds since `t0`)."""
 
-    def __init__(self, lost_after_s: float = 5.0, on_event=None):
+    def __init__(self, lost_after_s: float = 5.0, on_event=None, ground=None):
+        """``ground(lat, lon)``: terrain altitude (m AMSL; NaN outside) of the plan's
+        DEM, to tell a vehicle that went below it; None: not judged."""
         self.lost_after_s = float(lost_after_s)
+        self.ground = ground
         self.t0 = time.monotonic()
         self.vehicles = {}  # sysid -> VehicleProgress
         self.links = {}  # sysid -> VehicleLink
@@ -141,6 +181,18 @@ class Monitor:
             v.route, v.mission = route, mission
             v.generation += 1
             v.reached, v.done = set(), set()
+            self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
+
+    def relaunch(self, sysid: int) -> None:
+        """A landed survivor goes up again (after a loss left coverage short)."""
+        with self._lock:
+            v = self.vehicles[sysid]
+            if v.state != LANDED:
+                return
+            v.state, v.airborne = STARTING, False
+            v.disarmed_at_s, v.disarmed_reports = None, 0
+            v.relaunched += 1
+            self.event(sysid, "re-launching")
 
     # -- telemetry (reader threads) ---------------------------------------------------
     def _on(self, sysid: int, msg) -> None:
@@ -164,18 +216,73 @@ class Monitor:
             self._judge_disarm(v, agl)
 
     def _judge_disarm(self, v, agl) -> None:
-        """Disarmed after flying: landed if near home height, else fell (lost)."""
-        if agl is not None and agl <= LANDED_AGL_M:
-            v.state = LANDED
-            v.landed_at_s = round(self.now(), 3)
-            self.event(v.sysid, LANDED)
-        elif v.disarmed_reports >= DISARM_REPORTS:
-            self._lose(v, f"disarmed in the air ({agl:.0f} m above home)")
+        """Disarmed after flying: on the ground or still falling? On the ground it
+        landed only at its launch point after its last waypoint; anywhere else,
+        or before, it crashed (lost)."""
+        s = self.links[v.sysid].state
+        height = self._height(s)
+        touched = (agl is not None and abs(agl) <= LANDED_AGL_M) or \
+            (height is not None and height <= LANDED_AGL_M) or getattr(s, "landed", None) is True
+        if not touched:
+            if v.disarmed_reports >= DISARM_REPORTS:
+                self._lose(v, f"disarmed in the air ({agl or 0.0:.0f} m above home)")
+            return
+        away = self._from_launch(v, s)
+        if away is not None and away > LAUNCH_RADIUS_M:
+            return self._lose(v, f"crashed: touched the ground {away:.0f} m from its launch "
+                                 f"point")
+        final, progress = v.final_approach_seq(), self._progress(v, s)
+        if final is not None and (progress is None or progress < final):
+            where = "nothing" if progress is None else f"item {progress}"
+            return self._lose(v, f"crashed: touched the ground before its last item "
+                                 f"({where} of {final} reached)")
+        v.state = LANDED
+        v.landed_at_s = round(self.now(), 3)
+        self.event(v.sysid, LANDED)
+
+    def _height(self, s):
+        """Height (m) above the plan's terrain, None when unknown."""
+        if self.ground is None or getattr(s, "lat", None) is None or s.alt_amsl is None:
+            return None
+        ground = self.ground(s.lat, s.lon)
+        return None if ground is None or not math.isfinite(ground) else s.alt_amsl - ground
+
+    @staticmethod
+    def _from_launch(v, s):
+        """Horizontal distance (m) from the launch point (home where the route has none)."""
+        home = getattr(s, "home", None)
+        launch = v.launch_point or (home[:2] if home is not None else None)
+        if launch is None or getattr(s, "lat", None) is None:
+            return None
+        return distance_m(launch[0], launch[1], s.lat, s.lon)
+
+    @staticmethod
+    def _progress(v, s):
+        """The furthest item of the current mission the vehicle is known to have
+        reached or be flying to (MISSION_ITEM_REACHED, MISSION_CURRENT)."""
+        seen = set(v.reached)
+        if getattr(s, "mission_seq", None) is not None:
+            seen.add(int(s.mission_seq))
+        return max(seen) if seen else None
+
+    def _below_terrain(self, v, s) -> None:
+        """Away from launch and below the terrain + CRASH_MARGIN_M: it hit the ground."""
+        height = self._height(s)
+        if height is None or height >= CRASH_MARGIN_M:
+            return
+        away = self._from_launch(v, s)
+        if away is None or away > LAUNCH_RADIUS_M:
+            self._lose(v, f"crashed: {height:.1f} m above the terrain "
+                          f"({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
 
     def _position(self, v, msg) -> None:
         t = self.now()
         agl = msg.relative_alt * 1e-3
         _note_airborne(v, self.links[v.sysid].state.armed, agl)
+        if v.airborne and v.state not in (LANDED, LOST):
+            self._below_terrain(v, self.links[v.sysid].state)
+            if v.state == LOST:
+                return
         if v.disarmed_at_s is not None and v.state != LANDED:
             v.disarmed_reports += 1
             self._judge_disarm(v, agl)

@@ -1,13 +1,17 @@
 """Re-tasking the survivors after a loss: hold, re-plan, upload in flight, resume.
 
 Sequence per loss (issue 5): every survivor still in the air is held where it
-is (ArduPilot GUIDED, PX4 AUTO.LOITER), because ArduPilot applies an upload
-item by item and would otherwise fly a half-written mission; the planner
-(`planner.replan`) re-plans from the held positions and the survivors'
-snapshots so far; each new mission is checked (hidden, clear) and uploaded
+is (its firmware's hold mode: ArduPilot GUIDED, PX4 AUTO.LOITER), because
+ArduPilot applies an upload item by item and would otherwise fly a half-written
+mission; the planner (`planner.replan`) re-plans from the held positions and the
+survivors' snapshots so far; each new mission is checked (hidden, clear: a
+`missions.check.CheckedMission`, the only thing the upload takes) and uploaded
 with read-back; then the current item is set to the first new item and the
-vehicle goes back to AUTO. Setting the current item is not optional:
-ArduPilot resumes at the old index after an upload.
+vehicle goes back to AUTO. When the survivors' snapshots so far leave coverage
+short, landed survivors at their launch points join the re-plan, and those it
+gives something to see are started again (upload, start sequence, fly).
+Setting the current item is not optional: ArduPilot resumes at the old index
+after an upload.
 
 A loss during any of this (another vehicle silent, an upload failing because
 its vehicle is gone) restarts the re-plan with the remaining survivors.
@@ -20,16 +24,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from gcs import commands
-from gcs.mavlink import ARDUPILOT, PX4
 from gcs.mission_protocol import upload_verified
-from gcs.monitor import FLYING, HOLDING, LANDED, LOST
+from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, distance_m
 from missions.build import MissionOptions, vehicle_mission
 from planner.errors import InputError
 from planner.replan import (Survivor, coverable_targets, coverage_summary, replan, requirement,
-                            seen_matrix)
+                            seen_matrix, survivor_start)
 
-HOLD_MODE = {ARDUPILOT: "GUIDED", PX4: "AUTO.LOITER"}
-MISSION_MODE = {ARDUPILOT: "AUTO", PX4: "AUTO.MISSION"}
 #: wall seconds to let a held vehicle brake before its position is taken
 SETTLE_S = 3.0
 SETTLED_MPS = 0.5
@@ -47,6 +48,7 @@ class Retask:
     t_s: float
     lost: list  # system ids lost so far when it was made
     survivors: list = field(default_factory=list)  # system ids re-tasked
+    relaunched: list = field(default_factory=list)  # of them, landed ones sent up again
     attempts: int = 0
     planning_s: float = 0.0
     upload_s: float = 0.0
@@ -153,14 +155,51 @@ class Retasker:
 
     def flying(self) -> list:
         """Vehicles to re-task: not lost, not landed, and not disarmed after flying
-        (touched down at the end of a mission: it stays down)."""
+        (touched down at the end of a mission: it stays down unless re-launched)."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
                 if v.state not in (LOST, LANDED)
                 and not (v.airborne and not m.links[s].state.armed)]
 
+    def landed_at_launch(self) -> list:
+        """Landed survivors sitting at their launch point, still heard from: they
+        can go up again."""
+        m = self.monitor
+        out = []
+        for s, v in sorted(m.vehicles.items()):
+            state, launch = m.links[s].state, v.route.launch
+            if v.state != LANDED or launch is None or state.lat is None:
+                continue
+            if distance_m(launch.lat, launch.lon, state.lat, state.lon) > LAUNCH_RADIUS_M \
+                    or m.links[s].heartbeat_age() > m.lost_after_s:
+                continue
+            out.append(s)
+        return out
+
+    def _relaunchable(self, flyers) -> list:
+        """Landed survivors to send up again: when the snapshots the survivors have
+        taken leave a coverable target seen by fewer than min(k + 1, survivors) of
+        them, and the hidden volume takes them from their launch point."""
+        landed = self.landed_at_launch()
+        if not landed:
+            return []
+        ctx, m = self.ctx, self.monitor
+        everyone = flyers + landed
+        seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone])
+        if coverage_summary(ctx, seen, ctx.scenario.k)["k_covered"] >= coverable_targets(ctx):
+            return []
+        out = []
+        for s in landed:
+            try:
+                survivor_start(ctx, self._survivor(s, landed=True)[0])
+            except InputError:
+                continue                 # no hidden way up from there
+            out.append(s)
+        return out
+
     def retask(self, home: bool = False) -> Retask:
-        """Re-task every survivor still in the air; returns the record.
+        """Re-task every survivor still in the air, and the landed ones a loss needs
+        up again (never for ``home``); returns the record.
 
         ``home``: no more coverage work, each flies home along a hidden path."""
         self.home = home
@@ -170,13 +209,15 @@ class Retasker:
         for attempt in range(1, MAX_ATTEMPTS + 1):
             record.attempts = attempt
             sysids = self.flying()
-            if not sysids:
-                m.event(None, "re-plan skipped: no survivor in the air")
+            landed = [] if home else self._relaunchable(sysids)
+            if not sysids and not landed:
+                m.event(None, "re-plan skipped: no survivor in the air or able to go up")
                 return record
             try:
-                self._attempt(record, sysids)
+                self._attempt(record, sysids, landed)
                 record.done_t_s = round(m.now(), 3)
-                m.event(None, "re-tasked", survivors=sysids, attempt=attempt)
+                m.event(None, "re-tasked", survivors=record.survivors, attempt=attempt,
+                        **({"relaunched": record.relaunched} if record.relaunched else {}))
                 return record
             except _LostDuring as exc:
                 m.event(None, f"{exc.what} during re-tasking: starting again",
@@ -184,25 +225,36 @@ class Retasker:
         raise RetaskError(f"re-tasking failed {MAX_ATTEMPTS} times in a row")
 
     # -- one attempt --------------------------------------------------------------------
-    def _attempt(self, record, sysids) -> None:
+    def _survivor(self, sysid, landed=False) -> tuple:
+        """(Survivor, [lon, lat, alt]) of a vehicle: where it is held, or for a landed
+        one its launch point (it climbs straight up from there, as at takeoff)."""
+        ctx, v = self.ctx, self.monitor.vehicles[sysid]
+        launch = v.route.launch
+        state = self.monitor.links[sysid].state
+        position = [launch.lon, launch.lat, launch.alt_amsl] if landed else \
+            [state.lon, state.lat, state.alt_amsl]
+        return (Survivor(v.vehicle_id, geo_to_xyz(ctx, *position),
+                         geo_to_xyz(ctx, launch.lon, launch.lat, launch.alt_amsl)), position)
+
+    def _attempt(self, record, sysids, landed=()) -> None:
         m, ctx = self.monitor, self.ctx
-        self._step(sysids, self._hold)
-        self._settle(sysids)
-        if self.flying() != sysids:     # one touched down before it was held
-            raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
+        landed = list(landed)
+        if sysids:
+            self._step(sysids, self._hold)
+            self._settle(sysids)
+            if self.flying() != sysids:     # one touched down before it was held
+                raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
         t0 = time.perf_counter()
+        everyone = list(sysids) + landed
         survivors, positions = [], {}
-        for s in sysids:
-            v, state = m.vehicles[s], m.links[s].state
-            launch = v.route.launch
-            positions[s] = [state.lon, state.lat, state.alt_amsl]
-            survivors.append(Survivor(v.vehicle_id, geo_to_xyz(ctx, *positions[s]),
-                                      geo_to_xyz(ctx, launch.lon, launch.lat, launch.alt_amsl)))
-        seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in sysids])
-        record.survivors, record.starts = list(sysids), positions
-        record.required_uavs = int(requirement(ctx, len(sysids))[1][0])
+        for s in everyone:
+            survivor, positions[s] = self._survivor(s, landed=s in landed)
+            survivors.append(survivor)
+        seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone])
+        record.survivors, record.starts = list(everyone), positions
+        record.required_uavs = int(requirement(ctx, len(everyone))[1][0])
         record.seen_before = coverage_summary(ctx, seen, ctx.scenario.k)
-        record.original = original_outlook(ctx, m, sysids, len(record.lost))
+        record.original = original_outlook(ctx, m, everyone, len(record.lost))
         try:
             required = np.zeros(ctx.visibility.n_targets, np.int32) if self.home else None
             outcome = replan(ctx, survivors, seen, required=required)
@@ -210,28 +262,37 @@ class Retasker:
             raise RetaskError(f"re-plan failed: {exc}") from None
         record.planning_s = round(time.perf_counter() - t0, 3)
         record.planned = dict(outcome.plan.metrics)
-        routes = dict(zip(sysids, outcome.plan.vehicles))
-        missions = {s: self._mission(s, routes[s]) for s in sysids}
-        record.routes = {s: [[w.lon, w.lat, w.alt_amsl] for w in r.waypoints]
-                         for s, r in routes.items()}
+        routes = dict(zip(everyone, outcome.plan.vehicles))
+        # a landed vehicle goes up only if the re-plan gives it something to see
+        up = [s for s in landed if any(w.snapshot for w in routes[s].waypoints)]
+        tasked = list(sysids) + up
+        record.survivors, record.relaunched = tasked, up
+        try:
+            missions = {s: self._mission(s, routes[s]) for s in tasked}
+        except InputError as exc:       # nothing is sent: the vehicles stay held
+            raise RetaskError(f"re-planned mission refused by the check: {exc}") from None
+        record.routes = {s: [[w.lon, w.lat, w.alt_amsl] for w in routes[s].waypoints]
+                         for s in tasked}
         t1 = time.perf_counter()
-        self._step(sysids, lambda s: upload_verified(m.links[s], missions[s].items,
-                                                     **self.protocol))
+        self._step(tasked, lambda s: upload_verified(m.links[s], missions[s], **self.protocol))
         record.upload_s = round(time.perf_counter() - t1, 3)
-        for s in sysids:
+        for s in tasked:
             m.new_mission(s, routes[s], missions[s])
         self._step(sysids, lambda s: self._resume(s, missions[s]))
-        for s in sysids:
+        for s in up:
+            m.relaunch(s)
+        self._step(up, lambda s: self._launch(s, routes[s]))
+        for s in tasked:
             m.set_state(s, FLYING)
 
     def _mission(self, sysid, route):
-        """The new mission, proven hidden and clear leg by leg before it is sent."""
-        from missions.check import check_mission
+        """The new mission, proven hidden and clear leg by leg: the `CheckedMission`
+        that is the only thing the upload takes."""
+        from missions.check import checked
 
         link = self.monitor.links[sysid]
         mission = vehicle_mission(route, link.flavour, self.mission_options)
-        check_mission(mission, self.ctx.surface, self.ctx.scenario.clearance_m)
-        return mission
+        return checked(mission, self.ctx.surface, self.ctx.scenario.clearance_m)
 
     def _step(self, sysids, fn) -> None:
         """fn on every survivor at once; a failure of a vehicle found lost restarts."""
@@ -247,7 +308,7 @@ class Retasker:
 
     def _hold(self, sysid) -> None:
         link = self.monitor.links[sysid]
-        commands.set_mode(link, HOLD_MODE.get(link.flavour, "GUIDED"), retries=self._retries)
+        commands.set_mode(link, commands.autopilot(link).hold_mode, retries=self._retries)
         self.monitor.set_state(sysid, HOLDING)
 
     def _settle(self, sysids) -> None:
@@ -261,12 +322,18 @@ class Retasker:
                 return
             time.sleep(0.1)
 
+    def _launch(self, sysid, route) -> None:
+        """A landed survivor's start sequence, as at the start of the flight."""
+        commands.start_mission(self.monitor.links[sysid], route.waypoints[0].alt_amsl,
+                               retries=self._retries)
+
     def _resume(self, sysid, mission) -> None:
-        """Current item = the first item after home / the first item, then AUTO."""
+        """Current item = the first item flown (after home, where there is one), then
+        the firmware's mission mode."""
         link = self.monitor.links[sysid]
-        first = 1 if link.flavour == ARDUPILOT else 0
-        commands.set_current(link, first, retries=self._retries)
-        commands.set_mode(link, MISSION_MODE.get(link.flavour, "AUTO"), retries=self._retries)
+        profile = commands.autopilot(link)
+        commands.set_current(link, profile.first_item, retries=self._retries)
+        commands.set_mode(link, profile.mission_mode, retries=self._retries)
 
 
 class _LostDuring(Exception):

@@ -1,14 +1,16 @@
 """A vehicle's hidden route becomes its list of MAVLink mission items.
 
-Per vehicle, in order:
+Per vehicle, in order (what differs per firmware comes from its `autopilots`
+profile):
 
-- ArduPilot only: item 0 is home (ArduPilot keeps home there and overwrites it);
+- where the firmware keeps home as item 0 (ArduPilot): home, which the
+  autopilot overwrites;
 - ``NAV_TAKEOFF`` straight up to the first waypoint's altitude, when the route
   starts above its launch point;
 - ``DO_CHANGE_SPEED`` to the speed the plan assumed (optional);
 - one ``NAV_WAYPOINT`` per vertex of the hidden polyline (``param1`` = hold at a
-  snapshot), followed at each snapshot by a camera trigger: ``DO_DIGICAM_CONTROL``
-  (ArduPilot) or ``IMAGE_START_CAPTURE`` (PX4);
+  snapshot), followed at each snapshot by the firmware's camera command:
+  ``DO_DIGICAM_CONTROL`` (ArduPilot) or ``IMAGE_START_CAPTURE`` (PX4);
 - ``NAV_LAND`` at the launch point, when the route ends above it. Never
   ``RETURN_TO_LAUNCH``: the autopilot would fly straight at its RTL altitude.
 
@@ -20,14 +22,13 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
+from autopilots import ARDUPILOT, NAMES, profile
 from planner.errors import InputError
 
-from .items import (DO_CHANGE_SPEED, DO_DIGICAM_CONTROL, FRAME_GLOBAL, FRAME_MISSION,
-                    IMAGE_START_CAPTURE, NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem,
-                    renumber)
+from .items import (DO_CHANGE_SPEED, FRAME_GLOBAL, FRAME_MISSION, NAV_LAND, NAV_TAKEOFF,
+                    NAV_WAYPOINT, MissionItem, renumber)
 
-ARDUPILOT, PX4 = "ardupilot", "px4"
-FIRMWARES = (ARDUPILOT, PX4)
+FIRMWARES = NAMES
 SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1
 NO_THROTTLE_CHANGE = -1.0  # DO_CHANGE_SPEED param3
 ABOVE_LAUNCH_M = 1.0  # a waypoint this close (horizontally) to launch is above it
@@ -58,15 +59,14 @@ class VehicleMission:
 def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptions()
                     ) -> VehicleMission:
     """The mission items that fly ``route`` (a planner.plan.VehicleRoute)."""
-    if firmware not in FIRMWARES:
-        raise InputError("--firmware", f"must be one of {', '.join(FIRMWARES)}, got {firmware!r}")
+    autopilot = firmware_profile(firmware)
     if not route.waypoints:
         raise InputError(f"vehicle {route.id}", "route has no waypoints")
-    yaw = 0.0 if firmware == ARDUPILOT else math.nan  # PX4: NaN keeps its heading mode
+    yaw = autopilot.yaw  # ArduPilot: 0 (ignored); PX4: NaN keeps its heading mode
     out = _Builder()
     waypoints = route.waypoints
     first, last = waypoints[0], waypoints[-1]
-    if firmware == ARDUPILOT:
+    if autopilot.home_item:
         home = route.launch or first
         out.add(_position(NAV_WAYPOINT, home.lat, home.lon, home.alt_amsl))
     if options.takeoff and _above_launch(route.launch, first):
@@ -82,11 +82,20 @@ def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptio
                           p2=float(options.acceptance_m), p4=yaw), waypoint=index)
         if w.snapshot and options.camera:
             shots += 1
-            out.add(_camera(firmware, shots))
+            out.add(_command(autopilot.camera_command, *autopilot.camera_params(shots)))
     if options.takeoff and _above_launch(route.launch, last):
         out.add(_position(NAV_LAND, route.launch.lat, route.launch.lon, route.launch.alt_amsl,
                           p4=yaw))
-    return VehicleMission(route.id, firmware, renumber(out.items), out.waypoint_of_item)
+    return VehicleMission(route.id, autopilot.name, renumber(out.items), out.waypoint_of_item)
+
+
+def firmware_profile(firmware: str):
+    """The `autopilots` profile of ``firmware``; InputError naming the choices."""
+    try:
+        return profile(firmware)
+    except KeyError:
+        raise InputError("--firmware", f"must be one of {', '.join(FIRMWARES)}, "
+                                       f"got {firmware!r}") from None
 
 
 def plan_missions(plan, firmware: Optional[str] = None, options: Optional[MissionOptions] = None
@@ -128,10 +137,3 @@ def _position(command, lat, lon, alt, p1=0.0, p2=0.0, p3=0.0, p4=0.0) -> Mission
 def _command(command, p1=0.0, p2=0.0, p3=0.0, p4=0.0, p5=0.0, p6=0.0, p7=0.0) -> MissionItem:
     return MissionItem(0, FRAME_MISSION, command, 0, 1, p1, p2, p3, p4, p5, p6, p7)
 
-
-def _camera(firmware, shot) -> MissionItem:
-    if firmware == ARDUPILOT:
-        # session, zoom pos, zoom step, focus lock, shoot = 1, command id, shot id
-        return _command(DO_DIGICAM_CONTROL, p5=1.0)
-    # camera id 0 (all), interval 0, one image, capture sequence number from 1
-    return _command(IMAGE_START_CAPTURE, 0.0, 0.0, 1.0, float(shot))

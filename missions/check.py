@@ -7,7 +7,8 @@ position is a valid latitude / longitude / finite altitude in MAV_FRAME_GLOBAL
 consecutive position items is hidden (`planner.exposure.segments_hidden`) and
 at least ``clearance_m`` above the terrain (`segments_clear`).
 
-How legs are flown: ArduPilot's home item (seq 0) is not flown to. A takeoff
+How legs are flown: a home item (seq 0, where the firmware's `autopilots`
+profile has one: ArduPilot) is not flown to. A takeoff
 climbs straight up at the launch point, hidden because the top of the climb is
 (visibility only grows with altitude) and exempt from the clearance rule; a
 landing first flies level to above its point (a checked leg) and then descends
@@ -18,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from autopilots import profile
 from planner.errors import InputError
 from planner.exposure import is_hidden, segments_clear, segments_hidden
 
@@ -38,7 +40,7 @@ UNPROVABLE = {
 def check_mission(mission, surface, clearance_m=None) -> None:
     """Raise InputError naming the vehicle and the first bad item or leg."""
     check_items(mission.items, surface, clearance_m, name=mission.name,
-                has_home=mission.firmware == "ardupilot")
+                has_home=profile(mission.firmware).home_item)
 
 
 def check_items(items, surface, clearance_m=None, name="mission", has_home=False) -> None:
@@ -122,3 +124,68 @@ def _with_clearance(surface, clearance_m):
     if clearance_m is None or clearance_m == surface.params.clearance_m:
         return surface
     return replace(surface, params=replace(surface.params, clearance_m=float(clearance_m)))
+
+
+# --- the gate: only a checked mission is uploaded -----------------------------------------
+
+_TOKEN = object()
+
+
+class CheckedMission:
+    """A mission that passed the check: the only thing the upload path takes
+    (`gcs.mission_protocol.upload` / `upload_verified`).
+
+    Made only by `checked` (legs proven hidden and clear against a surface) or
+    `unproven` (structure only, at the user's explicit request); it keeps its own
+    copy of the items, so what was proven is what is sent. ``proven`` names what
+    the check covered; ``unproven_note`` what it did not (None when everything was).
+    """
+
+    __slots__ = ("vehicle_id", "firmware", "name", "_items", "waypoint_of_item", "proven",
+                 "unproven_note")
+
+    def __init__(self, mission, proven: str, unproven_note, name, _token=None):
+        if _token is not _TOKEN:
+            raise TypeError("a CheckedMission is made only by missions.check.checked() "
+                            "(or unproven())")
+        self.vehicle_id = mission.vehicle_id
+        self.firmware = mission.firmware
+        self.name = name or mission.name
+        self._items = tuple(replace(it) for it in mission.items)
+        self.waypoint_of_item = list(getattr(mission, "waypoint_of_item", None)
+                                     or [None] * len(self._items))
+        self.proven = proven
+        self.unproven_note = unproven_note
+
+    @property
+    def items(self) -> list:
+        """Copies of the checked items (changing them changes nothing uploaded)."""
+        return [replace(it) for it in self._items]
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+    def __repr__(self) -> str:
+        return (f"CheckedMission({self.name}, {self.firmware}, {len(self._items)} items, "
+                f"{self.proven})")
+
+
+def checked(mission, surface, clearance_m=None, name=None) -> CheckedMission:
+    """Prove ``mission`` (a `missions.build.VehicleMission`) hidden and clear
+    against ``surface`` (`check_mission`); InputError naming the item or leg if not."""
+    if surface is None:
+        raise TypeError("checked() needs the exposure surface to prove the legs against; "
+                        "unproven() is the structure-only check")
+    check_items(mission.items, surface, clearance_m, name=name or mission.name,
+                has_home=profile(mission.firmware).home_item)
+    return CheckedMission(mission, "structure and legs (hidden, clear)", None, name, _TOKEN)
+
+
+def unproven(mission, reason: str, name=None) -> CheckedMission:
+    """The structure-only check (`check_structure`: sequence, frames, commands,
+    coordinates) for a mission with no terrain and outposts to prove its legs
+    against; ``reason`` says why, and the result says what was not proven. Only
+    for a user's explicit ``--unchecked``."""
+    check_structure(mission.items, name or mission.name)
+    note = f"legs not proven hidden from outposts nor clear of the terrain ({reason})"
+    return CheckedMission(mission, "structure only", note, name, _TOKEN)

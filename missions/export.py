@@ -11,7 +11,9 @@ from typing import Optional
 from planner.errors import InputError
 
 from . import geo, qgc, wpl
-from .build import FIRMWARES, MissionOptions, plan_missions
+from autopilots import ARDUPILOT
+
+from .build import MissionOptions, firmware_profile, plan_missions
 from .check import check_mission
 
 FORMATS = ("plan", "waypoints", "geojson", "kml")
@@ -33,9 +35,7 @@ def export_plan_dir(directory, plan, firmware: Optional[str] = None, surface=Non
     plan); ``surface=None`` skips that proof. ``fences``: the outposts' ranges as
     exclusion circles in the ``.plan`` files.
     """
-    firmware = firmware or plan.params.get("firmware") or "ardupilot"
-    if firmware not in FIRMWARES:
-        raise InputError("--firmware", f"must be one of {', '.join(FIRMWARES)}, got {firmware!r}")
+    firmware = firmware_profile(firmware or plan.params.get("firmware") or ARDUPILOT).name
     unknown = sorted(set(formats) - set(FORMATS))
     if unknown:
         raise InputError("--format", f"unknown format {unknown[0]!r}; known: {', '.join(FORMATS)}")

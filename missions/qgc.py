@@ -4,8 +4,10 @@ The layout is QGroundControl's own: ``fileType "Plan"``, ``version 1``, a
 ``mission`` (version 2) of ``SimpleItem`` entries with the seven MAVLink params
 (``null`` for NaN), a ``geoFence`` and ``rallyPoints`` (version 2). As in
 QGroundControl, the ``.plan`` holds no home item: home is
-``plannedHomePosition``, and for ArduPilot it becomes item 0 again on reading
+``plannedHomePosition``, and for a firmware that keeps home as item 0
+(ArduPilot, see its `autopilots` profile) it becomes item 0 again on reading
 (QGroundControl and MAVSDK insert it the same way before an upload).
+``firmwareType`` is the profile's MAV_AUTOPILOT number.
 
 The outposts' detection ranges are written as exclusion geofence circles so
 QGroundControl draws them. Note that an autopilot with its fence enabled would
@@ -20,10 +22,13 @@ from typing import Optional
 from planner.errors import InputError
 from planner.fileio import write_text_atomic
 
-from .build import ARDUPILOT, PX4
+from autopilots import PROFILES, PX4, profile, profile_of_heartbeat
+
+from .build import firmware_profile
 from .items import FRAME_GLOBAL, NAV_WAYPOINT, MissionItem, renumber
 
-MAV_AUTOPILOT = {ARDUPILOT: 3, PX4: 12}  # MAV_AUTOPILOT_ARDUPILOTMEGA, _PX4
+#: firmware name -> .plan firmwareType (MAV_AUTOPILOT)
+MAV_AUTOPILOT = {name: p.mav_autopilot for name, p in PROFILES.items()}
 MAV_TYPE_QUADROTOR = 2
 ALTITUDE_MODE_ABSOLUTE = 2  # QGroundControl's AltMode: 1 relative, 2 absolute (AMSL)
 GROUND_STATION = "hidden-coverage-gcs"
@@ -48,12 +53,14 @@ class QgcPlan:
 def plan_json(mission, speed_mps=None, outposts=(), home=None) -> dict:
     """The ``.plan`` document of a `missions.build.VehicleMission`.
 
-    ``home``: (lat, lon, alt AMSL) for PX4, default the first position item
-    (ArduPilot's is its item 0). ``outposts``: plan.outposts dicts; those with a range become
+    ``home``: (lat, lon, alt AMSL) where the firmware has no home item (PX4),
+    default the first position item (ArduPilot's is its item 0). ``outposts``:
+    plan.outposts dicts; those with a range become
     exclusion circles.
     """
     items = list(mission.items)
-    if mission.firmware == ARDUPILOT and items:
+    autopilot = profile(mission.firmware)
+    if autopilot.home_item and items:
         home_item, items = items[0], items[1:]
         home = (home_item.x, home_item.y, home_item.z)  # what ArduPilot is given
     if home is None:
@@ -66,7 +73,7 @@ def plan_json(mission, speed_mps=None, outposts=(), home=None) -> dict:
         "groundStation": GROUND_STATION,
         "mission": {
             "version": 2,
-            "firmwareType": MAV_AUTOPILOT[mission.firmware],
+            "firmwareType": autopilot.mav_autopilot,
             "vehicleType": MAV_TYPE_QUADROTOR,
             "cruiseSpeed": speed,
             "hoverSpeed": speed,
@@ -123,7 +130,8 @@ def read_plan_file(path, firmware: Optional[str] = None) -> list:
     """The mission items of a ``.plan`` file, as they would be uploaded.
 
     ``firmware`` (ardupilot|px4) is the vehicle's flavour; default the file's
-    ``firmwareType``. For ArduPilot, home (``plannedHomePosition``) is item 0.
+    ``firmwareType``. Where the firmware keeps home as item 0 (ArduPilot), home
+    (``plannedHomePosition``) is item 0.
     """
     return load_plan_file(path, firmware).items
 
@@ -147,21 +155,30 @@ def parse_plan(doc, source=".plan", firmware: Optional[str] = None) -> QgcPlan:
     if not isinstance(mission, dict):
         raise InputError(source, 'no "mission" in the plan')
     _version(mission, 2, source, "mission")
-    firmware = firmware or (ARDUPILOT if mission.get("firmwareType") == 3 else PX4)
+    autopilot = firmware_profile(firmware) if firmware else \
+        (profile_of_heartbeat(_int_or(mission.get("firmwareType"))) or profile(PX4))
+    firmware = autopilot.name
     home = _home(mission.get("plannedHomePosition"), source)
     try:
         items = [item for n, entry in enumerate(mission.get("items", []))
                  for item in _items_of(entry, n, source)]
     except (KeyError, TypeError, ValueError) as exc:
         raise InputError(source, f"malformed mission item: {exc!r}") from None
-    if firmware == ARDUPILOT:
+    if autopilot.home_item:
         if home is None:
-            raise InputError(source, "ArduPilot plan without plannedHomePosition")
+            raise InputError(source, f"{autopilot.title} plan without plannedHomePosition")
         items.insert(0, MissionItem(0, FRAME_GLOBAL, NAV_WAYPOINT, 0, 1, 0.0, 0.0, 0.0, 0.0,
                                     *home))
     return QgcPlan(renumber(items), firmware, home, mission.get("cruiseSpeed"),
                    mission.get("hoverSpeed"), _read_fence(doc.get("geoFence"), source),
                    _read_rally(doc.get("rallyPoints"), source))
+
+
+def _int_or(value, default=-1) -> int:
+    try:
+        return int(value)
+    except (TypeError, ValueError):
+        return default
 
 
 def _version(obj, expected, source, what) -> None:

@@ -2,9 +2,10 @@
 
 One header line ``QGC WPL 110``, then one tab-separated line per item:
 ``seq current frame command param1 param2 param3 param4 x y z autocontinue``,
-x / y in degrees for global frames. The file holds exactly the items uploaded:
-for ArduPilot line 0 is home; a PX4 file starts with its first real item (so a
-program that takes line 0 for home should be given the PX4 ``.plan`` instead).
+x / y in degrees for global frames. The file holds exactly the items uploaded,
+so what line 0 is depends on the firmware's `autopilots` profile: home where
+the firmware keeps home as item 0 (ArduPilot); otherwise the first real item
+(PX4: a program that takes line 0 for home should be given the ``.plan``).
 """
 
 import math

@@ -1,12 +1,11 @@
 """`gcs fly` pieces: vehicle assignment, loss detection on the wall clock, and a whole
 dry run through the command line against the built-in simulator (its recorded
-tracks are the reference)."""
+tracks are the reference). The plan (``plan_dir``) is tests/conftest.py's."""
 
 import json
 import time
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
 from gcs.cli import main
@@ -14,31 +13,9 @@ from gcs.fly import assign_vehicles
 from gcs.monitor import HOLDING, LANDED, LOST, Monitor
 from gcs.sim import free_base_port, read_track, track_path
 from planner.errors import InputError
-from planner.geotiff import write_grid
-from planner.outposts import Outpost
-from planner.pipeline import plan_mission
-from planner.plan import TERRAIN_FILE, Plan
-from planner.scenario import Scenario
-from planner.synthetic import synthetic_terrain
+from planner.plan import Plan
 
 pytestmark = pytest.mark.timeout(120)
-N = 60
-
-
-@pytest.fixture(scope="module")
-def plan_dir(tmp_path_factory):
-    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
-    x, y = terrain.xy(N // 2, N // 2)
-    lon, lat = terrain.to_lonlat(x, y)
-    outposts = [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
-    llon, llat = terrain.to_lonlat(*terrain.xy(6, 6))
-    scenario = Scenario(sample=True, uavs=3, sensor_range_m=500.0, ceiling_agl_m=150.0,
-                        clearance_m=20.0, hide_margin_m=5.0, launch=[(llat, llon)]).validate()
-    ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
-    d = tmp_path_factory.mktemp("plan")
-    outcome.plan.save(d)
-    write_grid(d / TERRAIN_FILE, terrain.height.astype(np.float32), terrain)
-    return d
 
 
 def test_assign_in_order_and_by_option(plan_dir):
@@ -151,8 +128,11 @@ def test_cli_dry_run_with_a_kill(plan_dir, tmp_path):
     code = main(["fly", str(plan_dir), "--sim", "3", "--speedup", "100", "--kill", "2@item30",
                  "--lost-after", "2", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)])
     wall = time.monotonic() - started
-    assert code == 0
     report = json.loads((out / "flight.json").read_text())
+    # a vehicle was lost: the flight did not go as planned, whatever the coverage
+    assert code == 1
+    assert report["outcome"]["lost"] == [2] and report["outcome"]["coverage_reached"]
+    assert report["outcome"]["in_air"] == [] and not report["outcome"]["ok"]
     assert report["format"] == "gcs-flight/1"
     assert [x["sysid"] for x in report["losses"]] == [2]
     assert report["replans"] and report["replans"][0]["survivors"] == [1, 3]

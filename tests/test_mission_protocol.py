@@ -13,6 +13,7 @@ from gcs.mavlink import M
 from gcs.sim import (FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track,
                      track_path)
 from missions.build import MissionOptions, vehicle_mission
+from missions.check import unproven
 from missions.items import MissionItem
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
 
@@ -45,6 +46,12 @@ def route(vehicle_id: int, legs: int = 6, north_m: float = 0.0) -> VehicleRoute:
 def mission_for(firmware, vehicle_id, **kw):
     return vehicle_mission(route(vehicle_id, north_m=15.0 * vehicle_id, **kw), firmware,
                            MissionOptions(speed_mps=8.0))
+
+
+def sendable(mission):
+    """The protocol tests fly over no terrain: the structure-only check (the mission
+    check's own judge is tests/test_missions.py and tests/test_gate.py)."""
+    return unproven(mission, "protocol test: no terrain")
 
 
 def sim_items(fleet, sysid) -> list:
@@ -87,7 +94,8 @@ def test_each_vehicle_gets_its_own_mission(opened, firmware):
     for sysid, vehicle in link.vehicles.items():
         sent[sysid] = mission_for(firmware, sysid).items
         steps = []
-        back = mp.upload_verified(vehicle, sent[sysid], progress=lambda d, t: steps.append((d, t)))
+        back = mp.upload_verified(vehicle, sendable(mission_for(firmware, sysid)),
+                                  progress=lambda d, t: steps.append((d, t)))
         assert len(back) == len(sent[sysid])
         assert steps[-1] == (2 * len(sent[sysid]),) * 2
     for sysid, items in sent.items():
@@ -104,7 +112,7 @@ def test_no_space_after_boot_is_retried(opened):
     fleet, link = opened(fleet_config("ardupilot", 1, no_space_s=1.5))
     vehicle = link.vehicles[1]
     t0 = time.monotonic()
-    mp.upload(vehicle, mission_for("ardupilot", 1).items)
+    mp.upload(vehicle, sendable(mission_for("ardupilot", 1)))
     assert any("Only 0 items" in text for _, text in vehicle.state.statustext)
     assert time.monotonic() - t0 >= 0.5        # it waited, then succeeded
 
@@ -115,8 +123,9 @@ def test_upload_over_a_lossy_link(opened, firmware):
     time.sleep(1.2)                             # past ArduPilot's no-upload second
     fleet.set_drop(20.0)
     for sysid, vehicle in link.vehicles.items():
-        items = mission_for(firmware, sysid, legs=3).items
-        mp.upload_verified(vehicle, items, timeout_s=0.2, retries=10)
+        mission = mission_for(firmware, sysid, legs=3)
+        items = mission.items
+        mp.upload_verified(vehicle, sendable(mission), timeout_s=0.2, retries=10)
         fleet.set_drop(0.0, sysid)               # read the store without racing the drop
         first = 1 if firmware == "ardupilot" else 0
         assert mp.compare(items[first:], sim_items(fleet, sysid)[first:]) == []
@@ -126,7 +135,7 @@ def test_silent_vehicle_gives_a_timeout_naming_it(opened):
     fleet, link = opened(fleet_config("px4", 2))
     fleet.cut_link(2, 30.0)
     with pytest.raises(mp.MissionError) as err:
-        mp.upload(link.vehicles[2], mission_for("px4", 2).items, timeout_s=0.2, retries=2)
+        mp.upload(link.vehicles[2], sendable(mission_for("px4", 2)), timeout_s=0.2, retries=2)
     assert err.value.timeout and err.value.sysid == 2
     assert "vehicle 2" in str(err.value) and "no answer to MISSION_COUNT" in str(err.value)
 
@@ -134,27 +143,29 @@ def test_silent_vehicle_gives_a_timeout_naming_it(opened):
 def test_refusals_are_named(opened):
     fleet, link = opened(fleet_config("px4", 1))
     vehicle = link.vehicles[1]
-    bad = mission_for("px4", 1).items
-    bad[2].frame = M.MAV_FRAME_LOCAL_NED
+    bad = mission_for("px4", 1)
+    speed = next(it for it in bad.items if it.command == M.MAV_CMD_DO_CHANGE_SPEED)
+    speed.frame = M.MAV_FRAME_LOCAL_NED         # no position: the check lets it by
     with pytest.raises(mp.MissionError, match="MAV_MISSION_UNSUPPORTED_FRAME") as err:
-        mp.upload(vehicle, bad)
+        mp.upload(vehicle, sendable(bad))
     assert err.value.result == M.MAV_MISSION_UNSUPPORTED_FRAME
     with pytest.raises(mp.MissionError, match="MAV_MISSION_UNSUPPORTED"):
-        mp.upload(vehicle, mission_for("px4", 1).items, mission_type=M.MAV_MISSION_TYPE_FENCE)
+        mp.upload(vehicle, sendable(mission_for("px4", 1)),
+                  mission_type=M.MAV_MISSION_TYPE_FENCE)
 
 
 @pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
 def test_clear(opened, firmware):
     fleet, link = opened(fleet_config(firmware, 1))
     vehicle = link.vehicles[1]
-    mp.upload(vehicle, mission_for(firmware, 1).items)
+    mp.upload(vehicle, sendable(mission_for(firmware, 1)))
     mp.clear(vehicle)
     assert len(mp.download(vehicle)) == (1 if firmware == "ardupilot" else 0)
 
 
 def test_read_back_mismatch_is_an_error(opened, monkeypatch):
     fleet, link = opened(fleet_config("px4", 1))
-    items = mission_for("px4", 1).items
+    mission = sendable(mission_for("px4", 1))
     real_download = mp.download
 
     def tampered(*a, **kw):
@@ -164,7 +175,7 @@ def test_read_back_mismatch_is_an_error(opened, monkeypatch):
 
     monkeypatch.setattr(mp, "download", tampered)
     with pytest.raises(mp.MissionError, match=r"differs.*item 3: z"):
-        mp.upload_verified(link.vehicles[1], items)
+        mp.upload_verified(link.vehicles[1], mission)
 
 
 # -- against MAVSDK's MissionRawServer (an autopilot-side implementation) ----------------
@@ -196,7 +207,7 @@ def test_upload_to_mavsdk_mission_raw_server(vehicles):
         sent = {}
         for sysid, vehicle in link.vehicles.items():
             sent[sysid] = mission_for("px4", sysid).items
-            mp.upload(vehicle, sent[sysid])
+            mp.upload(vehicle, sendable(mission_for("px4", sysid)))
         assert done.wait(5), f"MissionRawServer got missions from {sorted(received)}"
         for sysid, items in sent.items():
             result, got = received[sysid]
@@ -218,7 +229,7 @@ def test_start_mission_flies_it(opened, firmware, tmp_path):
     missions = {}
     for sysid, vehicle in link.vehicles.items():
         missions[sysid] = mission_for(firmware, sysid, legs=3)
-        mp.upload_verified(vehicle, missions[sysid].items)
+        mp.upload_verified(vehicle, sendable(missions[sysid]))
     # both at once: one thread per vehicle over the shared link, as a ground station would
     errors = []
 
@@ -269,7 +280,7 @@ def test_mode_changes_over_a_lossy_link(opened, monkeypatch):
 def test_refused_arming_is_explained(opened):
     fleet, link = opened(fleet_config("ardupilot", 1))
     vehicle = link.vehicles[1]
-    mp.upload(vehicle, mission_for("ardupilot", 1).items)
+    mp.upload(vehicle, sendable(mission_for("ardupilot", 1)))
     fleet.refuse_arm(1)
     with pytest.raises(commands.CommandError) as err:
         commands.start_mission(vehicle, ALT, ready_timeout_s=10)
@@ -321,13 +332,18 @@ def test_cli_upload_and_download(firmware, tmp_path, capsys):
     try:
         urls = _connect(fleet.urls())
         # a plan directory, routes swapped by --vehicle; each built for the vehicle's firmware
-        assert main(["upload", str(tmp_path), "--vehicle", "1=2", *urls]) == 0
+        # no terrain.tif to prove the legs against: only with --unchecked, and a warning
+        assert main(["upload", str(tmp_path), "--vehicle", "1=2", *urls]) == 2
+        assert "terrain.tif: missing" in capsys.readouterr().err
+        assert main(["upload", str(tmp_path), "--vehicle", "1=2", "--unchecked", *urls]) == 0
+        captured = capsys.readouterr()
+        assert "warning" in captured.err and "not proven" in captured.err
         expected = {1: mission_for_route(plan.vehicles[1], firmware),
                     2: mission_for_route(plan.vehicles[0], firmware)}
         first = 1 if firmware == "ardupilot" else 0
         for sysid, items in expected.items():
             assert mp.compare(items[first:], sim_items(fleet, sysid)[first:]) == []
-        out = capsys.readouterr().out
+        out = captured.out
         assert "verified" in out and "failed" not in out
         # download what vehicle 1 holds, in both formats, and read it back with missions/
         for suffix in ("plan", "waypoints"):
@@ -340,7 +356,7 @@ def test_cli_upload_and_download(firmware, tmp_path, capsys):
         for r in plan.vehicles:
             files.append(tmp_path / f"vehicle-{r.id}.waypoints")
             wpl.write_waypoints(files[-1], mission_for_route(r, firmware))
-        assert main(["upload", *map(str, files), *urls]) == 0
+        assert main(["upload", *map(str, files), "--unchecked", *urls]) == 0
         assert mp.compare(mission_for_route(plan.vehicles[0], firmware)[first:],
                           sim_items(fleet, 1)[first:]) == []
         # two vehicles and no --sysid: a clear error

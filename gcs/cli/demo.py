@@ -9,6 +9,7 @@ down partway, re-tasks the survivors and ends with the coverage report.
 from importlib import resources
 from pathlib import Path
 
+from autopilots import ARDUPILOT, NAMES
 from gcs.cli import plan as plan_cmd
 from gcs.progress import console, stage_progress
 from planner.errors import InputError
@@ -24,7 +25,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", default="demo-out", metavar="DIR",
                         help="output directory: DIR/plan (gcs plan's files) and DIR/flight "
                              "(flight report, plot, tracks, tlogs); replaced if it exists")
-    parser.add_argument("--firmware", choices=("ardupilot", "px4"), default="ardupilot",
+    parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="autopilot the simulated vehicles imitate")
     parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
                         help="simulated time runs X times faster than the wall clock")
@@ -85,8 +86,12 @@ def _fly(plan, plan_dir, flight_dir, args):
                            terrain=terrain_ground(read_terrain(plan_dir / TERRAIN_FILE)))
     longest = max(v.mission_time_s for v in plan.vehicles)
     options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
+    from gcs.fly import FlightError
+
     try:
         report = fly_plan(plan_dir, fleet.urls(), options)
+    except FlightError as exc:
+        raise InputError("gcs demo", f"the flight failed: {exc}") from None
     finally:
         fleet.stop()
     summary(report)

@@ -67,13 +67,13 @@ def _home(vehicle, timeout_s=2.0):
 
 
 def _write(output: Path, vehicle, items, home) -> None:
-    from gcs.mavlink import ARDUPILOT, PX4
+    from autopilots import PX4, profile
     from missions import qgc, wpl
     from missions.build import VehicleMission
 
     if output.suffix.lower() == ".waypoints":
         wpl.write_waypoints(output, items)
         return
-    firmware = ARDUPILOT if vehicle.flavour == ARDUPILOT else PX4
-    mission = VehicleMission(vehicle.sysid, firmware, items, [None] * len(items))
-    qgc.write_plan_file(output, mission, home=home if firmware == PX4 else None)
+    autopilot = vehicle.profile or profile(PX4)     # a generic autopilot: no home item
+    mission = VehicleMission(vehicle.sysid, autopilot.name, items, [None] * len(items))
+    qgc.write_plan_file(output, mission, home=None if autopilot.home_item else home)

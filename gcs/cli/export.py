@@ -4,7 +4,8 @@ import argparse
 from pathlib import Path
 
 from gcs.progress import console
-from missions.build import FIRMWARES, MissionOptions
+from autopilots import NAMES as FIRMWARES
+from missions.build import MissionOptions
 from missions.export import FORMATS, export_plan_dir
 from planner.errors import InputError
 from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
@@ -59,9 +60,9 @@ def run(args) -> int:
 
 
 def _surface(plan_dir, plan):
-    from planner.pipeline import plan_surface
+    from missions.sources import saved_plan_surface
 
     if not (plan_dir / TERRAIN_FILE).is_file():
         raise InputError(plan_dir / TERRAIN_FILE, "missing: cannot re-check the legs "
                                                   "(use --no-check to export unchecked)")
-    return plan_surface(plan_dir, plan)
+    return saved_plan_surface(plan_dir, plan)

@@ -6,6 +6,7 @@ from pathlib import Path
 from rich.live import Live
 from rich.table import Table
 
+from autopilots import ARDUPILOT, NAMES
 from gcs.cli.upload import add_protocol_arguments, parse_assignments, protocol_from_args
 from gcs.progress import console
 from planner.errors import InputError
@@ -41,7 +42,7 @@ def add_arguments(parser) -> None:
     sim.add_argument("--sim", type=int, metavar="N",
                      help="start N simulated vehicles with homes at the plan's launch points "
                           "and fly against them")
-    sim.add_argument("--firmware", choices=("ardupilot", "px4"),
+    sim.add_argument("--firmware", choices=NAMES,
                      help="simulated autopilot; none = the plan's firmware")
     sim.add_argument("--speedup", type=float, default=10.0, metavar="X",
                      help="simulated time runs X times faster than the wall clock")
@@ -93,7 +94,7 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         faults[sysid] = FaultPlan(kill_at_s=at_s, kill_at_item=at_item)
     try:
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
-            "firmware", "ardupilot"), speedup=args.speedup, base_port=args.sim_base_port,
+            "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
             gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks",
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
     except ValueError as exc:
@@ -119,59 +120,88 @@ def status_table(rows) -> Table:
 
 
 def run(args) -> int:
-    from planner.plan import Plan
+    from gcs.cli.upload import check_urls
+    from gcs.fly import Flight, FlightError
 
+    check_urls(args.connect)
+    if not args.connect and not args.sim:
+        raise InputError("--connect", "give at least one --connect URL (or --sim N)")
     options = options_from_args(args)
-    plan = Plan.load(args.plan_dir)
-    urls = list(args.connect)
+    live = console.is_terminal
+    flight = Flight(args.plan_dir, list(args.connect), options,
+                    log=(lambda text: None) if live else
+                    (lambda text: print(text, file=sys.stderr, flush=True)))
+    flight.prepare()                  # the plan read and every mission proven: no link yet
     fleet = None
     if args.sim:
+        plan = flight.plan
         fleet = sim_fleet(plan, args.plan_dir, args, options.output)
-        urls = urls or fleet.urls()
+        flight.urls = flight.urls or fleet.urls()
         if options.timeout_s is None:
             longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
             options.timeout_s = 120.0 + 4.0 * longest / args.speedup
-    if not urls:
-        raise InputError("--connect", "give at least one --connect URL (or --sim N)")
     try:
-        report = fly_plan(args.plan_dir, urls, options)
+        report = fly_flight(flight, live)
+    except FlightError as exc:
+        print(f"gcs fly: error: {exc} (see {Path(options.output) / 'flight.json'})",
+              file=sys.stderr)
+        return 1
     finally:
         if fleet is not None:
             fleet.stop()
     summary(report, options.output)
-    return 0 if report["coverage"].get("survivors", {}).get("fraction_k_covered", 0) > 0 else 1
+    return 0 if report["outcome"]["ok"] else 1
 
 
 def fly_plan(plan_dir, urls, options) -> dict:
-    """Fly with a live status table on a terminal, event lines on stderr otherwise."""
-    from gcs.fly import Flight, FlightError
+    """Fly with a live status table on a terminal, event lines on stderr otherwise;
+    FlightError when the flight could not go on (the report is written first)."""
+    from gcs.fly import Flight
 
     live = console.is_terminal
     flight = Flight(plan_dir, urls, options,
                     log=(lambda text: None) if live else
                     (lambda text: print(text, file=sys.stderr, flush=True)))
-    try:
-        if live:
-            with Live(status_table([]), console=console, refresh_per_second=4) as view:
-                return flight.run(lambda rows: view.update(status_table(rows)),
-                                  lambda: _ask(view))
-        return flight.run(on_interrupt=lambda: "leave")
-    except FlightError as exc:
-        raise InputError("gcs fly", str(exc)) from None
+    return fly_flight(flight, live)
 
 
-def _ask(view) -> str:
-    """Ctrl-C during a flight: bring every vehicle home hidden, or leave them flying."""
+def fly_flight(flight, live: bool) -> dict:
+    """Run ``flight``: on a terminal with the status table, and Ctrl-C or --timeout
+    answered by the user; otherwise Ctrl-C leaves the vehicles flying and the
+    timeout brings them home."""
+    if live:
+        with Live(status_table([]), console=console, refresh_per_second=4) as view:
+            timeout = flight.options.timeout_s
+            return flight.run(lambda rows: view.update(status_table(rows)),
+                              lambda: ask(view, "interrupted"),
+                              lambda: ask(view, f"timed out after {timeout:g} s"))
+    return flight.run(on_interrupt=lambda: "leave", on_timeout=lambda: "home")
+
+
+ANSWERS = {"h": "home", "home": "home", "l": "leave", "leave": "leave"}
+
+
+def ask(view, why: str) -> str:
+    """Ctrl-C or the timeout during a flight: bring every vehicle home along hidden
+    paths, or leave them flying on their missions. Asks again until the answer is
+    one it knows; end of input (or a second Ctrl-C) leaves them."""
     view.stop()
-    try:
-        answer = console.input("[bold]interrupted[/bold]: bring every vehicle home along "
-                               "hidden paths? [h]ome / [l]eave them on their missions: ")
-    except (EOFError, KeyboardInterrupt):
-        return "leave"
-    if answer.strip().lower().startswith("h"):
+    # "\[" keeps rich from reading [h] and [l] as markup tags and swallowing them
+    prompt = (f"[bold]{why}[/bold]: bring every vehicle home along hidden paths? "
+              "\\[h]ome / \\[l]eave them on their missions: ")
+    while True:
+        try:
+            answer = console.input(prompt)
+        except (EOFError, KeyboardInterrupt):
+            return "leave"
+        choice = ANSWERS.get(answer.strip().lower())
+        if choice is not None:
+            break
+        console.print(f"please answer h (home) or l (leave), not {answer.strip()!r}",
+                      markup=False, highlight=False)
+    if choice == "home":
         view.start()
-        return "home"
-    return "leave"
+    return choice
 
 
 def summary(report, output=None) -> None:
@@ -188,6 +218,11 @@ def summary(report, output=None) -> None:
         console.print(f"k = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
                       f"{cov['required_uavs']} surviving vehicle(s) "
                       f"({100 * cov['fraction_k_covered']:.1f} %) in {report['duration_s']:.0f} s")
+    outcome = report.get("outcome", {})
+    if outcome.get("ok"):
+        console.print("outcome: required coverage reached, no vehicle lost, all landed")
+    for problem in outcome.get("problems", []):
+        console.print(f"outcome: {problem}", style="red", markup=False, highlight=False)
     if output is not None:
         console.print(f"  {Path(output) / 'flight.json'}  [dim]flight report[/dim]")
         console.print(f"  {Path(output) / 'flight.png'}  [dim]map of the flight[/dim]")

@@ -7,7 +7,8 @@ is given; the help shows the real default from `Scenario`.
 from dataclasses import fields
 
 from planner.errors import InputError
-from planner.scenario import FIRMWARES, METHODS, Scenario, make_scenario, read_scenario
+from autopilots import NAMES as FIRMWARES
+from planner.scenario import METHODS, Scenario, make_scenario, read_scenario
 
 _DEFAULTS = {f.name: f.default for f in fields(Scenario) if f.default is not f.default_factory}
 

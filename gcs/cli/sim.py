@@ -1,8 +1,11 @@
 """`gcs sim`: simulated ArduPilot or PX4 multicopters on the endpoints real SITL uses."""
 
+import math
 import time
 
+from autopilots import ARDUPILOT, NAMES
 from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
+from gcs.sim.flavours import flavour
 from gcs.sim.fleet import DEFAULT_HOME, FleetConfig, SimFleet, vehicle_port
 from gcs.sim.physics import Limits
 from planner.errors import InputError
@@ -12,13 +15,15 @@ HELP = "run simulated vehicles (ArduPilot: TCP 5760+10*i; PX4: UDP 18570+i -> 14
 
 def add_arguments(parser) -> None:
     parser.add_argument("--vehicles", type=int, default=1, metavar="N", help="number of vehicles")
-    parser.add_argument("--firmware", choices=("ardupilot", "px4"), default="ardupilot",
+    parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="which autopilot to behave like")
-    parser.add_argument("--home", default=",".join(str(v) for v in DEFAULT_HOME),
-                        metavar="LAT,LON[,ALT]",
-                        help="launch point of every vehicle; ALT = ground m AMSL")
-    parser.add_argument("--homes", metavar="LAT,LON,ALT;...",
-                        help="one launch point per vehicle, separated by ';'")
+    parser.add_argument("--home", metavar="LAT,LON[,ALT]",
+                        help="launch point of every vehicle; ALT = ground m AMSL (default: "
+                             "the terrain's ground there with --terrain, else 0; without "
+                             "--home: ArduPilot SITL's " + ",".join(str(v) for v in DEFAULT_HOME)
+                             + ")")
+    parser.add_argument("--homes", metavar="LAT,LON[,ALT];...",
+                        help="one launch point per vehicle, separated by ';' (ALT as --home)")
     parser.add_argument("--speedup", type=float, default=1.0, metavar="X",
                         help="mission time runs X times faster than the wall clock "
                              "(telemetry rates stay real)")
@@ -64,21 +69,43 @@ def add_arguments(parser) -> None:
     io.add_argument("--seed", type=int, default=0, help="random seed of packet drops")
     io.add_argument("--terrain", metavar="PLAN_DIR|GEOTIFF",
                     help="fly over this terrain (a plan directory's terrain.tif, or a "
-                         "working-grid GeoTIFF): vehicles land on it and crash into it; "
-                         "default: flat ground at each home altitude, as in SITL")
+                         "working-grid GeoTIFF): vehicles stand on it at home, land on it "
+                         "and crash into it; default: flat ground at each home altitude, as "
+                         "in SITL")
+    io.add_argument("--pty", action="store_true",
+                    help="serve each vehicle on a pseudo-terminal (a serial link: connect "
+                         "with DEVICE,BAUD) instead of its SITL network endpoint")
 
 
-def _point(text: str, option: str, need_alt: bool) -> tuple:
+#: a home this far (m) above or below the terrain is not standing on it
+HOME_GROUND_TOLERANCE_M = 0.1
+
+
+def _point(text: str, option: str, ground=None) -> tuple:
+    """(lat, lon, alt) of ``LAT,LON[,ALT]``: ALT left out is the terrain's ground there
+    (``ground(lat, lon)``), or 0 without a terrain; with a terrain a home above or
+    below its ground is refused (a copter placed in the air cannot take off)."""
     try:
         values = [float(v) for v in text.split(",")]
     except ValueError:
         values = []
-    if len(values) == 2 and not need_alt:
-        values.append(0.0)
-    if len(values) != 3 or not (-90 <= values[0] <= 90 and -180 <= values[1] <= 180):
-        form = "LAT,LON,ALT" if need_alt else "LAT,LON[,ALT]"
-        raise InputError(option, f"expected {form} in degrees and metres, got {text!r}")
-    return tuple(values)
+    if len(values) not in (2, 3) or not (-90 <= values[0] <= 90 and -180 <= values[1] <= 180):
+        raise InputError(option, f"expected LAT,LON[,ALT] in degrees and metres, got {text!r}")
+    if ground is None:
+        return tuple(values) if len(values) == 3 else (values[0], values[1], 0.0)
+    here = ground(values[0], values[1])
+    if here is None or not math.isfinite(here):
+        raise InputError(option, f"{values[0]:.6f},{values[1]:.6f} is outside the --terrain "
+                                 "(or on a void)")
+    if len(values) == 2:
+        return values[0], values[1], float(here)
+    off = values[2] - here
+    if abs(off) > HOME_GROUND_TOLERANCE_M:
+        where = "above" if off > 0 else "below"
+        raise InputError(option, f"home altitude {values[2]:g} m is {abs(off):.2f} m {where} "
+                                 f"the ground there ({here:.2f} m AMSL on the --terrain): leave "
+                                 f"ALT out to stand on the ground")
+    return values[0], values[1], values[2]
 
 
 def config_from_args(args) -> FleetConfig:
@@ -88,11 +115,18 @@ def config_from_args(args) -> FleetConfig:
         raise InputError("--speedup", "must be positive")
     if not 0 <= args.drop <= 100:
         raise InputError("--drop", "must be a percentage between 0 and 100")
+    terrain = _terrain(args.terrain)
     homes = None
     if args.homes:
-        homes = [_point(p, "--homes", True) for p in args.homes.split(";") if p.strip()]
+        homes = [_point(p, "--homes", terrain) for p in args.homes.split(";") if p.strip()]
         if len(homes) != args.vehicles:
             raise InputError("--homes", f"{len(homes)} points for {args.vehicles} vehicles")
+    if args.home is not None:
+        home = _point(args.home, "--home", terrain)
+    elif terrain is not None and homes is None:
+        raise InputError("--home", "give the launch point on the --terrain (LAT,LON)")
+    else:
+        home = DEFAULT_HOME
     faults = {}
 
     def plan(sysid, option):
@@ -114,12 +148,13 @@ def config_from_args(args) -> FleetConfig:
     if min(limits.speed_mps, limits.climb_mps, limits.descent_mps, limits.accel_mps2) <= 0:
         raise InputError("--speed/--climb/--descent/--accel", "limits must be positive")
     return FleetConfig(
-        vehicles=args.vehicles, firmware=args.firmware, home=_point(args.home, "--home", False),
+        vehicles=args.vehicles, firmware=args.firmware, home=home,
         homes=homes, speedup=args.speedup, base_port=args.base_port, gcs_port=args.gcs_port,
         bind_host=args.bind, limits=limits, warmup_s=args.warmup,
         auto_disarm_s=args.auto_disarm, camera=not args.no_camera,
         auto_options=args.auto_options, drop_pct=args.drop, faults=faults,
-        track_dir=args.track_dir, seed=args.seed, terrain=_terrain(args.terrain))
+        track_dir=args.track_dir, seed=args.seed, terrain=terrain,
+        transport="pty" if args.pty else None)
 
 
 def _terrain(path):
@@ -132,7 +167,10 @@ def _terrain(path):
     from planner.plan import TERRAIN_FILE
 
     path = Path(path)
-    return terrain_ground(read_terrain(path / TERRAIN_FILE if path.is_dir() else path))
+    file = path / TERRAIN_FILE if path.is_dir() else path
+    if not file.is_file():
+        raise InputError(file, "no such file (give a plan directory or a working-grid GeoTIFF)")
+    return terrain_ground(read_terrain(file))
 
 
 def run(args) -> int:
@@ -154,8 +192,12 @@ def _describe(fleet) -> None:
     c = fleet.config
     for i, v in enumerate(fleet.vehicles):
         port = vehicle_port(c.firmware, i, c.base_port)
-        where = (f"TCP {c.bind_host}:{port}" if c.firmware == "ardupilot"
-                 else f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}")
+        if c.transport == "pty":
+            where = f"serial {v.link.device}"
+        elif flavour(c.firmware).transport == "tcp":
+            where = f"TCP {c.bind_host}:{port}"
+        else:
+            where = f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}"
         lat, lon, alt = v.cfg.home
         print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g}")
     print("connect with: " + " ".join(f"--connect {u}" for u in fleet.urls()))

@@ -1,27 +1,29 @@
 """`gcs upload`: put each vehicle's mission on it and read it back to prove it.
 
 Missions come from a plan directory (built per vehicle for its own firmware) or
-from mission files (.plan, .waypoints), one route per file. Vehicles are found
-by HEARTBEAT and take routes in order of system id, unless `--vehicle
-SYSID=ROUTE` says otherwise. Every upload is verified item by item.
+from mission files (.plan, .waypoints), one route per file. Every mission is
+read and proven hidden and clear against the plan it came from (the plan
+directory itself, the plan.json beside a file, or --plan DIR) before any
+connection is opened; only checked missions are uploaded (`missions.sources`).
+Vehicles are found by HEARTBEAT and take routes in order of system id, unless
+`--vehicle SYSID=ROUTE` says otherwise. Every upload is verified item by item.
 """
 
-import re
 import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 
 from rich.console import Console
 from rich.progress import BarColumn, Progress, TextColumn
 from rich.table import Table
 
+from autopilots import NAMES
 from gcs.progress import console
 from planner.errors import InputError
 
 HELP = "upload each vehicle's mission (plan directory or .plan/.waypoints files) and verify it"
-FIRMWARE_CHOICES = ("auto", "ardupilot", "px4")
+FIRMWARE_CHOICES = ("auto",) + NAMES
 
 
 def add_connection_arguments(parser) -> None:
@@ -29,7 +31,7 @@ def add_connection_arguments(parser) -> None:
     parser.add_argument("--connect", action="append", default=[], metavar="URL", required=True,
                         help="MAVLink connection, repeatable: tcp:HOST:PORT (ArduPilot SITL "
                              "5760), udpin:0.0.0.0:14550 (PX4 SITL, telemetry radios), "
-                             "udpout:HOST:PORT, /dev/ttyACM0,57600 (serial device, baud)")
+                             "udpout:HOST:PORT, /dev/ttyUSB0,57600 (serial DEVICE,BAUD)")
     parser.add_argument("--signing-key", metavar="FILE",
                         help="MAVLink 2 signing key: a 32-byte file, or a text file holding a "
                              "passphrase (SHA-256, as MAVProxy's 'signing setup'); "
@@ -69,63 +71,14 @@ def add_arguments(parser) -> None:
                         help="give route ROUTE (plan vehicle id, or file number 1..n) to "
                              "system id SYSID, repeatable; the others go by order of system id")
     parser.add_argument("--firmware", choices=FIRMWARE_CHOICES, default="auto",
-                        help="mission flavour; auto = each vehicle's own, from its HEARTBEAT")
-
-
-# -- routes ------------------------------------------------------------------------------
-@dataclass
-class Route:
-    """One uploadable route: `items(firmware)` gives its mission items."""
-    id: int
-    source: str
-    build: object              # callable(firmware) -> (items, description)
-
-
-def load_routes(sources) -> list:
-    """Routes from one plan directory, or from mission files (one route each)."""
-    paths = [Path(s) for s in sources]
-    dirs = [p for p in paths if p.is_dir()]
-    if dirs:
-        if len(paths) > 1:
-            raise InputError(dirs[0], "give one plan directory, or mission files, not both")
-        return _plan_routes(dirs[0])
-    routes = []
-    for number, path in enumerate(paths, start=1):
-        match = re.search(r"(\d+)$", path.stem)
-        route_id = int(match.group(1)) if match and len(paths) > 1 else number
-        routes.append(Route(route_id, str(path), _file_builder(path)))
-    ids = [r.id for r in routes]
-    if len(set(ids)) != len(ids):
-        routes = [Route(n, r.source, r.build) for n, r in enumerate(routes, start=1)]
-    return routes
-
-
-def _plan_routes(directory: Path) -> list:
-    from missions.build import MissionOptions, vehicle_mission
-    from planner.plan import Plan
-
-    plan = Plan.load(directory)
-    options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
-    routes = []
-    for route in plan.vehicles:
-        if route.waypoints:
-            def build(firmware, route=route):
-                return vehicle_mission(route, firmware, options).items
-            routes.append(Route(route.id, f"{directory} vehicle {route.id}", build))
-    if not routes:
-        raise InputError(directory, "the plan has no route with waypoints")
-    return routes
-
-
-def _file_builder(path: Path):
-    suffix = path.suffix.lower()
-    if suffix == ".plan":
-        from missions.qgc import read_plan_file
-        return lambda firmware: read_plan_file(path, firmware)
-    if suffix in (".waypoints", ".txt"):
-        from missions.wpl import read_waypoints
-        return lambda firmware: read_waypoints(path)
-    raise InputError(path, "not a mission file: expected .plan or .waypoints")
+                        help="mission flavour; auto = each vehicle's own, from its HEARTBEAT "
+                             "(a vehicle of another firmware is refused its mission)")
+    parser.add_argument("--plan", metavar="DIR",
+                        help="plan directory the mission files came from, to prove them "
+                             "against (default: the plan.json beside each file)")
+    parser.add_argument("--unchecked", action="store_true",
+                        help="upload mission files that have no plan to be proven against, "
+                             "after a structure check only (warns what was not proven)")
 
 
 # -- matching ----------------------------------------------------------------------------
@@ -164,11 +117,23 @@ def match(sysids, routes, assign: dict) -> list:
 
 
 # -- running -----------------------------------------------------------------------------
+def check_urls(urls, flag="--connect") -> None:
+    """Every URL in a form pymavlink takes (before anything is opened); InputError."""
+    from gcs.link import LinkError, parse_url
+
+    for url in urls:
+        try:
+            parse_url(url)
+        except LinkError as exc:
+            raise InputError(flag, str(exc)) from None
+
+
 def open_link(args, expect):
     """GroundLink.open from the shared connection options; LinkError -> one line."""
     from gcs.link import GroundLink, LinkError
     from gcs.signing import load_key
 
+    check_urls(args.connect)
     key = load_key(args.signing_key) if args.signing_key else None
     try:
         return GroundLink.open(args.connect, signing_key=key, expect=expect,
@@ -177,10 +142,29 @@ def open_link(args, expect):
         raise InputError("--connect", str(exc)) from None
 
 
+def load_routes(args) -> list:
+    """Every source read and checked (InputError on the first bad one); the warning
+    for each unproven one printed."""
+    from missions.sources import load_sources
+
+    if args.plan is not None and any(Path(s).is_dir() for s in args.sources):
+        raise InputError("--plan", "give --plan with mission files, not with a plan directory")
+    routes = load_sources(args.sources, args.plan, args.unchecked,
+                          None if args.firmware == "auto" else args.firmware)
+    for route in routes:
+        if route.unproven_note:
+            print(f"gcs upload: warning: {route.unproven_note}", file=sys.stderr, flush=True)
+    return routes
+
+
 def run(args) -> int:
-    routes = load_routes(args.sources)
+    check_urls(args.connect)
     assign = parse_assignments(args.assign)
     protocol = protocol_from_args(args)
+    if args.signing_key:
+        from gcs.signing import load_key
+        load_key(args.signing_key)              # a bad key file: before the files' checks
+    routes = load_routes(args)
     expect = set(assign) if len(assign) >= len(routes) else len(routes)
     link = open_link(args, expect)
     try:
@@ -207,20 +191,20 @@ def _upload_all(link, pairs, firmware_choice, protocol) -> list:
 
 
 def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
+    from autopilots import PX4
     from gcs import mission_protocol as mp
-    from gcs.mavlink import ARDUPILOT, PX4
 
     firmware = firmware_choice if firmware_choice != "auto" else \
-        (ARDUPILOT if vehicle.flavour == ARDUPILOT else PX4)
+        (vehicle.profile.name if vehicle.profile is not None else PX4)
     result = {"sysid": vehicle.sysid, "flavour": vehicle.flavour, "route": route.id,
               "firmware": firmware, "items": 0, "error": None, "seconds": 0.0}
     t0 = time.monotonic()
     try:
-        items = route.build(firmware)
-        result["items"] = len(items)
+        mission = route.checked(firmware)     # checked before connecting; cached
+        result["items"] = len(mission)
         task = bars.add_task(f"vehicle {vehicle.sysid} <- route {route.id}",
-                             total=2 * len(items))
-        mp.upload_verified(vehicle, items, **protocol,
+                             total=2 * len(mission))
+        mp.upload_verified(vehicle, mission, **protocol,
                            progress=lambda done, total: bars.update(task, completed=done))
     except (mp.MissionError, InputError) as exc:
         result["error"] = str(exc)

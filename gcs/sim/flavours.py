@@ -1,99 +1,194 @@
-"""What differs between the ArduPilot and PX4 flavours of a simulated copter.
+"""The vehicle-side mirror of the `autopilots` profiles: how a simulated copter of
+each firmware behaves where a ground station can tell.
 
-Modes are held inside the vehicle by name; a flavour turns names into the
-HEARTBEAT custom_mode of its autopilot and back, and says which protocol quirks
-apply (home as mission item 0, legacy MISSION_REQUEST, which modes may arm).
+Mode numbers and their packing, home as mission item 0, which modes hold, fly
+the mission, land, return or take positions, the camera command and the item
+capacity come from the firmware's profile (the same one the ground station
+uses); a `Flavour` adds what only the vehicle side needs: what each mode makes
+the vehicle do, which modes may arm, protocol quirks, what it says, and the
+endpoints real SITL uses. The vehicle (`gcs.sim.vehicle`) reads these flags and
+never tests a firmware's name.
 """
 
 from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from autopilots import ARDUPILOT as ARDUPILOT_NAME
+from autopilots import PX4 as PX4_NAME
+from autopilots import Autopilot, profile
+
 # What a mode makes the vehicle do (see vehicle.py).
 MANUAL, GUIDED, AUTO, RTL, LAND, TAKEOFF = "manual", "guided", "auto", "rtl", "land", "takeoff"
 
 
-def px4_custom_mode(main: int, sub: int = 0) -> int:
-    """PX4 packs its main mode in bits 16-23 and its sub mode in bits 24-31."""
-    return (main << 16) | (sub << 24)
+@dataclass(frozen=True)
+class Texts:
+    """STATUSTEXTs of a flavour: arming refusals and readiness."""
+    refused: str                   # arming refused on request (--refuse-arm)
+    no_gps: str
+    no_ekf: str
+    bad_mode: str
+    ready: str
 
 
 @dataclass(frozen=True)
 class Flavour:
-    name: str
-    autopilot: int
-    modes: dict                    # mode name -> custom_mode
+    profile: Autopilot             # the firmware's profile, shared with the ground station
     behaviour: dict                # mode name -> MANUAL | GUIDED | AUTO | RTL | LAND | TAKEOFF
     initial_mode: str
-    hold_mode: str                 # where a finished mission or a reposition leaves the vehicle
     armable: frozenset             # modes that allow arming (AUTO on ArduPilot: see AUTO_OPTIONS)
-    home_item: bool                # mission item 0 is home (ArduPilot)
     legacy_request: bool           # asks for items with MISSION_REQUEST, not _INT (ArduPilot)
     reached_do_items: bool         # MISSION_ITEM_REACHED also for DO commands (PX4)
     resume_old_index: bool         # a new upload keeps the current index (ArduPilot)
     arm_in_auto_starts: bool       # arming in the mission mode takes off at once (PX4)
+    start_needs_armed: bool        # MISSION_START is refused while disarmed (ArduPilot)
+    takeoff_mode: str | None       # NAV_TAKEOFF switches to this mode, altitude AMSL (PX4);
+                                   # None: climbs in GUIDED, altitude above home (ArduPilot)
+    reposition_int_only: bool      # DO_REPOSITION only as COMMAND_INT (ArduPilot)
+    reposition_needs_flag: bool    # outside GUIDED only with the CHANGE_MODE flag (ArduPilot)
+    says_reached: bool             # a "Reached command #N" STATUSTEXT (ArduPilot)
+    camera_feedback: bool          # CAMERA_FEEDBACK (ArduPilot), else CAMERA_IMAGE_CAPTURED
+    ekf_status: bool               # streams EKF_STATUS_REPORT (ArduPilot)
+    version: tuple                 # (major, minor) in AUTOPILOT_VERSION
+    texts: Texts
     deny_result: int               # COMMAND_ACK result of a refused arm
+    transport: str                 # "tcp": TCP server per vehicle (ArduPilot SITL);
+                                   # "udp": sends to the ground station's port (PX4 SITL)
+    base_port: int                 # first SITL port
+    port_step: int                 # between instances
+    banner: bytes = b""            # plain text greeting the first TCP client
     params: dict = field(default_factory=dict)
+    modes: dict = field(default_factory=dict)    # mode name -> custom_mode (from the profile)
 
+    def __post_init__(self):
+        if not self.modes:
+            object.__setattr__(self, "modes", {name: self.profile.mode_number(name)[0]
+                                               for name in self.behaviour})
+
+    # -- from the profile -------------------------------------------------------------
+    @property
+    def name(self) -> str:
+        return self.profile.name
+
+    @property
+    def autopilot(self) -> int:
+        return self.profile.mav_autopilot
+
+    @property
+    def home_item(self) -> bool:
+        return self.profile.home_item
+
+    @property
+    def first_item(self) -> int:
+        return self.profile.first_item
+
+    @property
+    def hold_mode(self) -> str:
+        """Where a finished mission or a takeoff leaves the vehicle."""
+        return self.profile.mission_end_mode
+
+    @property
+    def mission_mode(self) -> str:
+        return self.profile.mission_mode
+
+    @property
+    def land_mode(self) -> str:
+        return self.profile.land_mode
+
+    @property
+    def rtl_mode(self) -> str:
+        return self.profile.rtl_mode
+
+    @property
+    def guided_mode(self) -> str:
+        return self.profile.guided_mode
+
+    @property
+    def capacity(self) -> int | None:
+        return self.profile.mission_capacity
+
+    # -- modes ------------------------------------------------------------------------
     def custom_mode(self, mode: str) -> int:
         return self.modes[mode]
 
     def mode_named(self, custom_mode: int) -> str | None:
-        for name, value in self.modes.items():
-            if value == custom_mode:
-                return name
-        if self.name == "px4" and custom_mode & 0xFF000000 == 0:
-            # A main mode without a sub mode: AUTO alone means AUTO.LOITER on PX4.
-            main = (custom_mode >> 16) & 0xFF
-            return "AUTO.LOITER" if main == 4 else None
-        return None
+        """The simulated mode behind a custom_mode; None for one it does not fly."""
+        name = self.profile.mode_of(custom_mode)
+        return name if name in self.modes else None
 
     def mode_from_command(self, param2: float, param3: float) -> str | None:
-        """MAV_CMD_DO_SET_MODE: custom mode in param2; PX4 puts its sub mode in param3."""
-        if self.name == "px4":
-            return self.mode_named(px4_custom_mode(int(param2), int(param3)))
-        return self.mode_named(int(param2))
+        """MAV_CMD_DO_SET_MODE as the firmware packs it (PX4: sub mode in param3)."""
+        return self.mode_named(self.profile.mode_from_set_mode(param2, param3))
 
 
 ARDUPILOT = Flavour(
-    name="ardupilot",
-    autopilot=mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA,
-    modes={"STABILIZE": 0, "AUTO": 3, "GUIDED": 4, "LOITER": 5, "RTL": 6, "LAND": 9},
+    profile=profile(ARDUPILOT_NAME),
     behaviour={"STABILIZE": MANUAL, "AUTO": AUTO, "GUIDED": GUIDED, "LOITER": GUIDED,
                "RTL": RTL, "LAND": LAND},
     initial_mode="STABILIZE",
-    hold_mode="LOITER",
     armable=frozenset({"STABILIZE", "GUIDED", "LOITER"}),
-    home_item=True,
     legacy_request=True,
     reached_do_items=False,
     resume_old_index=True,
     arm_in_auto_starts=False,
+    start_needs_armed=True,
+    takeoff_mode=None,
+    reposition_int_only=True,
+    reposition_needs_flag=True,
+    says_reached=True,
+    camera_feedback=True,
+    ekf_status=True,
+    version=(4, 7),
+    texts=Texts(refused="PreArm: Simulated arming failure", no_gps="PreArm: GPS 1: Bad fix",
+                no_ekf="PreArm: EKF3 still initialising", bad_mode="Arm: Mode not armable",
+                ready="EKF3 IMU0 is using GPS"),
     deny_result=mavlink.MAV_RESULT_FAILED,
+    transport="tcp",
+    base_port=5760,
+    port_step=10,
+    banner=(b"Init ArduCopter V4.7.0-dev (simulated)\r\n"
+            b"Free RAM: 65535\r\nFrame: QUAD/PLUS\r\n"),
     params={"AUTO_OPTIONS": 0.0, "WPNAV_RADIUS": 200.0, "RTL_ALT": 1500.0,
             "DISARM_DELAY": 10.0},
 )
 
 PX4 = Flavour(
-    name="px4",
-    autopilot=mavlink.MAV_AUTOPILOT_PX4,
-    modes={"MANUAL": px4_custom_mode(1), "POSCTL": px4_custom_mode(3),
-           "AUTO.TAKEOFF": px4_custom_mode(4, 2), "AUTO.LOITER": px4_custom_mode(4, 3),
-           "AUTO.MISSION": px4_custom_mode(4, 4), "AUTO.RTL": px4_custom_mode(4, 5),
-           "AUTO.LAND": px4_custom_mode(4, 6)},
+    profile=profile(PX4_NAME),
     behaviour={"MANUAL": MANUAL, "POSCTL": MANUAL, "AUTO.TAKEOFF": TAKEOFF,
                "AUTO.LOITER": GUIDED, "AUTO.MISSION": AUTO, "AUTO.RTL": RTL,
                "AUTO.LAND": LAND},
     initial_mode="AUTO.LOITER",
-    hold_mode="AUTO.LOITER",
     armable=frozenset({"MANUAL", "POSCTL", "AUTO.TAKEOFF", "AUTO.LOITER", "AUTO.MISSION"}),
-    home_item=False,
     legacy_request=False,
     reached_do_items=True,
     resume_old_index=False,
     arm_in_auto_starts=True,
+    start_needs_armed=False,
+    takeoff_mode="AUTO.TAKEOFF",
+    reposition_int_only=False,
+    reposition_needs_flag=False,
+    says_reached=False,
+    camera_feedback=False,
+    ekf_status=False,
+    version=(1, 15),
+    texts=Texts(refused="Preflight Fail: simulated arming failure",
+                no_gps="Preflight Fail: GPS fix too low",
+                no_ekf="Preflight Fail: ekf2 missing data",
+                bad_mode="Arming denied: not possible in this flight mode",
+                ready="Ready for takeoff!"),
     deny_result=mavlink.MAV_RESULT_DENIED,
+    transport="udp",
+    base_port=18570,
+    port_step=1,
     params={"NAV_ACC_RAD": 2.0, "RTL_RETURN_ALT": 15.0, "COM_DISARM_PRFLT": 10.0},
 )
 
-FLAVOURS = {"ardupilot": ARDUPILOT, "px4": PX4}
+FLAVOURS = {f.name: f for f in (ARDUPILOT, PX4)}
+
+
+def flavour(firmware: str) -> Flavour:
+    """The simulated flavour of ``firmware``; ValueError naming the choices."""
+    if firmware not in FLAVOURS:
+        raise ValueError(f"unknown firmware {firmware!r}; known: {', '.join(FLAVOURS)}")
+    return FLAVOURS[firmware]

@@ -16,33 +16,34 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from autopilots import ARDUPILOT
 from gcs.sim.faults import FaultPlan
+from gcs.sim.flavours import flavour
 from gcs.sim.physics import Limits
 from gcs.sim.track import track_path
 from gcs.sim.vehicle import SimVehicle, VehicleConfig
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
-BASE_PORTS = {"ardupilot": 5760, "px4": 18570}
-PORT_STEP = {"ardupilot": 10, "px4": 1}
 
 
 def vehicle_port(firmware: str, index: int, base_port: int | None = None) -> int:
-    base = BASE_PORTS[firmware] if base_port is None else base_port
-    return base + PORT_STEP[firmware] * index
+    f = flavour(firmware)
+    base = f.base_port if base_port is None else base_port
+    return base + f.port_step * index
 
 
 def vehicle_url(firmware: str, index: int, base_port: int | None = None,
                 gcs_port: int = 14550) -> str:
     """The pymavlink URL a ground station uses for vehicle `index` (0-based)."""
-    if firmware == "ardupilot":
+    if flavour(firmware).transport == "tcp":
         return f"tcp:127.0.0.1:{vehicle_port(firmware, index, base_port)}"
-    return f"udpin:0.0.0.0:{gcs_port}"      # every PX4 instance sends to the same port
+    return f"udpin:0.0.0.0:{gcs_port}"      # every UDP instance sends to the same port
 
 
 @dataclass
 class FleetConfig:
     vehicles: int = 1
-    firmware: str = "ardupilot"                 # "ardupilot" | "px4"
+    firmware: str = ARDUPILOT                   # an autopilots profile name
     home: tuple = DEFAULT_HOME                  # lat, lon, ground alt AMSL, for every vehicle
     homes: list | None = None                   # or one (lat, lon, alt) per vehicle
     speedup: float = 1.0
@@ -62,10 +63,11 @@ class FleetConfig:
     signing_key: bytes | None = None
     terrain: object = None                      # (lat, lon) -> ground m AMSL; None: flat
                                                 # at each home's altitude, as SITL
+    transport: str | None = None                # "pty": each vehicle on a serial line
+    serial_baud: int = 57600                    # what urls() asks a pty link for
 
     def vehicle_configs(self) -> list:
-        if self.firmware not in BASE_PORTS:
-            raise ValueError(f"unknown firmware {self.firmware!r}")
+        flavour(self.firmware)                  # ValueError naming the choices
         if self.homes is not None and len(self.homes) != self.vehicles:
             raise ValueError(f"{len(self.homes)} homes given for {self.vehicles} vehicles")
         unknown = set(self.faults) - set(range(1, self.vehicles + 1))
@@ -84,7 +86,8 @@ class FleetConfig:
                 camera=self.camera, auto_options=self.auto_options, drop_pct=self.drop_pct,
                 faults=replace(self.faults.get(sysid, FaultPlan())),
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
-                seed=self.seed, signing_key=self.signing_key, terrain=self.terrain))
+                seed=self.seed, signing_key=self.signing_key, terrain=self.terrain,
+                transport=self.transport))
         return configs
 
 
@@ -130,11 +133,13 @@ class SimFleet:
         return self.vehicles[sysid - 1]
 
     def urls(self) -> list:
-        """Ground-station URLs: one per vehicle (ArduPilot), one shared port (PX4)."""
+        """Ground-station URLs: one per vehicle (TCP: ArduPilot), one shared port (UDP: PX4)."""
         c = self.config
-        if c.firmware == "px4":
-            return [vehicle_url("px4", 0, c.base_port, c.gcs_port)]
-        return [vehicle_url("ardupilot", i, c.base_port) for i in range(c.vehicles)]
+        if c.transport == "pty":
+            return [f"{v.link.device},{c.serial_baud}" for v in self.vehicles]
+        if flavour(c.firmware).transport == "udp":
+            return [vehicle_url(c.firmware, 0, c.base_port, c.gcs_port)]
+        return [vehicle_url(c.firmware, i, c.base_port) for i in range(c.vehicles)]
 
     def kill(self, sysid: int) -> None:
         """Shoot vehicle `sysid` down now: no more output, its sockets closed."""
@@ -173,7 +178,7 @@ def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
         if route.launch is None:
             raise ValueError(f"plan vehicle {route.id} has no launch point to start from")
         homes.append((route.launch.lat, route.launch.lon, route.launch.alt_amsl))
-    config.setdefault("firmware", plan.params.get("firmware", "ardupilot"))
+    config.setdefault("firmware", plan.params.get("firmware", ARDUPILOT))
     return SimFleet(FleetConfig(vehicles=n, homes=homes, **config)).start()
 
 
@@ -201,8 +206,9 @@ def free_base_port(step: int = 10, count: int = 1, udp: bool = False) -> int:
 def free_fleet_ports(firmware: str, vehicles: int) -> dict:
     """FleetConfig port fields for ``vehicles`` of ``firmware`` on free local ports:
     ArduPilot TCP P + 10*i; PX4 UDP P + 1 + i, all sending to UDP P."""
-    if firmware == "ardupilot":
-        return {"base_port": free_base_port(10, vehicles)}
+    f = flavour(firmware)
+    if f.transport == "tcp":
+        return {"base_port": free_base_port(f.port_step, vehicles)}
     first = free_base_port(1, vehicles + 1, udp=True)
     return {"gcs_port": first, "base_port": first + 1}
 

@@ -6,6 +6,7 @@ for. ArduPilot quirks, when its flavour says so: items are requested with the
 legacy MISSION_REQUEST, an upload in the first second after boot is refused with
 MAV_MISSION_NO_SPACE, item 0 is home and always reads back as the real home, and
 items are written into the live mission as they arrive (uploads are not atomic).
+A mission longer than the profile's capacity is refused with NO_SPACE.
 PX4 requests with MISSION_REQUEST_INT and swaps the mission in when complete.
 """
 
@@ -15,7 +16,6 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
 SUPPORTED_FRAMES = GLOBAL_FRAMES | {2}            # plus MAV_FRAME_MISSION
-MAX_ITEMS = 700
 RETRY_S = 1.5
 RETRIES = 5
 
@@ -123,7 +123,8 @@ class MissionServer:
         if self.flavour.home_item and now - self._boot < self._no_space_s:
             self._say(mavlink.MAV_SEVERITY_WARNING, "Only 0 items are supported")
             return self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
-        if msg.count > MAX_ITEMS:
+        capacity = self.flavour.capacity       # the firmware's profile: None = no limit
+        if capacity is not None and msg.count > capacity:
             return self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
         self._done = None
         if msg.count == 0:

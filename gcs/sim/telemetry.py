@@ -126,7 +126,7 @@ def autopilot_version(v):
     caps = (M.MAV_PROTOCOL_CAPABILITY_MISSION_FLOAT | M.MAV_PROTOCOL_CAPABILITY_MISSION_INT
             | M.MAV_PROTOCOL_CAPABILITY_COMMAND_INT | M.MAV_PROTOCOL_CAPABILITY_MAVLINK2
             | M.MAV_PROTOCOL_CAPABILITY_SET_POSITION_TARGET_GLOBAL_INT)
-    major, minor = (4, 7) if v.flavour.name == "ardupilot" else (1, 15)
+    major, minor = v.flavour.version
     return v.mav.autopilot_version_encode(caps, (major << 24) | (minor << 16), 0, 0, 0,
                                           [0] * 8, [0] * 8, [0] * 8, 0, 0, v.sysid)
 

@@ -4,14 +4,14 @@ ArduPilot SITL serves MAVLink on a TCP port (5760 + 10*i) to one client at a
 time and greets its first client with plain text; PX4 SITL binds UDP 18570 + i
 and sends to the ground station at 127.0.0.1:14550, answering whoever spoke last.
 Both are polled from the vehicle's own thread; nothing here blocks longer than
-the poll timeout.
+the poll timeout. `PtyLink` serves a vehicle on a pseudo-terminal instead: a
+serial link, as over a telemetry radio.
 """
 
+import os
 import select
 import socket
 
-ARDUPILOT_BANNER = (b"Init ArduCopter V4.7.0-dev (simulated)\r\n"
-                    b"Free RAM: 65535\r\nFrame: QUAD/PLUS\r\n")
 
 
 class TcpServerLink:
@@ -129,3 +129,48 @@ class UdpLink:
 
     def close(self) -> None:
         self._sock.close()
+
+
+class PtyLink:
+    """A serial line: the vehicle holds the master side of a pseudo-terminal and a
+    ground station opens its slave device as a serial port (``DEVICE,BAUD``, e.g.
+    ``/dev/pts/5,57600``), as it would a telemetry radio or a USB cable."""
+
+    connected = True
+    accepted = 0
+
+    def __init__(self):
+        import tty
+
+        self._master, self._slave = os.openpty()
+        tty.setraw(self._slave)        # no echo, no line editing: bytes pass as they are
+        os.set_blocking(self._master, False)
+        self.device = os.ttyname(self._slave)   # kept open: the master never reads EOF
+
+    def poll(self, timeout: float) -> list:
+        ready, _, _ = select.select([self._master], [], [], max(timeout, 0.0))
+        chunks = []
+        while ready:
+            try:
+                data = os.read(self._master, 65536)
+            except (BlockingIOError, InterruptedError):
+                break
+            except OSError:              # closed under us
+                break
+            if not data:
+                break
+            chunks.append(data)
+        return chunks
+
+    def send(self, data: bytes) -> None:
+        try:
+            os.write(self._master, data)   # a full line buffer loses it, like a slow radio
+        except OSError:
+            pass
+
+    def close(self) -> None:
+        for fd in (self._master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass

@@ -16,13 +16,14 @@ from typing import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from autopilots import ARDUPILOT
 from gcs.sim import flavours as fl
 from gcs.sim import telemetry
 from gcs.sim.faults import FaultPlan, LinkFaults
 from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
 from gcs.sim.physics import Limits, LocalFrame, PointMass
 from gcs.sim.track import TrackRecorder
-from gcs.sim.transport import ARDUPILOT_BANNER, TcpServerLink, UdpLink
+from gcs.sim.transport import PtyLink, TcpServerLink, UdpLink
 
 M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
@@ -43,7 +44,7 @@ _WAYPOINT_LIKE = (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_UNLIM,
 class VehicleConfig:
     sysid: int
     port: int                                  # TCP listen (ArduPilot) or UDP bind (PX4)
-    firmware: str = "ardupilot"
+    firmware: str = ARDUPILOT                  # an autopilots profile name
     home: tuple = (-35.363261, 149.165230, 584.0)   # lat, lon deg; ground alt m AMSL
     gcs_address: tuple = ("127.0.0.1", 14550)  # PX4: where telemetry goes
     bind_host: str = "127.0.0.1"
@@ -62,6 +63,7 @@ class VehicleConfig:
     seed: int = 0
     signing_key: bytes | None = None           # sign what we send, require signed input
     terrain: Callable | None = None            # (lat, lon) -> ground m AMSL; None: flat
+    transport: str | None = None               # "pty": a serial line; None: the flavour's
 
 
 class _LinkWriter:
@@ -79,7 +81,7 @@ class _LinkWriter:
 class SimVehicle:
     def __init__(self, cfg: VehicleConfig):
         self.cfg = cfg
-        self.flavour = fl.FLAVOURS[cfg.firmware]
+        self.flavour = fl.flavour(cfg.firmware)
         self.sysid = cfg.sysid
         self.mav = M.MAVLink(_LinkWriter(self), srcSystem=cfg.sysid,
                              srcComponent=M.MAV_COMP_ID_AUTOPILOT1)
@@ -104,7 +106,7 @@ class SimVehicle:
         self.mode = self.flavour.initial_mode
         self.armed = False
         self.landed = True
-        self.current = 1 if self.flavour.home_item else 0
+        self.current = self.flavour.first_item
         self.auto_started = False      # ArduPilot: MISSION_START received (auto_armed)
         self.task = None               # what the vehicle is doing, see _update_task
         self.t = 0.0                   # mission time since boot, s
@@ -114,7 +116,7 @@ class SimVehicle:
         self._idle_since = None
         self._cuts_done = set()
         self._periods = dict(telemetry.STREAMS)
-        if self.flavour.name != "ardupilot":
+        if not self.flavour.ekf_status:
             for msgid in telemetry.ARDUPILOT_ONLY:
                 del self._periods[msgid]
         self._due = {}
@@ -141,8 +143,10 @@ class SimVehicle:
     def open(self) -> None:
         """Bind the sockets (raises OSError if the port is taken) and boot."""
         cfg = self.cfg
-        if self.flavour.name == "ardupilot":
-            self.link = TcpServerLink(cfg.port, cfg.bind_host, ARDUPILOT_BANNER)
+        if cfg.transport == "pty":
+            self.link = PtyLink()
+        elif self.flavour.transport == "tcp":
+            self.link = TcpServerLink(cfg.port, cfg.bind_host, self.flavour.banner)
         else:
             self.link = UdpLink(cfg.port, tuple(cfg.gcs_address), cfg.bind_host)
         self.boot_wall = time.monotonic()
@@ -329,19 +333,19 @@ class SimVehicle:
         return self._disarm(force=int(round(p[1])) == FORCE_DISARM)
 
     def _cmd_takeoff(self, p, frame) -> int:
-        if self.flavour.name == "ardupilot":
-            # GUIDED, armed and on the ground; altitude relative to home.
+        if self.flavour.takeoff_mode is None:
+            # ArduPilot: GUIDED, armed and on the ground; altitude relative to home.
             if not (self.armed and self.landed and self.behaviour() == fl.GUIDED):
                 return M.MAV_RESULT_FAILED
             self._start_takeoff(self.ground + p[6])
             return M.MAV_RESULT_ACCEPTED
         alt = p[6] if math.isfinite(p[6]) else self.ground + 2.5     # PX4: AMSL
         self._takeoff_alt = alt
-        return self._set_mode("AUTO.TAKEOFF")
+        return self._set_mode(self.flavour.takeoff_mode)
 
     def _cmd_mission_start(self, p, frame) -> int:
-        auto = "AUTO" if self.flavour.name == "ardupilot" else "AUTO.MISSION"
-        if self.flavour.name == "ardupilot" and not self.armed:
+        auto = self.flavour.mission_mode
+        if self.flavour.start_needs_armed and not self.armed:
             return M.MAV_RESULT_FAILED
         if p[0] > 0 and self.mission.item(int(p[0])) is not None:
             self.current = int(p[0])
@@ -376,17 +380,17 @@ class SimVehicle:
         return self._send_by_id(M.MAVLINK_MSG_ID_AUTOPILOT_VERSION)
 
     def _cmd_reposition(self, p, frame) -> int:
-        ap = self.flavour.name == "ardupilot"
-        if ap and frame is None:
+        f = self.flavour
+        if f.reposition_int_only and frame is None:
             return M.MAV_RESULT_UNSUPPORTED        # ArduPilot takes it as COMMAND_INT only
         if not self.armed or self.landed:
-            return self.flavour.deny_result
-        if ap and self.behaviour() != fl.GUIDED:
+            return f.deny_result
+        if f.reposition_needs_flag and self.behaviour() != fl.GUIDED:
             if not int(p[1]) & M.MAV_DO_REPOSITION_FLAGS_CHANGE_MODE:
                 return M.MAV_RESULT_FAILED
-            self._set_mode("GUIDED")
-        elif not ap:
-            self._set_mode("AUTO.LOITER")
+            self._set_mode(f.guided_mode)
+        elif not f.reposition_needs_flag:
+            self._set_mode(f.guided_mode)
         x, y, z = self.body.pos
         if math.isfinite(p[4]) and math.isfinite(p[5]) and (p[4], p[5]) != (0.0, 0.0):
             x, y = self.frame.to_local(p[4], p[5])
@@ -412,10 +416,10 @@ class SimVehicle:
         return M.MAV_RESULT_ACCEPTED
 
     def _cmd_land(self, p, frame) -> int:
-        return self._set_mode("LAND" if self.flavour.name == "ardupilot" else "AUTO.LAND")
+        return self._set_mode(self.flavour.land_mode)
 
     def _cmd_rtl(self, p, frame) -> int:
-        return self._set_mode("RTL" if self.flavour.name == "ardupilot" else "AUTO.RTL")
+        return self._set_mode(self.flavour.rtl_mode)
 
     def _cmd_change_speed(self, p, frame) -> int:
         if p[1] > 0:
@@ -495,19 +499,16 @@ class SimVehicle:
     def _arm(self) -> int:
         if self.armed:
             return M.MAV_RESULT_ACCEPTED
-        ap = self.flavour.name == "ardupilot"
+        texts = self.flavour.texts
         problem = None
         if self.plan.refuse_arm:
-            problem = "PreArm: Simulated arming failure" if ap else \
-                "Preflight Fail: simulated arming failure"
+            problem = texts.refused
         elif not self.gps_fix:
-            problem = "PreArm: GPS 1: Bad fix" if ap else "Preflight Fail: GPS fix too low"
+            problem = texts.no_gps
         elif not self.ready:
-            problem = "PreArm: EKF3 still initialising" if ap else \
-                "Preflight Fail: ekf2 missing data"
+            problem = texts.no_ekf
         elif not self._mode_armable():
-            problem = "Arm: Mode not armable" if ap else \
-                "Arming denied: not possible in this flight mode"
+            problem = texts.bad_mode
         if problem is not None:
             self._say(M.MAV_SEVERITY_CRITICAL, problem)
             return self.flavour.deny_result
@@ -525,7 +526,8 @@ class SimVehicle:
     def _mode_armable(self) -> bool:
         if self.mode in self.flavour.armable:
             return True
-        return self.mode == "AUTO" and int(self.params.get("AUTO_OPTIONS", 0)) & 1 == 1
+        return self.mode == self.flavour.mission_mode and \
+            int(self.params.get("AUTO_OPTIONS", 0)) & 1 == 1
 
     def _disarm(self, force: bool, reason="disarmed") -> int:
         if not self.armed:
@@ -632,8 +634,7 @@ class SimVehicle:
     # -- the mission ------------------------------------------------------------------
     def _run_mission(self, seq: int) -> None:
         """Execute from item `seq`: DO commands at once, up to the next nav item."""
-        if self.flavour.home_item:
-            seq = max(seq, 1)
+        seq = max(seq, self.flavour.first_item)
         while not self.dead:
             item = self.mission.item(seq)
             if item is None:
@@ -692,7 +693,7 @@ class SimVehicle:
 
     def _report_reached(self, seq: int) -> None:
         self.track.event(self.t, f"reached {seq}")
-        if self.flavour.name == "ardupilot":
+        if self.flavour.says_reached:
             self._say(M.MAV_SEVERITY_INFO, f"Reached command #{seq}")
         self._send(self.mav.mission_item_reached_encode(seq))
 
@@ -717,9 +718,9 @@ class SimVehicle:
 
     def _set_current(self, seq: int, run=True) -> bool:
         """MISSION_SET_CURRENT / DO_SET_MISSION_CURRENT; in AUTO in the air, go there now."""
-        first = 1 if self.flavour.home_item else 0
+        first = self.flavour.first_item
         if self.flavour.home_item and seq == 0:
-            seq = 1
+            seq = first
         if self.mission.item(seq) is None or seq < first:
             return False
         self.current = seq
@@ -733,10 +734,10 @@ class SimVehicle:
     def _mission_changed(self, kind: str) -> None:
         self.track.event(self.t, f"mission {kind}")
         if not self.flavour.resume_old_index:
-            self.current = 0
+            self.current = self.flavour.first_item
             if self.behaviour() == fl.AUTO and not self.landed:
                 self._last_dest = None
-                self._run_mission(0)
+                self._run_mission(self.current)
 
     def _snapshot(self, seq) -> None:
         lat, lon, alt = self.position()
@@ -746,7 +747,7 @@ class SimVehicle:
             return
         ms = int(self.t * 1000)
         rel = alt - self.home[2]
-        if self.flavour.name == "ardupilot":
+        if self.flavour.camera_feedback:
             self._send(self.mav.camera_feedback_encode(
                 ms * 1000, self.sysid, 0, self._images, round(lat * 1e7), round(lon * 1e7),
                 alt, rel, 0.0, 0.0, self.heading, 0.0, M.CAMERA_FEEDBACK_PHOTO, self._images))
@@ -779,8 +780,7 @@ class SimVehicle:
         if self._ready_announced or not self.ready:
             return
         self._ready_announced = True
-        self._say(M.MAV_SEVERITY_INFO, "EKF3 IMU0 is using GPS"
-                  if self.flavour.name == "ardupilot" else "Ready for takeoff!")
+        self._say(M.MAV_SEVERITY_INFO, self.flavour.texts.ready)
         self._send_by_id(M.MAVLINK_MSG_ID_HOME_POSITION)
 
     def _stream(self, now: float) -> None:

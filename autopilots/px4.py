@@ -1,0 +1,96 @@
+"""PX4 as a ground station meets it.
+
+- No home item: item 0 is the first flown (the takeoff), and MISSION_CURRENT /
+  MISSION_ITEM_REACHED start there.
+- Modes: the main mode in bits 16-23 of ``custom_mode``, the sub mode in bits
+  24-31 (AUTO.MISSION = main 4, sub 4); MAV_CMD_DO_SET_MODE carries them as
+  param2 and param3. A bare AUTO (no sub mode) is reported while holding:
+  AUTO.LOITER. Re-tasking holds in AUTO.LOITER; the mission flies in AUTO.MISSION.
+- Start: MISSION_START (or the mode AUTO.MISSION where the command is refused),
+  then arm: it takes off on its own with the mission's takeoff item.
+- Camera: IMAGE_START_CAPTURE, one image (param3 = 1), capture number 1, 2, ...
+  (param4). Yaw NaN in navigation items (keep the heading mode).
+- Read-back keeps every field as sent; no item limit is known.
+- Streams telemetry to its ground-station link by itself.
+"""
+
+from dataclasses import dataclass
+
+from .base import Autopilot, Step
+
+MAV_AUTOPILOT_PX4 = 12
+IMAGE_START_CAPTURE = 2000
+
+MAIN = {"MANUAL": 1, "ALTCTL": 2, "POSCTL": 3, "AUTO": 4, "ACRO": 5, "OFFBOARD": 6,
+        "STABILIZED": 7, "RATTITUDE": 8}
+AUTO_SUB = {"READY": 1, "TAKEOFF": 2, "LOITER": 3, "MISSION": 4, "RTL": 5, "LAND": 6,
+            "FOLLOW_TARGET": 8, "PRECLAND": 9}
+#: mode name -> (main, sub)
+MODES = {name: (main, 0) for name, main in MAIN.items() if name != "AUTO"}
+MODES.update({f"AUTO.{sub}": (MAIN["AUTO"], num) for sub, num in AUTO_SUB.items()})
+
+
+def custom_mode(main: int, sub: int = 0) -> int:
+    """PX4 packs its main mode in bits 16-23 of custom_mode and its sub mode in 24-31."""
+    return (int(main) << 16) | (int(sub) << 24)
+
+
+@dataclass(frozen=True)
+class PX4(Autopilot):
+    def camera_params(self, shot: int) -> tuple:
+        # camera id 0 (all), interval 0, one image, capture sequence number from 1
+        return (0.0, 0.0, 1.0, float(shot), 0.0, 0.0, 0.0)
+
+    def modes(self, mav_type: int = 2) -> dict:
+        return {name: custom_mode(main, sub) for name, (main, sub) in MODES.items()}
+
+    def mode_number(self, name: str, mav_type: int = 2) -> tuple:
+        name = name.upper()
+        if name not in MODES:
+            raise KeyError(f"unknown PX4 mode {name!r}; known: {', '.join(sorted(MODES))}")
+        main, sub = MODES[name]
+        return custom_mode(main, sub), main, sub
+
+    def mode_of(self, custom: int, mav_type: int = 2) -> str | None:
+        custom = int(custom)
+        main, sub = (custom >> 16) & 0xFF, (custom >> 24) & 0xFF
+        for name, (m, s) in MODES.items():
+            if (m, s) == (main, sub):
+                return name
+        if main == MAIN["AUTO"] and sub == 0:
+            return "AUTO.LOITER"          # PX4 reports bare AUTO while holding
+        return None
+
+    def mode_name(self, custom: int, mav_type: int = 2) -> str:
+        name = self.mode_of(custom, mav_type)
+        if name is not None:
+            return name
+        return f"MODE({(int(custom) >> 16) & 0xFF}.{(int(custom) >> 24) & 0xFF})"
+
+    def set_mode_params(self, name: str, mav_type: int = 2) -> tuple:
+        _, main, sub = self.mode_number(name, mav_type)
+        return float(main), float(sub)
+
+    def mode_from_set_mode(self, param2: float, param3: float) -> int:
+        return custom_mode(int(param2), int(param3))
+
+
+PROFILE = PX4(
+    name="px4",
+    title="PX4",
+    mav_autopilot=MAV_AUTOPILOT_PX4,
+    home_item=False,
+    yaw=float("nan"),
+    camera_command=IMAGE_START_CAPTURE,
+    mission_capacity=None,
+    hold_mode="AUTO.LOITER",
+    mission_mode="AUTO.MISSION",
+    land_mode="AUTO.LAND",
+    rtl_mode="AUTO.RTL",
+    guided_mode="AUTO.LOITER",
+    mission_end_mode="AUTO.LOITER",
+    start_sequence=(Step("set_current"), Step("mission_start", "AUTO.MISSION"), Step("arm"),
+                    Step("airborne")),
+    request_streams=False,
+    do_frame_read_back=None,
+)

@@ -1,0 +1,216 @@
+"""Where an uploaded mission comes from, and what it is proven against.
+
+A mission reaches a vehicle only as a `missions.check.CheckedMission`. Its
+source is either a plan directory (each route's mission built for a firmware)
+or a mission file (``.plan``, ``.waypoints``), which is checked against the
+plan it came from: the ``plan.json`` beside it, or the plan directory given
+(``--plan DIR``). Sources are read and checked here, before any vehicle is
+contacted: a bad file is an `InputError` naming it.
+
+A file with no plan (or a plan without its ``terrain.tif``) has nothing to
+prove its legs against; it is refused unless the caller allows it
+(``--unchecked``), and then passes the structure check only, with a note
+saying what was not proven.
+"""
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from autopilots import NAMES
+from planner.errors import InputError
+from planner.plan import PLAN_FILE, TERRAIN_FILE
+
+from .build import MissionOptions, VehicleMission, firmware_profile, vehicle_mission
+from .check import checked, unproven
+
+MISSION_SUFFIXES = (".plan", ".waypoints", ".txt")
+
+
+def saved_plan_surface(directory, plan):
+    """The exposure surface a saved plan was made against (``terrain.tif``, the
+    plan's outposts and parameters). Every check of a saved plan's missions gets
+    its surface here, the one call of `planner.pipeline.plan_surface`."""
+    directory = Path(directory)
+    if not (directory / TERRAIN_FILE).is_file():
+        raise InputError(directory / TERRAIN_FILE, "missing: the legs cannot be proven "
+                                                   "hidden and clear without the plan's terrain")
+    from planner.pipeline import plan_surface
+
+    return plan_surface(directory, plan)
+
+
+@dataclass
+class Proof:
+    """What a source's missions are checked against: a plan's surface, or nothing
+    (``surface`` None: ``reason`` says why; allowed only when ``unchecked``)."""
+
+    surface: object = None
+    clearance_m: float | None = None
+    reason: str | None = None
+    plan_dir: Path | None = None
+
+    def check(self, mission, name):
+        if self.surface is not None:
+            return checked(mission, self.surface, self.clearance_m, name=name)
+        return unproven(mission, self.reason, name=name)
+
+
+@dataclass
+class MissionSource:
+    """One uploadable route: its mission for each firmware, checked on demand."""
+
+    id: int
+    source: str                 # a file, or "DIR vehicle N"
+    missions: dict              # firmware -> VehicleMission, or the InputError building it
+    proof: Proof
+    expected: str | None        # the firmware it is meant for (None: any)
+    _checked: dict = field(default_factory=dict)
+
+    def checked(self, firmware: str):
+        """The `CheckedMission` for ``firmware``; InputError naming the source if the
+        mission cannot be built or fails the check."""
+        if firmware not in self._checked:
+            try:
+                built = self.missions[firmware]
+                if isinstance(built, InputError):
+                    raise built
+                self._checked[firmware] = self.proof.check(built, self.source)
+            except InputError as exc:
+                self._checked[firmware] = exc
+        result = self._checked[firmware]
+        if isinstance(result, InputError):
+            raise result
+        return result
+
+    def check_now(self) -> None:
+        """Check for the expected firmware (each firmware when none is): before any
+        connection. InputError on the first failure."""
+        for firmware in [self.expected] if self.expected else NAMES:
+            self.checked(firmware)
+
+    @property
+    def unproven_note(self) -> str | None:
+        return self.proof.reason and f"{self.source}: unchecked: legs not proven hidden " \
+                                     f"from outposts nor clear of the terrain ({self.proof.reason})"
+
+
+class _Plans:
+    """Plans and their surfaces, each loaded once."""
+
+    def __init__(self, unchecked: bool):
+        self.unchecked = unchecked
+        self._proofs = {}
+
+    def proof(self, directory: Path | None, what: str) -> tuple:
+        """(plan or None, Proof) for a source whose plan directory is ``directory``."""
+        from planner.plan import Plan
+
+        if directory is None:
+            return None, self._without(f"no {PLAN_FILE} beside it and no --plan", what)
+        key = directory.resolve()
+        if key not in self._proofs:
+            plan = Plan.load(directory)
+            if not (directory / TERRAIN_FILE).is_file():
+                if not self.unchecked:
+                    raise InputError(directory / TERRAIN_FILE, "missing: the legs cannot be "
+                                     "proven hidden and clear without the plan's terrain "
+                                     "(--unchecked uploads them unproven)")
+                proof = self._without(f"no {TERRAIN_FILE} in {directory}", what)
+            else:
+                proof = Proof(saved_plan_surface(directory, plan), plan.params.get("clearance_m"),
+                              plan_dir=directory)
+            self._proofs[key] = (plan, proof)
+        return self._proofs[key]
+
+    def _without(self, reason: str, what: str) -> Proof:
+        if not self.unchecked:
+            raise InputError(what, f"nothing to check it against ({reason}); give the plan "
+                                   "it came from with --plan DIR, or --unchecked to upload "
+                                   "it unproven")
+        return Proof(reason=reason)
+
+
+def load_sources(sources, plan_dir=None, unchecked: bool = False,
+                 firmware: str | None = None) -> list:
+    """`MissionSource` per route of one plan directory, or per mission file (one
+    route each), every one checked for its firmware now; InputError on the first
+    bad one. ``firmware``: the firmware every mission is for (None: each source's
+    own: the file's firmwareType, the plan's firmware)."""
+    plans = _Plans(unchecked)
+    paths = [Path(s) for s in sources]
+    dirs = [p for p in paths if p.is_dir()]
+    if firmware is not None:
+        firmware = firmware_profile(firmware).name
+    if dirs:
+        if len(paths) > 1:
+            raise InputError(dirs[0], "give one plan directory, or mission files, not both")
+        if not (dirs[0] / PLAN_FILE).is_file():
+            raise InputError(dirs[0], f"not a plan directory (no {PLAN_FILE})")
+        out = _plan_sources(dirs[0], plans, firmware)
+    else:
+        given = Path(plan_dir) if plan_dir is not None else None
+        if given is not None and not (given / PLAN_FILE).is_file():
+            raise InputError(given, f"--plan: not a plan directory (no {PLAN_FILE})")
+        out = []
+        for number, path in enumerate(paths, start=1):
+            out.append(_file_source(path, number, len(paths), given, plans, firmware))
+        if len({s.id for s in out}) != len(out):
+            for n, s in enumerate(out, start=1):
+                s.id = n
+    for s in out:
+        s.check_now()
+    return out
+
+
+def _plan_sources(directory: Path, plans: _Plans, firmware) -> list:
+    plan, proof = plans.proof(directory, str(directory))
+    options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
+    out = []
+    for route in plan.vehicles:
+        if not route.waypoints:
+            continue
+        missions = {fw: vehicle_mission(route, fw, options) for fw in NAMES}
+        out.append(MissionSource(route.id, f"{directory} vehicle {route.id}", missions, proof,
+                                 firmware or plan.params.get("firmware")))
+    if not out:
+        raise InputError(directory, "the plan has no route with waypoints")
+    return out
+
+
+def _file_source(path: Path, number: int, count: int, plan_dir, plans: _Plans,
+                 firmware) -> MissionSource:
+    import re
+
+    suffix = path.suffix.lower()
+    if suffix not in MISSION_SUFFIXES:
+        raise InputError(path, "not a mission file: expected .plan or .waypoints")
+    if not path.is_file():
+        raise InputError(path, "no such file")
+    match = re.search(r"(\d+)$", path.stem)
+    route_id = int(match.group(1)) if match and count > 1 else number
+    directory = plan_dir if plan_dir is not None else \
+        (path.parent if (path.parent / PLAN_FILE).is_file() else None)
+    plan, proof = plans.proof(directory, str(path))
+    missions, own = _file_missions(path, route_id)
+    expected = firmware or own or (plan.params.get("firmware") if plan is not None else None)
+    return MissionSource(route_id, str(path), missions, proof, expected)
+
+
+def _file_missions(path: Path, route_id: int) -> tuple:
+    """({firmware: VehicleMission}, the file's own firmware or None), read now."""
+    if path.suffix.lower() == ".plan":
+        from .qgc import load_plan_file
+
+        own = load_plan_file(path).firmware          # InputError for a bad file
+        missions = {}
+        for fw in NAMES:
+            try:
+                items = load_plan_file(path, fw).items
+                missions[fw] = VehicleMission(route_id, fw, items, [None] * len(items))
+            except InputError as exc:
+                missions[fw] = exc
+        return missions, own
+    from .wpl import read_waypoints
+
+    items = read_waypoints(path)
+    return {fw: VehicleMission(route_id, fw, items, [None] * len(items)) for fw in NAMES}, None

@@ -1,0 +1,128 @@
+"""The autopilot profiles: one per firmware, the one place firmware differences live.
+
+Judged against pymavlink's own mode tables (ArduPilot) and PX4's documented
+packing, and by what the code base imports."""
+
+import ast
+import math
+from types import SimpleNamespace
+from pathlib import Path
+
+import pytest
+
+from autopilots import NAMES, PROFILES, profile, profile_of_heartbeat
+from gcs.mavlink import M, mavutil
+from gcs.mission_protocol import compare
+from gcs.sim.flavours import FLAVOURS
+from missions.build import MissionOptions, vehicle_mission
+from missions.items import FRAME_GLOBAL, MissionItem
+from planner.plan import GeoPoint, VehicleRoute, Waypoint
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_names_and_heartbeats():
+    assert NAMES == ("ardupilot", "px4")
+    assert profile_of_heartbeat(M.MAV_AUTOPILOT_ARDUPILOTMEGA) is profile("ardupilot")
+    assert profile_of_heartbeat(M.MAV_AUTOPILOT_PX4) is profile("px4")
+    assert profile_of_heartbeat(M.MAV_AUTOPILOT_GENERIC) is None
+    with pytest.raises(KeyError, match="known: ardupilot, px4"):
+        profile("inav")
+
+
+def test_ardupilot_modes_are_pymavlinks():
+    ap = profile("ardupilot")
+    for number, name in mavutil.mode_mapping_acm.items():
+        assert ap.mode_number(name)[0] == number
+        assert ap.mode_name(number) == name
+    assert ap.set_mode_params("GUIDED") == (4.0, 0.0)
+
+
+def test_px4_mode_packing():
+    px4 = profile("px4")
+    custom, main, sub = px4.mode_number("AUTO.MISSION")
+    assert (main, sub) == (4, 4) and custom == (4 << 16) | (4 << 24)
+    assert px4.set_mode_params("AUTO.LOITER") == (4.0, 3.0)
+    assert px4.mode_from_set_mode(4.0, 3.0) == px4.mode_number("AUTO.LOITER")[0]
+    assert px4.mode_name(4 << 16) == "AUTO.LOITER"          # bare AUTO while holding
+    assert px4.mode_name((9 << 16) | (9 << 24)) == "MODE(9.9)"
+
+
+def test_the_simulator_mirrors_the_profiles():
+    for name, flavour in FLAVOURS.items():
+        p = profile(name)
+        assert flavour.profile is p and flavour.home_item == p.home_item
+        for mode, custom in flavour.modes.items():
+            assert p.mode_number(mode)[0] == custom
+        for mode in (p.mission_mode, p.land_mode, p.rtl_mode, p.guided_mode,
+                     p.mission_end_mode):
+            assert mode in flavour.behaviour, (name, mode)
+        assert flavour.capacity == p.mission_capacity
+
+
+def _route():
+    lat, lon, ground = -35.36, 149.16, 584.0
+    wps = [Waypoint(lon, lat, ground + 30, 0.0), Waypoint(lon + 5e-4, lat, ground + 31, 5.0, True),
+           Waypoint(lon, lat, ground + 30, 10.0)]
+    return VehicleRoute(1, GeoPoint(lon, lat, ground), wps, 10.0, 20.0, 100.0)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_missions_follow_the_profile(name):
+    p = profile(name)
+    items = vehicle_mission(_route(), name, MissionOptions(speed_mps=5.0)).items
+    assert (items[0].command == 16) == p.home_item          # home first, or the takeoff
+    assert items[p.first_item].command == 22
+    camera = [it for it in items if it.command == p.camera_command]
+    assert len(camera) == 1
+    assert [camera[0].param1, camera[0].param2, camera[0].param3, camera[0].param4,
+            camera[0].x, camera[0].y, camera[0].z] == list(p.camera_params(1))
+    yaw = items[p.first_item].param4
+    assert (math.isnan(yaw) and math.isnan(p.yaw)) or yaw == p.yaw
+
+
+def test_read_back_compares_the_fields_each_firmware_keeps():
+    items = vehicle_mission(_route(), "ardupilot", MissionOptions(speed_mps=5.0)).items
+    back = []
+    for it in items:                  # as MISSION_ITEM_INT brings it back from ArduPilot
+        wire = it.to_int()
+        if not it.is_position:
+            wire["frame"] = FRAME_GLOBAL                      # DO commands in frame 0
+        back.append(MissionItem.from_int(SimpleNamespace(**wire)))
+    back[0].x += 0.001                                        # the real home
+    assert compare(items, back, "ardupilot") == []
+    assert compare(items, back, "px4") != []                  # PX4 keeps every frame
+    speed = next(it for it in back if it.command == 178)
+    speed.param2 += 1.0                                       # a kept field still counts
+    problems = compare(items, back, "ardupilot")
+    assert len(problems) == 1 and "param2" in problems[0]
+
+
+def _imports(path: Path) -> set:
+    tree = ast.parse(path.read_text())
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out |= {a.name.split(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            out.add(node.module.split(".")[0])
+    return out
+
+
+def test_layering():
+    """autopilots imports nothing of ours; planner never imports it; and gcs/ and
+    missions/ test no firmware by name (the profiles do)."""
+    ours = {"gcs", "missions", "planner"}
+    for path in (ROOT / "autopilots").glob("*.py"):
+        assert not _imports(path) & ours, path
+    for path in (ROOT / "planner").rglob("*.py"):
+        assert "autopilots" not in _imports(path), path
+    for package in ("gcs", "missions"):
+        for path in (ROOT / package).rglob("*.py"):
+            if path.name == "flavours.py":
+                continue                     # the simulator's mirror names its profiles
+            text = path.read_text()
+            for needle in ('== "ardupilot"', '== "px4"', "== ARDUPILOT", "== PX4",
+                           "flavour.name =="):
+                assert needle not in text, f"{path}: {needle}"
+    assert set(PROFILES) == set(NAMES)

@@ -1,0 +1,220 @@
+"""Only checked missions reach a vehicle, on every upload path; files are read and
+checked before any link opens; every link form works, serial included.
+
+Judged by the simulated vehicle's own mission store and by whether it ever saw a
+ground station at all (its TCP server's accepted clients), never by what gcs says.
+"""
+
+import json
+import shutil
+import time
+from types import SimpleNamespace
+
+import pytest
+
+from gcs import mission_protocol as mp
+from gcs.cli import main
+from gcs.link import GroundLink
+from gcs.monitor import Monitor
+from gcs.retask import Retask, Retasker, RetaskError
+from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
+from missions import qgc, wpl
+from missions.build import MissionOptions, vehicle_mission
+from missions.check import CheckedMission, checked
+from missions.export import export_plan_dir
+from missions.items import MissionItem
+from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
+
+pytestmark = pytest.mark.timeout(90)
+
+
+@pytest.fixture
+def plan_copy(planned, tmp_path):
+    """The session plan copied (plan.json, terrain.tif) with its mission files."""
+    d = tmp_path / "plan"
+    d.mkdir()
+    for name in (PLAN_FILE, TERRAIN_FILE):
+        shutil.copy(planned.dir / name, d / name)
+    export_plan_dir(d, planned.plan, "ardupilot", formats=("plan", "waypoints"))
+    return d
+
+
+@pytest.fixture
+def vehicle(planned):
+    """One simulated ArduPilot copter at the plan's launch point."""
+    cfg = FleetConfig(vehicles=1, firmware="ardupilot", homes=[planned.launch], warmup_s=0.5,
+                      no_space_s=0.0, speedup=20.0, **free_fleet_ports("ardupilot", 1))
+    fleet = SimFleet(cfg).start()
+    yield fleet
+    fleet.stop()
+
+
+def held(fleet) -> list:
+    """What the simulated vehicle stores (ArduPilot: item 0 is its home)."""
+    return [it for it in fleet.vehicle(1).mission.items]
+
+
+def stored(fleet) -> list:
+    """The vehicle's store as `MissionItem`s (its own item type converted)."""
+    return [MissionItem(it.seq, it.frame, it.command, 0, it.autocontinue, it.param1, it.param2,
+                        it.param3, it.param4, *((it.lat, it.lon) if it.frame in (0, 3) else
+                                                (float(it.x), float(it.y))), it.z)
+            for it in fleet.vehicle(1).mission.items]
+
+
+def never_contacted(fleet) -> bool:
+    return fleet.vehicle(1).link.accepted == 0 and len(held(fleet)) == 1
+
+
+def _edit_plan(path, edit):
+    doc = json.loads(path.read_text())
+    edit(doc["mission"]["items"])
+    path.write_text(json.dumps(doc))
+
+
+def _first_waypoint(items):
+    return next(it for it in items if it["command"] == 16)
+
+
+def relative_frame(items):
+    wp = _first_waypoint(items)
+    wp["frame"] = 3                                    # MAV_FRAME_GLOBAL_RELATIVE_ALT
+    wp["AltitudeMode"] = 1
+
+
+def raised(items):
+    wp = [it for it in items if it["command"] == 16][len(items) // 4]
+    wp["params"][6] += 200.0                           # 200 m up, into view
+    wp["Altitude"] = wp["params"][6]
+
+
+def do_jump(items):
+    items.insert(3, {"type": "SimpleItem", "command": 177, "frame": 2, "autoContinue": True,
+                     "doJumpId": 99, "params": [1, 3, 0, 0, 0, 0, 0]})
+
+
+@pytest.mark.parametrize("edit, problem", [(relative_frame, "frame 3"),
+                                           (raised, "is not hidden from the outposts"),
+                                           (do_jump, "DO_JUMP")])
+def test_edited_plan_file_never_reaches_the_vehicle(plan_copy, vehicle, capsys, edit, problem):
+    path = plan_copy / "vehicle-1.plan"
+    _edit_plan(path, edit)
+    started = time.monotonic()
+    assert main(["upload", str(path), "--connect", vehicle.urls()[0]]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"gcs upload: error: {path}: ") and problem in err, err
+    assert len(err.splitlines()) == 1
+    assert never_contacted(vehicle)                  # refused before any link opened
+    assert time.monotonic() - started < 10
+
+
+def test_raised_waypoint_in_a_waypoints_file(plan_copy, vehicle, capsys):
+    path = plan_copy / "vehicle-2.waypoints"
+    items = wpl.read_waypoints(path)
+    items[len(items) // 2].z += 200.0
+    wpl.write_waypoints(path, items)
+    assert main(["upload", str(path), "--connect", vehicle.urls()[0]]) == 2
+    assert "is not hidden from the outposts" in capsys.readouterr().err
+    assert never_contacted(vehicle)
+
+
+def test_checked_file_is_uploaded_as_it_is(plan_copy, vehicle, capsys):
+    path = plan_copy / "vehicle-1.plan"
+    assert main(["upload", str(path), "--connect", vehicle.urls()[0]]) == 0
+    assert mp.compare(qgc.read_plan_file(path, "ardupilot"), stored(vehicle), "ardupilot") == []
+
+
+def test_file_without_a_plan_needs_unchecked(plan_copy, vehicle, tmp_path, capsys):
+    alone = tmp_path / "alone"
+    alone.mkdir()
+    path = shutil.copy(plan_copy / "vehicle-1.waypoints", alone / "edited.waypoints")
+    url = vehicle.urls()[0]
+    assert main(["upload", str(path), "--connect", url]) == 2
+    err = capsys.readouterr().err
+    assert "nothing to check it against" in err and "--plan" in err
+    assert never_contacted(vehicle)
+    # the plan it came from, named with --plan: checked, uploaded
+    assert main(["upload", str(path), "--plan", str(plan_copy), "--connect", url]) == 0
+    assert len(held(vehicle)) == len(wpl.read_waypoints(path))
+    # --unchecked: a one-line warning naming what was not proven, then the upload
+    assert main(["upload", str(path), "--unchecked", "--connect", url]) == 0
+    warnings = [line for line in capsys.readouterr().err.splitlines() if "warning" in line]
+    assert len(warnings) == 1
+    assert "legs not proven hidden from outposts nor clear of the terrain" in warnings[0]
+
+
+def test_truncated_file_fails_before_connecting(plan_copy, vehicle, capsys):
+    path = plan_copy / "vehicle-1.plan"
+    text = path.read_text()
+    path.write_text(text[: len(text) // 2])
+    assert main(["upload", str(path), "--connect", vehicle.urls()[0]]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"gcs upload: error: {path}: ") and "line" in err
+    assert never_contacted(vehicle)
+
+
+@pytest.mark.parametrize("command", ["upload", "fly"])
+def test_url_without_a_scheme_is_refused_at_once(plan_copy, capsys, command):
+    started = time.monotonic()
+    assert main([command, str(plan_copy), "--connect", "127.0.0.1:5760"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert time.monotonic() - started < 5
+    assert f"gcs {command}: error: --connect: 127.0.0.1:5760" in err
+    assert "tcp:127.0.0.1:5760" in err and "udpin:" in err and "DEVICE,BAUD" in err
+
+
+def test_upload_over_a_serial_line(planned, plan_copy, capsys):
+    """A simulated vehicle on one end of a pseudo-terminal, `gcs upload` with the
+    DEVICE,BAUD URL on the other."""
+    cfg = FleetConfig(vehicles=1, firmware="px4", homes=[planned.launch], warmup_s=0.5,
+                      transport="pty")
+    fleet = SimFleet(cfg).start()
+    try:
+        url = fleet.urls()[0]
+        assert url.startswith("/dev/") and url.endswith(",57600")
+        path = plan_copy / "vehicle-1.plan"            # written for ArduPilot: home dropped
+        assert main(["upload", str(path), "--connect", url]) == 0
+        assert mp.compare(qgc.read_plan_file(path, "px4"), stored(fleet), "px4") == []
+    finally:
+        fleet.stop()
+
+
+def test_fly_refuses_an_edited_plan_before_connecting(plan_copy, vehicle, tmp_path, capsys):
+    doc = json.loads((plan_copy / PLAN_FILE).read_text())
+    wps = doc["vehicles"][1]["waypoints"]
+    wps[len(wps) // 2]["alt_amsl"] += 200.0
+    (plan_copy / PLAN_FILE).write_text(json.dumps(doc))
+    out = tmp_path / "flight"
+    assert main(["fly", str(plan_copy), "--connect", vehicle.urls()[0], "-o", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "vehicle 2" in err and "is not hidden from the outposts" in err
+    assert len(err.splitlines()) == 1
+    assert never_contacted(vehicle) and not out.exists()
+
+
+def test_re_tasking_uploads_only_checked_missions(planned, vehicle, monkeypatch):
+    """A re-plan whose route was raised into view is refused by the check: the vehicle
+    keeps the mission it had. And nothing but a CheckedMission is sent at all."""
+    route = planned.plan.vehicles[0]
+    options = MissionOptions(speed_mps=planned.plan.params["speed_mps"])
+    first = checked(vehicle_mission(route, "ardupilot", options), planned.ctx.surface,
+                    planned.plan.params["clearance_m"])
+    with GroundLink.open(vehicle.urls(), expect=1, timeout_s=10) as link:
+        v = link.vehicles[1]
+        mp.upload_verified(v, first)
+        before = held(vehicle)
+        with pytest.raises(TypeError, match="only a checked mission"):
+            mp.upload_verified(v, first.items)
+        with pytest.raises(TypeError, match="made only by"):
+            CheckedMission(vehicle_mission(route, "ardupilot", options), "x", None, None)
+        monitor = Monitor(5.0)
+        monitor.follow(v, route.id, route, first)
+        bad = Plan.from_dict(planned.plan.to_dict()).vehicles[0]
+        bad.waypoints[len(bad.waypoints) // 2].alt_amsl += 200.0
+        monkeypatch.setattr("gcs.retask.replan", lambda *a, **k: SimpleNamespace(
+            plan=SimpleNamespace(metrics={}, vehicles=[bad])))
+        with pytest.raises(RetaskError, match="is not hidden from the outposts"):
+            Retasker(planned.ctx, monitor).\
+                _attempt(Retask(t_s=0.0, lost=[]), [1])
+        assert held(vehicle) == before
+        monitor.close()
