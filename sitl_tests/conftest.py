@@ -31,7 +31,7 @@ import pytest
 from affine import Affine
 
 from planner.dem import sample_terrain
-from planner.geotiff import write_grid
+from planner.geotiff import write_terrain
 from planner.outposts import sample_outposts
 from planner.pipeline import plan_mission, plan_surface, prepare
 from planner.plan import TERRAIN_FILE, Plan
@@ -54,9 +54,10 @@ def cropped_sample() -> tuple:
     """A window of the built-in sample terrain and the sample outposts inside it."""
     full = sample_terrain(resolution=RESOLUTION_M)
     r0, c0, n = CROP
-    terrain = Terrain(full.height[r0:r0 + n, c0:c0 + n].copy(),
-                      full.transform @ Affine.translation(c0, r0), full.crs,
-                      "sample terrain window")
+    window = (slice(r0, r0 + n), slice(c0, c0 + n))
+    terrain = Terrain(full.height[window].copy(), full.transform @ Affine.translation(c0, r0),
+                      full.crs, "sample terrain window", height_upper=full.upper[window].copy(),
+                      source_surface=full.source_surface)
     outposts = [o for o in sample_outposts(full) if terrain.contains_xy(o.x, o.y)]
     return terrain, outposts
 
@@ -88,7 +89,7 @@ def make_plan(directory: Path, k: int) -> Path:
     ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
     directory.mkdir(parents=True, exist_ok=True)
     outcome.plan.save(directory)
-    write_grid(directory / TERRAIN_FILE, ctx.terrain.height.astype(np.float32), ctx.terrain)
+    write_terrain(directory / TERRAIN_FILE, ctx.terrain)
     return directory
 
 

@@ -6,7 +6,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from planner.geotiff import write_grid
+from planner.geotiff import write_terrain
 from planner.outposts import Outpost
 from planner.pipeline import plan_mission
 from planner.plan import TERRAIN_FILE
@@ -30,7 +30,7 @@ def planned(tmp_path_factory):
     ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
     d = tmp_path_factory.mktemp("plan")
     outcome.plan.save(d)
-    write_grid(d / TERRAIN_FILE, terrain.height.astype(np.float32), terrain)
+    write_terrain(d / TERRAIN_FILE, terrain)
     launch = outcome.plan.vehicles[0].launch
     return SimpleNamespace(dir=d, plan=outcome.plan, ctx=ctx, terrain=terrain,
                            launch=(launch.lat, launch.lon, launch.alt_amsl))
