@@ -314,7 +314,7 @@ def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
 def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing):
     s = ctx.scenario
     required = (np.asarray(problem.required) if problem.required is not None
-                else np.full(problem.n_targets, min(s.k + 1, problem.n_uavs)))
+                else np.full(problem.n_targets, coverage.required_uavs(s.k, problem.n_uavs)))
     vehicles = []
     for r, (poly, (t, snap)) in enumerate(zip(polylines, arrivals)):
         vehicles.append(_vehicle(ctx, r, poly, t, snap, starts[r] if starts else None))

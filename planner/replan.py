@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .coverage import required_uavs
 from .errors import InputError
 from .geotiff import read_terrain
 from .exposure import segments_hidden
@@ -140,7 +141,7 @@ def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
     """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per target)."""
     counts = seen.sum(axis=0) if len(seen) else np.zeros(ctx.visibility.n_targets, int)
     n = int(ctx.visibility.n_targets)
-    need = min(k + 1, max(len(seen), 1))
+    need = required_uavs(k, len(seen))
     return {"targets": n, "covered": int((counts >= 1).sum()),
             "k": int(k), "required_uavs": int(need), "k_covered": int((counts >= need).sum()),
             "fraction_k_covered": float((counts >= need).sum() / n) if n else 1.0}
@@ -210,7 +211,7 @@ def _nearest_reachable_node(graph, xyz, strict):
 def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
     """(k used for the survivors, required distinct survivors per target)."""
     k = int(ctx.scenario.k)
-    need = min(k + 1, n_survivors)
+    need = required_uavs(k, n_survivors)
     return min(k, n_survivors - 1), np.full(ctx.visibility.n_targets, need, np.int32)
 
 

@@ -11,9 +11,9 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Optional
 
+from .coverage import METHODS
 from .errors import InputError
 
-METHODS = ("rt", "rt+ls", "rd", "b", "c")
 FIRMWARES = ("ardupilot", "px4")
 
 
