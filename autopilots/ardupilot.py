@@ -35,7 +35,7 @@ class ArduPilot(Autopilot):
         return (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 
     def modes(self, mav_type: int = MAV_TYPE_QUADROTOR) -> dict:
-        from pymavlink import mavutil      # at run time: gcs.mavlink picks the wire version
+        from pymavlink import mavutil  # at run time: gcs.mavlink picks the wire version
 
         return dict(mavutil.mode_mapping_byname(mav_type)
                     or mavutil.mode_mapping_byname(MAV_TYPE_QUADROTOR))

@@ -28,8 +28,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from gcs import signing
-from gcs.mavlink import (GCS_COMPONENT_ID, GCS_SYSTEM_ID, M, flavour_of, mavutil,
-                         mode_name, profile_of)
+from gcs.mavlink import (
+    GCS_COMPONENT_ID,
+    GCS_SYSTEM_ID,
+    M,
+    flavour_of,
+    mavutil,
+    mode_name,
+    profile_of,
+)
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default

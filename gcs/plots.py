@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.colors import LightSource  # noqa: E402
 
-from planner.fileio import atomic_path  # noqa: E402
+from common.fileio import atomic_path  # noqa: E402
 
 ROUTE_COLOURS = plt.get_cmap("tab10").colors
 

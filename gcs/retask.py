@@ -23,13 +23,20 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from common.errors import InputError
 from gcs import commands
 from gcs.mission_protocol import upload_verified
 from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, distance_m
 from missions.build import MissionOptions, vehicle_mission
-from planner.errors import InputError
-from planner.replan import (Survivor, coverable_targets, coverage_summary, replan, requirement,
-                            seen_matrix, survivor_start)
+from planner.replan import (
+    Survivor,
+    coverable_targets,
+    coverage_summary,
+    replan,
+    requirement,
+    seen_matrix,
+    survivor_start,
+)
 
 #: wall seconds to let a held vehicle brake before its position is taken
 SETTLE_S = 3.0

@@ -8,15 +8,13 @@ Per vehicle ``vehicle-<id>.plan`` (QGroundControl) and ``vehicle-<id>.waypoints`
 from pathlib import Path
 from typing import Optional
 
-from planner.errors import InputError
-
-from . import geo, qgc, wpl
 from autopilots import ARDUPILOT
+from common.errors import InputError
 
+from . import FORMATS, geo, qgc, wpl
 from .build import MissionOptions, firmware_profile, plan_missions
 from .check import check_mission
 
-FORMATS = ("plan", "waypoints", "geojson", "kml")
 ROUTES_GEOJSON = "routes.geojson"
 ROUTES_KML = "routes.kml"
 

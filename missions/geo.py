@@ -12,7 +12,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 from pyproj import Geod
 
-from planner.fileio import write_text_atomic
+from common.fileio import write_text_atomic
 
 CIRCLE_VERTICES = 72
 KML_NS = "http://www.opengis.net/kml/2.2"

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from autopilots import NAMES
-from planner.errors import InputError
+from common.errors import InputError
 from planner.plan import PLAN_FILE, TERRAIN_FILE
 
 from .build import MissionOptions, VehicleMission, firmware_profile, vehicle_mission
@@ -28,15 +28,15 @@ MISSION_SUFFIXES = (".plan", ".waypoints", ".txt")
 
 def saved_plan_surface(directory, plan):
     """The exposure surface a saved plan was made against (``terrain.tif``, the
-    plan's outposts and parameters). Every check of a saved plan's missions gets
-    its surface here, the one call of `planner.pipeline.plan_surface`."""
+    plan's outposts, parameters and lowest seen altitudes). Every check of a
+    saved plan's missions gets its surface here (`planner.context.load_surface`)."""
     directory = Path(directory)
     if not (directory / TERRAIN_FILE).is_file():
         raise InputError(directory / TERRAIN_FILE, "missing: the legs cannot be proven "
                                                    "hidden and clear without the plan's terrain")
-    from planner.pipeline import plan_surface
+    from planner.context import load_surface
 
-    return plan_surface(directory, plan)
+    return load_surface(directory, plan)
 
 
 @dataclass

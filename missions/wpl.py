@@ -10,8 +10,8 @@ the firmware keeps home as item 0 (ArduPilot); otherwise the first real item
 
 import math
 
-from planner.errors import InputError
-from planner.fileio import write_text_atomic
+from common.errors import InputError
+from common.fileio import write_text_atomic
 
 from .items import MissionItem
 

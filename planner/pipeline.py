@@ -9,21 +9,32 @@ positions and what they have already seen.
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
+from common.errors import InputError
+from planner.exposure import (
+    compute_exposure,
+    load_outposts,
+    sample_outposts,
+    segments_clear,
+    segments_hidden,
+)
+from planner.terrain import load_dem, sample_terrain
+from planner.travel import build_travel_graph, leg_time
+from planner.visibility import (
+    candidate_viewpoints,
+    compute_visibility,
+    fleet_region,
+    launch_cells,
+)
+
 from . import coverage
-from .dem import load_dem, sample_terrain
-from .errors import InputError
-from .exposure import ExposureParams, compute_exposure, segments_clear, segments_hidden
-from .outposts import load_outposts, sample_outposts
+from .context import PlanningContext, outposts_json
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
-from .travel import TravelParams, build_travel_graph, leg_time
-from .viewpoints import candidate_viewpoints, fleet_region, launch_cells
-from .visibility import SensorParams, compute_visibility
 
 #: progress(stage, fraction) — fraction in [0, 1], 1 when the stage is done
 Progress = Callable[[str, float], None]
@@ -36,28 +47,6 @@ class Start:
     xyz: np.ndarray  # projected x, y and altitude AMSL of the first route vertex
     launch: Optional[np.ndarray] = None  # ground point (x, y, ground AMSL) it returns to
     climb_s: float = 0.0  # vertical takeoff time before xyz, counted in the route's time
-
-
-@dataclass
-class PlanningContext:
-    scenario: Scenario
-    terrain: object
-    outposts: list
-    surface: object
-    regions: tuple
-    viewpoints: object
-    visibility: object
-    graph: object
-    travel: np.ndarray  # [n_vp, n_vp] hidden times between viewpoints, s
-    timing_s: dict = field(default_factory=dict)
-
-    @property
-    def travel_params(self) -> TravelParams:
-        return travel_params(self.scenario)
-
-
-def travel_params(s: Scenario) -> TravelParams:
-    return TravelParams(s.speed_mps, s.climb_mps, s.descent_mps, s.track_tolerance_m)
 
 
 @contextmanager
@@ -77,23 +66,12 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
     given directly replace the scenario's files, e.g. for synthetic terrain)."""
     s = scenario
     timing = {}
-    with _stage("terrain", timing, progress):
-        if terrain is None:
-            terrain = (sample_terrain(resolution=s.resolution_m, area=s.area) if s.sample else
-                       load_dem(s.dem, area=s.area, resolution=s.resolution_m,
-                                geoid_offset=s.geoid_offset_m))
-        if outposts is None:
-            outposts = (load_outposts(s.outposts, terrain) if s.outposts
-                        else sample_outposts(terrain) if s.sample else [])
-    with _stage("exposure", timing, progress):
-        params = ExposureParams(ceiling_agl_m=s.ceiling_agl_m, clearance_m=s.clearance_m,
-                                hide_margin_m=s.hide_margin_m, curvature_coeff=s.curvature_coeff)
-        surface = compute_exposure(terrain, outposts, params,
-                                   progress=_fraction(progress, "exposure"))
+    surface = exposure_stages(s, progress, timing, terrain, outposts)
+    terrain, outposts = surface.terrain, surface.outposts
     launch_xy = _launch_xy(terrain, s)
     regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
     with _stage("travel graph", timing, progress):
-        graph = build_travel_graph(surface, travel_params(s))
+        graph = build_travel_graph(surface, s.travel_params())
     with _stage("viewpoints", timing, progress):
         candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
                                           s.sensor_range_m)
@@ -105,12 +83,31 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
                              "the clearance and the track tolerance (try a larger --area, "
                              "a lower --clearance or --track-tolerance)")
     with _stage("visibility", timing, progress):
-        sensor = SensorParams(s.sensor_range_m, s.max_off_nadir_deg)
-        visibility = compute_visibility(surface, viewpoints, sensor)
+        visibility = compute_visibility(surface, viewpoints, s.sensor_params())
+    ctx = PlanningContext(s, terrain, list(outposts), surface, regions, viewpoints, visibility,
+                          graph, timing_s=timing)
     with _stage("travel times", timing, progress):
-        travel = graph.time_matrix(viewpoints.xyz)
-    return PlanningContext(s, terrain, outposts, surface, regions, viewpoints, visibility,
-                           graph, travel, timing)
+        ctx.travel  # noqa: B018 - computed here, in its own stage
+    return ctx
+
+
+def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, terrain=None,
+                    outposts=None):
+    """The first stages of `prepare`, all `gcs exposure` runs: the terrain and the
+    outposts of ``scenario`` (unless given), then their exposure surface."""
+    s = scenario
+    timing = {} if timing is None else timing
+    with _stage("terrain", timing, progress):
+        if terrain is None:
+            terrain = (sample_terrain(resolution=s.resolution_m, area=s.area) if s.sample else
+                       load_dem(s.dem, area=s.area, resolution=s.resolution_m,
+                                geoid_offset=s.geoid_offset_m))
+        if outposts is None:
+            outposts = (load_outposts(s.outposts, terrain) if s.outposts
+                        else sample_outposts(terrain) if s.sample else [])
+    with _stage("exposure", timing, progress):
+        return compute_exposure(terrain, outposts, s.exposure_params(),
+                                progress=_fraction(progress, "exposure"))
 
 
 def _fraction(progress, stage):
@@ -333,11 +330,8 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)
     timing["total"] = float(sum(timing.values()))
-    return Plan(method=method, params=plan_params(s), crs=ctx.terrain.crs,
-                outposts=[{"lon": o.lon, "lat": o.lat, "height_m": o.height_m,
-                           "range_m": o.range_m if np.isfinite(o.range_m) else None,
-                           "name": o.name, "ground_amsl": o.ground_m}
-                          for o in ctx.outposts],
+    return Plan(method=method, params=s.params(), crs=ctx.terrain.crs,
+                outposts=outposts_json(ctx.outposts),
                 vehicles=vehicles, metrics=metrics, timing_s=timing)
 
 
@@ -362,55 +356,8 @@ def _vehicle(ctx, r, poly, t, snap, start) -> VehicleRoute:
                         mission_time_s=mission_t, path_length_m=length)
 
 
-def plan_params(s: Scenario) -> dict:
-    """Every planning parameter, units in the key."""
-    return {
-        "uavs": s.uavs, "k": s.k, "visibility": s.visibility, "alpha": s.alpha, "beta": s.beta,
-        "step_time_cap_s": s.step_time_cap_s, "seed": s.seed,
-        "clearance_m": s.clearance_m, "hide_margin_m": s.hide_margin_m,
-        "ceiling_agl_m": s.ceiling_agl_m, "curvature_coeff": s.curvature_coeff,
-        "sensor_range_m": s.sensor_range_m, "max_off_nadir_deg": s.max_off_nadir_deg,
-        "viewpoint_spacing_m": s.viewpoint_spacing_m, "target_height_m": 0.5,
-        "speed_mps": s.speed_mps, "climb_mps": s.climb_mps, "descent_mps": s.descent_mps,
-        "resolution_m": s.resolution_m, "firmware": s.firmware,
-        "dem": list(s.dem), "sample": bool(s.sample), "area": s.area,
-        "outposts_file": s.outposts, "launch": [list(p) for p in s.launch_points],
-    }
-
-
 def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None):
     """Scenario -> (PlanningContext, Outcome): the whole of `gcs plan`."""
     ctx = prepare(scenario, progress, terrain, outposts)
     starts = launch_starts(ctx)
     return ctx, allocate(ctx, scenario.uavs, starts, progress=progress)
-
-
-def plan_surface(directory, plan: Plan):
-    """The exposure surface a saved plan was made against, rebuilt from its directory
-    (``terrain.tif``, outposts and parameters from ``plan.json``) to re-check legs
-    before export or upload; cheaper than the whole context."""
-    from pathlib import Path
-
-    from .geotiff import read_terrain
-    from .plan import TERRAIN_FILE
-
-    terrain = read_terrain(Path(directory) / TERRAIN_FILE)
-    p = plan.params
-    params = ExposureParams(ceiling_agl_m=p["ceiling_agl_m"], clearance_m=p["clearance_m"],
-                            hide_margin_m=p["hide_margin_m"],
-                            curvature_coeff=p["curvature_coeff"])
-    return compute_exposure(terrain, plan_outposts(terrain, plan), params)
-
-
-def plan_outposts(terrain, plan: Plan) -> list:
-    """The plan's outposts on the working grid."""
-    from .outposts import Outpost
-
-    lon = np.array([o["lon"] for o in plan.outposts], float)
-    lat = np.array([o["lat"] for o in plan.outposts], float)
-    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
-    return [Outpost(float(xi), float(yi), float(o["height_m"]),
-                    float("inf") if o.get("range_m") is None else float(o["range_m"]),
-                    float(o["lon"]), float(o["lat"]), o.get("name", ""),
-                    float("nan") if o.get("ground_amsl") is None else float(o["ground_amsl"]))
-            for xi, yi, o in zip(x, y, plan.outposts)]

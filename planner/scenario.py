@@ -11,10 +11,12 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Optional
 
-from .coverage import METHODS
-from .errors import InputError
+from common.errors import InputError
 
 FIRMWARES = ("ardupilot", "px4")
+#: the coverage methods, in the order users see them; each registers itself in
+#: planner.coverage (`methods.register` refuses a name not listed here)
+METHODS = ("rt", "rt+ls", "rd", "b", "c")
 
 
 @dataclass
@@ -57,6 +59,7 @@ class Scenario:
         """Raise InputError for values no planner stage could use."""
         checks = [
             (self.sample or self.dem, "no DEM given (use --dem FILE or --sample)"),
+            (not (self.sample and self.dem), "give either --dem or --sample, not both"),
             (self.uavs >= 1, f"uavs must be at least 1, got {self.uavs}"),
             (0 <= self.k < self.uavs,
              f"k must satisfy 0 <= k < uavs (k = {self.k}, uavs = {self.uavs}): "
@@ -81,12 +84,57 @@ class Scenario:
                 raise InputError(source, problem)
         return self
 
+    # --- what each stage takes ---------------------------------------------------------
+    def exposure_params(self):
+        from planner.exposure import ExposureParams
+        return ExposureParams(ceiling_agl_m=self.ceiling_agl_m, clearance_m=self.clearance_m,
+                              hide_margin_m=self.hide_margin_m,
+                              curvature_coeff=self.curvature_coeff)
+
+    def sensor_params(self):
+        from planner.visibility import SensorParams
+        return SensorParams(self.sensor_range_m, self.max_off_nadir_deg)
+
+    def travel_params(self):
+        from planner.travel import TravelParams
+        return TravelParams(self.speed_mps, self.climb_mps, self.descent_mps,
+                            self.track_tolerance_m)
+
+    # --- plan.json's "params" --------------------------------------------------------------
+    def params(self) -> dict:
+        """Every planning parameter, units in the key (plan.json's ``params``)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in _RENAMED}
+        out.update(dem=list(self.dem), sample=bool(self.sample),
+                   launch=[list(p) for p in self.launch_points],
+                   outposts_file=self.outposts, target_height_m=TARGET_HEIGHT_M)
+        return out
+
+    @classmethod
+    def from_params(cls, params: dict, source="plan.json") -> "Scenario":
+        """The scenario a plan was made from (`params` inverted)."""
+        known = {f.name for f in fields(cls)}
+        values = {k: v for k, v in params.items() if k in known and k not in _RENAMED}
+        values["outposts"] = params.get("outposts_file")
+        values["launch"] = [tuple(p) for p in params.get("launch", [])]
+        if values.get("area") is not None:
+            values["area"] = tuple(values["area"])
+        try:
+            return cls(**values)
+        except TypeError as exc:
+            raise InputError(source, f"bad planning parameters: {exc}") from None
+
     @property
     def launch_points(self) -> list:
         """One (lat, lon) per UAV, or [] when UAVs start at their phase-1 points."""
         if len(self.launch) == 1:
             return list(self.launch) * self.uavs
         return list(self.launch)
+
+
+#: fields plan.json keeps under another name (outposts -> outposts_file) or expanded
+_RENAMED = ("outposts", "launch")
+#: a target is a cell's centre this high above the ground (the sensor model's)
+TARGET_HEIGHT_M = 0.5
 
 
 def _positive(x) -> bool:

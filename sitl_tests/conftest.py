@@ -30,14 +30,12 @@ import numpy as np
 import pytest
 from affine import Affine
 
-from planner.dem import sample_terrain
-from planner.geotiff import write_terrain
-from planner.outposts import sample_outposts
-from planner.pipeline import plan_mission, plan_surface, prepare
+from planner.context import PlanningContext
+from planner.exposure import sample_outposts
+from planner.pipeline import plan_mission, prepare
 from planner.plan import TERRAIN_FILE, Plan
-from planner.replan import context_for_plan
 from planner.scenario import Scenario
-from planner.terrain import Terrain
+from planner.terrain import Terrain, sample_terrain, write_terrain
 
 VEHICLES = 4
 RESOLUTION_M = 100.0          # coarse: the whole plan takes a few seconds
@@ -90,6 +88,7 @@ def make_plan(directory: Path, k: int) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     outcome.plan.save(directory)
     write_terrain(directory / TERRAIN_FILE, ctx.terrain)
+    ctx.save(directory)
     return directory
 
 
@@ -108,7 +107,8 @@ def planned(tmp_path_factory):
     for k in (0, 1):
         d = make_plan(tmp_path_factory.mktemp(f"plan_k{k}"), k)
         plan = Plan.load(d)
-        out[k] = Planned(d, plan, context_for_plan(d, plan), plan_surface(d, plan))
+        ctx = PlanningContext.load(d, plan)
+        out[k] = Planned(d, plan, ctx, ctx.surface)
     return out
 
 

@@ -7,11 +7,11 @@ import time
 
 import pytest
 
-from gcs import commands, mission_protocol as mp
+from gcs import commands
+from gcs import mission_protocol as mp
 from gcs.link import GroundLink
 from gcs.mavlink import M
-from gcs.sim import (FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track,
-                     track_path)
+from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track, track_path
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import unproven
 from missions.items import MissionItem
@@ -303,7 +303,7 @@ def main(argv) -> int:
     import importlib
     import sys
 
-    from planner.errors import InputError
+    from common.errors import InputError
 
     module = importlib.import_module(f"gcs.cli.{argv[0]}")
     parser = argparse.ArgumentParser(prog=f"gcs {argv[0]}")

@@ -15,22 +15,30 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from common.errors import InputError
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
 from missions.build import MissionOptions, plan_missions, vehicle_mission
 from missions.check import check_mission, check_structure
 from missions.export import export_plan_dir
-from missions.items import (DO_CHANGE_SPEED, DO_DIGICAM_CONTROL, IMAGE_START_CAPTURE, NAV_LAND,
-                            NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF, NAV_WAYPOINT, MissionItem,
-                            first_difference, renumber)
+from missions.items import (
+    DO_CHANGE_SPEED,
+    DO_DIGICAM_CONTROL,
+    IMAGE_START_CAPTURE,
+    NAV_LAND,
+    NAV_RETURN_TO_LAUNCH,
+    NAV_TAKEOFF,
+    NAV_WAYPOINT,
+    MissionItem,
+    first_difference,
+    renumber,
+)
 from missions.qgc import load_plan_file, read_plan_file
 from missions.wpl import read_waypoints
-from planner.errors import InputError
-from planner.exposure import ExposureParams, compute_exposure
-from planner.outposts import Outpost
-from planner.plan import GeoPoint, VehicleRoute, Waypoint
+from planner.exposure import ExposureParams, Outpost, compute_exposure
 from planner.pipeline import plan_mission
+from planner.plan import GeoPoint, VehicleRoute, Waypoint
 from planner.scenario import Scenario
-from planner.synthetic import synthetic_terrain
+from planner.terrain import synthetic_terrain
 
 pytestmark = pytest.mark.timeout(60)
 
@@ -499,10 +507,10 @@ def test_check_refuses_broken_sequences(plan, surface):
 
 @pytest.fixture(scope="module")
 def plan_dir(planned, tmp_path_factory):
-    from gcs.cli.plan import write_outputs
+    from gcs.plan_folder import write_plan_folder
 
     directory = tmp_path_factory.mktemp("plan")
-    write_outputs(directory, *planned)
+    write_plan_folder(directory, *planned)
     return directory
 
 

@@ -17,14 +17,13 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from gcs.cli import build_parser, main
-from gcs.cli import fly as fly_cli
+from common.errors import InputError
+from gcs.cli import build_parser, main, views
 from gcs.cli import sim as sim_cli
 from gcs.monitor import LANDED, LOST, Monitor
 from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
 from gcs.sim.fleet import terrain_ground
 from missions.build import MissionOptions, vehicle_mission
-from planner.errors import InputError
 from planner.replan import coverable_targets, coverage_summary, seen_matrix
 
 pytestmark = pytest.mark.timeout(150)
@@ -253,13 +252,13 @@ def test_sim_home_stands_on_the_terrain(planned, capsys):
 
 def test_prompt_shows_its_choices_and_asks_again(monkeypatch):
     shown = io.StringIO()
-    monkeypatch.setattr(fly_cli, "console", Console(file=shown, width=200))
+    monkeypatch.setattr(views, "console", Console(file=shown, width=200))
     answers = iter(["", "maybe", "h"])
     monkeypatch.setattr("builtins.input", lambda *a: next(answers))
     view = SimpleNamespace(stop=lambda: None, start=lambda: None)
-    assert fly_cli.ask(view, "interrupted") == "home"
+    assert views.ask(view, "interrupted") == "home"
     text = shown.getvalue()
     assert text.count("[h]ome / [l]eave them on their missions") == 3
     assert "not 'maybe'" in text
     answers = iter(["L"])
-    assert fly_cli.ask(view, "timed out after 5 s") == "leave"
+    assert views.ask(view, "timed out after 5 s") == "leave"

@@ -11,8 +11,8 @@ import re
 import sys
 import warnings
 
+from common.errors import InputError
 from gcs import __version__
-from planner.errors import InputError
 
 COMMANDS = ("exposure", "plan", "export", "upload", "download", "fly", "sim", "demo")
 

@@ -3,8 +3,8 @@
 import sys
 from pathlib import Path
 
-from gcs.cli.upload import add_connection_arguments, open_link, protocol_from_args
-from planner.errors import InputError
+from common.errors import InputError
+from gcs.cli.options import add_connection_arguments, open_link, protocol_from_args
 
 HELP = "download the mission a vehicle holds to a QGroundControl .plan or .waypoints file"
 SUFFIXES = (".plan", ".waypoints")

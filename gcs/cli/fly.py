@@ -3,13 +3,14 @@
 import sys
 from pathlib import Path
 
-from rich.live import Live
-from rich.table import Table
-
 from autopilots import ARDUPILOT, NAMES
-from gcs.cli.upload import add_protocol_arguments, parse_assignments, protocol_from_args
-from gcs.progress import console
-from planner.errors import InputError
+from common.errors import InputError
+from gcs.cli.options import (
+    add_protocol_arguments,
+    check_urls,
+    parse_assignments,
+    protocol_from_args,
+)
 
 HELP = "fly a plan: upload, start, monitor, re-task survivors after losses, report"
 
@@ -78,8 +79,8 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     """The built-in fleet for a dry run: one vehicle per plan route, homes at its
     launch, flying over the plan's own terrain."""
     from gcs.sim import FaultPlan, fleet_for_plan, parse_kill, terrain_ground
-    from planner.geotiff import read_terrain
     from planner.plan import TERRAIN_FILE
+    from planner.terrain import read_terrain
 
     n = args.sim
     if n < 1:
@@ -103,25 +104,10 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
 
 
-def status_table(rows) -> Table:
-    table = Table(title="vehicles", expand=False)
-    for col in ("sysid", "UAV", "mode", "item", "mission", "snapshots", "alt", "heartbeat",
-                "battery", "state"):
-        table.add_column(col, justify="right")
-    for r in rows:
-        style = {"lost": "red", "landed": "green", "holding": "yellow"}.get(r["state"], "")
-        table.add_row(str(r["sysid"]), str(r["vehicle"]), r["mode"], r["item"],
-                      str(r["mission"]), r["snapshots"],
-                      "-" if r["alt"] is None else f"{r['alt']:.0f} m",
-                      f"{r['heartbeat_s']:.1f} s", "-" if r["battery"] is None else
-                      f"{r['battery']} %", f"[{style}]{r['state']}[/{style}]" if style
-                      else r["state"], style=None)
-    return table
-
-
 def run(args) -> int:
-    from gcs.cli.upload import check_urls
+    from gcs.cli.views import fly_flight, summary
     from gcs.fly import Flight, FlightError
+    from gcs.progress import console
 
     check_urls(args.connect)
     if not args.connect and not args.sim:
@@ -153,76 +139,3 @@ def run(args) -> int:
     return 0 if report["outcome"]["ok"] else 1
 
 
-def fly_plan(plan_dir, urls, options) -> dict:
-    """Fly with a live status table on a terminal, event lines on stderr otherwise;
-    FlightError when the flight could not go on (the report is written first)."""
-    from gcs.fly import Flight
-
-    live = console.is_terminal
-    flight = Flight(plan_dir, urls, options,
-                    log=(lambda text: None) if live else
-                    (lambda text: print(text, file=sys.stderr, flush=True)))
-    return fly_flight(flight, live)
-
-
-def fly_flight(flight, live: bool) -> dict:
-    """Run ``flight``: on a terminal with the status table, and Ctrl-C or --timeout
-    answered by the user; otherwise Ctrl-C leaves the vehicles flying and the
-    timeout brings them home."""
-    if live:
-        with Live(status_table([]), console=console, refresh_per_second=4) as view:
-            timeout = flight.options.timeout_s
-            return flight.run(lambda rows: view.update(status_table(rows)),
-                              lambda: ask(view, "interrupted"),
-                              lambda: ask(view, f"timed out after {timeout:g} s"))
-    return flight.run(on_interrupt=lambda: "leave", on_timeout=lambda: "home")
-
-
-ANSWERS = {"h": "home", "home": "home", "l": "leave", "leave": "leave"}
-
-
-def ask(view, why: str) -> str:
-    """Ctrl-C or the timeout during a flight: bring every vehicle home along hidden
-    paths, or leave them flying on their missions. Asks again until the answer is
-    one it knows; end of input (or a second Ctrl-C) leaves them."""
-    view.stop()
-    # "\[" keeps rich from reading [h] and [l] as markup tags and swallowing them
-    prompt = (f"[bold]{why}[/bold]: bring every vehicle home along hidden paths? "
-              "\\[h]ome / \\[l]eave them on their missions: ")
-    while True:
-        try:
-            answer = console.input(prompt)
-        except (EOFError, KeyboardInterrupt):
-            return "leave"
-        choice = ANSWERS.get(answer.strip().lower())
-        if choice is not None:
-            break
-        console.print(f"please answer h (home) or l (leave), not {answer.strip()!r}",
-                      markup=False, highlight=False)
-    if choice == "home":
-        view.start()
-    return choice
-
-
-def summary(report, output=None) -> None:
-    """Losses, re-plans and coverage reached; the files written when ``output`` is given."""
-    for loss in report["losses"]:
-        console.print(f"vehicle {loss['sysid']} lost at {loss['detected_s']:.1f} s "
-                      f"({loss['reason']})")
-    for r in report["replans"]:
-        console.print(f"re-plan at {r['t_s']:.1f} s for {r['survivors']}: planned in "
-                      f"{r['planning_s']:.1f} s, uploaded in {r['upload_s']:.1f} s; "
-                      f"coverage time {r['planned'].get('coverage_time_s', 0) / 60:.1f} min")
-    cov = report["coverage"].get("survivors")
-    if cov:
-        console.print(f"k = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
-                      f"{cov['required_uavs']} surviving vehicle(s) "
-                      f"({100 * cov['fraction_k_covered']:.1f} %) in {report['duration_s']:.0f} s")
-    outcome = report.get("outcome", {})
-    if outcome.get("ok"):
-        console.print("outcome: required coverage reached, no vehicle lost, all landed")
-    for problem in outcome.get("problems", []):
-        console.print(f"outcome: {problem}", style="red", markup=False, highlight=False)
-    if output is not None:
-        console.print(f"  {Path(output) / 'flight.json'}  [dim]flight report[/dim]")
-        console.print(f"  {Path(output) / 'flight.png'}  [dim]map of the flight[/dim]")

@@ -18,9 +18,8 @@ import math
 import numpy as np
 
 from .gains import CoverState
+from .insertion import combine_ends, insert_cost, middle_costs_all, route_time, update_middle_costs
 from .methods import register
-from .insertion import (combine_ends, insert_cost, middle_costs_all, route_time,
-                        update_middle_costs)
 from .objectives import PER_DISTANCE, PTV, PTV2, best_free_pair, best_pair, best_spread
 
 

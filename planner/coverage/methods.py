@@ -3,13 +3,14 @@
 A method is a function ``(prep, params, progress) -> (routes, steps)``:
 ``prep`` is the prepared `CoverageProblem` (`problem.prepare`), ``routes`` one
 list of viewpoint ids per UAV, ``steps`` the allocation trace (may be empty).
-A module adds one with ``@register("name", "what it is")``; `METHODS` lists
-them in registration order, which is the order `solve` documents and the CLI
-offers.
+A module adds one with ``@register("name", "what it is")``; the names, in the
+order users see them, are `planner.scenario.METHODS`.
 """
 
 from dataclasses import dataclass
 from typing import Callable
+
+from planner.scenario import METHODS
 
 
 @dataclass(frozen=True)
@@ -23,6 +24,9 @@ REGISTRY: dict = {}
 
 
 def register(name: str, summary: str):
+    if name not in METHODS:
+        raise ValueError(f"coverage method {name!r} is not in planner.scenario.METHODS")
+
     def add(run):
         REGISTRY[name] = Method(name, summary, run)
         return run

@@ -13,7 +13,6 @@ from typing import Optional
 import numpy as np
 
 
-
 def required_uavs(k: int, n_uavs: int) -> int:
     """How many distinct UAVs must see each target: k + 1, or every UAV when fewer
     are left (after losses: the paper's rule, everywhere it is needed)."""

@@ -14,7 +14,7 @@ Graph: one node per cell of a flyable region (`ExposureSurface.regions`), at
 the cell's ceiling ``E - hide_margin`` (the highest hidden altitude there);
 edges to the 8 or 16 neighbouring cells of the same region, kept when the
 straight 3-D leg between the two nodes passes the exact clearance and ceiling
-tests (planner.los.gap_range) and ``segments_hidden``; when it fails, the edge may
+tests (planner.exposure.los.gap_range) and ``segments_hidden``; when it fails, the edge may
 still "dip": descend to the higher of the two floors (on the raised terrain),
 fly level (checked the same way), climb back.
 Different regions are never joined, so their times are infinite.
@@ -37,10 +37,12 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from . import exposure, exposure_kernels
-from . import travel_kernels as K
-from .errors import InputError
-from .terrain import bilinear
+from common.errors import InputError
+from planner import exposure
+from planner.exposure import kernels as exposure_kernels
+from planner.terrain import bilinear
+
+from . import kernels as K
 
 #: MISSION_ITEM_INT carries lat/lon in 1e-7 degree (<= 1.1 cm): every planned leg is
 #: proven hidden and clear with this much room around it on top of the track
@@ -101,7 +103,9 @@ def polyline_time(poly, params=TravelParams()) -> float:
 class TravelGraph:
     """The hidden travel graph over the flyable cells of an exposure surface."""
 
-    def __init__(self, surface, params=TravelParams(), neighbours=16):
+    def __init__(self, surface, params=TravelParams(), neighbours=16, edges=None):
+        """``edges``: the checked edges of an identical graph (`edges()`, e.g. from a
+        plan folder), taken as they are instead of checked again."""
         if neighbours not in (8, 16):
             raise InputError("neighbours", f"must be 8 or 16, got {neighbours}")
         self.surface = surface
@@ -123,8 +127,12 @@ class TravelGraph:
         x, y = terrain.xy(rows, cols)
         self.node_xyz = np.stack([x, y, surface.ceiling[rows, cols]], axis=1)
         self.node_region = surface.regions[rows, cols]
-        src, dst, dip = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
-                                             np.int64))
+        if edges is None:
+            src, dst, dip = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
+                                                 np.int64))
+        else:
+            src, dst, dip = (np.asarray(edges[k]) for k in ("src", "dst", "dip"))
+        self._undirected = (src, dst, dip)
         za, zb = self.node_xyz[src, 2], self.node_xyz[dst, 2]
         low = np.where(np.isnan(dip), np.minimum(za, zb), dip)
         horiz = np.hypot(*(self.node_xyz[dst, :2] - self.node_xyz[src, :2]).T)
@@ -134,6 +142,12 @@ class TravelGraph:
         n = rows.shape[0]
         self.csr = csr_matrix((w, self._nbr.astype(np.int32), self._indptr), shape=(n, n))
         self._csr_reverse = None
+
+    def edges(self) -> dict:
+        """The checked undirected edges (node ids; ``dip``: the level altitude of a
+        dip edge, NaN for a straight one), as `TravelGraph(edges=...)` takes them."""
+        src, dst, dip = self._undirected
+        return {"src": src, "dst": dst, "dip": dip}
 
     @property
     def n_nodes(self) -> int:

@@ -2,7 +2,7 @@
 
 A snapshot from viewpoint v sees terrain cell g when g's centre, raised by
 ``target_height_m`` above the ground, is within ``sensor_range_m`` horizontally,
-the line of sight clears the bilinear terrain (planner.los, with the exposure
+the line of sight clears the bilinear terrain (planner.exposure.los, with the exposure
 surface's curvature coefficient), and, if ``max_off_nadir_deg`` is set, the
 angle between the downward vertical and the line of sight is within it.
 
@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from . import visibility_kernels as K
-from .errors import InputError
+from common.errors import InputError
+
+from . import kernels as K
 
 #: viewpoints per kernel call: bounds the byte buffer to about 64 MB
 _BUFFER_BYTES = 64 * 2**20
@@ -98,7 +99,7 @@ def compute_visibility(surface, viewpoints, sensor=SensorParams(), method="sweep
                        band_m=0.05) -> VisibilityMatrix:
     """Visibility sets of ``viewpoints`` (above their cells) over ``surface.terrain``.
 
-    ``method="exact"`` runs planner.los per (viewpoint, cell), stopping at the
+    ``method="exact"`` runs planner.exposure.los per (viewpoint, cell), stopping at the
     first blocking patch; ``"sweep"`` (default) is a per-viewpoint ring sweep
     that hands to the exact test every cell whose margin against the
     interpolated horizon is under ``band_m`` metres (see
