@@ -18,7 +18,6 @@ def add_arguments(parser) -> None:
 
 def run(args) -> int:
     import numpy as np
-
     from rich.console import Console
 
     from gcs.progress import stage_progress
