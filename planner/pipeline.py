@@ -200,15 +200,21 @@ def above_launch(ctx, ground_xyz) -> np.ndarray:
 
 
 def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
-             method=None, progress: Progress = None) -> Outcome:
-    """Run the scenario's coverage method from ``starts`` and build hidden routes."""
+             method=None, progress: Progress = None, budget_fraction=None,
+             strong_bound=True) -> Outcome:
+    """Run the scenario's coverage method from ``starts`` and build hidden routes.
+
+    ``budget_fraction`` caps the search budget (`coverage.CoverageParams`);
+    ``strong_bound=False`` reports only the quick lower bounds (re-plans in flight)."""
     s = ctx.scenario
     method = method or s.method
     timing = dict(ctx.timing_s)
     with _stage("allocation", timing, progress):
         problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required)
         params = coverage.CoverageParams(alpha=s.alpha, beta=s.beta,
-                                         step_time_cap=s.step_time_cap_s, seed=s.seed)
+                                         step_time_cap=s.step_time_cap_s, seed=s.seed,
+                                         time_budget_s=s.time_budget_s,
+                                         budget_fraction=budget_fraction)
         try:
             allocation = coverage.solve(problem, method, params,
                                         progress=(lambda f: progress("allocation", f))
@@ -219,7 +225,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         polylines, arrivals = _routes(ctx, allocation.routes, starts)
         counts = coverage.coverage_counts(problem, allocation)
     plan = _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts,
-                      timing)
+                      timing, strong_bound)
     return Outcome(plan, problem, allocation, polylines, counts)
 
 
@@ -308,7 +314,8 @@ def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
     return float(first[need[cols] - 1, cols].max())
 
 
-def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing):
+def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing,
+               strong_bound=True):
     s = ctx.scenario
     required = (np.asarray(problem.required) if problem.required is not None
                 else np.full(problem.n_targets, coverage.required_uavs(s.k, problem.n_uavs)))
@@ -325,7 +332,7 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
         "k": int(s.k),
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
-        "lower_bound_s": float(coverage.lower_bound(problem)),
+        "lower_bound_s": float(coverage.lower_bound(problem, strong=strong_bound)),
     }
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)

@@ -6,6 +6,10 @@ the survivors only: each starts where it is now (a point in the
 hidden volume) and still returns hidden to its own launch point; what it has
 photographed so far counts as seen by it.
 
+It runs the plan's own method with its own budget, scaled down for flight
+(`REPLAN_BUDGET_FRACTION`), and reports only the quick lower bounds (reach and
+packing; the flow LP is for planning on the ground).
+
 Choices (the paper's assumption): a lost UAV's images are lost with it, so
 only the survivors' snapshots count, and every target must be seen by
 ``min(k + 1, survivors)`` distinct survivors. Snapshot positions are judged
@@ -33,6 +37,13 @@ SNAP_TO_VIEWPOINT_M = 3.0
 LAUNCH_COLUMN_M = 3.0
 #: nearest graph nodes tried when a survivor's position must be snapped
 SNAP_CANDIDATES = 32
+#: a re-plan in flight uses the plan's method and search budget (`--method alns`,
+#: `--time-budget`), capped at this fraction of the coverage time of the
+#: survivors' start solution: they hover, held, while it runs, so a second of
+#: search must save more than a second of flight. The search takes 3-10 % off
+#: the coverage time of its start (benchmarks/bench_coverage.py), so 1 % of it
+#: is repaid several times: 6 s for 10 minutes of flying left, 0.6 s for one.
+REPLAN_BUDGET_FRACTION = 0.01
 
 
 @dataclass
@@ -205,7 +216,8 @@ def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
     sub = replace(ctx, scenario=replace(ctx.scenario, k=k, uavs=len(survivors)))
     starts = [survivor_start(ctx, s) for s in survivors]
     outcome = allocate(sub, len(survivors), starts, seen=seen, required=required,
-                       method=method, progress=progress)
+                       method=method, progress=progress,
+                       budget_fraction=REPLAN_BUDGET_FRACTION, strong_bound=False)
     for r, (vehicle, s) in enumerate(zip(outcome.plan.vehicles, survivors)):
         vehicle.id = int(s.vehicle_id)
     return outcome

@@ -16,7 +16,7 @@ from common.errors import InputError
 FIRMWARES = ("ardupilot", "px4")
 #: the coverage methods, in the order users see them; each registers itself in
 #: planner.coverage (`methods.register` refuses a name not listed here)
-METHODS = ("rt", "rt+ls", "rd", "b", "c")
+METHODS = ("rt", "rt+ls", "alns", "rd", "b", "c")
 
 
 @dataclass
@@ -47,12 +47,13 @@ class Scenario:
     track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
     firmware: str = "ardupilot"
     # [method]
-    method: str = "rt"
+    method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
     k: int = 0
     visibility: str = "soft"
     alpha: float = 0.55
     beta: float = 0.3
     step_time_cap_s: Optional[float] = None  # th_ra; default chosen by the benchmark
+    time_budget_s: Optional[float] = None  # alns search budget; default scales with the plan
     seed: int = 0
 
     def validate(self, source="scenario") -> "Scenario":
@@ -69,6 +70,8 @@ class Scenario:
             (self.firmware in FIRMWARES, f"firmware must be one of {', '.join(FIRMWARES)}"),
             (0.0 <= self.alpha <= 1.0, f"alpha must be in [0, 1], got {self.alpha}"),
             (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
+            (self.time_budget_s is None or _positive(self.time_budget_s),
+             f"time_budget_s must be a positive number, got {self.time_budget_s}"),
             (len(self.launch) in (0, 1, self.uavs),
              f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
              f"got {len(self.launch)}"),
@@ -149,7 +152,8 @@ SECTIONS = {
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
               "firmware"),
-    "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "seed"),
+    "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
+               "seed"),
 }
 _ALIASES = {("outposts", "file"): "outposts", ("method", "name"): "method",
             ("terrain", "files"): "dem"}

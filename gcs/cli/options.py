@@ -36,13 +36,16 @@ HELP = {
     "track_tolerance_m": "how far a vehicle may stray from its planned legs, metres: "
                          "every point that close to a leg is proven hidden too",
     "firmware": "mission flavour of the exported files",
-    "method": "coverage method: rt (the paper), rt+ls (rt + our local search), "
-              "rd, b, c (baselines)",
+    "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
+              "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",
     "k": "fault tolerance: every target seen by k+1 distinct UAVs",
     "visibility": "fault-tolerant visibility: hard or soft",
     "alpha": "PTV exponent alpha (visibility vs time)",
     "beta": "spread-out exponent beta",
     "step_time_cap_s": "cap th_ra on one insertion's added time, seconds (default: automatic)",
+    "time_budget_s": "search budget of --method alns, seconds on the reference machine, "
+                     "counted in work units so a plan is the same on any machine "
+                     "(default: 0.01 s per snapshot, 0.1 to 10 s)",
     "seed": "random seed (ties and baselines)",
 }
 
@@ -90,7 +93,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m"),
-        "method": ("k", "alpha", "beta", "step_time_cap_s", "seed"),
+        "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed"),
     }
     for title, names in fields_of.items():
         if title not in groups:

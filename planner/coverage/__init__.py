@@ -2,17 +2,21 @@
 
 Pure combinatorics over a :class:`CoverageProblem` (visibility sets, hidden
 travel times, optional launch points).  Methods: ``rt`` (the paper's
-reduced-time method), ``rt+ls`` (RT followed by our local search), ``rd``
+reduced-time method), ``rt+ls`` (RT followed by our local search), ``alns``
+(our adaptive large-neighbourhood search, the default), ``rd``
 (per-distance baseline), ``b`` (dominating set, then routing), ``c`` (time
 clustering, then dominating set and tour per cluster).
 
 Modules, one piece each: problem (data model), gains (fault-tolerant V),
 objectives (So, M_PTV, M_PTV2, per-distance), insertion (edge-breaking rule,
 route times), greedy (RT/RD phases), setcover, routing (OR-Tools), baselines
-(B, C), local_search (RT+LS), metrics (evaluation, lower bound), solve.
+(B, C), local_search (RT+LS), alns and alns_kernels (ALNS), metrics
+(evaluation, reach and packing bounds), bounds (the flow LP bound and the best
+of all), solve.
 """
 
-from .metrics import coverage_counts, lower_bound
+from .bounds import lower_bound
+from .metrics import coverage_counts
 from .problem import Allocation, CoverageParams, CoverageProblem, required_uavs
 from .solve import METHODS, solve
 

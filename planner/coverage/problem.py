@@ -61,6 +61,9 @@ class CoverageParams:
     ``routing_time_s`` is a safety-net time limit (None: scale with size).
     RT+LS runs ``ls_starts`` RT starts (th_ra factor x1, x0.5, x2), each
     followed by ``ls_rounds`` rounds of local search, and keeps the best.
+    ``time_budget_s`` is the ALNS budget (`alns`; None: scaled to the problem);
+    ``budget_fraction`` caps it at that fraction of the start plan's coverage
+    time (re-planning in flight).
     """
 
     alpha: float = 0.55
@@ -73,6 +76,8 @@ class CoverageParams:
     routing_solutions: int = 20
     ls_rounds: int = 20
     ls_starts: int = 3
+    time_budget_s: Optional[float] = None
+    budget_fraction: Optional[float] = None
 
 
 @dataclass

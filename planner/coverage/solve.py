@@ -2,13 +2,13 @@
 
 Each method lives with the code it is made of and registers itself there
 (`methods.register`): rt and rd in greedy, rt+ls in local_search, b and c in
-baselines. Importing them here fills the registry; `METHODS` (from
+baselines, alns in alns. Importing them here fills the registry; `METHODS` (from
 planner.scenario, light to import for the command line) is the order users see.
 """
 
 import time
 
-from . import baselines, greedy, local_search  # noqa: F401 - they register the methods
+from . import alns, baselines, greedy, local_search  # noqa: F401 - they register the methods
 from .methods import METHODS, REGISTRY, method
 from .metrics import evaluate
 from .problem import Allocation, CoverageParams, CoverageProblem, prepare

@@ -1,0 +1,343 @@
+"""ALNS: adaptive large-neighbourhood search from RT+LS, within a work budget.
+
+RT+LS gives the start.  Each iteration then *destroys* part of the routes
+(removes q visits: at random, the most expensive ones, a stretch of the
+longest route, the most expensive ones of the longest route, or a group of
+visits close to each other in travel time) and *repairs* them: visits are
+inserted at their cheapest edge-breaking slot until every target is seen by
+its required number of distinct UAVs again, chosen by the paper's M_PTV, by
+targets gained per growth of the makespan, or by regret (the short target
+whose best option is furthest ahead of its second best first).  Visits the
+repair made redundant are dropped, the changed routes re-ordered (2-opt,
+or-opt), and the result accepted by simulated annealing on the makespan (plus
+a little of the mean route time, which guides the search across plateaus).
+Operators are chosen by roulette on weights that adapt to how often they
+found a new best, an improvement, or an accepted move (Ropke and Pisinger,
+2006).  Every intermediate solution keeps every target seen by its required
+number of distinct UAVs: a repair only inserts (viewpoint, UAV) pairs that
+give a short target a new distinct viewer, and the removal of a visit is only
+kept if coverage holds.  The best solution is returned, never worse than the
+RT+LS start.
+
+**Budget and determinism.** The budget is given in seconds
+(``CoverageParams.time_budget_s``, ``--time-budget``) but counted in *work
+units* (elementary evaluations: insertion slots, target updates, order
+moves), converted at `WORK_PER_S`, the rate measured on the reference
+machine.  So a run is a pure function of the problem, the seed and the
+budget: the same plan on any machine and under any load; on the reference
+machine it takes about the budget (on a slower one, proportionally longer).
+The default budget (None) scales with the problem (`default_budget_s`).
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .alns_kernels import (
+    MAKESPAN_MODE,
+    PTV_MODE,
+    REGRET_MODE,
+    apply_visit,
+    drop_redundant,
+    improve_order,
+    remove_visits,
+    repair,
+    restore_counts,
+    savings_all,
+    short_targets,
+    time_of,
+)
+from .methods import method, register
+
+#: work units per second on the reference machine (2 x 2.6 GHz Xeon, one core
+#: busy); measured by benchmarks/bench_coverage.py --calibrate
+WORK_PER_S = 1.0e8
+#: fixed cost of one iteration (the Python around the kernels), in work units
+ITERATION_UNITS = 30_000
+#: default budget: seconds per visit of the (polished) start, within bounds
+BUDGET_PER_VISIT_S = 0.01
+MIN_BUDGET_S, MAX_BUDGET_S = 0.1, 10.0
+#: RT+LS is a start too (so ALNS is never worse than it) up to this many
+#: viewpoints x UAVs; beyond, its Python local search takes longer than the
+#: whole default budget and RT polished is the start (the benchmark has ALNS
+#: ahead of RT+LS there anyway)
+LS_START_SIZE = 2000
+#: weight of the mean route time next to the makespan in the objective
+MEAN_WEIGHT = 0.2
+#: order passes (2-opt, or-opt) per changed route and iteration
+ORDER_PASSES = 1
+#: annealing: a move this much worse (relative) is accepted with probability 1/2,
+#: at the start and at the end of the budget (geometric in between)
+WORSE_START, WORSE_END = 0.01, 0.0001
+#: visits removed per iteration: 1 .. min(Q_MAX, Q_FRACTION x visits)
+Q_MAX, Q_FRACTION = 40, 0.25
+
+DESTROYS = ("random", "worst", "segment", "longest", "related")
+# (name, mode, lam, noise)
+REPAIRS = (("ptv", PTV_MODE, 0.0, 0.0), ("makespan", MAKESPAN_MODE, 0.1, 0.0),
+           ("makespan-noisy", MAKESPAN_MODE, 0.5, 0.25), ("regret", REGRET_MODE, 0.1, 0.0))
+SIGMA_BEST, SIGMA_BETTER, SIGMA_ACCEPTED = 33.0, 9.0, 13.0
+SEGMENT_ITERATIONS, REACTION = 50, 0.1
+
+
+def default_budget_s(n_visits: int) -> float:
+    """The budget when none is given: grows with the visits of the start solution."""
+    return float(min(MAX_BUDGET_S, max(MIN_BUDGET_S, BUDGET_PER_VISIT_S * n_visits)))
+
+
+@dataclass
+class Result:
+    routes: list
+    iterations: int
+    work: int
+    start_time: float  # makespan of the RT+LS start
+    best_time: float
+
+
+class Alns:
+    """Routes, coverage bookkeeping and operator weights of one search."""
+
+    def __init__(self, prep, routes, params, rng):
+        self.p = prep
+        self.params = params
+        self.rng = rng
+        n = prep.problem.n_uavs
+        n_vp = prep.problem.n_viewpoints
+        self.R = np.full((n, n_vp + 1), -1, np.int64)
+        self.L = np.zeros(n, np.int64)
+        for r, route in enumerate(routes):
+            self.R[r, :len(route)] = route
+            self.L[r] = len(route)
+        self.cnt = prep.seen0.astype(np.int32)
+        self.dc = (self.cnt > 0).sum(axis=0).astype(np.int32)
+        for r in range(n):
+            for e in self.R[r, :self.L[r]]:
+                apply_visit(self.cnt, self.dc, r, e, 1, prep.vis_indptr, prep.vis_indices)
+        self.times = np.array([self._time(r) for r in range(n)])
+        t = prep.travel.copy()
+        np.fill_diagonal(t, np.inf)
+        nn = t.min(axis=1)
+        nn = nn[np.isfinite(nn)]
+        self.eps = max(1e-3 * float(np.median(nn)) if len(nn) else 1e-3, 1e-6)
+        self.sym = None  # symmetric travel, built on first use (related removal)
+        self.work = 0
+        self.mark_vp = np.zeros(n_vp, np.int8)  # scratch
+        self.mark_t = np.zeros(prep.problem.n_targets, np.int8)
+        self.removed = np.zeros(n_vp * n + 1, np.int64)
+
+    # -- state -------------------------------------------------------------------
+    def _time(self, r):
+        return time_of(self.R, self.L, r, self.p.travel, self.p.launch_out[r], self.p.has_launch)
+
+    def objective(self, times=None):
+        t = self.times if times is None else times
+        return float(t.max() + MEAN_WEIGHT * t.mean()) if len(t) else 0.0
+
+    def snapshot(self):
+        return self.R.copy(), self.L.copy(), self.times.copy()
+
+    def restore(self, snap):
+        """Go back to ``snap``; the coverage counts follow the changed visits."""
+        R0, L0, times0 = snap
+        p = self.p
+        restore_counts(self.R, self.L, R0, L0, self.cnt, self.dc, p.vis_indptr, p.vis_indices,
+                       self.mark_vp)
+        self.R[:], self.L[:], self.times[:] = R0, L0, times0
+
+    def routes(self):
+        return [list(map(int, self.R[r, :self.L[r]])) for r in range(len(self.L))]
+
+    def visits(self):
+        """(uav, index) of every visit, as two arrays in route order."""
+        rs = np.repeat(np.arange(len(self.L)), self.L)
+        idx = np.concatenate([np.arange(m) for m in self.L]) if len(self.L) else rs
+        return rs, idx
+
+    # -- destroy -----------------------------------------------------------------
+    def _savings(self):
+        p = self.p
+        return savings_all(self.R, self.L, p.travel, p.launch_out, p.has_launch)
+
+    def _pick_ranked(self, keys, q, power=3.0):
+        """q distinct indices, biased to the largest keys (y^power rank draw)."""
+        order = list(np.argsort(-np.asarray(keys), kind="stable"))
+        out = []
+        while order and len(out) < q:
+            out.append(order.pop(int(self.rng.random() ** power * len(order))))
+        return out
+
+    def destroy(self, name, q):
+        """Remove q visits chosen by the operator ``name``; returns their viewpoints."""
+        rs, idx = self.visits()
+        if not len(rs):
+            return np.zeros(0, np.int64)
+        q = min(q, len(rs))
+        if name == "random":
+            pick = self.rng.choice(len(rs), q, replace=False)
+        elif name == "worst":
+            pick = self._pick_ranked(self._savings(), q)
+        elif name in ("segment", "longest"):
+            r = int(np.argmax(self.times))
+            on_r = np.flatnonzero(rs == r)
+            q = min(q, len(on_r))
+            if name == "segment":
+                start = int(self.rng.integers(0, len(on_r) - q + 1))
+                pick = on_r[start:start + q]
+            else:
+                pick = on_r[self._pick_ranked(self._savings()[on_r], q)]
+        else:  # related: the visits nearest (in travel time) to a random one
+            if self.sym is None:
+                t = np.where(np.isfinite(self.p.travel), self.p.travel, 1e12)
+                self.sym = np.minimum(t, t.T)
+            ids = self.R[rs, idx]
+            e0 = ids[int(self.rng.integers(len(ids)))]
+            pick = self._pick_ranked(-self.sym[e0, ids], q, power=4.0)
+        pick = np.asarray(pick, np.int64)
+        p = self.p
+        k = remove_visits(self.R, self.L, rs[pick], idx[pick], self.cnt, self.dc,
+                          p.vis_indptr, p.vis_indices, self.removed)
+        for r in np.unique(rs[pick]):
+            self.times[r] = self._time(r)
+        return self.removed[:k].copy()
+
+    # -- repair ------------------------------------------------------------------
+    def repair(self, removed, spec):
+        p = self.p
+        short = short_targets(removed, self.dc, p.required, p.vis_indptr, p.vis_indices,
+                              self.mark_t)
+        _, mode, lam, noise = spec
+        rnd = self.rng.random(257) if noise > 0 else np.zeros(1)
+        ok, work = repair(self.R, self.L, self.times, self.cnt, self.dc, p.required, short,
+                          p.vis_indptr, p.vis_indices, p.tgt_indptr, p.tgt_indices, p.travel,
+                          p.launch_out, p.has_launch, mode, self.params.alpha, lam, self.eps,
+                          noise, rnd)
+        self.work += work + len(short)
+        return ok
+
+    def polish(self, routes_changed, passes=None):
+        p = self.p
+        passes = ORDER_PASSES if passes is None else passes
+        self.work += drop_redundant(self.R, self.L, self.times, self.cnt, self.dc, p.required,
+                                    p.vis_indptr, p.vis_indices, p.travel, p.launch_out,
+                                    p.has_launch)
+        for r in routes_changed:
+            self.work += improve_order(self.R, self.L, r, p.travel, p.launch_out[r],
+                                       p.has_launch, passes)
+            self.times[r] = self._time(r)
+
+    def covered(self):
+        return bool(np.all(self.dc >= self.p.required))
+
+
+def search(prep, starts, params, units=None, progress=None) -> Result:
+    """ALNS from the best of ``starts`` (lists of routes, each covering), each
+    polished first (redundant visits dropped, routes re-ordered), until the
+    budget is spent: ``units`` of work, or by default `budget_s` seconds'
+    worth (`WORK_PER_S`)."""
+    rng = np.random.default_rng(params.seed)
+    s = None
+    for routes in starts:
+        cand = Alns(prep, routes, params, rng)
+        cand.polish(range(len(cand.L)), passes=100)
+        if s is None or _key(cand.times) < _key(s.times):
+            s = cand
+    start_time = float(s.times.max()) if len(s.times) else 0.0
+    if units is None:
+        units = int(budget_s(params, int(s.L.sum()), start_time) * WORK_PER_S)
+    best = s.snapshot()
+    best_key = _key(s.times)
+    f_cur = s.objective()
+    n_visits = int(s.L.sum())
+    if n_visits == 0 or units <= 0:
+        return Result(s.routes(), 0, s.work, start_time, start_time)
+    # temperature: geometric in the budget spent, from WORSE_START to WORSE_END
+    t_start = WORSE_START * f_cur / math.log(2)
+    t_end = WORSE_END * f_cur / math.log(2)
+    wd = np.ones(len(DESTROYS))
+    wr = np.ones(len(REPAIRS))
+    sd, ud = np.zeros(len(DESTROYS)), np.zeros(len(DESTROYS))
+    sr, ur = np.zeros(len(REPAIRS)), np.zeros(len(REPAIRS))
+    q_hi = max(2, min(Q_MAX, int(round(Q_FRACTION * n_visits))))
+    it = 0
+    begin = s.work
+    while s.work - begin < units:
+        it += 1
+        frac = (s.work - begin) / units
+        temp = t_start * (t_end / t_start) ** frac
+        d = int(rng.choice(len(wd), p=wd / wd.sum()))
+        h = int(rng.choice(len(wr), p=wr / wr.sum()))
+        q = int(rng.integers(1, q_hi + 1))
+        before = s.snapshot()
+        s.work += ITERATION_UNITS
+        removed = s.destroy(DESTROYS[d], q)
+        if not s.repair(removed, REPAIRS[h]):
+            s.restore(before)
+            continue
+        changed = [r for r in range(len(s.L))
+                   if s.L[r] != before[1][r] or not np.array_equal(s.R[r, :s.L[r]],
+                                                                  before[0][r, :before[1][r]])]
+        s.polish(changed)
+        f_new = s.objective()
+        key = _key(s.times)
+        score = 0.0
+        if key < best_key:
+            best, best_key, score = s.snapshot(), key, SIGMA_BEST
+            f_cur = f_new
+        elif f_new < f_cur - 1e-9:
+            f_cur, score = f_new, SIGMA_BETTER
+        elif rng.random() < math.exp(-(f_new - f_cur) / max(temp, 1e-12)):
+            f_cur, score = f_new, SIGMA_ACCEPTED
+        else:
+            s.restore(before)
+        sd[d] += score
+        ud[d] += 1
+        sr[h] += score
+        ur[h] += 1
+        if it % SEGMENT_ITERATIONS == 0:
+            for w, sc, u in ((wd, sd, ud), (wr, sr, ur)):
+                used = u > 0
+                w[used] = (1 - REACTION) * w[used] + REACTION * sc[used] / u[used]
+                w[:] = np.maximum(w, 0.05 * w.max())
+                sc[:] = 0
+                u[:] = 0
+            if progress is not None:
+                progress(min(frac, 1.0))
+    s.restore(best)
+    s.polish(range(len(s.L)), passes=100)
+    assert s.covered()
+    return Result(s.routes(), it, s.work, start_time, float(s.times.max()))
+
+
+def _key(times):
+    """Makespan first, then the summed time (better solutions compare smaller)."""
+    if not len(times):
+        return (0.0, 0.0)
+    return (round(float(times.max()), 9), round(float(times.sum()), 9))
+
+
+def budget_s(params, n_visits: int, start_time: float) -> float:
+    """Seconds of search: ``params.time_budget_s``, or `default_budget_s`; at most
+    ``params.budget_fraction`` x the start's coverage time when that is set
+    (re-planning in flight: the survivors hover while it runs)."""
+    seconds = params.time_budget_s
+    if seconds is None:
+        seconds = default_budget_s(n_visits)
+    if params.budget_fraction is not None:
+        seconds = min(seconds, params.budget_fraction * start_time)
+    return max(float(seconds), 0.0)
+
+
+@register("alns", "ours: adaptive large-neighbourhood search from RT (and RT+LS), "
+                  "within --time-budget")
+def _alns(prep, params, progress):
+    """RT, polished; RT+LS too where it is affordable (so never worse than it
+    there); then the search from the better one."""
+    rt_progress = (lambda f: progress(0.2 * f)) if progress is not None else None
+    routes, _ = method("rt").run(prep, params, rt_progress)
+    starts = [routes]
+    if prep.problem.n_viewpoints * prep.problem.n_uavs <= LS_START_SIZE:
+        starts.append(method("rt+ls").run(prep, params, None)[0])
+    result = search(prep, starts, params, progress=(lambda f: progress(0.2 + 0.8 * f))
+                    if progress is not None else None)
+    return result.routes, []

@@ -1,0 +1,425 @@
+"""Numba kernels of the ALNS (`alns.py`): repair, redundant-visit removal, route order.
+
+Routes are held in a padded matrix ``R[r, :L[r]]`` (viewpoint ids in flying
+order) so that the kernels need no Python lists.  Coverage bookkeeping is
+that of the local search: ``cnt[r, t]`` = how many of r's visits (plus an
+earlier snapshot) see target t, ``dc[t]`` = distinct UAVs with ``cnt > 0``;
+target t is *short* while ``dc[t] < req[t]``.
+
+Every kernel returns (or adds to) a count of elementary evaluations, the
+*work units* the ALNS budget is measured in (deterministic, unlike a clock).
+"""
+
+import numpy as np
+from numba import njit
+
+from .insertion import insert_cost, removal_saving
+
+START = -1  # a route's start: its launch point, or nowhere (free start) without one
+END = -2  # a route's end: free (coverage time stops at the last snapshot)
+
+PTV_MODE, MAKESPAN_MODE, REGRET_MODE = 0, 1, 2
+
+
+@njit(cache=True)
+def leg(u, v, travel, lo, has_launch):
+    """Time of the leg u -> v, with START / END sentinels."""
+    if v == END:
+        return 0.0
+    if u == START:
+        return lo[v] if has_launch else 0.0
+    return travel[u, v]
+
+
+@njit(cache=True)
+def time_of(R, L, r, travel, lo, has_launch):
+    m = L[r]
+    if m == 0:
+        return 0.0
+    t = lo[R[r, 0]] if has_launch else 0.0
+    for i in range(m - 1):
+        t += travel[R[r, i], R[r, i + 1]]
+    return t
+
+
+@njit(cache=True)
+def apply_visit(cnt, dc, r, e, delta, vis_indptr, vis_indices):
+    """Add (delta = 1) or remove (delta = -1) UAV r's visit of e."""
+    for j in range(vis_indptr[e], vis_indptr[e + 1]):
+        t = vis_indices[j]
+        before = cnt[r, t]
+        cnt[r, t] = before + delta
+        if before == 0 and delta > 0:
+            dc[t] += 1
+        elif before + delta == 0 and delta < 0:
+            dc[t] -= 1
+
+
+@njit(cache=True)
+def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
+    if mode == PTV_MODE:
+        return g ** alpha / max(t_r + dt, eps) ** (1.0 - alpha)
+    # makespan-aware cheapest insertion per target gained
+    grow = max(t_r + dt - t_max, 0.0) + lam * max(dt, 0.0)
+    return g / (grow + eps)
+
+
+@njit(cache=True)
+def repair(R, L, times, cnt, dc, req, short, vis_indptr, vis_indices, tgt_indptr, tgt_indices,
+           travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd):
+    """Insert visits until no target in ``short`` (and no other) is short.
+
+    Candidates are the (viewpoint, UAV) pairs that give a short target a new
+    *distinct* viewer; each is inserted at its cheapest edge-breaking slot.
+    ``mode``: PTV (the paper's M_PTV on the short targets gained), MAKESPAN
+    (targets gained per growth of the makespan plus ``lam`` x the added
+    time), REGRET (the short target whose best option is most ahead of its
+    second best is covered first, by its best option, costed as MAKESPAN).
+    ``noise`` in [0, 1) scales scores by 1 +- noise (``rnd``: uniforms).
+    Returns (ok, work); ok is False if some short target has no option left.
+    """
+    n = R.shape[0]
+    n_vp = travel.shape[0]
+    cand_of = np.full(n_vp, -1, np.int64)
+    cands = np.empty(n_vp, np.int64)
+    nc = 0
+    for s in range(len(short)):
+        t = short[s]
+        for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+            x = tgt_indices[i]
+            if cand_of[x] < 0:
+                cand_of[x] = nc
+                cands[nc] = x
+                nc += 1
+    gain = np.zeros((nc, n), np.int64)
+    remaining = 0
+    for s in range(len(short)):
+        t = short[s]
+        if dc[t] >= req[t]:
+            continue
+        remaining += 1
+        for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+            c = cand_of[tgt_indices[i]]
+            for r in range(n):
+                if cnt[r, t] == 0:
+                    gain[c, r] += 1
+    dt = np.full((nc, n), np.inf)
+    pos = np.zeros((nc, n), np.int64)
+    work = 2 * len(short) + (tgt_indptr[short + 1] - tgt_indptr[short]).sum() * (n + 1)
+    for r in range(n):
+        route = R[r, :L[r]]
+        for c in range(nc):
+            if gain[c, r] > 0:
+                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, launch_out[r],
+                                                  has_launch)
+                work += L[r] + 1
+    k = 0
+    while remaining > 0:
+        t_max = times.max()
+        bc, br = -1, -1
+        if mode == REGRET_MODE:
+            best_regret, best_first = -1.0, np.inf
+            for s in range(len(short)):
+                t = short[s]
+                if dc[t] >= req[t]:
+                    continue
+                c1, c2, o_c, o_r = np.inf, np.inf, -1, -1
+                for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+                    c = cand_of[tgt_indices[i]]
+                    for r in range(n):
+                        if cnt[r, t] != 0 or not np.isfinite(dt[c, r]):
+                            continue
+                        cost = 1.0 / _score(MAKESPAN_MODE, gain[c, r], dt[c, r], times[r],
+                                            t_max, alpha, lam, eps)
+                        if noise > 0.0:
+                            cost *= 1.0 + noise * (2.0 * rnd[k % len(rnd)] - 1.0)
+                            k += 1
+                        if cost < c1:
+                            c2 = c1
+                            c1, o_c, o_r = cost, c, r
+                        elif cost < c2:
+                            c2 = cost
+                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n + 1
+                if o_c < 0:
+                    continue
+                regret = c2 - c1 if np.isfinite(c2) else 1e300
+                if regret > best_regret or (regret == best_regret and c1 < best_first):
+                    best_regret, best_first, bc, br = regret, c1, o_c, o_r
+        else:
+            best = -1.0
+            for c in range(nc):
+                for r in range(n):
+                    g = gain[c, r]
+                    if g <= 0 or not np.isfinite(dt[c, r]):
+                        continue
+                    sc = _score(mode, float(g), dt[c, r], times[r], t_max, alpha, lam, eps)
+                    if noise > 0.0:
+                        sc *= 1.0 + noise * (2.0 * rnd[k % len(rnd)] - 1.0)
+                        k += 1
+                    if sc > best:
+                        best, bc, br = sc, c, r
+            work += nc * n
+        if bc < 0:
+            return False, work
+        # insert cands[bc] into route br
+        x = cands[bc]
+        r = br
+        p = pos[bc, r]
+        for i in range(L[r], p, -1):
+            R[r, i] = R[r, i - 1]
+        R[r, p] = x
+        L[r] += 1
+        times[r] = time_of(R, L, r, travel, launch_out[r], has_launch)
+        # coverage and gains
+        for j in range(vis_indptr[x], vis_indptr[x + 1]):
+            t = vis_indices[j]
+            if cnt[r, t] == 0:
+                dc[t] += 1
+                if dc[t] <= req[t]:  # t was short: r is a new distinct viewer
+                    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+                        c = cand_of[tgt_indices[i]]
+                        if c >= 0:
+                            gain[c, r] -= 1
+                            if dc[t] == req[t]:  # no longer short: nobody gains it
+                                for q in range(n):
+                                    if q != r and cnt[q, t] == 0:
+                                        gain[c, q] -= 1
+                    if dc[t] == req[t]:
+                        remaining -= 1
+                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * (n if dc[t] == req[t] else 1)
+            cnt[r, t] += 1
+        work += vis_indptr[x + 1] - vis_indptr[x] + nc
+        route = R[r, :L[r]]
+        for c in range(nc):
+            if gain[c, r] > 0:
+                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, launch_out[r],
+                                                  has_launch)
+                work += L[r] + 1
+            else:
+                dt[c, r] = np.inf
+    return True, work
+
+
+@njit(cache=True)
+def _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
+    for j in range(vis_indptr[e], vis_indptr[e + 1]):
+        t = vis_indices[j]
+        if cnt[r, t] == 1 and dc[t] <= req[t]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, launch_out,
+                   has_launch):
+    """Remove visits coverage does not need, largest saving first (the longest
+    route's first); returns work."""
+    n = R.shape[0]
+    work = 0
+    while True:
+        r_max = np.argmax(times)
+        best, bi, br = -1.0, -1, -1
+        for r in range(n):
+            route = R[r, :L[r]]
+            work += L[r]
+            for i in range(L[r]):
+                s = removal_saving(route, i, travel, launch_out[r], has_launch)
+                if s < -1e-9:
+                    continue
+                key = s + (1e12 if r == r_max else 0.0)
+                if key <= best:
+                    continue
+                e = R[r, i]
+                work += (vis_indptr[e + 1] - vis_indptr[e]) // 4
+                if _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
+                    best, bi, br = key, i, r
+        if bi < 0:
+            return work
+        e = R[br, bi]
+        for i in range(bi, L[br] - 1):
+            R[br, i] = R[br, i + 1]
+        L[br] -= 1
+        R[br, L[br]] = -1
+        apply_visit(cnt, dc, br, e, -1, vis_indptr, vis_indices)
+        times[br] = time_of(R, L, br, travel, launch_out[br], has_launch)
+
+
+@njit(cache=True)
+def _prefix(a, m, travel, pf, pb):
+    for i in range(1, m):
+        pf[i] = pf[i - 1] + travel[a[i - 1], a[i]]
+        pb[i] = pb[i - 1] + travel[a[i], a[i - 1]]
+
+
+@njit(cache=True)
+def improve_order(R, L, r, travel, lo, has_launch, max_passes):
+    """2-opt and or-opt (segments of 1-3, either way round) on route r, O(1) per
+    candidate (prefix sums of the legs both ways, so asymmetric travel is
+    exact); a pass applies every improving move it meets and goes on.  Passes
+    repeat until one finds nothing (at most ``max_passes``).  Returns work."""
+    m = L[r]
+    work = 0
+    if m < 2:
+        return work
+    a = R[r, :m].copy()
+    pf = np.zeros(m)
+    pb = np.zeros(m)
+    out = np.empty(m, np.int64)
+    for _ in range(max_passes):
+        improved = False
+        _prefix(a, m, travel, pf, pb)
+        # 2-opt: reverse a[i..j]
+        for i in range(m - 1):
+            prev = a[i - 1] if i > 0 else START
+            for j in range(i + 1, m):
+                nxt = a[j + 1] if j < m - 1 else END
+                old = (leg(prev, a[i], travel, lo, has_launch) + pf[j] - pf[i]
+                       + leg(a[j], nxt, travel, lo, has_launch))
+                new = (leg(prev, a[j], travel, lo, has_launch) + pb[j] - pb[i]
+                       + leg(a[i], nxt, travel, lo, has_launch))
+                if new < old - 1e-9:
+                    a[i:j + 1] = a[i:j + 1][::-1].copy()
+                    _prefix(a, m, travel, pf, pb)
+                    improved = True
+                    work += 2 * m
+            work += 8 * (m - i)
+        # or-opt: move a[i..i+s-1] into another gap, forward or reversed
+        for s in range(1, 4):
+            i = 0
+            while i <= m - s:
+                j = i + s - 1
+                prev = a[i - 1] if i > 0 else START
+                nxt = a[j + 1] if j < m - 1 else END
+                if prev == START and nxt == END:
+                    i += 1
+                    continue
+                inner_f = pf[j] - pf[i]
+                inner_b = pb[j] - pb[i]
+                removed = (leg(prev, a[i], travel, lo, has_launch) + inner_f
+                           + leg(a[j], nxt, travel, lo, has_launch)
+                           - leg(prev, nxt, travel, lo, has_launch))
+                best, best_g, best_rev = removed - 1e-9, -1, False
+                for g in range(m + 1):
+                    if i <= g <= j + 1:
+                        continue
+                    left = a[g - 1] if g > 0 else START
+                    right = a[g] if g < m else END
+                    base = leg(left, right, travel, lo, has_launch)
+                    fwd = (leg(left, a[i], travel, lo, has_launch) + inner_f
+                           + leg(a[j], right, travel, lo, has_launch) - base)
+                    if fwd < best:
+                        best, best_g, best_rev = fwd, g, False
+                    if s > 1:
+                        bwd = (leg(left, a[j], travel, lo, has_launch) + inner_b
+                               + leg(a[i], right, travel, lo, has_launch) - base)
+                        if bwd < best:
+                            best, best_g, best_rev = bwd, g, True
+                work += (16 if s > 1 else 10) * m
+                if best_g < 0:
+                    i += 1
+                    continue
+                w = 0
+                for q in range(m + 1):
+                    if q == best_g:
+                        for z in range(s):
+                            out[w] = a[j - z] if best_rev else a[i + z]
+                            w += 1
+                    if q < m and (q < i or q > j):
+                        out[w] = a[q]
+                        w += 1
+                a[:] = out
+                _prefix(a, m, travel, pf, pb)
+                improved = True
+                work += 2 * m
+                i += 1
+        if not improved:
+            break
+    R[r, :m] = a
+    return work
+
+
+@njit(cache=True)
+def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
+    """Coverage counts back to the routes (R0, L0): visits in R but not R0 are
+    removed, visits in R0 but not R are added (per UAV; ``mark`` is scratch of
+    n_viewpoints zeros, left zero)."""
+    for r in range(R.shape[0]):
+        for i in range(L0[r]):
+            mark[R0[r, i]] = 1
+        for i in range(L[r]):
+            e = R[r, i]
+            if mark[e] == 1:
+                mark[e] = 2  # in both
+            else:
+                apply_visit(cnt, dc, r, e, -1, vis_indptr, vis_indices)
+        for i in range(L0[r]):
+            e = R0[r, i]
+            if mark[e] == 1:
+                apply_visit(cnt, dc, r, e, 1, vis_indptr, vis_indices)
+            mark[e] = 0
+
+
+@njit(cache=True)
+def savings_all(R, L, travel, launch_out, has_launch):
+    """Removal saving of every visit, routes in order (the `visits` order)."""
+    out = np.empty(L.sum())
+    k = 0
+    for r in range(R.shape[0]):
+        route = R[r, :L[r]]
+        for i in range(L[r]):
+            out[k] = removal_saving(route, i, travel, launch_out[r], has_launch)
+            k += 1
+    return out
+
+
+@njit(cache=True)
+def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
+    """Remove visits (rs[k], idx[k]) (distinct), updating coverage; their
+    viewpoints go to ``removed``; returns how many."""
+    n = R.shape[0]
+    k = 0
+    for r in range(n):
+        m = L[r]
+        drop = np.zeros(m, np.bool_)
+        any_ = False
+        for q in range(len(rs)):
+            if rs[q] == r:
+                drop[idx[q]] = True
+                any_ = True
+        if not any_:
+            continue
+        w = 0
+        for i in range(m):
+            e = R[r, i]
+            if drop[i]:
+                apply_visit(cnt, dc, r, e, -1, vis_indptr, vis_indices)
+                removed[k] = e
+                k += 1
+            else:
+                R[r, w] = e
+                w += 1
+        for i in range(w, m):
+            R[r, i] = -1
+        L[r] = w
+    return k
+
+
+@njit(cache=True)
+def short_targets(removed, dc, req, vis_indptr, vis_indices, mark):
+    """Targets seen from ``removed`` viewpoints that are now short (``mark``:
+    scratch of n_targets zeros, left zero)."""
+    total = 0
+    for e in removed:
+        total += vis_indptr[e + 1] - vis_indptr[e]
+    out = np.empty(total, np.int64)
+    k = 0
+    for e in removed:
+        for j in range(vis_indptr[e], vis_indptr[e + 1]):
+            t = vis_indices[j]
+            if mark[t] == 0 and dc[t] < req[t]:
+                mark[t] = 1
+                out[k] = t
+                k += 1
+    for i in range(k):
+        mark[out[i]] = 0
+    return out[:k]

@@ -1,0 +1,299 @@
+"""A lower bound on coverage time worth the name: the first-sighting flow LP.
+
+**The relaxation.** Look at one UAV's route e_1, e_2, ..., e_m.  A target t it
+sees is seen *first* at some e_i whose predecessor does not see t (or e_i is
+the first viewpoint), so t is in the *gain* of the leg that arrives there,
+``gain(u -> e) = vis(e) \\ vis(u)`` (a start leg gains all of ``vis(e)``).
+So every route is a path of legs; each target t must lie in the gain of legs
+of ``need[t]`` distinct routes; and a route's time is the sum of its legs'
+times.  Dropping integrality and which route a leg belongs to gives a
+linear programme over leg flows ``x``:
+
+    minimise T  subject to
+      sum over legs a with t in gain(a) of x_a  >= need[t]       (every target)
+      flow out of e <= flow into e                               (paths)
+      start legs of UAV r <= 1                                   (one route each)
+      sum of time(a) x_a <= n T                                  (the n routes' times)
+
+Only the legs into e from its K nearest viewpoints (in travel time) are
+variables.  Any other leg u -> e of a route is replaced by a chain of
+variable legs from u to e: its gain is inside the chain's (a target new at
+e is new at the first chain viewpoint that sees it), so coverage survives;
+its time is at most ``gamma`` times the leg's, where ``gamma`` >= 1 is
+certified by `stretch` (an in-neighbour w of e with ``gamma tau(u, w) +
+tau(w, e) <= gamma tau(u, e)`` for every pair, by induction on tau(u, .));
+legs that fail it are added as variables.  Leg times in the LP are divided
+by gamma, so every plan maps to a feasible LP point no slower than itself:
+the LP optimum is a lower bound.  On hidden travel times (shortest paths
+over the terrain graph) gamma is 1 with K = 24 on the sample terrain.
+
+**With launch points**, a route's LP time of reaching e is at least rho_r(e),
+the shortest LP path from r's launch; a viewpoint that no UAV reaches within
+T cannot be on a route of time <= T.  The LP solved with those viewpoints
+left out gives f(T); every T with f(T) > T is a lower bound (bisection).
+
+**Size.** Targets beyond `MAX_TARGETS` are thinned evenly over their ids
+(raster order on terrain, so evenly over the area): a bound for fewer targets
+bounds the whole.  HiGHS (scipy) solves it; the value is lowered by a
+relative 1e-6 for its tolerances.
+
+Not modelled (kept as relaxations): which UAV flies which leg (targets
+needing k+1 *distinct* UAVs are only counted), and balancing beyond the sum.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+from scipy.optimize import linprog
+from scipy.sparse import coo_matrix, csr_matrix, vstack
+from scipy.sparse.csgraph import dijkstra
+
+from .metrics import _packing_bound, _reach_bound
+from .problem import CoverageProblem, prepare
+
+#: legs into each viewpoint kept as LP variables (its nearest in travel time)
+IN_ARCS = 24
+#: at most this many targets in the LP (evenly thinned beyond)
+MAX_TARGETS = 3000
+#: bisection steps on T with launch points
+BISECTION_STEPS = 6
+#: the LP is given up (the other bounds remain) beyond this size
+MAX_NONZEROS = 3_000_000
+#: HiGHS safety net, seconds (the sizes above keep it far below)
+LP_TIME_LIMIT_S = 60.0
+_SAFETY = 1e-6
+
+
+@njit(cache=True)
+def stretch(travel, in_nbr, explicit):
+    """Per pair (u, e), the least gamma the induction certifies (see module doc):
+    min over in-neighbours w of e of tau(w, e) / (tau(u, e) - tau(u, w)).
+    Returns the matrix (1 on explicit legs and unreachable pairs)."""
+    n = travel.shape[0]
+    out = np.ones((n, n))
+    for e in range(n):
+        for u in range(n):
+            if u == e or explicit[u, e] or not np.isfinite(travel[u, e]):
+                continue
+            tue = travel[u, e]
+            best = np.inf
+            for j in range(in_nbr.shape[1]):
+                w = in_nbr[e, j]
+                if w < 0:
+                    continue
+                d = tue - travel[u, w]
+                if d > 0.0:
+                    g = travel[w, e] / d
+                    if g < best:
+                        best = g
+            out[u, e] = max(best, 1.0)
+    return out
+
+
+@njit(cache=True)
+def leg_gains(tails, heads, vis_indptr, vis_indices, row_of):
+    """COO (row, leg) of each target row in gain(tail -> head); tail < 0: a start."""
+    n_t = len(row_of)
+    mark = np.zeros(n_t, np.bool_)
+    total = 0
+    for a in range(len(heads)):
+        total += vis_indptr[heads[a] + 1] - vis_indptr[heads[a]]
+    rows = np.empty(total, np.int64)
+    cols = np.empty(total, np.int64)
+    k = 0
+    for a in range(len(heads)):
+        u, e = tails[a], heads[a]
+        if u >= 0:
+            for j in range(vis_indptr[u], vis_indptr[u + 1]):
+                mark[vis_indices[j]] = True
+        for j in range(vis_indptr[e], vis_indptr[e + 1]):
+            t = vis_indices[j]
+            if row_of[t] >= 0 and not mark[t]:
+                rows[k] = row_of[t]
+                cols[k] = a
+                k += 1
+        if u >= 0:
+            for j in range(vis_indptr[u], vis_indptr[u + 1]):
+                mark[vis_indices[j]] = False
+    return rows[:k], cols[:k]
+
+
+def _targets(prep, need, max_targets):
+    ids = np.flatnonzero((need > 0) & (np.diff(prep.tgt_indptr) > 0))
+    if len(ids) > max_targets:
+        ids = ids[np.unique(np.linspace(0, len(ids) - 1, max_targets).round().astype(np.int64))]
+    return ids
+
+
+def _legs(prep, k_in, max_gamma=1.05, max_rounds=3):
+    """Variable legs (tail, head, LP time) and the certified gamma."""
+    travel = prep.travel
+    n_vp = travel.shape[0]
+    tt = travel.copy()
+    np.fill_diagonal(tt, np.inf)
+    k_in = min(k_in, n_vp - 1)
+    explicit = np.zeros((n_vp, n_vp), np.bool_)
+    if k_in > 0:
+        nbr = np.argpartition(tt, k_in - 1, axis=0)[:k_in].T  # nbr[e] = nearest tails
+        nbr = np.where(np.isfinite(tt[nbr, np.arange(n_vp)[:, None]]), nbr, -1)
+        for e in range(n_vp):
+            explicit[nbr[e][nbr[e] >= 0], e] = True
+    gamma = 1.0
+    for _ in range(max_rounds):
+        in_nbr = _in_lists(explicit)
+        g = stretch(travel, in_nbr, explicit)
+        gamma = float(g.max()) if n_vp else 1.0
+        if gamma <= max_gamma:
+            break
+        # add the worst legs into each viewpoint as variables, and certify again
+        bad = g > max_gamma
+        for e in np.flatnonzero(bad.any(axis=0)):
+            us = np.flatnonzero(bad[:, e])
+            worst = us[np.argsort(-g[us, e], kind="stable")[:max(k_in // 2, 4)]]
+            explicit[worst, e] = True
+    tails, heads = np.nonzero(explicit)
+    return tails.astype(np.int64), heads.astype(np.int64), travel[tails, heads], gamma
+
+
+def _in_lists(explicit):
+    n = explicit.shape[0]
+    deg = explicit.sum(axis=0)
+    out = np.full((n, max(int(deg.max()) if n else 0, 1)), -1, np.int64)
+    for e in range(n):
+        us = np.flatnonzero(explicit[:, e])
+        out[e, :len(us)] = us
+    return out
+
+
+class FlowLP:
+    """The first-sighting flow LP of a prepared problem, ready to solve for any pruning."""
+
+    def __init__(self, prep, max_targets=MAX_TARGETS, k_in=IN_ARCS):
+        p = prep.problem
+        self.prep = prep
+        self.n = p.n_uavs
+        n_vp = p.n_viewpoints
+        need = np.maximum(prep.required.astype(np.int64) - prep.seen0.sum(axis=0), 0)
+        self.tids = _targets(prep, need, max_targets)
+        self.need = need[self.tids].astype(float)
+        tails, heads, times, self.gamma = _legs(prep, k_in)
+        # start legs: per UAV from its launch (time launch_out), or free starts
+        starts_r = np.repeat(np.arange(self.n), n_vp)
+        starts_e = np.tile(np.arange(n_vp), self.n)
+        if prep.has_launch:
+            st_time = prep.launch_out[starts_r, starts_e]
+        else:
+            st_time = np.zeros(len(starts_r))
+        ok = np.isfinite(st_time)
+        starts_r, starts_e, st_time = starts_r[ok], starts_e[ok], st_time[ok]
+        self.tails = np.concatenate([-1 - starts_r, tails])
+        self.heads = np.concatenate([starts_e, heads])
+        self.times = np.concatenate([st_time, times / self.gamma])
+        self.n_starts = len(starts_r)
+        row_of = np.full(p.n_targets, -1, np.int64)
+        row_of[self.tids] = np.arange(len(self.tids))
+        self.cover_rows, self.cover_cols = leg_gains(self.tails, self.heads, prep.vis_indptr,
+                                                     prep.vis_indices, row_of)
+        self.nonzeros = len(self.cover_rows) + 3 * len(self.heads)
+
+    # -- pruning by LP-world reach (launch points) --------------------------------------
+    def reach(self):
+        """rho[r, e]: least LP time for UAV r to reach e (inf if not reachable)."""
+        p = self.prep
+        n_vp = p.problem.n_viewpoints
+        vp = self.tails >= 0
+        rho = np.empty((self.n, n_vp))
+        for r in range(self.n):
+            st = self.tails == -1 - r  # node n_vp is r's launch
+            rows = np.concatenate([self.tails[vp], np.full(int(st.sum()), n_vp)])
+            cols = np.concatenate([self.heads[vp], self.heads[st]])
+            w = np.maximum(np.concatenate([self.times[vp], self.times[st]]), 1e-12)
+            g = csr_matrix((w, (rows, cols)), shape=(n_vp + 1, n_vp + 1))
+            rho[r] = dijkstra(g, directed=True, indices=n_vp)[:n_vp]
+        return rho
+
+    def solve(self, allowed=None):
+        """min T with legs into viewpoints outside ``allowed`` [n_uavs, n_vp] left
+        out; returns T (inf if infeasible, None if HiGHS gives up)."""
+        n_legs = len(self.heads)
+        ub = np.full(n_legs, np.inf)
+        if allowed is not None:
+            ok_any = allowed.any(axis=0)
+            leg_ok = ok_any[self.heads] & np.where(self.tails >= 0,
+                                                   ok_any[np.maximum(self.tails, 0)], True)
+            st = self.tails < 0
+            leg_ok[st] &= allowed[-1 - self.tails[st], self.heads[st]]
+            ub[~leg_ok] = 0.0
+        n_vp = self.prep.problem.n_viewpoints
+        nx = n_legs + 1
+        n_rows = len(self.tids)
+        cover = coo_matrix((-np.ones(len(self.cover_rows)), (self.cover_rows, self.cover_cols)),
+                           shape=(n_rows, nx))
+        vp = np.flatnonzero(self.tails >= 0)
+        flow = coo_matrix((np.concatenate([np.ones(len(vp)), -np.ones(n_legs)]),
+                           (np.concatenate([self.tails[vp], self.heads]),
+                            np.concatenate([vp, np.arange(n_legs)]))), shape=(n_vp, nx))
+        st = np.flatnonzero(self.tails < 0)
+        starts = coo_matrix((np.ones(len(st)), (-1 - self.tails[st], st)), shape=(self.n, nx))
+        time_row = coo_matrix((np.r_[self.times, -float(self.n)],
+                               (np.zeros(nx, np.int64), np.arange(nx))), shape=(1, nx))
+        a_ub = vstack([cover, flow, starts, time_row]).tocsr()
+        b_ub = np.concatenate([-self.need, np.zeros(n_vp), np.ones(self.n), [0.0]])
+        c = np.zeros(nx)
+        c[-1] = 1.0
+        bounds = np.column_stack([np.zeros(nx), np.r_[ub, np.inf]])
+        res = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs",
+                      options={"time_limit": LP_TIME_LIMIT_S})
+        if res.status == 2:
+            return math.inf
+        if res.status != 0:
+            return None
+        return float(res.fun) * (1.0 - _SAFETY)
+
+
+def flow_bound(prep, max_targets=MAX_TARGETS, k_in=IN_ARCS, steps=BISECTION_STEPS) -> float:
+    """The first-sighting flow LP bound (0 when nothing is needed or the LP is too large)."""
+    p = prep.problem
+    if p.n_viewpoints == 0 or p.n_targets == 0:
+        return 0.0
+    lp = FlowLP(prep, max_targets, k_in)
+    if len(lp.tids) == 0 or lp.nonzeros > MAX_NONZEROS:
+        return 0.0
+    base = lp.solve()
+    if base is None:
+        return 0.0
+    if not prep.has_launch or not math.isfinite(base):
+        return base if math.isfinite(base) else 0.0
+    rho = lp.reach()
+
+    def f(t):
+        v = lp.solve(rho <= t)
+        return None if v is None else v
+
+    best = base
+    hi = None
+    t = base
+    for _ in range(steps):  # grow until f(T) <= T, then bisect
+        probe = t * 1.15 if hi is None else 0.5 * (best + hi)
+        v = f(probe)
+        if v is None:
+            break
+        if v > probe:
+            best = probe
+            t = probe
+        else:
+            hi = probe
+    return best
+
+
+def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
+    """The best lower bound on coverage time we have (seconds): the largest of
+    the reach and packing bounds (`metrics.lower_bound`) and, with ``strong``,
+    the first-sighting flow LP (`flow_bound`; a second or two of HiGHS on
+    the benchmark problems)."""
+    prep = prepare(problem)
+    bound = max(_reach_bound(prep), _packing_bound(prep))
+    if strong:
+        bound = max(bound, flow_bound(prep))
+    return float(bound)
