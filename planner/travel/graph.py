@@ -249,7 +249,13 @@ class TravelGraph:
         """The highest altitude above (x, y) where a vehicle is hidden and clear with
         its track tolerance (the top of a takeoff there), or NaN if there is none.
         Hidden only gets likelier lower down and clear higher up, so the altitudes
-        that pass form one interval: bisect for its top."""
+        that pass form one interval: bisect for its top (once per point)."""
+        key = ("top", round(float(x), 6), round(float(y), 6))
+        if key not in self._attached:
+            self._attached[key] = self._column_top(float(x), float(y))
+        return self._attached[key]
+
+    def _column_top(self, x, y) -> float:
         terrain = self.surface.terrain
         row, col = terrain.rowcol(x, y)
         ceiling = float(bilinear(self._ceiling, np.atleast_1d(row), np.atleast_1d(col))[0])
