@@ -33,6 +33,7 @@ from planner.visibility import (
 
 from . import coverage
 from .context import PlanningContext, outposts_json
+from .parallel import dask_client
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
 
@@ -61,34 +62,42 @@ def _stage(name, timing, progress):
 
 
 def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
-            outposts=None) -> PlanningContext:
+            outposts=None, scheduler="auto", log=None) -> PlanningContext:
     """Run the terrain-bound stages of ``scenario`` (``terrain`` and ``outposts``
-    given directly replace the scenario's files, e.g. for synthetic terrain)."""
+    given directly replace the scenario's files, e.g. for synthetic terrain).
+
+    ``scheduler``: where the chunked stages (travel graph, travel times) run:
+    "auto" (in this process, or a local dask cluster on a large area), the
+    address of a dask scheduler, a ``distributed.Client``, or None (here).
+    ``log(text)`` is told which, when it is not this process."""
     s = scenario
     timing = {}
     surface = exposure_stages(s, progress, timing, terrain, outposts)
     terrain, outposts = surface.terrain, surface.outposts
     launch_xy = _launch_xy(terrain, s)
     regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
-    with _stage("travel graph", timing, progress):
-        graph = build_travel_graph(surface, s.travel_params())
-    with _stage("viewpoints", timing, progress):
-        candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
-                                          s.sensor_range_m)
-        tops = None if launch_xy is None else launch_tops(graph, launch_xy)
-        viewpoints = candidates.subset(graph.reachable(tops)[graph.nodes_of(candidates.xyz)])
-        if not len(viewpoints):
-            raise InputError("exposure", "no viewpoint can be reached by hidden flight: the "
-                             "hidden region is too thin or too broken up for legs that keep "
-                             "the clearance and the track tolerance (try a larger --area, "
-                             "a lower --clearance or --track-tolerance)")
-    with _stage("visibility", timing, progress):
-        visibility = compute_visibility(surface, viewpoints, s.sensor_params())
-    ctx = PlanningContext(s, terrain, list(outposts), surface, regions, viewpoints, visibility,
-                          graph, timing_s=timing)
-    with _stage("travel times", timing, progress):
-        ctx.travel  # noqa: B018 - computed here, in its own stage
-    return ctx
+    with dask_client(scheduler, terrain.height.size, log) as client:
+        with _stage("travel graph", timing, progress):
+            graph = build_travel_graph(surface, s.travel_params(), client=client,
+                                       progress=_fraction(progress, "travel graph"))
+        with _stage("viewpoints", timing, progress):
+            candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
+                                              s.sensor_range_m)
+            tops = None if launch_xy is None else launch_tops(graph, launch_xy)
+            viewpoints = candidates.subset(
+                graph.reachable(tops)[graph.nodes_of(candidates.xyz)])
+            if not len(viewpoints):
+                raise InputError("exposure", "no viewpoint can be reached by hidden flight: "
+                                 "the hidden region is too thin or too broken up for legs "
+                                 "that keep the clearance and the track tolerance (try a "
+                                 "larger --area, a lower --clearance or --track-tolerance)")
+        with _stage("visibility", timing, progress):
+            visibility = compute_visibility(surface, viewpoints, s.sensor_params())
+        with _stage("travel times", timing, progress):
+            times = graph.time_matrix(viewpoints.xyz, client=client,
+                                      progress=_fraction(progress, "travel times"))
+    return PlanningContext(s, terrain, list(outposts), surface, regions, viewpoints,
+                           visibility, graph, times, timing_s=timing)
 
 
 def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, terrain=None,
@@ -111,9 +120,10 @@ def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, 
 
 
 def _fraction(progress, stage):
+    """``progress`` for one stage: called with (done, total) or with a fraction."""
     if progress is None:
         return None
-    return lambda done, total: progress(stage, done / max(total, 1))
+    return lambda done, total=1: progress(stage, done / max(total, 1))
 
 
 def _launch_xy(terrain, s: Scenario):
@@ -363,8 +373,10 @@ def _vehicle(ctx, r, poly, t, snap, start) -> VehicleRoute:
                         mission_time_s=mission_t, path_length_m=length)
 
 
-def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None):
-    """Scenario -> (PlanningContext, Outcome): the whole of `gcs plan`."""
-    ctx = prepare(scenario, progress, terrain, outposts)
+def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None,
+                 scheduler="auto", log=None):
+    """Scenario -> (PlanningContext, Outcome): the whole of `gcs plan` (``scheduler``,
+    ``log``: see `prepare`)."""
+    ctx = prepare(scenario, progress, terrain, outposts, scheduler, log)
     starts = launch_starts(ctx)
     return ctx, allocate(ctx, scenario.uavs, starts, progress=progress)

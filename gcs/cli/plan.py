@@ -9,6 +9,9 @@ def add_arguments(parser) -> None:
     add_scenario_arguments(parser)
     parser.add_argument("-o", "--output", required=True, metavar="DIR",
                         help="output directory (created; files in it are replaced atomically)")
+    parser.add_argument("--scheduler", metavar="ADDRESS",
+                        help="dask scheduler (tcp://HOST:8786) to run the heavy stages on "
+                             "(default: this machine; a local dask cluster on large areas)")
 
 
 def run(args) -> int:
@@ -20,7 +23,8 @@ def run(args) -> int:
     scenario = scenario_from_args(args)
     check_output_dir(args.output)
     with stage_progress() as progress:
-        ctx, outcome = plan_mission(scenario, progress)
+        ctx, outcome = plan_mission(scenario, progress, scheduler=args.scheduler or "auto",
+                                    log=lambda text: console.print(text, markup=False))
         progress("write", 0.0)
         written = write_plan_folder(args.output, ctx, outcome)
         progress("write", 1.0)
