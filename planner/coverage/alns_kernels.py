@@ -65,8 +65,8 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
 
 
 @njit(cache=True)
-def repair(R, L, times, cnt, dc, req, short, vis_indptr, vis_indices, tgt_indptr, tgt_indices,
-           travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd):
+def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tgt_indptr,
+           tgt_indices, travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd):
     """Insert visits until no target in ``short`` (and no other) is short.
 
     Candidates are the (viewpoint, UAV) pairs that give a short target a new
@@ -76,6 +76,8 @@ def repair(R, L, times, cnt, dc, req, short, vis_indptr, vis_indices, tgt_indptr
     time), REGRET (the short target whose best option is most ahead of its
     second best is covered first, by its best option, costed as MAKESPAN).
     ``noise`` in [0, 1) scales scores by 1 +- noise (``rnd``: uniforms).
+    ``weight[t]``: cells in target class t (`classes.py`; ones for plain targets);
+    gains count cells.
     Returns (ok, work); ok is False if some short target has no option left.
     """
     n = R.shape[0]
@@ -102,7 +104,7 @@ def repair(R, L, times, cnt, dc, req, short, vis_indptr, vis_indices, tgt_indptr
             c = cand_of[tgt_indices[i]]
             for r in range(n):
                 if cnt[r, t] == 0:
-                    gain[c, r] += 1
+                    gain[c, r] += weight[t]
     dt = np.full((nc, n), np.inf)
     pos = np.zeros((nc, n), np.int64)
     work = 2 * len(short) + (tgt_indptr[short + 1] - tgt_indptr[short]).sum() * (n + 1)
@@ -179,11 +181,11 @@ def repair(R, L, times, cnt, dc, req, short, vis_indptr, vis_indices, tgt_indptr
                     for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
                         c = cand_of[tgt_indices[i]]
                         if c >= 0:
-                            gain[c, r] -= 1
+                            gain[c, r] -= weight[t]
                             if dc[t] == req[t]:  # no longer short: nobody gains it
                                 for q in range(n):
                                     if q != r and cnt[q, t] == 0:
-                                        gain[c, q] -= 1
+                                        gain[c, q] -= weight[t]
                     if dc[t] == req[t]:
                         remaining -= 1
                 work += (tgt_indptr[t + 1] - tgt_indptr[t]) * (n if dc[t] == req[t] else 1)

@@ -32,9 +32,10 @@ the shortest LP path from r's launch; a viewpoint that no UAV reaches within
 T cannot be on a route of time <= T.  The LP solved with those viewpoints
 left out gives f(T); every T with f(T) > T is a lower bound (bisection).
 
-**Size.** Targets beyond `MAX_TARGETS` are thinned evenly over their ids
-(raster order on terrain, so evenly over the area): a bound for fewer targets
-bounds the whole.  HiGHS (scipy) solves it; the value is lowered by a
+**Size.** Targets seen from the same viewpoints give identical rows, so the
+LP is built on target classes (`classes.py`).  Classes beyond `MAX_TARGETS`
+are thinned evenly over their ids: a bound for fewer targets bounds the
+whole.  With launch points the bisection takes `BISECTION_STEPS` LPs.  HiGHS (scipy) solves it; the value is lowered by a
 relative 1e-6 for its tolerances.
 
 Not modelled (kept as relaxations): which UAV flies which leg (targets
@@ -49,15 +50,16 @@ from scipy.optimize import linprog
 from scipy.sparse import coo_matrix, csr_matrix, vstack
 from scipy.sparse.csgraph import dijkstra
 
+from .classes import target_classes
 from .metrics import _packing_bound, _reach_bound
 from .problem import CoverageProblem, prepare
 
 #: legs into each viewpoint kept as LP variables (its nearest in travel time)
 IN_ARCS = 24
-#: at most this many targets in the LP (evenly thinned beyond)
-MAX_TARGETS = 3000
+#: at most this many target classes in the LP (evenly thinned beyond)
+MAX_TARGETS = 1500
 #: bisection steps on T with launch points
-BISECTION_STEPS = 6
+BISECTION_STEPS = 4
 #: the LP is given up (the other bounds remain) beyond this size
 MAX_NONZEROS = 3_000_000
 #: HiGHS safety net, seconds (the sizes above keep it far below)
@@ -289,11 +291,14 @@ def flow_bound(prep, max_targets=MAX_TARGETS, k_in=IN_ARCS, steps=BISECTION_STEP
 
 def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     """The best lower bound on coverage time we have (seconds): the largest of
-    the reach and packing bounds (`metrics.lower_bound`) and, with ``strong``,
-    the first-sighting flow LP (`flow_bound`; a second or two of HiGHS on
-    the benchmark problems)."""
+    the reach and packing bounds (`metrics.lower_bound`, the "radius bound")
+    and, with ``strong``, the first-sighting flow LP (`flow_bound`; a few
+    seconds of HiGHS on the benchmark problems).  The packing and flow bounds
+    work on target classes (`classes.target_classes`: identical rows, so the
+    same bound at a fraction of the size)."""
     prep = prepare(problem)
-    bound = max(_reach_bound(prep), _packing_bound(prep))
+    cprep = target_classes(prep)[0] if problem.n_targets else prep
+    bound = max(_reach_bound(prep), _packing_bound(cprep))
     if strong:
-        bound = max(bound, flow_bound(prep))
+        bound = max(bound, flow_bound(cprep))
     return float(bound)

@@ -1,0 +1,100 @@
+"""Target classes: cells seen by exactly the same viewpoints are interchangeable.
+
+Two targets with the same set of viewpoints that see them, the same required
+number of distinct UAVs and the same earlier sightings (re-planning) are
+covered by exactly the same plans, at the same moment.  So coverage can be
+decided per *class* of such targets, each weighted by how many cells it
+holds: a plan covers every target iff it covers every class, and the number
+of targets a visit gains is the summed weight of the classes it gains.  On
+terrain there are far fewer classes than cells (neighbouring cells are seen
+from the same places), so the bookkeeping of a search shrinks with them.
+
+`target_classes` builds the class problem of a prepared problem; it is exact
+(lists compared element by element, hashes only sort them).
+"""
+
+from dataclasses import replace
+
+import numpy as np
+from numba import njit
+
+from .problem import Prepared, csc_transpose
+
+
+@njit(cache=True)
+def _class_ids(order, t_indptr, t_indices, req, seen_key):
+    """Walk targets in ``order`` (sorted by a key of their viewpoint lists) and
+    start a new class whenever a target's list, need or sightings differ from
+    the previous one's (exact comparison). Returns class id per target."""
+    n = len(order)
+    cls = np.empty(n, np.int64)
+    c = -1
+    prev = -1
+    for i in range(n):
+        t = order[i]
+        same = prev >= 0 and req[t] == req[prev] and seen_key[t] == seen_key[prev]
+        if same:
+            a0, a1 = t_indptr[t], t_indptr[t + 1]
+            b0, b1 = t_indptr[prev], t_indptr[prev + 1]
+            if a1 - a0 != b1 - b0:
+                same = False
+            else:
+                for j in range(a1 - a0):
+                    if t_indices[a0 + j] != t_indices[b0 + j]:
+                        same = False
+                        break
+        if not same:
+            c += 1
+        cls[t] = c
+        prev = t
+    return cls
+
+
+def _set_hash(values, indptr):
+    """Sum (wrapping) of per-viewpoint random words over each target's list."""
+    cs = np.zeros(len(values) + 1, np.int64)
+    with np.errstate(over="ignore"):
+        np.cumsum(values, out=cs[1:])
+        return cs[indptr[1:]] - cs[indptr[:-1]]
+
+
+def target_classes(prep: Prepared):
+    """(class problem, weight per class, class of each target).
+
+    The class problem is a `Prepared` whose targets are the classes: its
+    visibility lists hold each class once, ``required`` and ``seen0`` are the
+    members' (equal by construction).  Targets no viewpoint sees form classes
+    too (kept so the counts line up; they need nothing)."""
+    n_t = prep.problem.n_targets
+    n_vp = prep.problem.n_viewpoints
+    if n_t == 0:
+        return prep, np.zeros(0, np.int64), np.zeros(0, np.int64)
+    rng = np.random.default_rng(12345)
+    h = rng.integers(1, 2**62, size=(2, max(n_vp, 1)), dtype=np.int64)
+    deg = np.diff(prep.tgt_indptr)
+    h1, h2 = (_set_hash(hv[prep.tgt_indices], prep.tgt_indptr) for hv in h)
+    n = prep.seen0.shape[0]
+    # earlier sightings as a key: bits of the UAVs that saw the target (n < 63)
+    seen_key = (prep.seen0.astype(np.int64) << np.arange(n, dtype=np.int64)[:, None]).sum(axis=0)
+    order = np.lexsort((seen_key, prep.required, h2, h1, deg))
+    cls = _class_ids(order, prep.tgt_indptr, prep.tgt_indices, prep.required, seen_key)
+    n_c = int(cls.max()) + 1
+    weight = np.bincount(cls, minlength=n_c).astype(np.int64)
+    rep = np.empty(n_c, np.int64)
+    rep[cls[order[::-1]]] = order[::-1]  # first member of each class (in walk order)
+    # class CSC (class -> viewpoints) is the representative's list
+    c_deg = deg[rep]
+    c_indptr = np.zeros(n_c + 1, np.int64)
+    np.cumsum(c_deg, out=c_indptr[1:])
+    c_indices = np.concatenate([prep.tgt_indices[prep.tgt_indptr[t]:prep.tgt_indptr[t + 1]]
+                                for t in rep]) if n_c else np.zeros(0, np.int64)
+    # class CSR (viewpoint -> classes): the transpose
+    vis_indptr, vis_indices = csc_transpose(c_indptr, c_indices, n_vp)
+    problem = replace(prep.problem, vis_indptr=vis_indptr, vis_indices=vis_indices,
+                      n_targets=n_c, required=prep.required[rep].copy(),
+                      seen=prep.seen0[:, rep].astype(bool))
+    out = replace(prep, problem=problem, vis_indptr=vis_indptr, vis_indices=vis_indices,
+                  tgt_indptr=c_indptr, tgt_indices=c_indices.astype(np.int64),
+                  seen0=np.ascontiguousarray(prep.seen0[:, rep]),
+                  required=prep.required[rep].astype(np.int32))
+    return out, weight, cls
