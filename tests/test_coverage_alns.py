@@ -1,0 +1,203 @@
+"""ALNS and the lower bounds, judged by what they did not produce: coverage by
+a brute-force count over the dense visibility matrix, and the optimum of tiny
+instances by exhaustive enumeration of every plan."""
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from planner.coverage import (
+    METHODS,
+    CoverageParams,
+    CoverageProblem,
+    lower_bound,
+    required_uavs,
+    solve,
+)
+from planner.coverage.alns import default_budget_s, search
+from planner.coverage.bounds import flow_bound
+from planner.coverage.instances import random_problem
+from planner.coverage.problem import prepare
+
+QUICK = CoverageParams(time_budget_s=0.05, routing_solutions=10, routing_time_s=1.0)
+
+
+def dense_visibility(problem):
+    """[n_viewpoints, n_targets] booleans, straight from the CSR arrays."""
+    vis = np.zeros((problem.n_viewpoints, problem.n_targets), dtype=bool)
+    for e in range(problem.n_viewpoints):
+        vis[e, problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]] = True
+    return vis
+
+
+def brute_force_shortfall(problem, routes):
+    """Targets seen by fewer distinct UAVs than they need (the one rule, or
+    ``problem.required``), counted UAV by UAV from the dense matrix; targets no
+    viewpoint sees are left out (they are reported, not chased)."""
+    vis = dense_visibility(problem)
+    seen = (np.zeros((problem.n_uavs, problem.n_targets), dtype=bool) if problem.seen is None
+            else np.asarray(problem.seen, dtype=bool).copy())
+    for r, route in enumerate(routes):
+        for e in route:
+            seen[r] |= vis[e]
+    need = (np.full(problem.n_targets, required_uavs(problem.k, problem.n_uavs))
+            if problem.required is None else np.asarray(problem.required))
+    coverable = vis.any(axis=0)
+    need = np.where(coverable, need, np.minimum(need, seen.sum(axis=0)))
+    return int(np.count_nonzero(seen.sum(axis=0) < need))
+
+
+@pytest.mark.parametrize("family,k,launch,seed", [
+    ("uniform", 0, False, 0), ("clustered", 1, True, 1), ("corridor", 2, True, 2),
+    ("uniform", 2, False, 3)])
+def test_alns_plan_covers_every_target_by_its_required_distinct_uavs(family, k, launch, seed):
+    problem = random_problem(n_viewpoints=40, n_targets=300, n_uavs=4, k=k, family=family,
+                             seed=seed, launch=launch, size_m=2000.0, sensor_m=450.0)
+    a = solve(problem, "alns", QUICK)
+    assert a.covered
+    assert brute_force_shortfall(problem, a.routes) == 0
+    # no viewpoint is flown twice by one UAV
+    assert all(len(set(route)) == len(route) for route in a.routes)
+
+
+def test_alns_keeps_coverage_after_a_loss():
+    """Re-planning state: earlier snapshots and reduced needs (one UAV lost)."""
+    problem = random_problem(n_viewpoints=40, n_targets=300, n_uavs=3, k=1, seed=6,
+                             launch=True, size_m=2000.0, sensor_m=450.0)
+    rng = np.random.default_rng(1)
+    problem.seen = rng.uniform(size=(3, problem.n_targets)) < 0.3
+    need = np.full(problem.n_targets, 2)
+    need[::4] = 1
+    problem.required = need
+    a = solve(problem, "alns", QUICK)
+    assert a.covered and brute_force_shortfall(problem, a.routes) == 0
+
+
+def test_every_intermediate_alns_solution_covers(monkeypatch):
+    """Each repaired and polished state of the search, not only the returned one, covers."""
+    from planner.coverage import alns as alns_module
+
+    problem = random_problem(n_viewpoints=30, n_targets=200, n_uavs=3, k=1, seed=4,
+                             launch=True, size_m=2000.0, sensor_m=450.0)
+    prep = prepare(problem)
+    start = solve(problem, "rt").routes
+    checked = []
+    original = alns_module.Alns.polish
+
+    def polish(self, *args, **kwargs):
+        out = original(self, *args, **kwargs)
+        checked.append(brute_force_shortfall(problem, self.routes()) == 0)
+        return out
+
+    monkeypatch.setattr(alns_module.Alns, "polish", polish)
+    result = search(prep, [start], CoverageParams(seed=3), units=2_000_000)
+    assert result.iterations > 10 and len(checked) > 10 and all(checked)
+    assert brute_force_shortfall(problem, result.routes) == 0
+
+
+def test_alns_is_deterministic_for_a_seed_and_budget():
+    problem = random_problem(n_viewpoints=60, n_targets=500, n_uavs=4, k=1, seed=8,
+                             family="clustered", launch=True, size_m=2500.0, sensor_m=450.0)
+    params = CoverageParams(seed=7, time_budget_s=0.1)
+    a, b = solve(problem, "alns", params), solve(problem, "alns", params)
+    assert a.routes == b.routes and a.coverage_time == b.coverage_time
+    # the budget is counted in work, not read off a clock: a bigger one never
+    # ends worse than its start, and a run is repeatable at any budget
+    c = solve(problem, "alns", CoverageParams(seed=7, time_budget_s=0.3))
+    assert c.routes == solve(problem, "alns", CoverageParams(seed=7, time_budget_s=0.3)).routes
+    assert c.coverage_time <= solve(problem, "rt", params).coverage_time + 1e-9
+
+
+def test_default_budget_grows_with_the_plan_within_bounds():
+    assert default_budget_s(0) <= default_budget_s(100) <= default_budget_s(10_000)
+    assert default_budget_s(10**6) == default_budget_s(10**7)
+
+
+# -- lower bounds against exhaustive optima ------------------------------------------
+
+def tiny(seed, n_vp, n_uavs, k, launch, n_targets=12):
+    return random_problem(n_viewpoints=n_vp, n_targets=n_targets, n_uavs=n_uavs, k=k,
+                          seed=seed, launch=launch, size_m=900.0, sensor_m=450.0,
+                          see_prob=0.9, family=("uniform", "clustered", "corridor")[seed % 3])
+
+
+def exhaustive_optimum(problem):
+    """The least coverage time over every plan: each UAV flies an ordered
+    sequence of distinct viewpoints (revisits add nothing), all combinations."""
+    vis = dense_visibility(problem)
+    n_vp, n_t, n = problem.n_viewpoints, problem.n_targets, problem.n_uavs
+    seqs = [s for m in range(n_vp + 1) for s in itertools.permutations(range(n_vp), m)]
+    need = required_uavs(problem.k, n)
+    coverable = vis.any(axis=0)
+    firsts = []  # per UAV: [n_seqs, n_targets] time it first sees each target
+    for r in range(n):
+        f = np.full((len(seqs), n_t), np.inf)
+        for i, s in enumerate(seqs):
+            now = 0.0
+            for j, e in enumerate(s):
+                if j == 0:
+                    now = problem.launch_out[r, e] if problem.launch_out is not None else 0.0
+                else:
+                    now += problem.travel[s[j - 1], e]
+                f[i, vis[e]] = np.minimum(f[i, vis[e]], now)
+        firsts.append(f[:, coverable])
+    best = math.inf
+    grids = np.meshgrid(*[np.arange(len(seqs))] * n, indexing="ij")
+    combo = np.stack([g.ravel() for g in grids], axis=1)
+    for chunk in np.array_split(combo, max(1, len(combo) // 20000)):
+        times = np.stack([firsts[r][chunk[:, r]] for r in range(n)], axis=0)
+        kth = np.sort(times, axis=0)[need - 1]  # [combos, targets]
+        best = min(best, float(kth.max(axis=1).min()))
+    return best
+
+
+CASES = [  # (seed, viewpoints, UAVs, k, launch)
+    (0, 5, 2, 0, False), (1, 5, 2, 1, True), (2, 5, 2, 0, True), (3, 5, 2, 1, False),
+    (4, 4, 3, 1, True), (5, 4, 3, 2, True), (6, 4, 3, 0, False), (7, 5, 2, 0, True),
+    (8, 4, 3, 1, False), (9, 5, 2, 1, True)]
+
+
+@pytest.mark.parametrize("seed,n_vp,n_uavs,k,launch", CASES)
+def test_lower_bound_never_exceeds_the_exhaustive_optimum(seed, n_vp, n_uavs, k, launch):
+    problem = tiny(seed, n_vp, n_uavs, k, launch)
+    opt = exhaustive_optimum(problem)
+    lb = lower_bound(problem)
+    assert lb <= opt * (1 + 1e-9) + 1e-9
+    assert flow_bound(prepare(problem)) <= opt * (1 + 1e-9) + 1e-9
+    # and every method's plan is no better than the optimum
+    for m in METHODS:
+        assert solve(problem, m, QUICK).coverage_time >= opt - 1e-6
+
+
+def test_flow_bound_is_tight_somewhere_and_beats_the_radius_bound_on_average():
+    """Not a validity check (that is above): the LP must be worth its name."""
+    ratios, gains = [], []
+    for seed, n_vp, n_uavs, k, launch in CASES:
+        problem = tiny(seed, n_vp, n_uavs, k, launch)
+        opt = exhaustive_optimum(problem)
+        prep = prepare(problem)
+        if opt > 0:
+            ratios.append(lower_bound(problem) / opt)
+            gains.append(flow_bound(prep) >= lower_bound(problem, strong=False) - 1e-9)
+    assert max(ratios) > 0.9 and np.mean(gains) >= 0.5
+
+
+def test_lower_bound_below_every_method_on_mid_instances():
+    for seed, (family, k, launch) in enumerate([("uniform", 1, True), ("corridor", 0, False),
+                                                ("clustered", 2, True)]):
+        problem = random_problem(n_viewpoints=60, n_targets=600, n_uavs=4, k=k, seed=seed,
+                                 family=family, launch=launch, size_m=2500.0, sensor_m=450.0)
+        lb = lower_bound(problem)
+        assert lb > 0
+        for m in METHODS:
+            assert lb <= solve(problem, m, QUICK).coverage_time + 1e-9
+
+
+def test_degenerate_problems():
+    travel = np.array([[0.0, 5.0], [5.0, 0.0]])
+    nothing = CoverageProblem(np.array([0, 0, 0]), np.array([], dtype=np.int64), 0, travel,
+                              None, None, 2)
+    assert lower_bound(nothing) == 0.0
+    assert solve(nothing, "alns").coverage_time == 0.0
