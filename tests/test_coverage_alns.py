@@ -171,6 +171,7 @@ def test_lower_bound_never_exceeds_the_exhaustive_optimum(seed, n_vp, n_uavs, k,
         assert solve(problem, m, QUICK).coverage_time >= opt - 1e-6
 
 
+@pytest.mark.slow
 def test_flow_bound_is_tight_somewhere_and_beats_the_radius_bound_on_average():
     """Not a validity check (that is above): the LP must be worth its name."""
     ratios, gains = [], []
@@ -184,6 +185,7 @@ def test_flow_bound_is_tight_somewhere_and_beats_the_radius_bound_on_average():
     assert max(ratios) > 0.9 and np.mean(gains) >= 0.5
 
 
+@pytest.mark.slow
 def test_lower_bound_below_every_method_on_mid_instances():
     for seed, (family, k, launch) in enumerate([("uniform", 1, True), ("corridor", 0, False),
                                                 ("clustered", 2, True)]):

@@ -45,7 +45,7 @@ HELP = {
     "step_time_cap_s": "cap th_ra on one insertion's added time, seconds (default: automatic)",
     "time_budget_s": "search budget of --method alns, seconds on the reference machine, "
                      "counted in work units so a plan is the same on any machine "
-                     "(default: 0.01 s per snapshot, 0.1 to 10 s)",
+                     "(default: 0.01 s per snapshot of the start plan, 0.1 to 5 s)",
     "seed": "random seed (ties and baselines)",
 }
 

@@ -26,8 +26,11 @@ def plan_summary(plan) -> Group:
         table.add_row(str(v.id), str(len(v.snapshots)), _minutes(v.coverage_time_s),
                       _minutes(v.mission_time_s), f"{v.path_length_m / 1000:.1f} km")
     ratio = m.get("ratio_to_lower_bound")
+    radius = m.get("radius_bound_s")
+    beside = (f"; radius bound {_minutes(radius)}" if radius is not None
+              and radius < m["lower_bound_s"] - 0.5 else "")
     cover = (f"coverage time {_minutes(m['coverage_time_s'])} (lower bound "
-             f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f})" if ratio else
+             f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f}{beside})" if ratio else
              f"coverage time {_minutes(m['coverage_time_s'])}")
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
                f"UAVs ({100 * m['k_covered'] / max(m['targets'], 1):.1f} %); "

@@ -15,10 +15,10 @@ route times), greedy (RT/RD phases), setcover, routing (OR-Tools), baselines
 of all), solve.
 """
 
-from .bounds import lower_bound
+from .bounds import bounds, lower_bound
 from .metrics import coverage_counts
 from .problem import Allocation, CoverageParams, CoverageProblem, required_uavs
 from .solve import METHODS, solve
 
-__all__ = ["Allocation", "CoverageParams", "CoverageProblem", "METHODS", "coverage_counts",
-           "lower_bound", "required_uavs", "solve"]
+__all__ = ["Allocation", "CoverageParams", "CoverageProblem", "METHODS", "bounds",
+           "coverage_counts", "lower_bound", "required_uavs", "solve"]

@@ -58,7 +58,7 @@ WORK_PER_S = 1.0e8
 ITERATION_UNITS = 30_000
 #: default budget: seconds per visit of the (polished) start, within bounds
 BUDGET_PER_VISIT_S = 0.01
-MIN_BUDGET_S, MAX_BUDGET_S = 0.1, 10.0
+MIN_BUDGET_S, MAX_BUDGET_S = 0.1, 5.0
 #: RT+LS is a start too (so ALNS is never worse than it) up to this many
 #: viewpoints x UAVs; beyond, its Python local search takes longer than the
 #: whole default budget and RT polished is the start (the benchmark has ALNS

@@ -43,6 +43,7 @@ needing k+1 *distinct* UAVs are only counted), and balancing beyond the sum.
 """
 
 import math
+import time
 
 import numpy as np
 from numba import njit
@@ -60,10 +61,16 @@ IN_ARCS = 24
 MAX_TARGETS = 1500
 #: bisection steps on T with launch points
 BISECTION_STEPS = 4
-#: the LP is given up (the other bounds remain) beyond this size
-MAX_NONZEROS = 3_000_000
-#: HiGHS safety net, seconds (the sizes above keep it far below)
-LP_TIME_LIMIT_S = 60.0
+#: the LP is given up (the other bounds remain) beyond this size, or beyond
+#: this many viewpoints (its legs, their certification and HiGHS would take
+#: longer than the plan: 15 s for 3,000 viewpoints, and then it timed out)
+MAX_NONZEROS = 1_500_000
+FLOW_MAX_VIEWPOINTS = 1500
+#: HiGHS time for the whole bound (base LP and bisection), seconds: a step
+#: that does not finish in what is left is dropped and the bound proven so
+#: far stands (so only on problems that large can the value depend on the
+#: machine; it is a valid bound either way)
+LP_TIME_LIMIT_S = 8.0
 _SAFETY = 1e-6
 
 
@@ -215,7 +222,7 @@ class FlowLP:
             rho[r] = dijkstra(g, directed=True, indices=n_vp)[:n_vp]
         return rho
 
-    def solve(self, allowed=None):
+    def solve(self, allowed=None, time_limit=LP_TIME_LIMIT_S):
         """min T with legs into viewpoints outside ``allowed`` [n_uavs, n_vp] left
         out; returns T (inf if infeasible, None if HiGHS gives up)."""
         n_legs = len(self.heads)
@@ -246,7 +253,7 @@ class FlowLP:
         c[-1] = 1.0
         bounds = np.column_stack([np.zeros(nx), np.r_[ub, np.inf]])
         res = linprog(c, A_ub=a_ub, b_ub=b_ub, bounds=bounds, method="highs",
-                      options={"time_limit": LP_TIME_LIMIT_S})
+                      options={"time_limit": max(time_limit, 0.01)})
         if res.status == 2:
             return math.inf
         if res.status != 0:
@@ -257,12 +264,13 @@ class FlowLP:
 def flow_bound(prep, max_targets=MAX_TARGETS, k_in=IN_ARCS, steps=BISECTION_STEPS) -> float:
     """The first-sighting flow LP bound (0 when nothing is needed or the LP is too large)."""
     p = prep.problem
-    if p.n_viewpoints == 0 or p.n_targets == 0:
+    if p.n_viewpoints == 0 or p.n_targets == 0 or p.n_viewpoints > FLOW_MAX_VIEWPOINTS:
         return 0.0
     lp = FlowLP(prep, max_targets, k_in)
     if len(lp.tids) == 0 or lp.nonzeros > MAX_NONZEROS:
         return 0.0
-    base = lp.solve()
+    deadline = time.perf_counter() + LP_TIME_LIMIT_S
+    base = lp.solve(time_limit=LP_TIME_LIMIT_S)
     if base is None:
         return 0.0
     if not prep.has_launch or not math.isfinite(base):
@@ -270,8 +278,8 @@ def flow_bound(prep, max_targets=MAX_TARGETS, k_in=IN_ARCS, steps=BISECTION_STEP
     rho = lp.reach()
 
     def f(t):
-        v = lp.solve(rho <= t)
-        return None if v is None else v
+        left = deadline - time.perf_counter()
+        return lp.solve(rho <= t, time_limit=left) if left > 0.05 else None
 
     best = base
     hi = None
@@ -293,12 +301,16 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     """The best lower bound on coverage time we have (seconds): the largest of
     the reach and packing bounds (`metrics.lower_bound`, the "radius bound")
     and, with ``strong``, the first-sighting flow LP (`flow_bound`; a few
-    seconds of HiGHS on the benchmark problems).  The packing and flow bounds
-    work on target classes (`classes.target_classes`: identical rows, so the
-    same bound at a fraction of the size)."""
+    seconds of HiGHS on the benchmark problems).  The bounds work on target
+    classes (`classes.target_classes`: identical rows, so the same bound at
+    a fraction of the size)."""
+    return bounds(problem, strong)[1]
+
+
+def bounds(problem: CoverageProblem, strong: bool = True) -> tuple:
+    """(radius bound, best bound) in seconds: see `lower_bound`."""
     prep = prepare(problem)
     cprep = target_classes(prep)[0] if problem.n_targets else prep
-    bound = max(_reach_bound(prep), _packing_bound(cprep))
-    if strong:
-        bound = max(bound, flow_bound(cprep))
-    return float(bound)
+    radius = max(_reach_bound(cprep), _packing_bound(cprep))
+    best = max(radius, flow_bound(cprep)) if strong else radius
+    return float(radius), float(best)
