@@ -40,9 +40,10 @@ SNAP_CANDIDATES = 32
 #: a re-plan in flight uses the plan's method and search budget (`--method alns`,
 #: `--time-budget`), capped at this fraction of the coverage time of the
 #: survivors' start solution: they hover, held, while it runs, so a second of
-#: search must save more than a second of flight. The search takes 3-10 % off
-#: the coverage time of its start (benchmarks/bench_coverage.py), so 1 % of it
-#: is repaid several times: 6 s for 10 minutes of flying left, 0.6 s for one.
+#: search must save more than a second of flight. ALNS flies 4-30 % less than
+#: RT (benchmarks/bench_coverage.py), so 1 % of it is repaid several times:
+#: 6 s for 10 minutes of flying left, 0.6 s for one (the default budget, at
+#: most 5 s, applies below that cap).
 REPLAN_BUDGET_FRACTION = 0.01
 
 

@@ -51,8 +51,12 @@ from .alns_kernels import (
 from .classes import target_classes
 from .methods import method, register
 
-#: work units per second on the reference machine (2 x 2.6 GHz Xeon, one core
-#: busy); measured by benchmarks/bench_coverage.py --calibrate
+#: work units per nominal second of budget.  Measured on this 2-core machine
+#: (search() with 2e8 units, 2026-11-25): 3.2e8 units/s on a 98-viewpoint
+#: terrain case, 2.1e8 on the sample's demo area, 0.86e8 on the whole sample
+#: (3,427 viewpoints: the class building and start polish weigh there), so a
+#: budget of S takes 0.3 S to 1.2 S of wall time; kept at 1e8 so the budget is
+#: an upper estimate of the search's wall time
 WORK_PER_S = 1.0e8
 #: fixed cost of one iteration (the Python around the kernels), in work units
 ITERATION_UNITS = 30_000
