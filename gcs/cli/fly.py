@@ -6,6 +6,7 @@ from pathlib import Path
 from autopilots import ARDUPILOT, NAMES
 from common.errors import InputError
 from gcs.cli.options import (
+    add_connect_timeout,
     add_protocol_arguments,
     check_urls,
     parse_assignments,
@@ -30,8 +31,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--assign", action="append", default=[], metavar="SYSID=VEHICLE",
                         help="fly plan vehicle VEHICLE with system id SYSID (repeatable; "
                              "none: system ids in ascending order take vehicles 1..n)")
-    parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
-                        help="wait this long for every vehicle's HEARTBEAT")
+    add_connect_timeout(parser)
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wait this long for pre-arm readiness (EKF/GPS)")
     add_protocol_arguments(parser)
