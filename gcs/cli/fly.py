@@ -39,6 +39,14 @@ def add_arguments(parser) -> None:
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
+    view = parser.add_argument_group("watching the flight elsewhere")
+    view.add_argument("--forward", action="append", default=[], metavar="URL",
+                      help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
+                           "--out (QGroundControl: udpout:127.0.0.1:14550; a router: "
+                           "tcp:HOST:PORT); what comes back from there is dropped")
+    view.add_argument("--forward-commands", action="store_true",
+                      help="pass what the forwarded side sends on to the vehicles (a second "
+                           "station can then command them, and fight the re-tasking)")
     sim = parser.add_argument_group("dry run with the built-in simulated vehicles")
     sim.add_argument("--sim", type=int, metavar="N",
                      help="start N simulated vehicles with homes at the plan's launch points "
@@ -104,14 +112,31 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
 
 
+def forwarder(args):
+    """The `gcs.forward.Forwarder` of --forward URLs (None without); opened now, so a
+    URL that cannot be opened is bad input before any vehicle is contacted."""
+    if not args.forward:
+        return None
+    from gcs.forward import Forwarder
+    from gcs.link import LinkError
+
+    try:
+        return Forwarder(args.forward, args.forward_commands)
+    except LinkError as exc:
+        raise InputError("--forward", str(exc)) from None
+
+
 def run(args) -> int:
     from gcs.cli.views import fly_flight, summary
     from gcs.fly import Flight, FlightError
     from gcs.progress import console
 
     check_urls(args.connect)
+    check_urls(args.forward, "--forward")
     if not args.connect and not args.sim:
         raise InputError("--connect", "give at least one --connect URL (or --sim N)")
+    if args.forward_commands and not args.forward:
+        raise InputError("--forward-commands", "give --forward URL too")
     options = options_from_args(args)
     live = console.is_terminal
     flight = Flight(args.plan_dir, list(args.connect), options,
@@ -126,6 +151,7 @@ def run(args) -> int:
         if options.timeout_s is None:
             longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
             options.timeout_s = 120.0 + 4.0 * longest / args.speedup
+    options.forward = forwarder(args)
     try:
         report = fly_flight(flight, live)
     except FlightError as exc:
@@ -135,6 +161,9 @@ def run(args) -> int:
     finally:
         if fleet is not None:
             fleet.stop()
+        if options.forward is not None:
+            options.forward.close()
+            print(options.forward.summary(), file=sys.stderr)
     summary(report, options.output)
     return 0 if report["outcome"]["ok"] else 1
 
