@@ -44,6 +44,9 @@ def add_arguments(parser) -> None:
                       help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
                            "--out (QGroundControl: udpout:127.0.0.1:14550; a router: "
                            "tcp:HOST:PORT); what comes back from there is dropped")
+    view.add_argument("--map", nargs="?", const="", metavar="HOST:PORT",
+                      help="serve a live map of the flight to a web browser (offline: the "
+                           "plan's own terrain, no tiles) on 127.0.0.1:8750, or HOST:PORT")
     view.add_argument("--forward-commands", action="store_true",
                       help="pass what the forwarded side sends on to the vehicles (a second "
                            "station can then command them, and fight the re-tasking)")
@@ -112,6 +115,29 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
 
 
+def start_map(flight, args):
+    """The live map of --map (None without), serving before any vehicle is contacted."""
+    if args.map is None:
+        return None
+    from gcs.livemap import LiveMap, parse_address
+
+    try:
+        host, port = parse_address(args.map)
+    except ValueError as exc:
+        raise InputError("--map", str(exc)) from None
+    area = None
+    area_file = flight.plan.params.get("area_file")
+    if area_file and Path(area_file).is_file():
+        from planner.terrain.area import read_area
+        area = read_area(area_file)
+    try:
+        live = LiveMap(flight, flight.ctx, host, port, area).start()
+    except OSError as exc:
+        raise InputError("--map", f"cannot serve on {host}:{port}: {exc.strerror}") from None
+    print(f"live map: {live.url}", file=sys.stderr, flush=True)
+    return live
+
+
 def forwarder(args):
     """The `gcs.forward.Forwarder` of --forward URLs (None without); opened now, so a
     URL that cannot be opened is bad input before any vehicle is contacted."""
@@ -143,16 +169,22 @@ def run(args) -> int:
                     log=(lambda text: None) if live else
                     (lambda text: print(text, file=sys.stderr, flush=True)))
     flight.prepare()                  # the plan read and every mission proven: no link yet
-    fleet = None
-    if args.sim:
-        plan = flight.plan
-        fleet = sim_fleet(plan, args.plan_dir, args, options.output)
-        flight.urls = flight.urls or fleet.urls()
-        if options.timeout_s is None:
-            longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
-            options.timeout_s = 120.0 + 4.0 * longest / args.speedup
     options.forward = forwarder(args)
     try:
+        live_map = start_map(flight, args)
+    except InputError:
+        if options.forward is not None:
+            options.forward.close()
+        raise
+    fleet = None
+    try:
+        if args.sim:
+            plan = flight.plan
+            fleet = sim_fleet(plan, args.plan_dir, args, options.output)
+            flight.urls = flight.urls or fleet.urls()
+            if options.timeout_s is None:
+                longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
+                options.timeout_s = 120.0 + 4.0 * longest / args.speedup
         report = fly_flight(flight, live)
     except FlightError as exc:
         print(f"gcs fly: error: {exc} (see {Path(options.output) / 'flight.json'})",
@@ -164,6 +196,8 @@ def run(args) -> int:
         if options.forward is not None:
             options.forward.close()
             print(options.forward.summary(), file=sys.stderr)
+        if live_map is not None:
+            live_map.stop()
     summary(report, options.output)
     return 0 if report["outcome"]["ok"] else 1
 
