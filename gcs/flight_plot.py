@@ -133,7 +133,7 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
                               [w.lat for w in route.waypoints])
             ax.plot(x, y, "-", color=c, linewidth=0.9, alpha=0.35, zorder=4)
         handles.append(_draw_track(ax, terrain, v, c, clock))
-    for n, r in enumerate(report["replans"], start=1):
+    for r in report["replans"]:
         for sysid, points in r["routes"].items():
             if not points:
                 continue
@@ -142,9 +142,6 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
             c = _colour_of_sysid(report, int(sysid))
             ax.plot(x, y, "-", color="white", linewidth=3.2, alpha=0.8, zorder=6)
             ax.plot(x, y, linestyle=(0, (4, 2)), color=c, linewidth=1.8, zorder=7)
-            ax.annotate(f"re-plan {n}", (x[0], y[0]), fontsize=7, xytext=(-6, -12),
-                        textcoords="offset points", color=c, zorder=11,
-                        bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.7))
     draw_bases(ax, terrain, plan)
     handles += [Line2D([], [], color="grey", linewidth=0.9, alpha=0.5,
                        label="planned route (faint)"),
@@ -204,7 +201,10 @@ def draw_timeline(ax, report, clock) -> None:
         c = vehicle_colour(v["vehicle"])
         if v["track"]:
             tt = clock.track_time(v)
-            ax.plot([tt[0], tt[-1]], [y, y], "-", color=c, linewidth=5, alpha=0.55,
+            end = tt[-1]
+            if v["state"] == "landed" and v.get("landed_at_s") is not None:
+                end = min(end, float(clock.vehicle(v["sysid"], v["landed_at_s"])))
+            ax.plot([tt[0], end], [y, y], "-", color=c, linewidth=5, alpha=0.55,
                     solid_capstyle="butt", zorder=3)
         if v["snapshots"]:
             ts = clock.vehicle(v["sysid"], [s["t_s"] for s in v["snapshots"]])

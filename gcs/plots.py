@@ -77,7 +77,9 @@ def draw_background(ax, terrain, surface, names=True):
         if names:
             rng = f"{o.range_m / 1000:g} km range" if np.isfinite(o.range_m) \
                 else "range unlimited"
-            ax.annotate(f"{name} ({rng})", (ox, oy), xytext=(7, -4), textcoords="offset points",
+            right = ox > (extent[0] + extent[1]) / 2       # keep the label on the map
+            ax.annotate(f"{name} ({rng})", (ox, oy), xytext=(-7 if right else 7, -4),
+                        textcoords="offset points", ha="right" if right else "left",
                         fontsize=8, fontweight="bold", color="black", zorder=9,
                         bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=OUTPOST_COLOUR,
                                   lw=0.6, alpha=0.85))
