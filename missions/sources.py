@@ -210,9 +210,7 @@ def _file_missions(path: Path, route_id: int) -> tuple:
             except InputError as exc:
                 missions[fw] = exc
         return missions, own
-    from .wpl import read_waypoints
-
-    from .wpl import mission_items
+    from .wpl import mission_items, read_waypoints
 
     lines = read_waypoints(path)                     # InputError for a bad file
     missions = {}

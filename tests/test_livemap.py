@@ -149,7 +149,8 @@ def browser():
         pytest.skip("selenium is not installed (pip install -e '.[test]')")
     options = webdriver.ChromeOptions()
     options.binary_location = CHROMIUM
-    profile = Path(os.environ.get("TMPDIR", "/tmp")) / f"gcs-chromium-{os.getpid()}-{time.time_ns()}"
+    profile = Path(os.environ.get("TMPDIR", "/tmp")) / \
+        f"gcs-chromium-{os.getpid()}-{time.time_ns()}"
     for flag in CHROMIUM_FLAGS + (f"--user-data-dir={profile}",):
         options.add_argument(flag)
     options.set_capability("goog:loggingPrefs", {"performance": "ALL", "browser": "ALL"})

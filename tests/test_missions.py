@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from common.errors import InputError
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
+from missions import wpl
 from missions.build import MissionOptions, plan_missions, vehicle_mission
 from missions.check import check_mission, check_structure
 from missions.export import export_plan_dir
@@ -33,7 +34,6 @@ from missions.items import (
     renumber,
 )
 from missions.qgc import load_plan_file, read_plan_file
-from missions import wpl
 from missions.wpl import read_waypoints
 from planner.exposure import ExposureParams, Outpost, compute_exposure
 from planner.pipeline import plan_mission
