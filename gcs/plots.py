@@ -264,6 +264,26 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
     draw_bases(ax, terrain, plan)
 
 
+def draw_area(ax, terrain, plan) -> None:
+    """The plan's area of operations polygon (``--area-file``), dashed, when its file
+    is still there; labelled for the legend."""
+    from pathlib import Path
+
+    name = plan.params.get("area_file")
+    if not name or not Path(name).is_file():
+        return
+    from planner.terrain.area import read_area
+
+    label = "area of operations (targets" + (" and flight" if plan.params.get("area_flight")
+                                              else "") + " inside)"
+    for polygon in read_area(name):
+        for ring in polygon:
+            x, y = _lonlat_km(terrain, ring[:, 0], ring[:, 1])
+            ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
+                    label=label)
+            label = None
+
+
 def draw_bases(ax, terrain, plan) -> None:
     """Launch points as white squares, on top of every route."""
     for vehicle in plan.vehicles:
@@ -281,6 +301,7 @@ def overview_png(path, terrain, surface, plan) -> None:
 def overview_figure(terrain, surface, plan):
     fig, ax = plt.subplots(figsize=(10, 9.5), dpi=110)
     im = draw_background(ax, terrain, surface)
+    draw_area(ax, terrain, plan)
     draw_routes(ax, terrain, plan)
     m = plan.metrics
     ax.set_title(f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "

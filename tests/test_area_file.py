@@ -125,6 +125,11 @@ def test_targets_and_optionally_flight_stay_in_the_polygon(hills, tmp_path):
     points = [(w.lon, w.lat) for v in flown.plan.vehicles for w in v.waypoints]
     assert points and all(_inside(p, rings) for p in points)
     assert np.isnan(ctx2.surface.exposure[~inside]).all()
+    # the overview draws the polygon and says what it is
+    from gcs.plots import overview_figure
+    fig = overview_figure(ctx2.terrain, ctx2.surface, flown.plan)
+    labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+    assert "area of operations (targets and flight inside)" in labels
 
 
 def test_scenario_key_and_flag(tmp_path, hills):
