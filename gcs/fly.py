@@ -61,6 +61,7 @@ class FlyOptions:
     protocol_retries: int = 5  # mission protocol and commands: resends before giving up
     timeout_s: float | None = None  # after this many wall seconds: ask, or bring them home
     tlog: bool = True
+    forward: object = None  # gcs.forward.Forwarder: the fleet's MAVLink relayed (--forward)
     live: bool = True  # rich status table on a terminal, event lines otherwise
     plot: bool = True
 
@@ -229,7 +230,8 @@ class Flight:
         tlog = str(self.output / TLOG_PATTERN) if o.tlog else None
         try:
             self.link = GroundLink.open(self.urls, o.signing_key, expect=expect,
-                                        timeout_s=o.connect_timeout_s, tlog=tlog)
+                                        timeout_s=o.connect_timeout_s, tlog=tlog,
+                                        forward=o.forward)
         except LinkError as exc:
             raise FlightError(str(exc)) from None
         vehicles = self.link.vehicles

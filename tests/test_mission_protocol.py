@@ -349,8 +349,11 @@ def test_cli_upload_and_download(firmware, tmp_path, capsys):
         for suffix in ("plan", "waypoints"):
             path = tmp_path / f"held.{suffix}"
             assert main(["download", "--sysid", "1", "-o", str(path), *urls]) == 0
-            items = qgc.read_plan_file(path) if suffix == "plan" else wpl.read_waypoints(path)
+            items = qgc.read_plan_file(path) if suffix == "plan" else \
+                wpl.read_waypoints(path, firmware)         # line 0 home: kept or dropped
             assert mp.compare(expected[1], items, firmware) == []
+            if suffix == "waypoints":                      # home first, for every firmware
+                assert wpl.read_waypoints(path)[0].command == 16
         # mission files, one route each, by order of system id
         files = []
         for r in plan.vehicles:

@@ -6,6 +6,7 @@ from pathlib import Path
 from autopilots import ARDUPILOT, NAMES
 from common.errors import InputError
 from gcs.cli.options import (
+    add_connect_timeout,
     add_protocol_arguments,
     check_urls,
     parse_assignments,
@@ -30,8 +31,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--assign", action="append", default=[], metavar="SYSID=VEHICLE",
                         help="fly plan vehicle VEHICLE with system id SYSID (repeatable; "
                              "none: system ids in ascending order take vehicles 1..n)")
-    parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
-                        help="wait this long for every vehicle's HEARTBEAT")
+    add_connect_timeout(parser)
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wait this long for pre-arm readiness (EKF/GPS)")
     add_protocol_arguments(parser)
@@ -39,6 +39,17 @@ def add_arguments(parser) -> None:
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
+    view = parser.add_argument_group("watching the flight elsewhere")
+    view.add_argument("--forward", action="append", default=[], metavar="URL",
+                      help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
+                           "--out (QGroundControl: udpout:127.0.0.1:14550; a router: "
+                           "tcp:HOST:PORT); what comes back from there is dropped")
+    view.add_argument("--map", nargs="?", const="", metavar="HOST:PORT",
+                      help="serve a live map of the flight to a web browser (offline: the "
+                           "plan's own terrain, no tiles) on 127.0.0.1:8750, or HOST:PORT")
+    view.add_argument("--forward-commands", action="store_true",
+                      help="pass what the forwarded side sends on to the vehicles (a second "
+                           "station can then command them, and fight the re-tasking)")
     sim = parser.add_argument_group("dry run with the built-in simulated vehicles")
     sim.add_argument("--sim", type=int, metavar="N",
                      help="start N simulated vehicles with homes at the plan's launch points "
@@ -104,29 +115,76 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
 
 
+def start_map(flight, args):
+    """The live map of --map (None without), serving before any vehicle is contacted."""
+    if args.map is None:
+        return None
+    from gcs.livemap import LiveMap, parse_address
+
+    try:
+        host, port = parse_address(args.map)
+    except ValueError as exc:
+        raise InputError("--map", str(exc)) from None
+    area = None
+    area_file = flight.plan.params.get("area_file")
+    if area_file and Path(area_file).is_file():
+        from planner.terrain.area import read_area
+        area = read_area(area_file)
+    try:
+        live = LiveMap(flight, flight.ctx, host, port, area).start()
+    except OSError as exc:
+        raise InputError("--map", f"cannot serve on {host}:{port}: {exc.strerror}") from None
+    print(f"live map: {live.url}", file=sys.stderr, flush=True)
+    return live
+
+
+def forwarder(args):
+    """The `gcs.forward.Forwarder` of --forward URLs (None without); opened now, so a
+    URL that cannot be opened is bad input before any vehicle is contacted."""
+    if not args.forward:
+        return None
+    from gcs.forward import Forwarder
+    from gcs.link import LinkError
+
+    try:
+        return Forwarder(args.forward, args.forward_commands)
+    except LinkError as exc:
+        raise InputError("--forward", str(exc)) from None
+
+
 def run(args) -> int:
     from gcs.cli.views import fly_flight, summary
     from gcs.fly import Flight, FlightError
     from gcs.progress import console
 
     check_urls(args.connect)
+    check_urls(args.forward, "--forward")
     if not args.connect and not args.sim:
         raise InputError("--connect", "give at least one --connect URL (or --sim N)")
+    if args.forward_commands and not args.forward:
+        raise InputError("--forward-commands", "give --forward URL too")
     options = options_from_args(args)
     live = console.is_terminal
     flight = Flight(args.plan_dir, list(args.connect), options,
                     log=(lambda text: None) if live else
                     (lambda text: print(text, file=sys.stderr, flush=True)))
     flight.prepare()                  # the plan read and every mission proven: no link yet
-    fleet = None
-    if args.sim:
-        plan = flight.plan
-        fleet = sim_fleet(plan, args.plan_dir, args, options.output)
-        flight.urls = flight.urls or fleet.urls()
-        if options.timeout_s is None:
-            longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
-            options.timeout_s = 120.0 + 4.0 * longest / args.speedup
+    options.forward = forwarder(args)
     try:
+        live_map = start_map(flight, args)
+    except InputError:
+        if options.forward is not None:
+            options.forward.close()
+        raise
+    fleet = None
+    try:
+        if args.sim:
+            plan = flight.plan
+            fleet = sim_fleet(plan, args.plan_dir, args, options.output)
+            flight.urls = flight.urls or fleet.urls()
+            if options.timeout_s is None:
+                longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
+                options.timeout_s = 120.0 + 4.0 * longest / args.speedup
         report = fly_flight(flight, live)
     except FlightError as exc:
         print(f"gcs fly: error: {exc} (see {Path(options.output) / 'flight.json'})",
@@ -135,6 +193,11 @@ def run(args) -> int:
     finally:
         if fleet is not None:
             fleet.stop()
+        if options.forward is not None:
+            options.forward.close()
+            print(options.forward.summary(), file=sys.stderr)
+        if live_map is not None:
+            live_map.stop()
     summary(report, options.output)
     return 0 if report["outcome"]["ok"] else 1
 

@@ -205,7 +205,7 @@ def _describe(fleet) -> None:
         else:
             where = f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}"
         lat, lon, alt = v.cfg.home
-        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g}")
+        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g} m AMSL")
     print("connect with: " + " ".join(f"--connect {u}" for u in fleet.urls()))
     print(f"speedup x{c.speedup:g}; Ctrl-C stops", flush=True)
 
