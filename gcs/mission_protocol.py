@@ -9,10 +9,11 @@ as the spec recommends; every MAV_MISSION_RESULT error is reported by name.
 
 ArduPilot answers an upload in the first second after boot with
 MAV_MISSION_NO_SPACE ("Only 0 items are supported"); that is retried after a
-short wait. What a read-back keeps is the firmware's (`autopilots` profile:
-ArduPilot's item 0 is home and reads back as the real home, its commands
-without a position come back in frame 0); a read-back comparison looks at the
-rest, and any difference there is an error.
+short wait. What a read-back keeps is the firmware's (`autopilots` profile,
+``read_back``: ArduPilot's item 0 is home and reads back as the real home, its
+commands without a position come back in frame 0, and it keeps only the params
+each command stores); a read-back is compared with what the firmware keeps of
+what was sent, and any difference there is an error.
 
 Only a checked mission is sent: `upload` and `upload_verified` take a
 `missions.check.CheckedMission` (made only by the mission check) checked for
@@ -284,13 +285,22 @@ def compare(sent, got, flavour=None) -> list:
     keeper = profile_of(flavour) if isinstance(flavour, str) or flavour is None else flavour
     out = []
     for a, b in zip(sent, got):
-        compared, frame_kept = (True, True) if keeper is None else \
-            keeper.kept_on_read_back(a.seq, a.command, a.frame)
-        if not compared:
+        expected = a if keeper is None else read_back(keeper, a)
+        if expected is None:
             continue
-        diff = a.differences(b)
-        if not frame_kept:
-            diff = [d for d in diff if not d.startswith("frame ")]
+        diff = expected.differences(b)
         if diff:
             out.append(f"item {a.seq}: " + ", ".join(diff))
     return out
+
+
+def read_back(profile, item):
+    """``item`` (missions.items.MissionItem) as ``profile``'s firmware will report
+    it when read back (`autopilots.base.Autopilot.read_back`), None when it reads
+    back as something else (ArduPilot's home)."""
+    from types import SimpleNamespace
+
+    from missions.items import MissionItem
+
+    wire = profile.read_back(item.to_int())
+    return None if wire is None else MissionItem.from_int(SimpleNamespace(**wire))
