@@ -85,6 +85,8 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         s.mode = mode_name(flavour, msg.custom_mode, mav_type)
         s.system_status = msg.system_status
     elif kind == "GLOBAL_POSITION_INT":
+        if not has_position(msg):
+            return                     # ArduPilot before its EKF origin: no position yet
         s.lat, s.lon = msg.lat * 1e-7, msg.lon * 1e-7
         s.alt_amsl, s.relative_alt = msg.alt * 1e-3, msg.relative_alt * 1e-3
         if msg.hdg != 65535:
@@ -108,6 +110,12 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         s.images += 1
     elif kind == "STATUSTEXT":
         s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+
+
+def has_position(msg) -> bool:
+    """A GLOBAL_POSITION_INT that holds a position: ArduPilot reports 0, 0 until its
+    EKF has an origin (about 20 s after boot)."""
+    return not (msg.lat == 0 and msg.lon == 0)
 
 
 def _prearm_ok(msg, gps_fix: int) -> bool:
@@ -364,11 +372,17 @@ class VehicleLink:
 
     def request_streams(self, rate_hz: int = STREAM_RATE_HZ) -> None:
         """Ask for telemetry: ArduPilot streams on a port only what a ground station
-        requests (MAVProxy does the same); PX4 streams to its GCS link by itself.
+        requests (MAVProxy does the same); PX4 streams to its GCS link by itself,
+        and the profile's ``message_rates`` slow what it sends faster than read.
         Fire and forget: this runs on the reader thread, which must not wait."""
-        if self.profile is not None and self.profile.request_streams:
+        if self.profile is None:
+            return
+        if self.profile.request_streams:
             self.send("REQUEST_DATA_STREAM", req_stream_id=M.MAV_DATA_STREAM_ALL,
                       req_message_rate=rate_hz, start_stop=1)
+        for message, hz in self.profile.message_rates:
+            self.send("COMMAND_LONG", command=M.MAV_CMD_SET_MESSAGE_INTERVAL,
+                      param1=float(message), param2=1e6 / hz if hz > 0 else -1.0)
 
     def send_msg(self, msg) -> None:
         conn, addr = self._route

@@ -25,6 +25,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from gcs.link import has_position
 from gcs.mavlink import M
 from missions.items import NAV_LAND
 
@@ -276,6 +277,8 @@ class Monitor:
                           f"({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
 
     def _position(self, v, msg) -> None:
+        if not has_position(msg):
+            return                     # no position yet (ArduPilot before its EKF origin)
         t = self.now()
         agl = msg.relative_alt * 1e-3
         _note_airborne(v, self.links[v.sysid].state.armed, agl)
