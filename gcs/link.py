@@ -344,6 +344,8 @@ class VehicleLink:
         self.profile = profile_of(self.flavour)     # autopilots profile; None: generic
         self.state = VehicleState()
         self.signs = False            # its packets carry signatures (seen without a key)
+        self.mission_capacity = None  # items it holds, once learned (mission_protocol)
+        self.mission_fits = 0         # the longest upload it took
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
         self._cond = threading.Condition()

@@ -34,18 +34,22 @@ REQUEST_TYPES = ("MISSION_REQUEST_INT", "MISSION_REQUEST")
 
 
 class MissionError(Exception):
-    """A mission transfer failed: names the vehicle, the step, and the MAV_MISSION_RESULT."""
+    """A mission transfer failed: names the vehicle, the step, and the MAV_MISSION_RESULT.
+    ``capacity``: with NO_SPACE, the items the vehicle said it holds (None: unsaid)."""
 
-    def __init__(self, vehicle, problem: str, result: int | None = None, timeout=False):
+    def __init__(self, vehicle, problem: str, result: int | None = None, timeout=False,
+                 capacity: int | None = None):
         self.sysid = getattr(vehicle, "sysid", vehicle)
         self.result = result
         self.result_name = None if result is None else mission_result_name(result)
         self.timeout = timeout
+        self.capacity = capacity
         super().__init__(f"vehicle {self.sysid}: {problem}")
 
 
 class _NoSpace(Exception):
-    pass
+    def __init__(self, capacity: int | None = None):
+        self.capacity = capacity
 
 
 # -- the gate ----------------------------------------------------------------------------
@@ -82,27 +86,37 @@ def upload(link, mission, progress=None, mission_type=M.MAV_MISSION_TYPE_MISSION
 
 
 def _transfer(link, items, progress, mission_type, timeout_s, retries) -> None:
-    """The upload transfer of `items` (seq 0..n-1), with ArduPilot's NO_SPACE retried."""
+    """The upload transfer of `items` (seq 0..n-1), with ArduPilot's NO_SPACE right
+    after boot retried; a vehicle that refuses for want of space has its capacity
+    noted (`known_capacity`)."""
     for k, item in enumerate(items):
         if item.seq != k:
             raise ValueError(f"mission items must be numbered 0..{len(items) - 1}: "
                              f"item {k} has seq {item.seq}")
     for attempt in range(NO_SPACE_RETRIES + 1):
         try:
-            return _upload_once(link, items, progress, mission_type, timeout_s, retries)
-        except _NoSpace:
-            # after boot ArduPilot says NO_SPACE for a while; past its capacity always
-            if attempt == NO_SPACE_RETRIES or _capacity(link, len(items)):
-                raise MissionError(link, f"upload of {len(items)} items refused: "
-                                         f"{mission_result_name(M.MAV_MISSION_NO_SPACE)}"
-                                         f"{_capacity(link, len(items))}",
-                                   M.MAV_MISSION_NO_SPACE) from None
-            time.sleep(NO_SPACE_WAIT_S)
+            _upload_once(link, items, progress, mission_type, timeout_s, retries)
+            if mission_type == M.MAV_MISSION_TYPE_MISSION:
+                _note_fits(link, len(items))
+            return
+        except _NoSpace as refused:
+            # after boot ArduPilot says NO_SPACE ("Only 0 items") for a while; past
+            # its capacity always, and says how many it holds
+            said = refused.capacity
+            if said == 0 and attempt < NO_SPACE_RETRIES:
+                time.sleep(NO_SPACE_WAIT_S)
+                continue
+            if said and mission_type == M.MAV_MISSION_TYPE_MISSION:
+                _note_capacity(link, said)
+            raise MissionError(link, f"upload of {len(items)} items refused: "
+                                     f"{mission_result_name(M.MAV_MISSION_NO_SPACE)}"
+                                     f"{_capacity(link, len(items), said)}",
+                               M.MAV_MISSION_NO_SPACE, capacity=said or None) from None
 
 
 def _upload_once(link, items, progress, mission_type, timeout_s, retries) -> None:
     count = len(items)
-    link.flush(REQUEST_TYPES + ("MISSION_ACK",))
+    link.flush(REQUEST_TYPES + ("MISSION_ACK", "STATUSTEXT"))
     sent = {"last": None}          # what to re-send on a timeout: None = the count
 
     def resend():
@@ -132,7 +146,7 @@ def _upload_once(link, items, progress, mission_type, timeout_s, retries) -> Non
                     return
                 continue                         # a stale ACK of an earlier transfer
             if msg.type == M.MAV_MISSION_NO_SPACE and highest < 0:
-                raise _NoSpace()
+                raise _NoSpace(_capacity_said(link))
             where = f"after item {highest}" if highest >= 0 else "at MISSION_COUNT"
             more = _capacity(link, count) if msg.type == M.MAV_MISSION_NO_SPACE else ""
             raise MissionError(link, f"upload of {count} items refused {where}: "
@@ -231,13 +245,103 @@ def _timeout(link, problem, timeout_s, retries) -> MissionError:
     return MissionError(link, text, timeout=True)
 
 
-def _capacity(link, count) -> str:
-    """Why NO_SPACE may come: more items than the firmware holds by default."""
+def _capacity(link, count, said=None) -> str:
+    """Why NO_SPACE came: what the vehicle said it holds, or what its firmware holds
+    by default."""
+    if said:
+        return f" (the vehicle holds {said} items)"
     found = getattr(link, "profile", None)
     capacity = getattr(found, "mission_capacity", None)
     if capacity is not None and count > capacity:
         return f" ({found.title} holds {capacity} items by default)"
     return ""
+
+
+# -- capacity ----------------------------------------------------------------------------
+#: wall seconds to wait for the STATUSTEXT that follows a NO_SPACE refusal
+SAID_WAIT_S = 0.5
+
+
+def _capacity_said(link) -> int | None:
+    """The capacity the vehicle states after a NO_SPACE refusal (ArduPilot: "Only
+    650 items are supported"), None when it says nothing (PX4)."""
+    found = getattr(link, "profile", None)
+    if found is None or not found.capacity_text or not hasattr(link, "recv"):
+        return None
+    msg = link.recv("STATUSTEXT", SAID_WAIT_S,
+                    lambda m: found.capacity_said(m.text) is not None)
+    return None if msg is None else found.capacity_said(msg.text)
+
+
+def known_capacity(link) -> int | None:
+    """The items this vehicle holds, once learned this flight (None: not known)."""
+    return getattr(link, "mission_capacity", None)
+
+
+def _note_capacity(link, capacity: int) -> None:
+    try:
+        link.mission_capacity = int(capacity)
+    except AttributeError:
+        pass
+
+
+def _note_fits(link, count: int) -> None:
+    """An upload of ``count`` items went through: the capacity is at least that."""
+    try:
+        link.mission_fits = max(getattr(link, "mission_fits", 0) or 0, int(count))
+    except AttributeError:
+        pass
+
+
+def learn_capacity(link, refused: int, said: int | None = None,
+                   timeout_s=TIMEOUT_S, retries=RETRIES) -> int:
+    """How many mission items the vehicle holds, after it refused ``refused`` for
+    want of space: what it said (``said``, or learned before), else found by
+    asking: MISSION_COUNT probes, halving the range between the most it took
+    (`mission_fits`) and the least it refused, each probe it accepts cancelled at
+    once. Cached on the link for the flight.
+
+    Only while the vehicle is held or on the ground: an accepted MISSION_COUNT
+    truncates ArduPilot's stored mission (PX4 writes a new upload aside)."""
+    if said:
+        _note_capacity(link, said)
+    known = known_capacity(link)
+    if known is not None:
+        return known
+    low, high = max(1, getattr(link, "mission_fits", 0) or 0), int(refused)  # low fits
+    if low >= high:
+        low = 1
+    while high - low > 1:
+        middle = (low + high) // 2
+        if _probe(link, middle, timeout_s, retries):
+            low = middle
+        else:
+            high = middle
+    _note_capacity(link, low)
+    return low
+
+
+def _probe(link, count: int, timeout_s, retries) -> bool:
+    """Whether the vehicle takes an upload of ``count`` items (the upload is
+    cancelled at once)."""
+    mission_type = M.MAV_MISSION_TYPE_MISSION
+    link.flush(REQUEST_TYPES + ("MISSION_ACK",))
+    same = _of_type(mission_type)
+    for _ in range(retries + 1):
+        link.send("MISSION_COUNT", count=count, mission_type=mission_type)
+        msg = link.recv(REQUEST_TYPES + ("MISSION_ACK",), timeout_s, same)
+        if msg is None:
+            continue
+        if msg.get_type() == "MISSION_ACK":
+            if msg.type == M.MAV_MISSION_NO_SPACE:
+                return False
+            raise MissionError(link, f"probe of {count} items refused: "
+                                     f"{mission_result_name(msg.type)}{_said(link)}", msg.type)
+        link.send("MISSION_ACK", type=M.MAV_MISSION_OPERATION_CANCELLED,
+                  mission_type=mission_type)
+        return True
+    raise _timeout(link, f"no answer to MISSION_COUNT {count} (capacity probe)", timeout_s,
+                   retries)
 
 
 def _said(link) -> str:

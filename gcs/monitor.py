@@ -93,6 +93,7 @@ class VehicleProgress:
     disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
     disarmed_reports: int = 0  # position reports since
     relaunched: int = 0  # times sent up again after landing
+    segments: int = 0  # segments sent in flight (a route longer than the vehicle holds)
 
     @property
     def snapshot_total(self) -> int:
@@ -117,6 +118,8 @@ class VehicleProgress:
         """The mission item a proper landing comes after: the last waypoint (above
         launch) before the final NAV_LAND, or the last position item."""
         items = getattr(self.mission, "items", None) or []
+        if not getattr(self.mission, "final", True):
+            return len(items)           # a segment that does not land: no touchdown is one
         positions = [it.seq for it in items if it.is_position]
         if not positions:
             return None
@@ -183,6 +186,21 @@ class Monitor:
             v.generation += 1
             v.reached, v.done = set(), set()
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
+
+    def set_mission(self, sysid: int, mission) -> None:
+        """The mission uploaded for the current route (the whole, or its first segment)."""
+        with self._lock:
+            self.vehicles[sysid].mission = mission
+
+    def next_segment(self, sysid: int, mission) -> None:
+        """The vehicle now flies the next segment of the same route: item numbers
+        start again, the waypoints reached and snapshots taken stay."""
+        with self._lock:
+            v = self.vehicles[sysid]
+            v.mission = mission
+            v.reached = set()
+            v.segments += 1
+            self.links[sysid].state.mission_seq = None
 
     def relaunch(self, sysid: int) -> None:
         """A landed survivor goes up again (after a loss left coverage short)."""

@@ -53,6 +53,10 @@ def add_arguments(parser) -> None:
                      help="first simulator port; none = 5760 (ArduPilot TCP), 18570 (PX4 UDP)")
     sim.add_argument("--sim-gcs-port", type=int, default=14550, metavar="P",
                      help="PX4 flavour: UDP port the simulated vehicles send to")
+    sim.add_argument("--sim-capacity", type=int, metavar="N",
+                     help="mission items each simulated vehicle holds (default: the "
+                          "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
+                          "segments")
 
 
 def options_from_args(args):
@@ -86,6 +90,9 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim", "need at least one vehicle")
     if args.speedup <= 0:
         raise InputError("--speedup", "must be positive")
+    if args.sim_capacity is not None and args.sim_capacity < 1:
+        raise InputError("--sim-capacity", f"must be at least 1, got {args.sim_capacity}")
+    capacity = {} if args.sim_capacity is None else {"mission_capacity": args.sim_capacity}
     faults = {}
     for text in args.kill:
         sysid, at_s, at_item = parse_kill(text)
@@ -95,7 +102,7 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     try:
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
             "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
-            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks",
+            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
     except ValueError as exc:
         raise InputError("--sim", str(exc)) from None
