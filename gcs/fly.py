@@ -64,6 +64,7 @@ class FlyOptions:
     ready_timeout_s: float = 60.0
     protocol_timeout_s: float = 1.5  # mission protocol: wait per message before a retry
     protocol_retries: int = 5  # mission protocol and commands: resends before giving up
+    max_items: int | None = None  # items per upload at most (segments below the capacity)
     timeout_s: float | None = None  # after this many wall seconds: ask, or bring them home
     tlog: bool = True
     live: bool = True  # rich status table on a terminal, event lines otherwise
@@ -113,7 +114,7 @@ class Flight:
         self.output = Path(options.output)
         self.log = log or (lambda text: None)
         self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
-        self.segments = Segments(self.monitor, options.protocol)
+        self.segments = Segments(self.monitor, options.protocol, options.max_items)
         self.start_unix = time.time()
         self.link = None
         self.retasks = []
@@ -270,7 +271,7 @@ class Flight:
                 m.event(sysid, "mission capacity", capacity=capacity, how=how)
 
             mission = upload_route(m.links[sysid], missions[sysid], self.options.protocol,
-                                   on_capacity=learned)
+                                   on_capacity=learned, limit=self.options.max_items)
             m.set_mission(sysid, mission)
             self.segments.fly(sysid, missions[sysid])
             whole = len(missions[sysid])

@@ -286,7 +286,8 @@ class Retasker:
             def learned(capacity, how):
                 m.event(s, "mission capacity", capacity=capacity, how=how)
 
-            uploaded[s] = upload_route(m.links[s], missions[s], self.protocol, learned)
+            uploaded[s] = upload_route(m.links[s], missions[s], self.protocol, learned,
+                                       limit=getattr(self.segments, "limit", None))
 
         self._step(tasked, upload)
         record.upload_s = round(time.perf_counter() - t1, 3)

@@ -38,14 +38,15 @@ class SegmentUpload:
     held_s: float          # from the hold to the mission mode again, wall s
 
 
-def upload_route(link, missions, protocol=None, on_capacity=None):
+def upload_route(link, missions, protocol=None, on_capacity=None, limit=None):
     """Upload the first mission of ``missions`` (a `missions.segments.RouteMissions`)
-    to ``link``: the whole route unless the vehicle is known to hold fewer items; on
-    a NO_SPACE refusal its capacity is learned and the first segment goes up
-    instead. Returns the CheckedMission uploaded. ``on_capacity(capacity, how)``
-    is told when a capacity is learned."""
+    to ``link``: the whole route unless the vehicle is known to hold fewer items
+    (or ``limit``: at most that many per upload); on a NO_SPACE refusal its
+    capacity is learned and the first segment goes up instead. Returns the
+    CheckedMission uploaded. ``on_capacity(capacity, how)`` is told when a
+    capacity is learned."""
     protocol = protocol or {}
-    mission = missions.first(known_capacity(link))
+    mission = missions.first(_least(known_capacity(link), limit))
     try:
         upload_verified(link, mission, **protocol)
         return mission
@@ -55,9 +56,15 @@ def upload_route(link, missions, protocol=None, on_capacity=None):
         capacity = learn_capacity(link, len(mission), exc.capacity, **protocol)
         if on_capacity is not None:
             on_capacity(capacity, "said" if exc.capacity else "probed")
-    mission = missions.first(capacity)
+    mission = missions.first(_least(capacity, limit))
     upload_verified(link, mission, **protocol)
     return mission
+
+
+def _least(capacity, limit):
+    """The smaller of two item limits, either of which may be None (none)."""
+    known = [c for c in (capacity, limit) if c is not None]
+    return min(known) if known else None
 
 
 class Segments:
@@ -67,8 +74,11 @@ class Segments:
     and by every re-tasking); `due` says who needs its next segment, `switch`
     sends it."""
 
-    def __init__(self, monitor, protocol=None):
+    def __init__(self, monitor, protocol=None, limit=None):
+        """``limit``: items per upload at most (``gcs fly --max-items``), below what
+        the vehicles hold."""
         self.monitor = monitor
+        self.limit = limit
         self.protocol = protocol or {}
         self._retries = self.protocol.get("retries", commands.RETRIES)
         self.routes = {}
@@ -119,7 +129,7 @@ class Segments:
         commands.set_mode(link, profile.hold_mode, retries=self._retries)
         m.set_state(sysid, HOLDING)
         start, taken = self.next_start(sysid)
-        capacity = known_capacity(link) or len(v.mission)
+        capacity = _least(known_capacity(link) or len(v.mission), self.limit)
         mission = missions.segment(capacity, start, v.mission.segment + 1, taken)
         t1 = time.perf_counter()
         upload_verified(link, mission, **self.protocol)

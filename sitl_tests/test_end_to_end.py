@@ -1,12 +1,14 @@
-"""`gcs fly` end to end on the sample terrain with 4 vehicles (issue 6).
+"""`gcs fly` end to end on the sample terrain: 4 simulated vehicles, or 3 real
+ArduPilot / PX4 SITL ones (issues 6 and 20).
 
 Judged only from what the vehicles really flew (the simulator's recorded track,
-or the positions real SITL reported), never from what the ground station
-believes: every recorded segment hidden from every outpost (exact line of sight)
-and above terrain + clearance away from the vertical takeoff / landing at
-launch; coverage from the recorded snapshot positions, evaluated with the
-planner's sensor model, counting only survivors; every survivor lands at its
-launch point; a loss detected within --lost-after + 1 s of the kill.
+or what real SITL reported of itself on its second link, `judge.Judge`), never
+from what the ground station believes: every recorded segment hidden from every
+outpost (exact line of sight) and above terrain + clearance away from the
+vertical takeoff / landing at launch; coverage from the recorded snapshot
+positions (real SITL: where its camera fired), evaluated with the planner's
+sensor model, counting only survivors; every survivor lands at its launch
+point; a loss detected within --lost-after + 1 s of the kill.
 """
 
 import _thread
@@ -17,7 +19,7 @@ import time
 import numpy as np
 import pytest
 
-from conftest import start_backend
+from conftest import LONG, SPEEDUP, start_backend
 from gcs.fly import Flight, FlyOptions
 from planner.exposure import segments_clear, segments_hidden
 from planner.replan import coverage_summary, seen_matrix
@@ -25,23 +27,26 @@ from planner.replan import coverage_summary, seen_matrix
 LOST_AFTER_S = 3.0
 LAUNCH_RADIUS_M = 3.0        # takeoff and landing are vertical above launch
 CLEARANCE_TOL_M = 0.5        # the point mass may sag this much at a corner
-pytestmark = pytest.mark.timeout(240)
+pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collection_modifyitems
 
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
-             **options):
+             capacity=None, **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
     ``interrupt``: (sysid, fraction) for a Ctrl-C then, answered "home".
     ``drop_pct``: packets lost both ways throughout; ``speedup``: of the simulation
-    (default: the backend's); ``options``: `FlyOptions` fields to change.
-    Returns a result dict."""
-    be = start_backend(backend, planned.plan, workdir, speedup)
+    (default: the backend's); ``capacity``: mission items each simulated vehicle
+    holds; ``options``: `FlyOptions` fields to change. Returns a result dict."""
+    speedup = speedup or SPEEDUP[backend]
+    longest = max(v.mission_time_s for v in planned.plan.vehicles)
+    be = start_backend(backend, planned.plan, workdir, speedup, capacity)
     if drop_pct:
         be.set_drop(drop_pct)
     out = workdir / "flight"
-    options = FlyOptions(**{"output": out, "lost_after_s": LOST_AFTER_S, "timeout_s": 180.0,
+    options = FlyOptions(**{"output": out, "lost_after_s": LOST_AFTER_S,
+                            "timeout_s": 120.0 + 4.0 * longest / speedup,
                             "live": False, **options})
     flight = Flight(planned.directory, be.urls(), options)
     killed = {}
@@ -77,7 +82,7 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
         be.stop()
     wall = time.time() - start
     return {"report": report, "tracks": be.tracks(out), "killed": killed, "wall_s": wall,
-            "flight": flight}
+            "flight": flight, "backend": backend}
 
 
 def _xyz(ctx, lat, lon, alt):
@@ -173,7 +178,7 @@ def _print(name, result, cov, latency=None):
 
 
 def test_no_loss_k0(planned, backend, tmp_path):
-    p = planned[0]
+    p = planned(0, backend)
     result = fly_case(p, backend, tmp_path)
     report, tracks = result["report"], result["tracks"]
     assert report["losses"] == [] and report["replans"] == []
@@ -186,14 +191,14 @@ def test_no_loss_k0(planned, backend, tmp_path):
 
 
 def test_one_killed_k0_survivors_retasked(planned, backend, tmp_path):
-    p = planned[0]
+    p = planned(0, backend)
     result = fly_case(p, backend, tmp_path, kills=[(2, 0.3)])
     cov = assert_one_loss_retasked(p, result, 2)
     _print("one killed, k=0", result, cov, loss_latency(result, 2))
 
 
 def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
-    p = planned[1]
+    p = planned(1, backend)
     result = fly_case(p, backend, tmp_path, kills=[(3, 0.3)])
     # k = 1: the original plan alone, flown by the survivors, still sees every target once
     assert result["report"]["replans"][0]["original"]["tolerated"]
@@ -201,7 +206,7 @@ def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
     _print("k=1, one killed", result, cov, loss_latency(result, 3))
 
 
-def test_one_killed_with_20_percent_packet_loss_throughout(planned, backend, tmp_path):
+def test_one_killed_with_20_percent_packet_loss_throughout(planned, tmp_path):
     """Every packet, both ways, dropped with probability 0.2 from boot to landing.
     A HEARTBEAT missing 3 times in a row is then common (0.8 % per second), so
     --lost-after is 8 s (1e-6 of a false loss per second); the mission protocol
@@ -209,9 +214,8 @@ def test_one_killed_with_20_percent_packet_loss_throughout(planned, backend, tmp
     At 40x the flights last about 30 s of wall time, so the survivors are mostly
     still in the air when the loss is found 8 s after the kill (a landed one is sent
     up again when the loss leaves coverage short: ``relaunched``)."""
-    if backend != "sim":
-        pytest.skip("packet loss is injected by the simulated vehicles")
-    p = planned[0]
+    p = planned(0, "sim")                     # packets are dropped by the simulated vehicles
+    backend = "sim"
     result = fly_case(p, backend, tmp_path, kills=[(2, 0.15)], drop_pct=20.0, speedup=40.0,
                       lost_after_s=8.0, protocol_timeout_s=0.3, protocol_retries=10)
     cov = assert_one_loss_retasked(p, result, 2, lost_after_s=8.0)
@@ -221,7 +225,7 @@ def test_one_killed_with_20_percent_packet_loss_throughout(planned, backend, tmp
 def test_px4_flavour_one_killed(planned, tmp_path):
     """The same mission against PX4-flavoured vehicles (PX4's modes and start
     sequence, every vehicle on one shared UDP port)."""
-    p = planned[0]
+    p = planned(0, "sim")
     result = fly_case(p, "sim-px4", tmp_path, kills=[(2, 0.3)])
     assert {e["flavour"] for e in result["report"]["events"] if e["event"] == "connected"} \
         == {"px4"}
@@ -230,15 +234,16 @@ def test_px4_flavour_one_killed(planned, tmp_path):
 
 
 def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
-    """Vehicle 2 shot down mid-mission, vehicle 4 as soon as the re-plan starts:
-    the re-plan starts again and the last two finish the job."""
-    p = planned[0]
-    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (4, "re-planning")])
+    """Vehicle 2 shot down mid-mission, the last one as soon as the re-plan starts:
+    the re-plan starts again and the others finish the job."""
+    p = planned(0, backend)
+    n = len(p.plan.vehicles)
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (n, "re-planning")])
     report, tracks = result["report"], result["tracks"]
-    assert sorted(x["sysid"] for x in report["losses"]) == [2, 4]
-    for sysid in (2, 4):
+    assert sorted(x["sysid"] for x in report["losses"]) == [2, n]
+    for sysid in (2, n):
         assert loss_latency(result, sysid) <= LOST_AFTER_S + 1.0
-    survivors = [1, 3]
+    survivors = [s for s in range(1, n + 1) if s not in (2, n)]
     assert report["replans"][-1]["survivors"] == survivors
     assert_hidden_and_clear(p, tracks)
     assert_landed_at_launch(p.ctx, tracks, survivors)
@@ -252,7 +257,7 @@ def test_ctrl_c_brings_every_vehicle_home_hidden(planned, backend, tmp_path):
     (never plain RTL, which would climb and fly straight) and lands at launch."""
     # Python's own SIGINT handler, which a shell's background job does not get
     # (SIGINT ignored): without it interrupt_main() does nothing
-    p = planned[0]
+    p = planned(0, backend)
     previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
         result = fly_case(p, backend, tmp_path, interrupt=(1, 0.3))
@@ -268,3 +273,36 @@ def test_ctrl_c_brings_every_vehicle_home_hidden(planned, backend, tmp_path):
     cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
     _print("Ctrl-C, home", result, cov)
     assert cov["k_covered"] < coverable(p.ctx)  # they came home early
+
+
+def test_route_longer_than_the_autopilot_holds(planned, backend, tmp_path):
+    """Routes that do not fit in one upload fly in segments, the next uploaded in
+    flight. ArduPilot SITL: one route of more than its 650 items (its capacity
+    learned from its refusal), at 20x; PX4 SITL holds any number of items, so
+    uploads are capped with --max-items 60; the simulator holds 40 items."""
+    options, capacity, speedup = {}, None, None
+    if backend == "ardupilot":
+        p, speedup = planned(0, LONG), 20.0
+    elif backend == "px4":
+        p, options = planned(0, backend), {"max_items": 60}
+    else:
+        p, capacity = planned(0, backend), 40
+    result = fly_case(p, backend, tmp_path, capacity=capacity, speedup=speedup, **options)
+    report, tracks = result["report"], result["tracks"]
+    limit = options.get("max_items") or capacity or 650
+    whole = {e["sysid"]: e["items"] for e in report["events"] if e["event"] == "connected"}
+    assert max(whole.values()) > limit                  # the plan's own missions
+    if backend == "ardupilot":
+        assert all(v["mission_capacity"] == 650 for v in report["vehicles"])
+    assert report["losses"] == [] and report["outcome"]["ok"], report["outcome"]
+    assert report["segments"] and all(u["items"] <= limit for u in report["segments"])
+    for v in report["vehicles"]:
+        assert v["state"] == "landed" and (v["segments"] > 0) == (whole[v["sysid"]] > limit)
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, list(tracks))
+    cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
+    ups = report["segments"]
+    _print(f"in segments ({len(ups)} sent in flight, {limit} items at most, upload "
+           f"{min(u['upload_s'] for u in ups):.2f}-{max(u['upload_s'] for u in ups):.2f} s, "
+           f"held {max(u['held_s'] for u in ups):.1f} s at most)", result, cov)
+    assert cov["k_covered"] == coverable(p.ctx)

@@ -282,7 +282,7 @@ def test_refused_arming_is_explained(opened):
     mp.upload(vehicle, sendable(mission_for("ardupilot", 1)))
     fleet.refuse_arm(1)
     with pytest.raises(commands.CommandError) as err:
-        commands.start_mission(vehicle, ALT, ready_timeout_s=10)
+        commands.start_mission(vehicle, ALT, ready_timeout_s=3)   # refused until then
     text = str(err.value)
     assert "vehicle 1" in text and "MAV_CMD_COMPONENT_ARM_DISARM refused" in text
     assert "MAV_RESULT_FAILED" in text and "PreArm" in text

@@ -37,6 +37,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--timeout", type=float, metavar="S",
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
+    parser.add_argument("--max-items", type=int, metavar="N",
+                        help="upload at most N mission items at a time: longer routes fly in "
+                             "segments, the next uploaded in flight (default: as many as each "
+                             "vehicle holds, learned when it refuses more)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
     sim = parser.add_argument_group("dry run with the built-in simulated vehicles")
     sim.add_argument("--sim", type=int, metavar="N",
@@ -65,6 +69,8 @@ def options_from_args(args):
     if not args.lost_after > 0:
         raise InputError("--lost-after", f"must be positive, got {args.lost_after}")
     protocol = protocol_from_args(args)
+    if args.max_items is not None and args.max_items < 1:
+        raise InputError("--max-items", f"must be at least 1, got {args.max_items}")
     key = None
     if args.signing_key:
         from gcs.signing import load_key
@@ -74,7 +80,7 @@ def options_from_args(args):
                       connect_timeout_s=args.connect_timeout,
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
                       protocol_timeout_s=protocol["timeout_s"],
-                      protocol_retries=protocol["retries"],
+                      protocol_retries=protocol["retries"], max_items=args.max_items,
                       tlog=not args.no_tlog)
 
 
