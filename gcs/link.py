@@ -74,6 +74,7 @@ class VehicleState:
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
     images: int = 0                          # CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED seen
     statustext: list = field(default_factory=list)   # last (severity, text)
+    text_chunk: int = 0                      # STATUSTEXT.id of the last one (chunks)
 
 
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
@@ -109,7 +110,14 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     elif kind in ("CAMERA_FEEDBACK", "CAMERA_IMAGE_CAPTURED"):
         s.images += 1
     elif kind == "STATUSTEXT":
-        s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+        chunk = getattr(msg, "id", 0)
+        if chunk and getattr(msg, "chunk_seq", 0) > 0 and s.statustext \
+                and s.text_chunk == chunk:     # PX4 sends a long text in 50-char chunks
+            severity, text = s.statustext[-1]
+            s.statustext = s.statustext[:-1] + [(severity, text + msg.text)]
+        else:
+            s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+        s.text_chunk = chunk
 
 
 def has_position(msg) -> bool:

@@ -29,6 +29,7 @@ TIMEOUT_S = 1.5
 RETRIES = 5
 NO_SPACE_WAIT_S = 1.0          # ArduPilot refuses uploads for about a second after boot
 NO_SPACE_RETRIES = 5
+ERROR_WAIT_S = 1.0             # before trying again an upload refused with MAV_MISSION_ERROR
 ITEM_TYPES = ("MISSION_ITEM_INT", "MISSION_ITEM")
 REQUEST_TYPES = ("MISSION_REQUEST_INT", "MISSION_REQUEST")
 
@@ -351,13 +352,14 @@ def _said(link) -> str:
 
 
 # -- verified upload -------------------------------------------------------------------
-def upload_verified(link, mission, progress=None, attempts=2, timeout_s=TIMEOUT_S,
+def upload_verified(link, mission, progress=None, attempts=3, timeout_s=TIMEOUT_S,
                     retries=RETRIES) -> list:
     """Upload ``mission`` (a `missions.check.CheckedMission`), read back, compare item
     by item; returns what was read back.
 
     progress(done, 2 * n) covers both halves. A transfer that times out is started
-    again (up to `attempts` in all); a read-back that differs is an error."""
+    again (up to `attempts` in all), as is one refused with the generic
+    MAV_MISSION_ERROR after a pause; a read-back that differs is an error."""
     items = _gate(link, mission)
     n = len(items)
     up = (lambda d, t: progress(d, 2 * n)) if progress else None
@@ -368,8 +370,13 @@ def upload_verified(link, mission, progress=None, attempts=2, timeout_s=TIMEOUT_
             back = download(link, down, timeout_s=timeout_s, retries=retries)
             break
         except MissionError as exc:
-            if not exc.timeout or attempt == attempts:
+            # a timeout, or PX4's generic MAV_MISSION_ERROR ("not accepting mission
+            # items right now": busy, or its storage slow to answer under load)
+            transient = exc.timeout or exc.result == M.MAV_MISSION_ERROR
+            if not transient or attempt == attempts:
                 raise
+            if not exc.timeout:
+                time.sleep(ERROR_WAIT_S)
     problems = compare(items, back, getattr(link, "profile", None)
                        or getattr(link, "flavour", None))
     if problems:

@@ -3,7 +3,8 @@
 A `Monitor` subscribes to every `gcs.link.VehicleLink` of the flight. From the
 reader threads it records the track (GLOBAL_POSITION_INT), the mission items
 reached (MISSION_ITEM_REACHED, mapped to plan waypoints through
-`VehicleMission.waypoint_of_item`) and camera feedback. A snapshot counts as
+`VehicleMission.waypoint_of_item`; PX4 reports a waypoint followed by DO commands
+with the number of the last of them) and camera feedback. A snapshot counts as
 taken when its waypoint is reached: ArduPilot reports MISSION_ITEM_REACHED for
 navigation items only, and camera feedback only with a camera configured, so
 the waypoint is the one signal every autopilot gives. Camera feedback, where
@@ -317,6 +318,11 @@ class Monitor:
             return
         v.reached.add(seq)
         of_item = v.mission.waypoint_of_item
+        # PX4 reports a waypoint followed by DO commands (the camera) once they are
+        # done, with the last one's number: an item reached means the last
+        # waypoint at or before it was
+        while 0 < seq < len(of_item) and of_item[seq] is None:
+            seq -= 1
         index = of_item[seq] if 0 <= seq < len(of_item) else None
         if index is None or index in v.done:
             return

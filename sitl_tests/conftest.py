@@ -249,8 +249,16 @@ class ProcessBackend:
                 proc.wait(timeout=10)
 
     def tracks(self, flight_dir: Path) -> dict:
-        """What each autopilot reported of itself on its second link."""
-        return {sysid: judge.track() for sysid, judge in sorted(self.judges.items())}
+        """What each autopilot reported of itself on its second link (also written to
+        ``flight_dir/judge_<sysid>.json``)."""
+        import json
+
+        out = {sysid: judge.track() for sysid, judge in sorted(self.judges.items())}
+        for sysid, (t, lat, lon, alt, shots, home) in out.items():
+            (flight_dir / f"judge_{sysid}.json").write_text(json.dumps({
+                "samples": np.stack([t, lat, lon, alt], axis=1).tolist(), "shots": shots,
+                "home": home}))
+        return out
 
     def _popen(self, cmd, cwd, env=None):
         log = open(cwd / "sitl.log", "wb")

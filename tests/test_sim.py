@@ -462,7 +462,9 @@ def test_px4_over_udp():
         c.wait("HEARTBEAT", lambda h: h.system_status == M.MAV_STATE_ACTIVE)
         c.wait("HEARTBEAT", lambda h: not h.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED,
                timeout=30)
-        assert [r.seq for r in c.seen("MISSION_ITEM_REACHED")] == [0, 1, 2, 3]
+        # as PX4 1.17 SITL does: a waypoint followed by DO commands is reported once
+        # they are done, with the number of the last
+        assert [r.seq for r in c.seen("MISSION_ITEM_REACHED")] == [0, 2, 3]
         shots = c.seen("CAMERA_IMAGE_CAPTURED")
         assert len(shots) == 1
         dist = GEOD.inv(shots[0].lon * 1e-7, shots[0].lat * 1e-7, a[1], a[0])[2]

@@ -50,7 +50,8 @@ class Flavour:
     initial_mode: str
     armable: frozenset             # modes that allow arming (AUTO on ArduPilot: see AUTO_OPTIONS)
     legacy_request: bool           # asks for items with MISSION_REQUEST, not _INT (ArduPilot)
-    reached_do_items: bool         # MISSION_ITEM_REACHED also for DO commands (PX4)
+    reached_after_do_items: bool   # MISSION_ITEM_REACHED once the DO commands after a
+                                   # navigation item are done, with the last one's seq (PX4)
     resume_old_index: bool         # a new upload keeps the current index (ArduPilot)
     arm_in_auto_starts: bool       # arming in the mission mode takes off at once (PX4)
     start_needs_armed: bool        # MISSION_START is refused while disarmed (ArduPilot)
@@ -147,7 +148,7 @@ ARDUPILOT = Flavour(
     initial_mode="STABILIZE",
     armable=frozenset({"STABILIZE", "GUIDED", "LOITER"}),
     legacy_request=True,
-    reached_do_items=False,
+    reached_after_do_items=False,
     resume_old_index=True,
     arm_in_auto_starts=False,
     start_needs_armed=True,
@@ -185,7 +186,7 @@ PX4 = Flavour(
     initial_mode="AUTO.LOITER",
     armable=frozenset({"MANUAL", "POSCTL", "AUTO.TAKEOFF", "AUTO.LOITER", "AUTO.MISSION"}),
     legacy_request=False,
-    reached_do_items=True,
+    reached_after_do_items=True,
     resume_old_index=False,
     arm_in_auto_starts=True,
     start_needs_armed=False,

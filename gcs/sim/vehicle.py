@@ -687,22 +687,30 @@ class SimVehicle:
             self._report_reached(task["seq"])
 
     # -- the mission ------------------------------------------------------------------
-    def _run_mission(self, seq: int) -> None:
-        """Execute from item `seq`: DO commands at once, up to the next nav item."""
+    def _run_mission(self, seq: int, reached: int | None = None) -> None:
+        """Execute from item `seq`: DO commands at once, up to the next nav item.
+        ``reached``: a navigation item just completed whose MISSION_ITEM_REACHED
+        waits for the DO commands after it (PX4 then reports the last of them)."""
         seq = max(seq, self.flavour.first_item)
         while not self.dead:
             item = self.mission.item(seq)
             if item is None:
+                self._reached_after(reached)
                 return self._mission_done(seq)
             self._set_current(seq, run=False)
             if item.is_nav:
+                self._reached_after(reached)
                 return self._start_item(item)
             if self._kill_at_item(seq):
                 return
             self._do(item)
-            if self.flavour.reached_do_items:
-                self._report_reached(seq)
+            if reached is not None:
+                reached = seq
             seq += 1
+
+    def _reached_after(self, seq) -> None:
+        if seq is not None:
+            self._report_reached(seq)
 
     def _start_item(self, item) -> None:
         cmd = item.command
@@ -743,6 +751,8 @@ class SimVehicle:
     def _item_complete(self, seq: int, killed_checked=False) -> None:
         if not killed_checked and self._kill_at_item(seq):
             return
+        if self.flavour.reached_after_do_items:
+            return self._run_mission(seq + 1, reached=seq)
         self._report_reached(seq)
         self._run_mission(seq + 1)
 
