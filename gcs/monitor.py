@@ -3,8 +3,10 @@
 A `Monitor` subscribes to every `gcs.link.VehicleLink` of the flight. From the
 reader threads it records the track (GLOBAL_POSITION_INT), the mission items
 reached (MISSION_ITEM_REACHED, mapped to plan waypoints through
-`VehicleMission.waypoint_of_item`; PX4 reports a waypoint followed by DO commands
-with the number of the last of them) and camera feedback. A snapshot counts as
+`VehicleMission.waypoint_of_item`; an item reached means every waypoint before it
+was, as PX4 reports a waypoint followed by DO commands with the number of the last
+of them, and only the latest of several reached between two reports) and camera
+feedback. A snapshot counts as
 taken when its waypoint is reached: ArduPilot reports MISSION_ITEM_REACHED for
 navigation items only, and camera feedback only with a camera configured, so
 the waypoint is the one signal every autopilot gives. Camera feedback, where
@@ -313,24 +315,30 @@ class Monitor:
         v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3))
 
     def _reached(self, v, msg) -> None:
+        """An item reached: its waypoint, and every waypoint of the mission before it
+        not counted yet, since a mission is flown in order. PX4 reports a waypoint
+        followed by DO commands (the camera) once they are done, with the last
+        one's number, and only the latest item reached when several are reached
+        between two of its reports (close waypoints)."""
         seq = int(msg.seq)
         if seq in v.reached:
             return
         v.reached.add(seq)
         of_item = v.mission.waypoint_of_item
-        # PX4 reports a waypoint followed by DO commands (the camera) once they are
-        # done, with the last one's number: an item reached means the last
-        # waypoint at or before it was
-        while 0 < seq < len(of_item) and of_item[seq] is None:
-            seq -= 1
-        index = of_item[seq] if 0 <= seq < len(of_item) else None
-        if index is None or index in v.done:
-            return
-        v.done.add(index)
-        w = v.route.waypoints[index]
-        if w.snapshot:
-            v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
-                                        v.generation, index))
+        passed = []
+        for item in range(min(seq, len(of_item) - 1), -1, -1):
+            index = of_item[item]
+            if index is None:
+                continue
+            if index in v.done:
+                break                   # counted, and so is everything before it
+            passed.append(index)
+        for index in reversed(passed):
+            v.done.add(index)
+            w = v.route.waypoints[index]
+            if w.snapshot:
+                v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
+                                            v.generation, index))
 
     def _camera(self, v, msg) -> None:
         if msg.get_type() == "CAMERA_FEEDBACK":

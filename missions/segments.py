@@ -27,7 +27,7 @@ import numpy as np
 
 from planner.errors import InputError
 
-from .build import firmware_profile, route_items
+from .build import _above_launch, firmware_profile, route_items
 
 #: waypoints closer than this (m, horizontally and vertically) are the same place
 SAME_PLACE_M = 0.01
@@ -123,9 +123,9 @@ class RouteMissions:
         whether it lands (it reaches the route's end)."""
         w, o = self.route.waypoints, self.options
         used = (1 if self.profile.home_item else 0) + (1 if o.speed_mps else 0)
-        if k == 0 and o.takeoff and self._above_launch(w[self.fly[0]]):
+        if k == 0 and o.takeoff and _above_launch(self.route.launch, w[0]):
             used += 1
-        landing = 1 if o.takeoff and self._above_launch(w[self.fly[-1]]) else 0
+        landing = 1 if o.takeoff and _above_launch(self.route.launch, w[-1]) else 0
         end = k
         for j in range(k, len(self.fly)):
             cost = 1 + (1 if w[self.fly[j]].snapshot and o.camera else 0)
@@ -141,10 +141,6 @@ class RouteMissions:
                              f"the vehicle holds {capacity} mission items: too few for a "
                              f"segment of two waypoints from waypoint {self.fly[k]}")
         return self.fly[k:end], False
-
-    def _above_launch(self, w) -> bool:
-        from .build import _above_launch
-        return _above_launch(self.route.launch, w)
 
 
 __all__ = ["RouteMissions", "fewer_waypoints", "leg_prover"]
