@@ -30,6 +30,7 @@ LOST_AFTER_S = 3.0
 #: within --lost-after + 1 s of a kill
 REAL_LOST_AFTER_S = 6.0
 LAUNCH_RADIUS_M = 3.0        # takeoff and landing are vertical above launch
+LANDED_TOL_M = (1.0, 3.0)    # at the launch altitude after landing (simulator, real SITL)
 CLEARANCE_TOL_M = 0.5        # the point mass may sag this much at a corner
 pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collection_modifyitems
 
@@ -153,13 +154,17 @@ def assert_hidden_and_clear(planned, tracks):
         assert clear.all(), f"vehicle {sysid}: {int((~clear).sum())} segments below clearance"
 
 
-def assert_landed_at_launch(ctx, tracks, sysids):
+def assert_landed_at_launch(ctx, tracks, sysids, backend="sim"):
+    # a real autopilot's altitude drifts: PX4 SITL reported 1.25 m below its home
+    # after landing from a 5-minute flight
+    tolerance = LANDED_TOL_M[backend in REAL_BACKENDS]
     for sysid in sysids:
         t, lat, lon, alt, snaps, home = tracks[sysid]
         end = _xyz(ctx, lat[-1:], lon[-1:], alt[-1:])[0]
         launch = _xyz(ctx, [home[0]], [home[1]], [home[2]])[0]
         assert np.hypot(*(end[:2] - launch[:2])) < LAUNCH_RADIUS_M, f"vehicle {sysid}"
-        assert abs(end[2] - launch[2]) < 1.0, f"vehicle {sysid} did not land"
+        assert abs(end[2] - launch[2]) < tolerance, \
+            f"vehicle {sysid} did not land ({end[2] - launch[2]:+.2f} m from launch)"
         assert alt.max() > launch[2] + 20.0, f"vehicle {sysid} never flew"
 
 
@@ -199,7 +204,7 @@ def assert_one_loss_retasked(planned, result, sysid) -> dict:
     in_air = [s for s in replan["survivors"] if s not in replan["relaunched"]]
     assert in_air == still_flying(report, survivors, replan["t_s"])
     assert_hidden_and_clear(planned, tracks)
-    assert_landed_at_launch(planned.ctx, tracks, survivors)
+    assert_landed_at_launch(planned.ctx, tracks, survivors, result["backend"])
     cov = recorded_coverage(planned.ctx, tracks, survivors, k=0)
     assert cov["k_covered"] == coverable(planned.ctx)
     return cov
@@ -232,7 +237,7 @@ def test_no_loss_k0(planned, backend, tmp_path):
     report, tracks = result["report"], result["tracks"]
     assert report["losses"] == [] and report["replans"] == []
     assert_hidden_and_clear(p, tracks)
-    assert_landed_at_launch(p.ctx, tracks, list(tracks))
+    assert_landed_at_launch(p.ctx, tracks, list(tracks), backend)
     cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
     _print("no loss, k=0", result, cov)
     assert cov["k_covered"] == coverable(p.ctx)
@@ -295,7 +300,7 @@ def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
     survivors = [s for s in range(1, n + 1) if s not in (2, n)]
     assert report["replans"][-1]["survivors"] == survivors
     assert_hidden_and_clear(p, tracks)
-    assert_landed_at_launch(p.ctx, tracks, survivors)
+    assert_landed_at_launch(p.ctx, tracks, survivors, backend)
     cov = recorded_coverage(p.ctx, tracks, survivors, k=0)
     _print("two losses, one during re-tasking", result, cov)
     assert cov["k_covered"] == coverable(p.ctx)
@@ -318,7 +323,7 @@ def test_ctrl_c_brings_every_vehicle_home_hidden(planned, backend, tmp_path):
     home = report["replans"][-1]
     assert home["survivors"] == still_flying(report, sorted(tracks), home["t_s"])
     assert_hidden_and_clear(p, tracks)
-    assert_landed_at_launch(p.ctx, tracks, list(tracks))
+    assert_landed_at_launch(p.ctx, tracks, list(tracks), backend)
     cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
     _print("Ctrl-C, home", result, cov)
     assert cov["k_covered"] < coverable(p.ctx)  # they came home early
@@ -348,7 +353,7 @@ def test_route_longer_than_the_autopilot_holds(planned, backend, tmp_path):
     for v in report["vehicles"]:
         assert v["state"] == "landed" and (v["segments"] > 0) == (whole[v["sysid"]] > limit)
     assert_hidden_and_clear(p, tracks)
-    assert_landed_at_launch(p.ctx, tracks, list(tracks))
+    assert_landed_at_launch(p.ctx, tracks, list(tracks), backend)
     cov = recorded_coverage(p.ctx, tracks, list(tracks), k=0)
     ups = report["segments"]
     _print(f"in segments ({len(ups)} sent in flight, {limit} items at most, upload "
