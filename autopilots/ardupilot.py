@@ -2,7 +2,8 @@
 
 - Mission item 0 is home: the vehicle overwrites it with the real home and
   reads it back so; item 1 is the first flown, and MISSION_CURRENT /
-  MISSION_ITEM_REACHED count home as 0.
+  MISSION_ITEM_REACHED count home as 0. In a ``.waypoints`` file home is line 0,
+  uploaded as item 0.
 - Modes are plain numbers in ``custom_mode`` (pymavlink's table per vehicle
   type). Re-tasking holds in GUIDED; the mission flies in AUTO; a finished
   mission leaves the copter in LOITER.
@@ -76,7 +77,7 @@ class ArduPilot(Autopilot):
         return (0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0)
 
     def modes(self, mav_type: int = MAV_TYPE_QUADROTOR) -> dict:
-        from pymavlink import mavutil      # at run time: gcs.mavlink picks the wire version
+        from pymavlink import mavutil  # at run time: gcs.mavlink picks the wire version
 
         return dict(mavutil.mode_mapping_byname(mav_type)
                     or mavutil.mode_mapping_byname(MAV_TYPE_QUADROTOR))

@@ -45,7 +45,8 @@ class Autopilot:
     name: str                     # "ardupilot" | "px4": --firmware, plan.json, reports
     title: str                    # for people: "ArduPilot", "PX4"
     mav_autopilot: int            # HEARTBEAT.autopilot (MAV_AUTOPILOT); .plan firmwareType
-    home_item: bool               # mission item 0 is home: written, overwritten, not flown
+    home_item: bool               # mission item 0 is home: written, overwritten, not flown;
+    #                               else a .waypoints file's home line 0 is not uploaded
     yaw: float                    # param4 of takeoff / waypoint / land items
     camera_command: int           # MAV_CMD written after a snapshot waypoint
     mission_capacity: int | None  # items a vehicle holds by default (None: no limit known);

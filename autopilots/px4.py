@@ -1,7 +1,9 @@
 """PX4 as a ground station meets it.
 
 - No home item: item 0 is the first flown (the takeoff), and MISSION_CURRENT /
-  MISSION_ITEM_REACHED start there.
+  MISSION_ITEM_REACHED start there. A ``.waypoints`` file still starts with a
+  home line 0 (the launch point), as QGroundControl writes and reads them; it is
+  dropped on reading (`missions.wpl`), so the takeoff never becomes home.
 - Modes: the main mode in bits 16-23 of ``custom_mode``, the sub mode in bits
   24-31 (AUTO.MISSION = main 4, sub 4); MAV_CMD_DO_SET_MODE carries them as
   param2 and param3. A bare AUTO (no sub mode) is reported while holding:

@@ -22,10 +22,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.coverage import CoverageParams, lower_bound, solve  # noqa: E402
+from planner.coverage import METHODS, CoverageParams, lower_bound, solve  # noqa: E402
 from planner.coverage.instances import FAMILIES, random_problem  # noqa: E402
-
-METHODS = ("rt", "rt+ls", "rd", "b", "c")
 
 
 def gmean(values):

@@ -10,7 +10,7 @@ file I/O; n outposts = n viewsheds): the same quantity, both best of REPEATS
 runs. "surface ms" is the whole `compute_exposure` (the sweep, then the cap,
 flyable cells and connected regions), for reference. Both are
 compared on a few thousand random cells with the exact lowest visible altitude
-(planner.los): "unsafe" = more than 0.5 m above exact (a UAV flying below it is
+(planner.exposure.los): "unsafe" = more than 0.5 m above exact (a UAV flying below it is
 seen), "lost" = more than 2 m below exact, "lost E" = the same once both are
 capped at the ceiling as E is (flyable space given away).
 
@@ -27,11 +27,9 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
-from planner.dem import sample_terrain
-from planner.exposure import ExposureParams, compute_exposure, lowest_seen
-from planner.los import lowest_visible_altitude
-from planner.outposts import Outpost
-from planner.synthetic import synthetic_terrain
+from planner.exposure import ExposureParams, Outpost, compute_exposure, lowest_seen
+from planner.exposure.los import lowest_visible_altitude
+from planner.terrain import sample_terrain, synthetic_terrain
 
 GDAL_PYTHON = "/usr/bin/python3"
 GDAL_SCRIPT = Path(__file__).with_name("gdal_viewshed.py")

@@ -8,7 +8,7 @@
 2. Every method on the sample terrain problems (the full DEM without launch
    points, and the demo area with one base), k = 0 and 1: coverage time, ratio
    to RT and to the makespan lower bound, snapshots, planning seconds.
-3. What conservative resampling costs (planner.dem): a DEM that must be
+3. What conservative resampling costs (planner.terrain.dem): a DEM that must be
    resampled (a geographic one) is planned on two surfaces that bracket it, so
    its exposure surface is safe against the DEM itself. Rows: the uncropped
    sample against the same grid resampled naively (the bracket's midpoint,
@@ -94,8 +94,7 @@ def resampling_cost():
     from affine import Affine
     from pyproj import Transformer
 
-    from planner.synthetic import synthetic_terrain
-    from planner.terrain import Terrain
+    from planner.terrain import Terrain, synthetic_terrain
 
     head = f"{'DEM (4 UAVs, k = 1, rt)':<44} | {'flyable km2':>11} {'targets':>8} {'cover min':>9} {'plan s':>7}"
     print(head)

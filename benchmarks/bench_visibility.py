@@ -19,14 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.dem import sample_terrain
-from planner.exposure import ExposureParams, compute_exposure
-from planner.errors import InputError
-from planner.outposts import Outpost, sample_outposts
-from planner.synthetic import synthetic_terrain
+from common.errors import InputError
+from planner.exposure import ExposureParams, Outpost, compute_exposure, sample_outposts
+from planner.terrain import sample_terrain, synthetic_terrain
 from planner.travel import TravelGraph
-from planner.viewpoints import candidate_viewpoints, fleet_region
-from planner.visibility import SensorParams, compute_visibility
+from planner.visibility import SensorParams, candidate_viewpoints, compute_visibility, fleet_region
 
 GDAL_PYTHON = "/usr/bin/python3"
 GDAL_SCRIPT = Path(__file__).with_name("gdal_viewsheds_many.py")
@@ -177,7 +174,7 @@ def _gdal(surface, vp, vis, sensor):
 
 
 def _subset(vp, idx):
-    from planner.viewpoints import Viewpoints
+    from planner.visibility import Viewpoints
     return Viewpoints(vp.indices[idx], vp.xyz[idx], vp.region[idx])
 
 

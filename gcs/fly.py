@@ -30,6 +30,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from autopilots import NAMES
+from common.errors import InputError
+from common.fileio import write_text_atomic
 from gcs import commands
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
@@ -39,11 +41,9 @@ from gcs.segments import Segments, upload_route
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
-from missions.sources import saved_plan_surface
-from planner.errors import InputError
-from planner.fileio import write_text_atomic
+from planner.context import PlanningContext
 from planner.plan import PLAN_FILE, Plan
-from planner.replan import context_for_plan, coverable_targets, coverage_summary, seen_matrix
+from planner.replan import coverable_targets, coverage_summary, seen_matrix
 
 FORMAT = "gcs-flight/1"
 FLIGHT_FILE = "flight.json"
@@ -67,6 +67,7 @@ class FlyOptions:
     max_items: int | None = None  # items per upload at most (segments below the capacity)
     timeout_s: float | None = None  # after this many wall seconds: ask, or bring them home
     tlog: bool = True
+    forward: object = None  # gcs.forward.Forwarder: the fleet's MAVLink relayed (--forward)
     live: bool = True  # rich status table on a terminal, event lines otherwise
     plot: bool = True
 
@@ -106,7 +107,9 @@ def assign_vehicles(plan: Plan, sysids: list, assign: dict) -> dict:
 class Flight:
     """One flight of a plan; `run` does everything, the parts are there for tests."""
 
-    def __init__(self, plan_dir, urls, options: FlyOptions, log=None):
+    def __init__(self, plan_dir, urls, options: FlyOptions, log=None, ctx=None):
+        """``ctx``: the plan's `PlanningContext` when it is in memory (`gcs demo`);
+        otherwise it is loaded from the plan folder."""
         self.plan_dir = Path(plan_dir)
         self.plan = Plan.load(self.plan_dir)
         self.urls = list(urls)
@@ -121,7 +124,7 @@ class Flight:
         self._lost_early = False  # a vehicle was lost before monitoring began
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
         self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
-        self.ctx = None
+        self.ctx = ctx
         self._ctx_ready = threading.Event()
         self._ctx_error = None
         self.missions = None      # (route id, firmware) -> CheckedMission, once prepared
@@ -136,7 +139,9 @@ class Flight:
         any connection: InputError naming the plan and vehicle if one fails."""
         if self.missions is not None:
             return
-        self.surface = saved_plan_surface(self.plan_dir, self.plan)
+        if self.ctx is None:
+            self.ctx = PlanningContext.load(self.plan_dir, self.plan)
+        self.surface = self.ctx.surface
         clearance = self.plan.params.get("clearance_m")
         missions = {}
         for route in self.plan.vehicles:
@@ -212,8 +217,10 @@ class Flight:
             self.monitor.event(None, "stopped while bringing the vehicles home")
 
     def _prepare_context(self) -> None:
+        """The travel times between viewpoints, which only re-planning needs: computed
+        while the vehicles start, so that a loss finds them ready."""
         try:
-            self.ctx = context_for_plan(self.plan_dir, self.plan)
+            self.ctx.travel  # noqa: B018 - computed once, kept by the context
         except Exception as exc:  # reported when the context is needed
             self._ctx_error = exc
         self._ctx_ready.set()
@@ -230,7 +237,8 @@ class Flight:
         tlog = str(self.output / TLOG_PATTERN) if o.tlog else None
         try:
             self.link = GroundLink.open(self.urls, o.signing_key, expect=expect,
-                                        timeout_s=o.connect_timeout_s, tlog=tlog)
+                                        timeout_s=o.connect_timeout_s, tlog=tlog,
+                                        forward=o.forward)
         except LinkError as exc:
             raise FlightError(str(exc)) from None
         vehicles = self.link.vehicles
@@ -458,10 +466,11 @@ class Flight:
 
 
 def fly(plan_dir, urls, options: FlyOptions = None, log=None, status=None,
-        on_interrupt=None, on_timeout=None) -> dict:
-    """Fly ``plan_dir`` on the vehicles at ``urls``; returns the flight report."""
-    return Flight(plan_dir, urls, options or FlyOptions(), log).run(status, on_interrupt,
-                                                                     on_timeout)
+        on_interrupt=None, on_timeout=None, ctx=None) -> dict:
+    """Fly ``plan_dir`` on the vehicles at ``urls``; returns the flight report.
+    ``ctx``: the plan's context when it is in memory (else read from the folder)."""
+    return Flight(plan_dir, urls, options or FlyOptions(), log, ctx).run(status, on_interrupt,
+                                                                          on_timeout)
 
 
 __all__ = ["Flight", "FlightError", "FlyOptions", "LANDED", "LOST", "assign_vehicles", "fly"]

@@ -28,8 +28,15 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from gcs import signing
-from gcs.mavlink import (GCS_COMPONENT_ID, GCS_SYSTEM_ID, M, flavour_of, mavutil,
-                         mode_name, profile_of)
+from gcs.mavlink import (
+    GCS_COMPONENT_ID,
+    GCS_SYSTEM_ID,
+    M,
+    flavour_of,
+    mavutil,
+    mode_name,
+    profile_of,
+)
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
@@ -510,10 +517,13 @@ def build_message(name: str, fields: dict):
 class GroundLink:
     """The ground station's side of every connection, and the vehicles found on them."""
 
-    def __init__(self, urls, signing_key: bytes | None = None, tlog=None):
+    def __init__(self, urls, signing_key: bytes | None = None, tlog=None, forward=None):
+        """``forward``: a `gcs.forward.Forwarder` that every vehicle message is relayed
+        to (and that reads the forwarded side); closed with the link."""
         if isinstance(urls, str):
             urls = [urls]
         self.signing_key = signing_key
+        self.forward = forward
         self.connections = []
         self._vehicles = {}
         self._lock = threading.Lock()
@@ -533,14 +543,14 @@ class GroundLink:
 
     @classmethod
     def open(cls, urls, signing_key: bytes | None = None, expect=None, timeout_s: float = 10,
-             tlog=None) -> "GroundLink":
+             tlog=None, forward=None) -> "GroundLink":
         """Connect to `urls` and wait for vehicles.
 
         expect: a number of vehicles, or an iterable of system ids, to wait for; None
         waits until every connection has shown one vehicle and then one more
         heartbeat period for others sharing a port. Raises LinkError naming what is
         missing after `timeout_s`."""
-        link = cls(urls, signing_key, tlog)
+        link = cls(urls, signing_key, tlog, forward)
         link.start()
         try:
             link.wait_vehicles(expect, timeout_s)
@@ -558,6 +568,8 @@ class GroundLink:
         t = threading.Thread(target=self._heartbeats, daemon=True, name="gcs-heartbeat")
         t.start()
         self._threads.append(t)
+        if self.forward is not None:
+            self.forward.start(self)
         return self
 
     @property
@@ -624,6 +636,11 @@ class GroundLink:
             self._packer.seq = (self._packer.seq + 1) % 256
             conn.write(packet, addr)
 
+    def _write_raw(self, conn: Connection, packet: bytes, addr=None) -> None:
+        """Write a packet someone else packed (a forwarded station's), as it is."""
+        with self._send_lock:
+            conn.write(packet, addr)
+
     def _heartbeats(self) -> None:
         hb = build_message("HEARTBEAT", {"type": M.MAV_TYPE_GCS,
                                          "autopilot": M.MAV_AUTOPILOT_INVALID,
@@ -654,6 +671,8 @@ class GroundLink:
         if self._tlog is not None:
             self._tlog.write(vehicle.sysid, bytes(msg.get_msgbuf()))
         vehicle._deliver(msg, next(self._counter), conn, addr)
+        if self.forward is not None:
+            self.forward.relay(vehicle, msg)
 
     def _discover(self, msg, conn, addr) -> None:
         """A HEARTBEAT from an autopilot makes a vehicle; everything else waits for one.
@@ -681,6 +700,8 @@ class GroundLink:
             t.join(timeout=2)
         self._threads = []
         self._close_connections()
+        if self.forward is not None:
+            self.forward.close()
         if self._tlog is not None:
             self._tlog.close()
 

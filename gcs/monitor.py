@@ -87,7 +87,7 @@ class VehicleProgress:
     done: set = field(default_factory=set)  # route waypoint indices reached in this mission
     snapshots: list = field(default_factory=list)  # [Snapshot], every mission
     camera: list = field(default_factory=list)  # camera feedback positions [(t, lon, lat, alt)]
-    track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL)]
+    track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL, vehicle time s)]
     airborne: bool = False
     lost_at_s: float | None = None
     lost_reason: str | None = None
@@ -312,7 +312,11 @@ class Monitor:
             self._judge_disarm(v, agl)
         if v.track and t - v.track[-1][0] < TRACK_PERIOD_S:
             return
-        v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3))
+        # the vehicle's own clock too: mission time, which runs faster than the wall
+        # clock in a sped-up simulation
+        boot = getattr(msg, "time_boot_ms", None)
+        v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3,
+                        None if boot is None else round(boot * 1e-3, 3)))
 
     def _reached(self, v, msg) -> None:
         """An item reached: its waypoint, and every waypoint of the mission before it

@@ -25,14 +25,21 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from common.errors import InputError
 from gcs import commands
 from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, distance_m
 from gcs.segments import upload_route
 from missions.build import MissionOptions
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
-from planner.errors import InputError
-from planner.replan import (Survivor, coverable_targets, coverage_summary, replan, requirement,
-                            seen_matrix, survivor_start)
+from planner.replan import (
+    Survivor,
+    coverable_targets,
+    coverage_summary,
+    replan,
+    requirement,
+    seen_matrix,
+    survivor_start,
+)
 
 #: wall seconds to let a held vehicle brake before its position is taken
 SETTLE_S = 3.0

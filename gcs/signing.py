@@ -14,7 +14,7 @@ import hashlib
 import time
 from pathlib import Path
 
-from planner.errors import InputError
+from common.errors import InputError
 
 KEY_BYTES = 32
 EPOCH_2015 = 1420070400        # signing timestamps count 10 us since 2015-01-01 UTC

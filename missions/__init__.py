@@ -7,3 +7,6 @@
   writers and readers; `missions.geo`: GeoJSON and KML of the routes;
 - `missions.export`: `export_plan_dir`, all of the above for a plan directory.
 """
+
+#: the files `missions.export` writes, by name
+FORMATS = ("plan", "waypoints", "geojson", "kml")

@@ -23,10 +23,18 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from autopilots import ARDUPILOT, NAMES, profile
-from planner.errors import InputError
+from common.errors import InputError
 
-from .items import (DO_CHANGE_SPEED, FRAME_GLOBAL, FRAME_MISSION, NAV_LAND, NAV_TAKEOFF,
-                    NAV_WAYPOINT, MissionItem, renumber)
+from .items import (
+    DO_CHANGE_SPEED,
+    FRAME_GLOBAL,
+    FRAME_MISSION,
+    NAV_LAND,
+    NAV_TAKEOFF,
+    NAV_WAYPOINT,
+    MissionItem,
+    renumber,
+)
 
 FIRMWARES = NAMES
 SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1

@@ -20,12 +20,18 @@ from dataclasses import replace
 import numpy as np
 
 from autopilots import profile
-from planner.errors import InputError
+from common.errors import InputError
 from planner.exposure import is_hidden, segments_clear, segments_hidden
 
-from .items import (FRAME_GLOBAL, GLOBAL_FRAMES, NAV_LAND, NAV_RETURN_TO_LAUNCH, NAV_TAKEOFF,
-                    NAV_WAYPOINT, NAV_POSITION_COMMANDS)
-
+from .items import (
+    FRAME_GLOBAL,
+    GLOBAL_FRAMES,
+    NAV_LAND,
+    NAV_POSITION_COMMANDS,
+    NAV_RETURN_TO_LAUNCH,
+    NAV_TAKEOFF,
+    NAV_WAYPOINT,
+)
 
 # Commands whose flight is not a straight leg between mission positions.
 UNPROVABLE = {

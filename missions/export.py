@@ -8,15 +8,13 @@ Per vehicle ``vehicle-<id>.plan`` (QGroundControl) and ``vehicle-<id>.waypoints`
 from pathlib import Path
 from typing import Optional
 
-from planner.errors import InputError
-
-from . import geo, qgc, wpl
 from autopilots import ARDUPILOT
+from common.errors import InputError
 
+from . import FORMATS, geo, qgc, wpl
 from .build import MissionOptions, firmware_profile, plan_missions
 from .check import check_mission
 
-FORMATS = ("plan", "waypoints", "geojson", "kml")
 ROUTES_GEOJSON = "routes.geojson"
 ROUTES_KML = "routes.kml"
 
@@ -70,7 +68,8 @@ def _vehicle_files(directory, mission, plan, speed, formats, fences) -> list:
         out.append((path, f"{what} (QGroundControl .plan)"))
     if "waypoints" in formats:
         path = vehicle_file(directory, mission.vehicle_id, "waypoints")
-        wpl.write_waypoints(path, mission.items)
+        wpl.write_waypoints(path, mission.items, mission.firmware,
+                            home=_home(plan, mission.vehicle_id))
         out.append((path, f"{what} (QGC WPL 110: Mission Planner, MAVProxy)"))
     return out
 

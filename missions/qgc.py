@@ -19,10 +19,9 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
-from planner.errors import InputError
-from planner.fileio import write_text_atomic
-
 from autopilots import PROFILES, PX4, profile, profile_of_heartbeat
+from common.errors import InputError
+from common.fileio import write_text_atomic
 
 from .build import firmware_profile
 from .items import FRAME_GLOBAL, NAV_WAYPOINT, MissionItem, renumber

@@ -25,7 +25,7 @@ import math
 
 import numpy as np
 
-from planner.errors import InputError
+from common.errors import InputError
 
 from .build import _above_launch, firmware_profile, route_items
 

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from autopilots import NAMES
-from planner.errors import InputError
+from common.errors import InputError
 from planner.plan import PLAN_FILE, TERRAIN_FILE
 
 from .build import MissionOptions, VehicleMission, firmware_profile, vehicle_mission
@@ -28,15 +28,15 @@ MISSION_SUFFIXES = (".plan", ".waypoints", ".txt")
 
 def saved_plan_surface(directory, plan):
     """The exposure surface a saved plan was made against (``terrain.tif``, the
-    plan's outposts and parameters). Every check of a saved plan's missions gets
-    its surface here, the one call of `planner.pipeline.plan_surface`."""
+    plan's outposts, parameters and lowest seen altitudes). Every check of a
+    saved plan's missions gets its surface here (`planner.context.load_surface`)."""
     directory = Path(directory)
     if not (directory / TERRAIN_FILE).is_file():
         raise InputError(directory / TERRAIN_FILE, "missing: the legs cannot be proven "
                                                    "hidden and clear without the plan's terrain")
-    from planner.pipeline import plan_surface
+    from planner.context import load_surface
 
-    return plan_surface(directory, plan)
+    return load_surface(directory, plan)
 
 
 @dataclass
@@ -210,7 +210,14 @@ def _file_missions(path: Path, route_id: int) -> tuple:
             except InputError as exc:
                 missions[fw] = exc
         return missions, own
-    from .wpl import read_waypoints
+    from .wpl import mission_items, read_waypoints
 
-    items = read_waypoints(path)
-    return {fw: VehicleMission(route_id, fw, items, [None] * len(items)) for fw in NAMES}, None
+    lines = read_waypoints(path)                     # InputError for a bad file
+    missions = {}
+    for fw in NAMES:                                 # line 0 is home: kept or dropped per firmware
+        try:
+            items = mission_items(lines, fw, path)
+            missions[fw] = VehicleMission(route_id, fw, items, [None] * len(items))
+        except InputError as exc:
+            missions[fw] = exc
+    return missions, None

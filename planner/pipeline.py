@@ -9,21 +9,34 @@ positions and what they have already seen.
 
 import time
 from contextlib import contextmanager
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Callable, Optional
 
 import numpy as np
 
+from common.errors import InputError
+from planner.exposure import (
+    compute_exposure,
+    load_outposts,
+    sample_outposts,
+    segments_clear,
+    segments_hidden,
+)
+from planner.terrain import load_dem, sample_terrain
+from planner.terrain.area import area_mask, read_area
+from planner.travel import build_travel_graph, leg_time
+from planner.visibility import (
+    candidate_viewpoints,
+    compute_visibility,
+    fleet_region,
+    launch_cells,
+)
+
 from . import coverage
-from .dem import load_dem, sample_terrain
-from .errors import InputError
-from .exposure import ExposureParams, compute_exposure, segments_clear, segments_hidden
-from .outposts import load_outposts, sample_outposts
+from .context import PlanningContext, outposts_json
+from .parallel import dask_client
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
-from .travel import TravelParams, build_travel_graph, leg_time
-from .viewpoints import candidate_viewpoints, fleet_region, launch_cells
-from .visibility import SensorParams, compute_visibility
 
 #: progress(stage, fraction) — fraction in [0, 1], 1 when the stage is done
 Progress = Callable[[str, float], None]
@@ -38,28 +51,6 @@ class Start:
     climb_s: float = 0.0  # vertical takeoff time before xyz, counted in the route's time
 
 
-@dataclass
-class PlanningContext:
-    scenario: Scenario
-    terrain: object
-    outposts: list
-    surface: object
-    regions: tuple
-    viewpoints: object
-    visibility: object
-    graph: object
-    travel: np.ndarray  # [n_vp, n_vp] hidden times between viewpoints, s
-    timing_s: dict = field(default_factory=dict)
-
-    @property
-    def travel_params(self) -> TravelParams:
-        return travel_params(self.scenario)
-
-
-def travel_params(s: Scenario) -> TravelParams:
-    return TravelParams(s.speed_mps, s.climb_mps, s.descent_mps, s.track_tolerance_m)
-
-
 @contextmanager
 def _stage(name, timing, progress):
     if progress:
@@ -72,11 +63,59 @@ def _stage(name, timing, progress):
 
 
 def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
-            outposts=None) -> PlanningContext:
+            outposts=None, scheduler="auto", log=None) -> PlanningContext:
     """Run the terrain-bound stages of ``scenario`` (``terrain`` and ``outposts``
-    given directly replace the scenario's files, e.g. for synthetic terrain)."""
+    given directly replace the scenario's files, e.g. for synthetic terrain).
+
+    ``scheduler``: where the chunked stages (travel graph, travel times) run:
+    "auto" (in this process, or a local dask cluster on a large area), the
+    address of a dask scheduler, a ``distributed.Client``, or None (here).
+    ``log(text)`` is told which, when it is not this process."""
     s = scenario
     timing = {}
+    polygons = read_area(s.area_file) if s.area_file else None   # a bad file fails first
+    surface = exposure_stages(s, progress, timing, terrain, outposts)
+    terrain, outposts = surface.terrain, surface.outposts
+    area = area_of(s, terrain, polygons)
+    if area is not None and s.area_flight:
+        surface = restrict_surface(surface, area)
+    launch_xy = _launch_xy(terrain, s)
+    regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
+    with dask_client(scheduler, terrain.height.size, log) as client:
+        with _stage("travel graph", timing, progress):
+            graph = build_travel_graph(surface, s.travel_params(), client=client,
+                                       progress=_fraction(progress, "travel graph"))
+        with _stage("viewpoints", timing, progress):
+            candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
+                                              s.sensor_range_m)
+            tops = None if launch_xy is None else launch_tops(graph, launch_xy)
+            viewpoints = candidates.subset(
+                graph.reachable(tops)[graph.nodes_of(candidates.xyz)])
+            if not len(viewpoints):
+                raise InputError("exposure", "no viewpoint can be reached by hidden flight: "
+                                 "the hidden region is too thin or too broken up for legs "
+                                 "that keep the clearance and the track tolerance (try a "
+                                 "larger --area, a lower --clearance or --track-tolerance)")
+        with _stage("visibility", timing, progress):
+            visibility = compute_visibility(surface, viewpoints, s.sensor_params())
+            if area is not None:
+                visibility = visibility.restricted(area)
+                if not visibility.n_targets:
+                    raise InputError(s.area_file, "no target inside the polygon: no viewpoint "
+                                                  "the fleet reaches sees any cell in it")
+        with _stage("travel times", timing, progress):
+            times = graph.time_matrix(viewpoints.xyz, client=client,
+                                      progress=_fraction(progress, "travel times"))
+    return PlanningContext(s, terrain, list(outposts), surface, regions, viewpoints,
+                           visibility, graph, times, timing_s=timing)
+
+
+def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, terrain=None,
+                    outposts=None):
+    """The first stages of `prepare`, all `gcs exposure` runs: the terrain and the
+    outposts of ``scenario`` (unless given), then their exposure surface."""
+    s = scenario
+    timing = {} if timing is None else timing
     with _stage("terrain", timing, progress):
         if terrain is None:
             terrain = (sample_terrain(resolution=s.resolution_m, area=s.area) if s.sample else
@@ -86,37 +125,39 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
             outposts = (load_outposts(s.outposts, terrain) if s.outposts
                         else sample_outposts(terrain) if s.sample else [])
     with _stage("exposure", timing, progress):
-        params = ExposureParams(ceiling_agl_m=s.ceiling_agl_m, clearance_m=s.clearance_m,
-                                hide_margin_m=s.hide_margin_m, curvature_coeff=s.curvature_coeff)
-        surface = compute_exposure(terrain, outposts, params,
-                                   progress=_fraction(progress, "exposure"))
-    launch_xy = _launch_xy(terrain, s)
-    regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
-    with _stage("travel graph", timing, progress):
-        graph = build_travel_graph(surface, travel_params(s))
-    with _stage("viewpoints", timing, progress):
-        candidates = candidate_viewpoints(surface, s.viewpoint_spacing_m, regions,
-                                          s.sensor_range_m)
-        tops = None if launch_xy is None else launch_tops(graph, launch_xy)
-        viewpoints = candidates.subset(graph.reachable(tops)[graph.nodes_of(candidates.xyz)])
-        if not len(viewpoints):
-            raise InputError("exposure", "no viewpoint can be reached by hidden flight: the "
-                             "hidden region is too thin or too broken up for legs that keep "
-                             "the clearance and the track tolerance (try a larger --area, "
-                             "a lower --clearance or --track-tolerance)")
-    with _stage("visibility", timing, progress):
-        sensor = SensorParams(s.sensor_range_m, s.max_off_nadir_deg)
-        visibility = compute_visibility(surface, viewpoints, sensor)
-    with _stage("travel times", timing, progress):
-        travel = graph.time_matrix(viewpoints.xyz)
-    return PlanningContext(s, terrain, outposts, surface, regions, viewpoints, visibility,
-                           graph, travel, timing)
+        return compute_exposure(terrain, outposts, s.exposure_params(),
+                                progress=_fraction(progress, "exposure"))
+
+
+def area_of(s: Scenario, terrain, polygons=None):
+    """bool [rows, cols] of the cells inside ``s.area_file``'s polygon; None without one."""
+    if not s.area_file:
+        return None
+    inside = area_mask(terrain, polygons if polygons is not None else read_area(s.area_file))
+    if not inside.any():
+        raise InputError(s.area_file, "the polygon covers no cell of the terrain (outside the "
+                                      "DEM or the --area crop?)")
+    return inside
+
+
+def restrict_surface(surface, inside):
+    """The surface with nothing flyable outside ``inside`` (the polygon); what is
+    hidden (``lowest_seen``) is unchanged."""
+    from dataclasses import replace
+
+    from scipy import ndimage
+
+    flyable = surface.flyable & inside
+    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
+    return replace(surface, exposure=np.where(flyable, surface.exposure, np.nan),
+                   flyable=flyable, regions=regions.astype(np.int32))
 
 
 def _fraction(progress, stage):
+    """``progress`` for one stage: called with (done, total) or with a fraction."""
     if progress is None:
         return None
-    return lambda done, total: progress(stage, done / max(total, 1))
+    return lambda done, total=1: progress(stage, done / max(total, 1))
 
 
 def _launch_xy(terrain, s: Scenario):
@@ -314,7 +355,7 @@ def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
 def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing):
     s = ctx.scenario
     required = (np.asarray(problem.required) if problem.required is not None
-                else np.full(problem.n_targets, min(s.k + 1, problem.n_uavs)))
+                else np.full(problem.n_targets, coverage.required_uavs(s.k, problem.n_uavs)))
     vehicles = []
     for r, (poly, (t, snap)) in enumerate(zip(polylines, arrivals)):
         vehicles.append(_vehicle(ctx, r, poly, t, snap, starts[r] if starts else None))
@@ -333,11 +374,8 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)
     timing["total"] = float(sum(timing.values()))
-    return Plan(method=method, params=plan_params(s), crs=ctx.terrain.crs,
-                outposts=[{"lon": o.lon, "lat": o.lat, "height_m": o.height_m,
-                           "range_m": o.range_m if np.isfinite(o.range_m) else None,
-                           "name": o.name, "ground_amsl": o.ground_m}
-                          for o in ctx.outposts],
+    return Plan(method=method, params=s.params(), crs=ctx.terrain.crs,
+                outposts=outposts_json(ctx.outposts),
                 vehicles=vehicles, metrics=metrics, timing_s=timing)
 
 
@@ -362,55 +400,10 @@ def _vehicle(ctx, r, poly, t, snap, start) -> VehicleRoute:
                         mission_time_s=mission_t, path_length_m=length)
 
 
-def plan_params(s: Scenario) -> dict:
-    """Every planning parameter, units in the key."""
-    return {
-        "uavs": s.uavs, "k": s.k, "visibility": s.visibility, "alpha": s.alpha, "beta": s.beta,
-        "step_time_cap_s": s.step_time_cap_s, "seed": s.seed,
-        "clearance_m": s.clearance_m, "hide_margin_m": s.hide_margin_m,
-        "ceiling_agl_m": s.ceiling_agl_m, "curvature_coeff": s.curvature_coeff,
-        "sensor_range_m": s.sensor_range_m, "max_off_nadir_deg": s.max_off_nadir_deg,
-        "viewpoint_spacing_m": s.viewpoint_spacing_m, "target_height_m": 0.5,
-        "speed_mps": s.speed_mps, "climb_mps": s.climb_mps, "descent_mps": s.descent_mps,
-        "resolution_m": s.resolution_m, "firmware": s.firmware,
-        "dem": list(s.dem), "sample": bool(s.sample), "area": s.area,
-        "outposts_file": s.outposts, "launch": [list(p) for p in s.launch_points],
-    }
-
-
-def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None):
-    """Scenario -> (PlanningContext, Outcome): the whole of `gcs plan`."""
-    ctx = prepare(scenario, progress, terrain, outposts)
+def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None,
+                 scheduler="auto", log=None):
+    """Scenario -> (PlanningContext, Outcome): the whole of `gcs plan` (``scheduler``,
+    ``log``: see `prepare`)."""
+    ctx = prepare(scenario, progress, terrain, outposts, scheduler, log)
     starts = launch_starts(ctx)
     return ctx, allocate(ctx, scenario.uavs, starts, progress=progress)
-
-
-def plan_surface(directory, plan: Plan):
-    """The exposure surface a saved plan was made against, rebuilt from its directory
-    (``terrain.tif``, outposts and parameters from ``plan.json``) to re-check legs
-    before export or upload; cheaper than the whole context."""
-    from pathlib import Path
-
-    from .geotiff import read_terrain
-    from .plan import TERRAIN_FILE
-
-    terrain = read_terrain(Path(directory) / TERRAIN_FILE)
-    p = plan.params
-    params = ExposureParams(ceiling_agl_m=p["ceiling_agl_m"], clearance_m=p["clearance_m"],
-                            hide_margin_m=p["hide_margin_m"],
-                            curvature_coeff=p["curvature_coeff"])
-    return compute_exposure(terrain, plan_outposts(terrain, plan), params)
-
-
-def plan_outposts(terrain, plan: Plan) -> list:
-    """The plan's outposts on the working grid."""
-    from .outposts import Outpost
-
-    lon = np.array([o["lon"] for o in plan.outposts], float)
-    lat = np.array([o["lat"] for o in plan.outposts], float)
-    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
-    return [Outpost(float(xi), float(yi), float(o["height_m"]),
-                    float("inf") if o.get("range_m") is None else float(o["range_m"]),
-                    float(o["lon"]), float(o["lat"]), o.get("name", ""),
-                    float("nan") if o.get("ground_amsl") is None else float(o["ground_amsl"]))
-            for xi, yi, o in zip(x, y, plan.outposts)]

@@ -12,8 +12,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Optional
 
-from .errors import InputError
-from .fileio import write_text_atomic
+from common.errors import InputError
+from common.fileio import write_text_atomic
 
 SCHEMA = "gcs-plan/1"
 PLAN_FILE = "plan.json"

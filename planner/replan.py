@@ -1,9 +1,8 @@
 """Re-planning in flight: the survivors' remaining work after a loss.
 
-``context_for_plan`` rebuilds the `PlanningContext` a saved plan was made in
-(scenario from ``plan.params``, the working grid from ``terrain.tif``, the
-outposts from ``plan.json``). ``replan`` then runs the plan's coverage method
-again for the survivors only: each starts where it is now (a point in the
+``replan`` runs the plan's coverage method again, on the plan's
+`PlanningContext` (in memory, or `PlanningContext.load` from its folder), for
+the survivors only: each starts where it is now (a point in the
 hidden volume) and still returns hidden to its own launch point; what it has
 photographed so far counts as seen by it.
 
@@ -13,21 +12,19 @@ only the survivors' snapshots count, and every target must be seen by
 with the planner's own sensor model (`snapshot_sets`).
 """
 
-from dataclasses import dataclass, fields, replace
-from pathlib import Path
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .errors import InputError
-from .geotiff import read_terrain
-from .exposure import segments_hidden
-from .pipeline import PlanningContext, Start, above_launch, allocate, plan_outposts, prepare
-from .plan import TERRAIN_FILE, Plan
-from .scenario import Scenario
-from .travel import leg_time
-from .viewpoints import Viewpoints
-from .visibility import SensorParams, compute_visibility
+from common.errors import InputError
+from planner.exposure import segments_hidden
+from planner.travel import leg_time
+from planner.visibility import Viewpoints, compute_visibility
+
+from .context import PlanningContext
+from .coverage import required_uavs
+from .pipeline import Start, above_launch, allocate
 
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
 #: autopilots accept a waypoint within about 2 m
@@ -45,27 +42,6 @@ class Survivor:
     vehicle_id: int  # its plan vehicle id
     xyz: np.ndarray  # current position: projected x, y, alt AMSL
     launch: np.ndarray  # ground point it returns to: x, y, ground AMSL
-
-
-def scenario_from_params(params: dict) -> Scenario:
-    """The Scenario a plan was made from (`planner.pipeline.plan_params` inverted)."""
-    known = {f.name for f in fields(Scenario)}
-    values = {k: v for k, v in params.items() if k in known}
-    values["outposts"] = params.get("outposts_file")
-    values["launch"] = [tuple(p) for p in params.get("launch", [])]
-    if values.get("area") is not None:
-        values["area"] = tuple(values["area"])
-    try:
-        return Scenario(**values)
-    except TypeError as exc:
-        raise InputError("plan.json", f"bad planning parameters: {exc}") from None
-
-
-def context_for_plan(directory, plan: Plan, progress=None) -> PlanningContext:
-    """The planning context of a saved plan: same grid, outposts and parameters."""
-    terrain = read_terrain(Path(directory) / TERRAIN_FILE)
-    scenario = scenario_from_params(plan.params)
-    return prepare(scenario, progress, terrain=terrain, outposts=plan_outposts(terrain, plan))
 
 
 # --- what has been seen ------------------------------------------------------------------
@@ -108,9 +84,7 @@ def _sets_at(ctx, xyz) -> list:
     row, col = terrain.rowcol(xyz[idx, 0], xyz[idx, 1])
     cells = np.stack([np.rint(row), np.rint(col)], axis=1).astype(np.int64)
     points = Viewpoints(indices=cells, xyz=xyz[idx].copy(), region=np.zeros(len(idx), np.int32))
-    s = ctx.scenario
-    vis = compute_visibility(ctx.surface, points, SensorParams(s.sensor_range_m,
-                                                               s.max_off_nadir_deg))
+    vis = compute_visibility(ctx.surface, points, ctx.scenario.sensor_params())
     known = ctx.visibility.target_cells
     order = np.argsort(known)
     for k, i in enumerate(idx):
@@ -140,7 +114,7 @@ def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
     """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per target)."""
     counts = seen.sum(axis=0) if len(seen) else np.zeros(ctx.visibility.n_targets, int)
     n = int(ctx.visibility.n_targets)
-    need = min(k + 1, max(len(seen), 1))
+    need = required_uavs(k, len(seen))
     return {"targets": n, "covered": int((counts >= 1).sum()),
             "k": int(k), "required_uavs": int(need), "k_covered": int((counts >= need).sum()),
             "fraction_k_covered": float((counts >= need).sum() / n) if n else 1.0}
@@ -210,7 +184,7 @@ def _nearest_reachable_node(graph, xyz, strict):
 def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
     """(k used for the survivors, required distinct survivors per target)."""
     k = int(ctx.scenario.k)
-    need = min(k + 1, n_survivors)
+    need = required_uavs(k, n_survivors)
     return min(k, n_survivors - 1), np.full(ctx.visibility.n_targets, need, np.int32)
 
 

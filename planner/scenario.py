@@ -11,10 +11,12 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Optional
 
-from .errors import InputError
+from common.errors import InputError
 
-METHODS = ("rt", "rt+ls", "rd", "b", "c")
 FIRMWARES = ("ardupilot", "px4")
+#: the coverage methods, in the order users see them; each registers itself in
+#: planner.coverage (`methods.register` refuses a name not listed here)
+METHODS = ("rt", "rt+ls", "rd", "b", "c")
 
 
 @dataclass
@@ -23,6 +25,8 @@ class Scenario:
     dem: list = field(default_factory=list)  # DEM files (GeoTIFF, .hgt); empty with sample = true
     sample: bool = False  # the built-in terrain and outposts
     area: Optional[tuple] = None  # (south, west, north, east) degrees
+    area_file: Optional[str] = None  # polygon (GeoJSON, KML, KMZ): targets only inside it
+    area_flight: bool = False  # and flight too: nothing flown outside the polygon
     resolution_m: Optional[float] = None  # default: the DEM's own spacing
     geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
     # [outposts]
@@ -57,6 +61,7 @@ class Scenario:
         """Raise InputError for values no planner stage could use."""
         checks = [
             (self.sample or self.dem, "no DEM given (use --dem FILE or --sample)"),
+            (not (self.sample and self.dem), "give either --dem or --sample, not both"),
             (self.uavs >= 1, f"uavs must be at least 1, got {self.uavs}"),
             (0 <= self.k < self.uavs,
              f"k must satisfy 0 <= k < uavs (k = {self.k}, uavs = {self.uavs}): "
@@ -66,6 +71,8 @@ class Scenario:
             (self.firmware in FIRMWARES, f"firmware must be one of {', '.join(FIRMWARES)}"),
             (0.0 <= self.alpha <= 1.0, f"alpha must be in [0, 1], got {self.alpha}"),
             (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
+            (self.area_file or not self.area_flight,
+             "area_flight restricts flight to the area_file polygon: give area_file too"),
             (len(self.launch) in (0, 1, self.uavs),
              f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
              f"got {len(self.launch)}"),
@@ -81,6 +88,45 @@ class Scenario:
                 raise InputError(source, problem)
         return self
 
+    # --- what each stage takes ---------------------------------------------------------
+    def exposure_params(self):
+        from planner.exposure import ExposureParams
+        return ExposureParams(ceiling_agl_m=self.ceiling_agl_m, clearance_m=self.clearance_m,
+                              hide_margin_m=self.hide_margin_m,
+                              curvature_coeff=self.curvature_coeff)
+
+    def sensor_params(self):
+        from planner.visibility import SensorParams
+        return SensorParams(self.sensor_range_m, self.max_off_nadir_deg)
+
+    def travel_params(self):
+        from planner.travel import TravelParams
+        return TravelParams(self.speed_mps, self.climb_mps, self.descent_mps,
+                            self.track_tolerance_m)
+
+    # --- plan.json's "params" --------------------------------------------------------------
+    def params(self) -> dict:
+        """Every planning parameter, units in the key (plan.json's ``params``)."""
+        out = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in _RENAMED}
+        out.update(dem=list(self.dem), sample=bool(self.sample),
+                   launch=[list(p) for p in self.launch_points],
+                   outposts_file=self.outposts, target_height_m=TARGET_HEIGHT_M)
+        return out
+
+    @classmethod
+    def from_params(cls, params: dict, source="plan.json") -> "Scenario":
+        """The scenario a plan was made from (`params` inverted)."""
+        known = {f.name for f in fields(cls)}
+        values = {k: v for k, v in params.items() if k in known and k not in _RENAMED}
+        values["outposts"] = params.get("outposts_file")
+        values["launch"] = [tuple(p) for p in params.get("launch", [])]
+        if values.get("area") is not None:
+            values["area"] = tuple(values["area"])
+        try:
+            return cls(**values)
+        except TypeError as exc:
+            raise InputError(source, f"bad planning parameters: {exc}") from None
+
     @property
     def launch_points(self) -> list:
         """One (lat, lon) per UAV, or [] when UAVs start at their phase-1 points."""
@@ -89,13 +135,20 @@ class Scenario:
         return list(self.launch)
 
 
+#: fields plan.json keeps under another name (outposts -> outposts_file) or expanded
+_RENAMED = ("outposts", "launch")
+#: a target is a cell's centre this high above the ground (the sensor model's)
+TARGET_HEIGHT_M = 0.5
+
+
 def _positive(x) -> bool:
     return isinstance(x, (int, float)) and math.isfinite(x) and x > 0
 
 
 # TOML section of each field; a key may also stand at the top level.
 SECTIONS = {
-    "terrain": ("dem", "sample", "area", "resolution_m", "geoid_offset_m"),
+    "terrain": ("dem", "sample", "area", "area_file", "area_flight", "resolution_m",
+                "geoid_offset_m"),
     "outposts": ("outposts",),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
@@ -134,8 +187,9 @@ def read_scenario(path) -> dict:
     if isinstance(values.get("dem"), str):
         values["dem"] = [values["dem"]]
     values["dem"] = [str(_resolve(path, p)) for p in values.get("dem", [])]
-    if values.get("outposts"):
-        values["outposts"] = str(_resolve(path, values["outposts"]))
+    for name in ("outposts", "area_file"):
+        if values.get(name):
+            values[name] = str(_resolve(path, values[name]))
     if values.get("area") is not None:
         values["area"] = tuple(float(v) for v in values["area"])
     if values.get("launch"):

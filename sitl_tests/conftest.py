@@ -42,14 +42,12 @@ import pytest
 from affine import Affine
 
 from judge import Judge
-from planner.dem import sample_terrain
-from planner.geotiff import write_terrain
-from planner.outposts import sample_outposts
-from planner.pipeline import plan_mission, plan_surface, prepare
+from planner.context import PlanningContext
+from planner.exposure import sample_outposts
+from planner.pipeline import plan_mission, prepare
 from planner.plan import TERRAIN_FILE, Plan
-from planner.replan import context_for_plan
 from planner.scenario import Scenario
-from planner.terrain import Terrain
+from planner.terrain import Terrain, sample_terrain, write_terrain
 
 
 @dataclass(frozen=True)
@@ -123,6 +121,7 @@ def make_plan(directory: Path, k: int, setting: Setting = SIM) -> Path:
     directory.mkdir(parents=True, exist_ok=True)
     outcome.plan.save(directory)
     write_terrain(directory / TERRAIN_FILE, ctx.terrain)
+    ctx.save(directory)
     return directory
 
 
@@ -146,8 +145,8 @@ def planned(tmp_path_factory):
         if (k, setting) not in cache:
             d = make_plan(tmp_path_factory.mktemp(f"plan_k{k}"), k, setting)
             plan = Plan.load(d)
-            cache[k, setting] = Planned(d, plan, context_for_plan(d, plan),
-                                        plan_surface(d, plan))
+            ctx = PlanningContext.load(d, plan)
+            cache[k, setting] = Planned(d, plan, ctx, ctx.surface)
         return cache[k, setting]
 
     return get

@@ -3,15 +3,13 @@ one launch point), planned once per session for the tests that fly or upload it.
 
 from types import SimpleNamespace
 
-import numpy as np
 import pytest
 
-from planner.geotiff import write_terrain
-from planner.outposts import Outpost
+from planner.exposure import Outpost
 from planner.pipeline import plan_mission
 from planner.plan import TERRAIN_FILE
 from planner.scenario import Scenario
-from planner.synthetic import synthetic_terrain
+from planner.terrain import synthetic_terrain, write_terrain
 
 N = 60
 
@@ -31,6 +29,7 @@ def planned(tmp_path_factory):
     d = tmp_path_factory.mktemp("plan")
     outcome.plan.save(d)
     write_terrain(d / TERRAIN_FILE, terrain)
+    ctx.save(d)
     launch = outcome.plan.vehicles[0].launch
     return SimpleNamespace(dir=d, plan=outcome.plan, ctx=ctx, terrain=terrain,
                            launch=(launch.lat, launch.lon, launch.alt_amsl))

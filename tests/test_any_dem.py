@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 import rasterio
 from affine import Affine
-from hypothesis import HealthCheck, event, given, settings, strategies as st
+from hypothesis import HealthCheck, event, given, settings
+from hypothesis import strategies as st
 
 from gcs.cli import main
 from planner.scenario import METHODS
-from planner.synthetic import synthetic_terrain
+from planner.terrain import synthetic_terrain
 
 pytestmark = pytest.mark.slow
 
@@ -96,10 +97,9 @@ def _outposts(path, lonlat):
 def _hidden_launch(dem, outposts, area, pick):
     """A launch point on a flyable cell (the library's own exposure surface), or
     None when there is none: most random points of a small hilly tile are seen."""
-    from planner.dem import load_dem
-    from planner.errors import InputError
-    from planner.exposure import compute_exposure
-    from planner.outposts import load_outposts
+    from common.errors import InputError
+    from planner.exposure import compute_exposure, load_outposts
+    from planner.terrain import load_dem
 
     terrain = load_dem([dem], area=area)
     try:

@@ -5,8 +5,8 @@ packing, and by what the code base imports."""
 
 import ast
 import math
-from types import SimpleNamespace
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 

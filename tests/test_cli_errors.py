@@ -121,3 +121,39 @@ def test_help_exits_zero(argv, capsys):
         main(argv)
     assert exc.value.code == 0
     assert "usage: gcs" in capsys.readouterr().out
+
+
+def test_output_that_is_a_file_is_refused_before_any_work(tmp_path, capsys):
+    out = tmp_path / "out.tif"
+    out.write_bytes(b"mine")
+    status, err = _run(capsys, "plan", "--dem", str(tmp_path / "nope.tif"), "-o", str(out))
+    assert status == 2 and err.strip().splitlines()[-1] == \
+        f"gcs plan: error: -o: {out} is a file, not a folder"  # not the DEM: checked first
+    assert out.read_bytes() == b"mine"
+
+
+def test_southern_and_western_coordinates_are_taken_as_typed():
+    from gcs.cli import build_parser
+
+    parser = build_parser()
+    args = parser.parse_args(["plan", "--sample", "--launch", "-35.3,149.1", "-35.2,-58.4",
+                              "--area", "-35.4,-58.5,-35.1,149.2", "-o", "x"])
+    assert args.launch == ["-35.3,149.1", "-35.2,-58.4"] and args.area == "-35.4,-58.5,-35.1,149.2"
+    assert parser.parse_args(["sim", "--home", "-35.363261,149.165230,584"]).home == \
+        "-35.363261,149.165230,584"
+
+
+def test_warnings_are_one_line_in_the_users_words(tmp_path, capsys):
+    """A cropped sample leaves out the outposts outside it: one warning line, no
+    Python warning with its source line."""
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "vehicle-7.plan").write_text("{}")  # a former plan's vehicle: removed
+    status, err = _run(capsys, "plan", "--sample", "--area", "36.49,-84.28,36.56,-84.18",
+                       "--uavs", "2", "--viewpoint-spacing", "600", "-o", str(out))
+    assert status == 0, err
+    warnings = [line for line in err.splitlines() if "warning:" in line.lower()]
+    assert warnings == ["gcs plan: warning: built-in sample_outposts.geojson: 2 outpost(s) "
+                        "outside the area were left out"]
+    assert "UserWarning" not in err
+    assert not (out / "vehicle-7.plan").exists() and (out / "vehicle-2.plan").exists()

@@ -7,8 +7,14 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.coverage import (METHODS, CoverageParams, CoverageProblem, coverage_counts,
-                              lower_bound, solve)
+from planner.coverage import (
+    METHODS,
+    CoverageParams,
+    CoverageProblem,
+    coverage_counts,
+    lower_bound,
+    solve,
+)
 from planner.coverage.gains import CoverState
 from planner.coverage.insertion import insert_cost, route_time
 from planner.coverage.instances import random_problem

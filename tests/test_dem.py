@@ -1,4 +1,4 @@
-"""planner.dem, planner.synthetic and planner.geotiff against analytic surfaces,
+"""planner.terrain.dem, planner.terrain.synthetic and planner.terrain.geotiff against analytic surfaces,
 rasterio-written files and the matplotlib sample."""
 
 import warnings
@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 import rasterio
 from affine import Affine
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from pyproj import Transformer
 
-from planner.dem import MAX_FILLED_VOID_CELLS, load_dem, sample_terrain, utm_crs
-from planner.errors import InputError
-from planner.geotiff import read_terrain, write_grid
-from planner.synthetic import FAMILIES, synthetic_terrain
+from common.errors import InputError
+from planner.terrain import FAMILIES, read_terrain, synthetic_terrain, write_grid
+from planner.terrain.dem import MAX_FILLED_VOID_CELLS, load_dem, sample_terrain, utm_crs
 
 N = 1201  # samples per side of a 3" SRTM tile
 D = 1.0 / (N - 1)

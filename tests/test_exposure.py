@@ -1,6 +1,6 @@
 """The exposure surface and the hiddenness checks against brute-force line of sight.
 
-References: planner.los (exact closed-form line of sight, itself checked
+References: planner.exposure.los (exact closed-form line of sight, itself checked
 against dense sampling in test_los.py), dense sampling of the bilinear surface,
 and analytic cases (flat ground, a straight ridge, a range limit).
 """
@@ -10,13 +10,21 @@ import math
 import numpy as np
 import pytest
 from affine import Affine
-from hypothesis import HealthCheck, example, given, settings, strategies as st
+from hypothesis import HealthCheck, example, given, settings
+from hypothesis import strategies as st
 
-from planner import exposure, exposure_kernels
-from planner.exposure import (ExposureParams, compute_exposure, is_hidden, segment_clear,
-                              segment_hidden, segments_hidden)
-from planner.los import EARTH_RADIUS_M, lowest_visible_grid, sees
-from planner.outposts import Outpost
+from planner.exposure import (
+    ExposureParams,
+    Outpost,
+    compute_exposure,
+    is_hidden,
+    segment_clear,
+    segment_hidden,
+    segments_hidden,
+)
+from planner.exposure import kernels as exposure_kernels
+from planner.exposure import surface as exposure
+from planner.exposure.los import EARTH_RADIUS_M, lowest_visible_grid, sees
 from planner.terrain import Terrain, bilinear
 
 CELL = 30.0

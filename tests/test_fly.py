@@ -8,11 +8,11 @@ from types import SimpleNamespace
 
 import pytest
 
+from common.errors import InputError
 from gcs.cli import main
 from gcs.fly import assign_vehicles
 from gcs.monitor import HOLDING, LANDED, LOST, Monitor
 from gcs.sim import free_base_port, read_track, track_path
-from planner.errors import InputError
 from planner.plan import Plan
 
 pytestmark = pytest.mark.timeout(120)

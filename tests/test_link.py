@@ -8,11 +8,11 @@ import time
 
 import pytest
 
+from common.errors import InputError
 from gcs import commands, signing
 from gcs.link import GroundLink, LinkError, build_message
 from gcs.mavlink import M, mavutil, mode_name, mode_number
 from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports
-from planner.errors import InputError
 
 pytestmark = pytest.mark.timeout(60)
 

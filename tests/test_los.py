@@ -1,9 +1,10 @@
-"""planner.los against dense sampling of the bilinear surface (an independent reference)."""
+"""planner.exposure.los against dense sampling of the bilinear surface (an independent reference)."""
 
 import numpy as np
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from planner.los import EARTH_RADIUS_M, lowest_visible_altitude, sees
+from planner.exposure.los import EARTH_RADIUS_M, lowest_visible_altitude, sees
 from planner.terrain import bilinear
 
 CELL = 30.0

@@ -8,11 +8,11 @@ import time
 
 import pytest
 
-from gcs import commands, mission_protocol as mp
+from gcs import commands
+from gcs import mission_protocol as mp
 from gcs.link import GroundLink
 from gcs.mavlink import M
-from gcs.sim import (FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track,
-                     track_path)
+from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track, track_path
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import unproven
 from missions.items import MissionItem
@@ -307,7 +307,7 @@ def main(argv) -> int:
     import importlib
     import sys
 
-    from planner.errors import InputError
+    from common.errors import InputError
 
     module = importlib.import_module(f"gcs.cli.{argv[0]}")
     parser = argparse.ArgumentParser(prog=f"gcs {argv[0]}")
@@ -352,8 +352,11 @@ def test_cli_upload_and_download(firmware, tmp_path, capsys):
         for suffix in ("plan", "waypoints"):
             path = tmp_path / f"held.{suffix}"
             assert main(["download", "--sysid", "1", "-o", str(path), *urls]) == 0
-            items = qgc.read_plan_file(path) if suffix == "plan" else wpl.read_waypoints(path)
+            items = qgc.read_plan_file(path) if suffix == "plan" else \
+                wpl.read_waypoints(path, firmware)         # line 0 home: kept or dropped
             assert mp.compare(expected[1], items, firmware) == []
+            if suffix == "waypoints":                      # home first, for every firmware
+                assert wpl.read_waypoints(path)[0].command == 16
         # mission files, one route each, by order of system id
         files = []
         for r in plan.vehicles:

@@ -9,6 +9,7 @@ and the planner's sensor model on the snapshot positions they recorded.
 
 import io
 import json
+import threading
 import time
 from types import SimpleNamespace
 
@@ -16,14 +17,13 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from gcs.cli import build_parser, main
-from gcs.cli import fly as fly_cli
+from common.errors import InputError
+from gcs.cli import build_parser, main, views
 from gcs.cli import sim as sim_cli
 from gcs.monitor import LANDED, LOST, Monitor
 from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
 from gcs.sim.fleet import terrain_ground
 from missions.build import MissionOptions, vehicle_mission
-from planner.errors import InputError
 from planner.replan import coverable_targets, coverage_summary, seen_matrix
 
 pytestmark = pytest.mark.timeout(150)
@@ -157,24 +157,40 @@ def test_flat_ground_above_the_valleys_loses_every_vehicle(planned, tmp_path):
         assert far > 100.0, sysid
 
 
+def _shoot_when_the_others_landed(fleet, victim, limit_s=60.0):
+    """Kill ``victim`` as soon as every other vehicle has flown and is down again."""
+    others = [v for v in fleet.vehicles if v.sysid != victim]
+    flew = set()
+    deadline = time.monotonic() + limit_s
+    while time.monotonic() < deadline:
+        flew |= {v.sysid for v in others if not v.landed}
+        if len(flew) == len(others) and all(v.landed for v in others):
+            assert not fleet.vehicle(victim).landed, "the victim landed before the others"
+            fleet.kill(victim)
+            return
+        time.sleep(0.01)
+
+
 def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp_path):
     """`gcs sim --home LAT,LON --terrain PLAN` (home altitude from the DEM), then `gcs fly
     PLAN --connect ...`. Vehicle 1 is shot down late, when the others have landed: its
     snapshots are lost, coverage is short, and the landed ones go up again."""
     base = free_base_port(10, 3)
     out = tmp_path / "flight"
-    route = planned.plan.vehicles[0]
-    items = vehicle_mission(route, "ardupilot",
-                            MissionOptions(speed_mps=planned.plan.params["speed_mps"]))
-    late = items.waypoint_of_item.index(int(0.85 * len(route.waypoints)))
+    # the victim: the vehicle planned to land last, shot down once the others are down
+    ends = {v.id: v.mission_time_s for v in planned.plan.vehicles}
+    victim = max(ends, key=ends.get)
     lat, lon, _ = planned.launch
     args = build_parser().parse_args([
         "sim", "--vehicles", "3", "--home", f"{lat},{lon}", "--terrain", str(planned.dir),
-        "--speedup", "100", "--kill", f"1@item{late}", "--base-port", str(base),
-        "--warmup", "0.5", "--track-dir", str(out / "tracks")])
+        "--speedup", "100", "--base-port", str(base), "--warmup", "0.5",
+        "--track-dir", str(out / "tracks")])
     config = sim_cli.config_from_args(args)
     assert config.home[2] == pytest.approx(planned.launch[2], abs=0.01)
     fleet = SimFleet(config).start()
+    shooter = threading.Thread(target=_shoot_when_the_others_landed, args=(fleet, victim),
+                               daemon=True)
+    shooter.start()
     try:
         code = main(["fly", str(planned.dir), *[a for i in range(3) for a in
                      ("--connect", f"tcp:127.0.0.1:{base + 10 * i}")],
@@ -182,15 +198,16 @@ def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp
     finally:
         fleet.stop()
     report = json.loads((out / "flight.json").read_text())
-    assert code == 1 and report["outcome"]["lost"] == [1]
+    survivors = sorted(set(ends) - {victim})
+    assert code == 1 and report["outcome"]["lost"] == [victim]
     assert report["outcome"]["coverage_reached"] and report["outcome"]["in_air"] == []
     relaunched = report["replans"][0]["relaunched"]
-    assert relaunched and set(relaunched) <= {2, 3}
+    assert relaunched and set(relaunched) <= set(survivors)
     tracks = _flown(out, [1, 2, 3])
-    assert tracks[1].killed_at is not None
+    assert tracks[victim].killed_at is not None
     ctx = planned.ctx
     snaps = []
-    for sysid in (2, 3):
+    for sysid in survivors:
         t = tracks[sysid]
         takeoffs = [e for e in t.events if e["event"] == "takeoff"]
         assert len(takeoffs) == (2 if sysid in relaunched else 1), sysid
@@ -235,13 +252,13 @@ def test_sim_home_stands_on_the_terrain(planned, capsys):
 
 def test_prompt_shows_its_choices_and_asks_again(monkeypatch):
     shown = io.StringIO()
-    monkeypatch.setattr(fly_cli, "console", Console(file=shown, width=200))
+    monkeypatch.setattr(views, "console", Console(file=shown, width=200))
     answers = iter(["", "maybe", "h"])
     monkeypatch.setattr("builtins.input", lambda *a: next(answers))
     view = SimpleNamespace(stop=lambda: None, start=lambda: None)
-    assert fly_cli.ask(view, "interrupted") == "home"
+    assert views.ask(view, "interrupted") == "home"
     text = shown.getvalue()
     assert text.count("[h]ome / [l]eave them on their missions") == 3
     assert "not 'maybe'" in text
     answers = iter(["L"])
-    assert fly_cli.ask(view, "timed out after 5 s") == "leave"
+    assert views.ask(view, "timed out after 5 s") == "leave"

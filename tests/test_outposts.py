@@ -1,4 +1,4 @@
-"""planner.outposts: the GeoJSON reader, its errors, and the built-in sample set."""
+"""planner.exposure.outposts: the GeoJSON reader, its errors, and the built-in sample set."""
 
 import json
 import math
@@ -6,10 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from planner.dem import sample_terrain
-from planner.errors import InputError
-from planner.outposts import Outpost, load_outposts, outposts_to_geojson, sample_outposts
-from planner.synthetic import synthetic_terrain
+from common.errors import InputError
+from planner.exposure import Outpost, load_outposts, outposts_to_geojson, sample_outposts
+from planner.terrain import sample_terrain, synthetic_terrain
 
 
 @pytest.fixture(scope="module")

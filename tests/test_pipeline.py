@@ -3,13 +3,17 @@
 import numpy as np
 import pytest
 
-from planner.exposure import (is_hidden, segment_clear, segment_hidden, segments_clear,
-                              segments_hidden)
-from planner.outposts import Outpost
+from planner.exposure import (
+    Outpost,
+    is_hidden,
+    segment_clear,
+    segment_hidden,
+    segments_clear,
+    segments_hidden,
+)
 from planner.pipeline import plan_mission
 from planner.scenario import Scenario
-from planner.synthetic import synthetic_terrain
-from planner.terrain import bilinear
+from planner.terrain import bilinear, synthetic_terrain
 from planner.travel import TravelParams, polyline_time
 
 N = 96
@@ -147,8 +151,8 @@ def test_every_viewpoint_is_reachable_hidden_from_launch(terrain):
 
 
 def test_cropped_sample_keeps_the_outposts_inside():
-    from planner.dem import sample_terrain
-    from planner.outposts import sample_outposts
+    from planner.exposure import sample_outposts
+    from planner.terrain import sample_terrain
 
     area = (36.49, -84.28, 36.56, -84.18)
     terrain = sample_terrain(area=area)

@@ -2,22 +2,26 @@
 
 References: a brute-force recount of coverage from the visibility sets, the exact
 hiddenness and clearance tests on every returned leg, and the saved plan reloaded
-from disk (terrain.tif, plan.json) for `context_for_plan`.
+from its folder (`PlanningContext.load`).
 """
 
 import numpy as np
 import pytest
 
-from planner.exposure import segments_clear, segments_hidden
-from planner.geotiff import write_grid
-from planner.outposts import Outpost
+from planner.context import PlanningContext
+from planner.exposure import Outpost, segments_clear, segments_hidden
 from planner.pipeline import plan_mission
-from planner.plan import TERRAIN_FILE, Plan
-from planner.replan import (SNAP_TO_VIEWPOINT_M, Survivor, context_for_plan, coverage_summary,
-                            replan, scenario_from_params, seen_matrix, snapshot_sets,
-                            survivor_start)
+from planner.plan import TERRAIN_FILE
+from planner.replan import (
+    Survivor,
+    coverage_summary,
+    replan,
+    seen_matrix,
+    snapshot_sets,
+    survivor_start,
+)
 from planner.scenario import Scenario
-from planner.synthetic import synthetic_terrain
+from planner.terrain import synthetic_terrain, write_terrain
 
 N = 80
 
@@ -62,27 +66,30 @@ def _midway(ctx, outcome, r):
 
 def test_scenario_round_trip(planned):
     ctx, outcome = planned
-    again = scenario_from_params(outcome.plan.params)
+    again = Scenario.from_params(outcome.plan.params)
     assert again.launch_points == ctx.scenario.launch_points
     again.launch = ctx.scenario.launch      # plan.json holds one launch point per UAV
     assert again == ctx.scenario
 
 
-def test_context_for_saved_plan(tmp_path, terrain, planned):
+def test_saved_context_is_the_context(tmp_path, planned):
+    """The plan folder holds the context: loaded back, it is the one planned in,
+    and a re-plan from it is the same as from the context in memory."""
     ctx, outcome = planned
     outcome.plan.save(tmp_path)
-    write_grid(tmp_path / TERRAIN_FILE, terrain.height.astype(np.float32), terrain)
-    plan = Plan.load(tmp_path)
-    again = context_for_plan(tmp_path, plan)
-    assert again.visibility.n_targets == ctx.visibility.n_targets
-    assert np.allclose(again.viewpoints.xyz[:, :2], ctx.viewpoints.xyz[:, :2], atol=1e-3)
-    # altitudes: E - hide margin, where E is a lower bound whose refinement choices
-    # can flip when the outposts come back from lon/lat a rounding error away, the
-    # heights from float32: nearly all identical, the rest well within the
-    # distance at which a flown snapshot is matched to its viewpoint
-    dz = np.abs(again.viewpoints.xyz[:, 2] - ctx.viewpoints.xyz[:, 2])
-    assert np.mean(dz <= 1e-3) >= 0.99
-    assert dz.max() < SNAP_TO_VIEWPOINT_M / 3
+    write_terrain(tmp_path / TERRAIN_FILE, ctx.terrain)
+    ctx.save(tmp_path)
+    again = PlanningContext.load(tmp_path)
+    assert again.scenario == Scenario.from_params(outcome.plan.params)
+    assert np.array_equal(again.surface.exposure, ctx.surface.exposure, equal_nan=True)
+    assert np.array_equal(again.viewpoints.xyz, ctx.viewpoints.xyz)
+    assert np.array_equal(again.visibility.indices, ctx.visibility.indices)
+    assert again.graph.n_edges == ctx.graph.n_edges
+    assert np.array_equal(again.travel, ctx.travel)
+    survivor, snaps = _midway(ctx, outcome, 0)
+    here = replan(ctx, [survivor], seen_matrix(ctx, [snaps]))
+    there = replan(again, [survivor], seen_matrix(again, [snaps]))
+    assert np.array_equal(here.polylines[0], there.polylines[0])
 
 
 def test_snapshot_sets_match_viewpoints(planned):

@@ -26,7 +26,7 @@ from missions.build import MissionOptions, vehicle_mission
 from missions.check import CheckedMission, checked
 from missions.items import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
-from planner.errors import InputError
+from common.errors import InputError
 from planner.exposure import segments_hidden
 
 pytestmark = pytest.mark.timeout(120)

@@ -12,11 +12,19 @@ import pytest
 from pymavlink import mavutil
 from pyproj import Geod, Transformer
 
+from common.errors import InputError
 from gcs.cli import sim as sim_cli
-from gcs.sim import (FaultPlan, FleetConfig, Limits, SimFleet, free_base_port, parse_cut,
-                     parse_kill, read_track)
+from gcs.sim import (
+    FaultPlan,
+    FleetConfig,
+    Limits,
+    SimFleet,
+    free_base_port,
+    parse_cut,
+    parse_kill,
+    read_track,
+)
 from gcs.sim.physics import PointMass
-from planner.errors import InputError
 
 os.environ.setdefault("MAVLINK20", "1")     # the vehicles speak MAVLink 2 from the first byte
 mavutil.set_dialect("ardupilotmega")

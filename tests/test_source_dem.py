@@ -14,14 +14,11 @@ import rasterio
 from affine import Affine
 from pyproj import Transformer
 
-from planner.dem import load_dem
-from planner.exposure import ExposureParams, compute_exposure
-from planner.los import DEFAULT_CURVATURE_COEFF, EARTH_RADIUS_M
-from planner.outposts import load_outposts
-from planner.pipeline import launch_starts, allocate, prepare
+from planner.exposure import ExposureParams, compute_exposure, load_outposts
+from planner.exposure.los import DEFAULT_CURVATURE_COEFF, EARTH_RADIUS_M
+from planner.pipeline import allocate, launch_starts, prepare
 from planner.scenario import Scenario
-from planner.synthetic import synthetic_terrain
-from planner.terrain import bilinear
+from planner.terrain import bilinear, load_dem, synthetic_terrain
 
 TOLERANCE_M = 0.5
 SAMPLES_PER_M = 1.0 / 2.0  # a terrain sample every 2 m along a sight line, and

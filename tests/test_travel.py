@@ -4,15 +4,20 @@ import math
 
 import numpy as np
 from affine import Affine
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from planner.exposure import (ExposureParams, compute_exposure, segment_clear,
-                              segment_hidden)
-from planner.outposts import Outpost
+from planner.exposure import (
+    ExposureParams,
+    Outpost,
+    compute_exposure,
+    segment_clear,
+    segment_hidden,
+)
+from planner.exposure.los import gap_range
 from planner.terrain import Terrain, bilinear
 from planner.travel import TravelGraph, TravelParams, leg_time, polyline_time, raised_terrain
-from planner.los import gap_range
-from planner.viewpoints import candidate_viewpoints
+from planner.visibility import candidate_viewpoints
 
 CELL = 30.0
 
@@ -103,7 +108,7 @@ def test_unreachable_across_regions_is_inf():
 
 
 def test_overlay_matrix_is_exact_nearby_and_an_upper_bound_beyond():
-    from planner.synthetic import synthetic_terrain
+    from planner.terrain import synthetic_terrain
 
     t = synthetic_terrain(40, 40, cell=CELL, seed=3, family="hills")
     x, y = t.xy(20, 20)

@@ -1,21 +1,25 @@
-"""Visibility sets against brute-force planner.los.sees, and candidate viewpoints."""
+"""Visibility sets against brute-force planner.exposure.los.sees, and candidate viewpoints."""
 
 import math
 
 import numpy as np
 import pytest
 from affine import Affine
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
-from planner.errors import InputError
-from planner.exposure import ExposureParams, compute_exposure
-from planner.los import sees
-from planner.outposts import Outpost
-from planner.synthetic import synthetic_terrain
-from planner.terrain import Terrain
-from planner.viewpoints import candidate_viewpoints, fleet_region, viewpoints_at
-from planner.visibility import SensorParams, compute_visibility
-from planner.visibility_kernels import flat_to_targets, transpose_csr
+from common.errors import InputError
+from planner.exposure import ExposureParams, Outpost, compute_exposure
+from planner.exposure.los import sees
+from planner.terrain import Terrain, synthetic_terrain
+from planner.visibility import (
+    SensorParams,
+    candidate_viewpoints,
+    compute_visibility,
+    fleet_region,
+    viewpoints_at,
+)
+from planner.visibility.kernels import flat_to_targets, transpose_csr
 
 CELL = 30.0
 
@@ -31,7 +35,7 @@ def _surface(terrain, outposts=(), **params):
 
 
 def _brute(surface, vp, sensor):
-    """Dense [n_vp, n_cells] from planner.los.sees cell by cell (the reference)."""
+    """Dense [n_vp, n_cells] from planner.exposure.los.sees cell by cell (the reference)."""
     h = surface.terrain.height
     curv = surface.params.curvature_coeff
     out = np.zeros((len(vp), h.size), bool)

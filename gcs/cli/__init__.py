@@ -1,7 +1,7 @@
 """The `gcs` command line: a thin layer, one module per command.
 
 Each command module defines ``HELP`` (one line), ``add_arguments(parser)`` and
-``run(args) -> int``. Bad input raises `planner.errors.InputError`, which is
+``run(args) -> int``. Bad input raises `common.errors.InputError`, which is
 printed as one line with exit status 2.
 """
 
@@ -11,8 +11,8 @@ import re
 import sys
 import warnings
 
+from common.errors import InputError
 from gcs import __version__
-from planner.errors import InputError
 
 COMMANDS = ("exposure", "plan", "export", "upload", "download", "fly", "sim", "demo")
 

@@ -10,11 +10,7 @@ from importlib import resources
 from pathlib import Path
 
 from autopilots import ARDUPILOT, NAMES
-from gcs.cli import plan as plan_cmd
-from gcs.progress import console, stage_progress
-from planner.errors import InputError
-from planner.pipeline import plan_mission
-from planner.scenario import make_scenario, read_scenario
+from common.errors import InputError
 
 HELP = "plan, fly and re-task 4 simulated UAVs on the built-in terrain, one of them shot down"
 
@@ -24,7 +20,7 @@ SCENARIO = "demo.toml"
 def add_arguments(parser) -> None:
     parser.add_argument("-o", "--output", default="demo-out", metavar="DIR",
                         help="output directory: DIR/plan (gcs plan's files) and DIR/flight "
-                             "(flight report, plot, tracks, tlogs); replaced if it exists")
+                             "(flight report, plot, tracks, tlogs); their files are replaced")
     parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="autopilot the simulated vehicles imitate")
     parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
@@ -38,10 +34,16 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from gcs.cli.views import plan_summary
+    from gcs.plan_folder import check_output_dir, write_plan_folder
+    from gcs.progress import console, stage_progress
+    from planner.pipeline import plan_mission
+    from planner.scenario import make_scenario, read_scenario
+
     if not 0 < args.kill_at < 1:
         raise InputError("--kill-at", f"must be between 0 and 1, got {args.kill_at}")
     out = Path(args.output)
-    plan_cmd.check_output_dir(out)  # files in it are replaced, never the folder wiped
+    check_output_dir(out)  # files in it are replaced, never the folder wiped
     plan_dir, flight_dir = out / "plan", out / "flight"
     scenario_file = resources.files("gcs.data").joinpath(SCENARIO)
     with resources.as_file(scenario_file) as path:
@@ -50,11 +52,11 @@ def run(args) -> int:
     console.rule("1. plan: hidden reduced-time routes, k = 1")
     with stage_progress() as progress:
         ctx, outcome = plan_mission(scenario, progress)
-        written = plan_cmd.write_outputs(plan_dir, ctx, outcome)
-    plan_cmd.print_summary(outcome.plan)
+        written = write_plan_folder(plan_dir, ctx, outcome)
+    console.print(plan_summary(outcome.plan))
     console.rule(f"2. fly: {scenario.uavs} simulated {args.firmware} vehicles, "
                  f"{args.speedup:g}x real time")
-    report, flight_files = _fly(outcome.plan, plan_dir, flight_dir, args)
+    report, flight_files = _fly(ctx, outcome.plan, plan_dir, flight_dir, args)
     console.rule("3. files written")
     for path, what in written + flight_files:
         console.print(f"  {path}  [dim]{what}[/dim]")
@@ -62,13 +64,13 @@ def run(args) -> int:
     return 0 if survivors.get("fraction_k_covered", 0) >= 0.999 else 1
 
 
-def _fly(plan, plan_dir, flight_dir, args):
-    from gcs.cli.fly import fly_plan, summary
-    from gcs.fly import FlyOptions
+def _fly(ctx, plan, plan_dir, flight_dir, args):
+    """Fly the plan on simulated vehicles, with the planning context in memory."""
+    from gcs.cli.views import fly_plan, summary
+    from gcs.fly import FlightError, FlyOptions
+    from gcs.progress import console
     from gcs.sim import FaultPlan, fleet_for_plan, terrain_ground
     from missions.build import vehicle_mission
-    from planner.geotiff import read_terrain
-    from planner.plan import TERRAIN_FILE
 
     faults = {}
     if args.kill:
@@ -83,13 +85,11 @@ def _fly(plan, plan_dir, flight_dir, args):
                       f"{item} of {len(items)}")
     fleet = fleet_for_plan(plan, firmware=args.firmware, speedup=args.speedup, faults=faults,
                            track_dir=flight_dir / "tracks", base_port=args.base_port,
-                           terrain=terrain_ground(read_terrain(plan_dir / TERRAIN_FILE)))
+                           terrain=terrain_ground(ctx.terrain))
     longest = max(v.mission_time_s for v in plan.vehicles)
     options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
-    from gcs.fly import FlightError
-
     try:
-        report = fly_plan(plan_dir, fleet.urls(), options)
+        report = fly_plan(plan_dir, fleet.urls(), options, ctx=ctx)
     except FlightError as exc:
         raise InputError("gcs demo", f"the flight failed: {exc}") from None
     finally:

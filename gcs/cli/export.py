@@ -3,12 +3,9 @@
 import argparse
 from pathlib import Path
 
-from gcs.progress import console
 from autopilots import NAMES as FIRMWARES
-from missions.build import MissionOptions
-from missions.export import FORMATS, export_plan_dir
-from planner.errors import InputError
-from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
+from common.errors import InputError
+from missions import FORMATS
 
 HELP = "rewrite the mission files (.plan, .waypoints, GeoJSON, KML) of a plan directory"
 
@@ -40,6 +37,11 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    from gcs.progress import console
+    from missions.build import MissionOptions
+    from missions.export import export_plan_dir
+    from planner.plan import PLAN_FILE, Plan
+
     plan_dir = Path(args.plan_dir)
     if not (plan_dir / PLAN_FILE).is_file():
         raise InputError(plan_dir, f"not a plan directory (no {PLAN_FILE})")
@@ -61,6 +63,7 @@ def run(args) -> int:
 
 def _surface(plan_dir, plan):
     from missions.sources import saved_plan_surface
+    from planner.plan import TERRAIN_FILE
 
     if not (plan_dir / TERRAIN_FILE).is_file():
         raise InputError(plan_dir / TERRAIN_FILE, "missing: cannot re-check the legs "

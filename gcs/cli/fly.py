@@ -3,13 +3,15 @@
 import sys
 from pathlib import Path
 
-from rich.live import Live
-from rich.table import Table
-
 from autopilots import ARDUPILOT, NAMES
-from gcs.cli.upload import add_protocol_arguments, parse_assignments, protocol_from_args
-from gcs.progress import console
-from planner.errors import InputError
+from common.errors import InputError
+from gcs.cli.options import (
+    add_connect_timeout,
+    add_protocol_arguments,
+    check_urls,
+    parse_assignments,
+    protocol_from_args,
+)
 
 HELP = "fly a plan: upload, start, monitor, re-task survivors after losses, report"
 
@@ -29,8 +31,7 @@ def add_arguments(parser) -> None:
     parser.add_argument("--assign", action="append", default=[], metavar="SYSID=VEHICLE",
                         help="fly plan vehicle VEHICLE with system id SYSID (repeatable; "
                              "none: system ids in ascending order take vehicles 1..n)")
-    parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
-                        help="wait this long for every vehicle's HEARTBEAT")
+    add_connect_timeout(parser)
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wait this long for pre-arm readiness (EKF/GPS)")
     add_protocol_arguments(parser)
@@ -42,6 +43,17 @@ def add_arguments(parser) -> None:
                              "segments, the next uploaded in flight (default: as many as each "
                              "vehicle holds, learned when it refuses more)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
+    view = parser.add_argument_group("watching the flight elsewhere")
+    view.add_argument("--forward", action="append", default=[], metavar="URL",
+                      help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
+                           "--out (QGroundControl: udpout:127.0.0.1:14550; a router: "
+                           "tcp:HOST:PORT); what comes back from there is dropped")
+    view.add_argument("--map", nargs="?", const="", metavar="HOST:PORT",
+                      help="serve a live map of the flight to a web browser (offline: the "
+                           "plan's own terrain, no tiles) on 127.0.0.1:8750, or HOST:PORT")
+    view.add_argument("--forward-commands", action="store_true",
+                      help="pass what the forwarded side sends on to the vehicles (a second "
+                           "station can then command them, and fight the re-tasking)")
     sim = parser.add_argument_group("dry run with the built-in simulated vehicles")
     sim.add_argument("--sim", type=int, metavar="N",
                      help="start N simulated vehicles with homes at the plan's launch points "
@@ -88,8 +100,8 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     """The built-in fleet for a dry run: one vehicle per plan route, homes at its
     launch, flying over the plan's own terrain."""
     from gcs.sim import FaultPlan, fleet_for_plan, parse_kill, terrain_ground
-    from planner.geotiff import read_terrain
     from planner.plan import TERRAIN_FILE
+    from planner.terrain import read_terrain
 
     n = args.sim
     if n < 1:
@@ -116,44 +128,76 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
 
 
-def status_table(rows) -> Table:
-    table = Table(title="vehicles", expand=False)
-    for col in ("sysid", "UAV", "mode", "item", "mission", "snapshots", "alt", "heartbeat",
-                "battery", "state"):
-        table.add_column(col, justify="right")
-    for r in rows:
-        style = {"lost": "red", "landed": "green", "holding": "yellow"}.get(r["state"], "")
-        table.add_row(str(r["sysid"]), str(r["vehicle"]), r["mode"], r["item"],
-                      str(r["mission"]), r["snapshots"],
-                      "-" if r["alt"] is None else f"{r['alt']:.0f} m",
-                      f"{r['heartbeat_s']:.1f} s", "-" if r["battery"] is None else
-                      f"{r['battery']} %", f"[{style}]{r['state']}[/{style}]" if style
-                      else r["state"], style=None)
-    return table
+def start_map(flight, args):
+    """The live map of --map (None without), serving before any vehicle is contacted."""
+    if args.map is None:
+        return None
+    from gcs.livemap import LiveMap, parse_address
+
+    try:
+        host, port = parse_address(args.map)
+    except ValueError as exc:
+        raise InputError("--map", str(exc)) from None
+    area = None
+    area_file = flight.plan.params.get("area_file")
+    if area_file and Path(area_file).is_file():
+        from planner.terrain.area import read_area
+        area = read_area(area_file)
+    try:
+        live = LiveMap(flight, flight.ctx, host, port, area).start()
+    except OSError as exc:
+        raise InputError("--map", f"cannot serve on {host}:{port}: {exc.strerror}") from None
+    print(f"live map: {live.url}", file=sys.stderr, flush=True)
+    return live
+
+
+def forwarder(args):
+    """The `gcs.forward.Forwarder` of --forward URLs (None without); opened now, so a
+    URL that cannot be opened is bad input before any vehicle is contacted."""
+    if not args.forward:
+        return None
+    from gcs.forward import Forwarder
+    from gcs.link import LinkError
+
+    try:
+        return Forwarder(args.forward, args.forward_commands)
+    except LinkError as exc:
+        raise InputError("--forward", str(exc)) from None
 
 
 def run(args) -> int:
-    from gcs.cli.upload import check_urls
+    from gcs.cli.views import fly_flight, summary
     from gcs.fly import Flight, FlightError
+    from gcs.progress import console
 
     check_urls(args.connect)
+    check_urls(args.forward, "--forward")
     if not args.connect and not args.sim:
         raise InputError("--connect", "give at least one --connect URL (or --sim N)")
+    if args.forward_commands and not args.forward:
+        raise InputError("--forward-commands", "give --forward URL too")
     options = options_from_args(args)
     live = console.is_terminal
     flight = Flight(args.plan_dir, list(args.connect), options,
                     log=(lambda text: None) if live else
                     (lambda text: print(text, file=sys.stderr, flush=True)))
     flight.prepare()                  # the plan read and every mission proven: no link yet
-    fleet = None
-    if args.sim:
-        plan = flight.plan
-        fleet = sim_fleet(plan, args.plan_dir, args, options.output)
-        flight.urls = flight.urls or fleet.urls()
-        if options.timeout_s is None:
-            longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
-            options.timeout_s = 120.0 + 4.0 * longest / args.speedup
+    options.forward = forwarder(args)
     try:
+        live_map = start_map(flight, args)
+    except InputError:
+        if options.forward is not None:
+            options.forward.close()
+        raise
+    fleet = None
+    try:
+        if args.sim:
+            plan = flight.plan
+            fleet = sim_fleet(plan, args.plan_dir, args, options.output)
+            flight.urls = flight.urls or fleet.urls()
+            if options.timeout_s is None:
+                longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
+                options.timeout_s = 120.0 + 4.0 * longest / args.speedup
         report = fly_flight(flight, live)
     except FlightError as exc:
         print(f"gcs fly: error: {exc} (see {Path(options.output) / 'flight.json'})",
@@ -162,80 +206,12 @@ def run(args) -> int:
     finally:
         if fleet is not None:
             fleet.stop()
+        if options.forward is not None:
+            options.forward.close()
+            print(options.forward.summary(), file=sys.stderr)
+        if live_map is not None:
+            live_map.stop()
     summary(report, options.output)
     return 0 if report["outcome"]["ok"] else 1
 
 
-def fly_plan(plan_dir, urls, options) -> dict:
-    """Fly with a live status table on a terminal, event lines on stderr otherwise;
-    FlightError when the flight could not go on (the report is written first)."""
-    from gcs.fly import Flight
-
-    live = console.is_terminal
-    flight = Flight(plan_dir, urls, options,
-                    log=(lambda text: None) if live else
-                    (lambda text: print(text, file=sys.stderr, flush=True)))
-    return fly_flight(flight, live)
-
-
-def fly_flight(flight, live: bool) -> dict:
-    """Run ``flight``: on a terminal with the status table, and Ctrl-C or --timeout
-    answered by the user; otherwise Ctrl-C leaves the vehicles flying and the
-    timeout brings them home."""
-    if live:
-        with Live(status_table([]), console=console, refresh_per_second=4) as view:
-            timeout = flight.options.timeout_s
-            return flight.run(lambda rows: view.update(status_table(rows)),
-                              lambda: ask(view, "interrupted"),
-                              lambda: ask(view, f"timed out after {timeout:g} s"))
-    return flight.run(on_interrupt=lambda: "leave", on_timeout=lambda: "home")
-
-
-ANSWERS = {"h": "home", "home": "home", "l": "leave", "leave": "leave"}
-
-
-def ask(view, why: str) -> str:
-    """Ctrl-C or the timeout during a flight: bring every vehicle home along hidden
-    paths, or leave them flying on their missions. Asks again until the answer is
-    one it knows; end of input (or a second Ctrl-C) leaves them."""
-    view.stop()
-    # "\[" keeps rich from reading [h] and [l] as markup tags and swallowing them
-    prompt = (f"[bold]{why}[/bold]: bring every vehicle home along hidden paths? "
-              "\\[h]ome / \\[l]eave them on their missions: ")
-    while True:
-        try:
-            answer = console.input(prompt)
-        except (EOFError, KeyboardInterrupt):
-            return "leave"
-        choice = ANSWERS.get(answer.strip().lower())
-        if choice is not None:
-            break
-        console.print(f"please answer h (home) or l (leave), not {answer.strip()!r}",
-                      markup=False, highlight=False)
-    if choice == "home":
-        view.start()
-    return choice
-
-
-def summary(report, output=None) -> None:
-    """Losses, re-plans and coverage reached; the files written when ``output`` is given."""
-    for loss in report["losses"]:
-        console.print(f"vehicle {loss['sysid']} lost at {loss['detected_s']:.1f} s "
-                      f"({loss['reason']})")
-    for r in report["replans"]:
-        console.print(f"re-plan at {r['t_s']:.1f} s for {r['survivors']}: planned in "
-                      f"{r['planning_s']:.1f} s, uploaded in {r['upload_s']:.1f} s; "
-                      f"coverage time {r['planned'].get('coverage_time_s', 0) / 60:.1f} min")
-    cov = report["coverage"].get("survivors")
-    if cov:
-        console.print(f"k = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
-                      f"{cov['required_uavs']} surviving vehicle(s) "
-                      f"({100 * cov['fraction_k_covered']:.1f} %) in {report['duration_s']:.0f} s")
-    outcome = report.get("outcome", {})
-    if outcome.get("ok"):
-        console.print("outcome: required coverage reached, no vehicle lost, all landed")
-    for problem in outcome.get("problems", []):
-        console.print(f"outcome: {problem}", style="red", markup=False, highlight=False)
-    if output is not None:
-        console.print(f"  {Path(output) / 'flight.json'}  [dim]flight report[/dim]")
-        console.print(f"  {Path(output) / 'flight.png'}  [dim]map of the flight[/dim]")

@@ -1,13 +1,18 @@
-"""Command-line flags for every `Scenario` field (shared by `gcs plan` and `gcs demo`).
+"""The flags commands share, in one place, and what they turn into.
 
-Flags default to None so that a scenario file's value survives unless the flag
-is given; the help shows the real default from `Scenario`.
+- every `Scenario` field (`gcs plan`, `gcs demo`): flags default to None so that
+  a scenario file's value survives unless the flag is given; the help shows the
+  real default from `Scenario`;
+- MAVLink connections and the mission protocol (`gcs upload`, `download`, `fly`).
+
+Only light modules are imported here: `gcs --help` builds every command's
+flags without loading the planner's kernels or pymavlink.
 """
 
 from dataclasses import fields
 
-from planner.errors import InputError
 from autopilots import NAMES as FIRMWARES
+from common.errors import InputError
 from planner.scenario import METHODS, Scenario, make_scenario, read_scenario
 
 _DEFAULTS = {f.name: f.default for f in fields(Scenario) if f.default is not f.default_factory}
@@ -62,7 +67,12 @@ def _area(text: str) -> tuple:
     return s, w, n, e
 
 
-def add_scenario_arguments(parser, with_scenario_file=True) -> None:
+#: the flag groups of a scenario, by title
+SCENARIO_GROUPS = ("terrain and outposts", "hidden volume", "sensor", "fleet", "method")
+
+
+def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROUPS) -> None:
+    """The flags of every `Scenario` field in ``groups`` (all by default)."""
     if with_scenario_file:
         parser.add_argument("scenario", nargs="?", help="scenario TOML file (flags override it)")
     terrain = parser.add_argument_group("terrain and outposts")
@@ -72,17 +82,24 @@ def add_scenario_arguments(parser, with_scenario_file=True) -> None:
                          help="use the built-in terrain (USGS Jacksboro DEM) and outposts")
     terrain.add_argument("--area", type=str, metavar="S,W,N,E",
                          help="crop to this area of operations, degrees")
+    terrain.add_argument("--area-file", metavar="FILE",
+                         help="area of operations as a polygon (GeoJSON Polygon / MultiPolygon, "
+                              "KML or KMZ): only terrain inside it is a target")
+    terrain.add_argument("--area-flight", action="store_true", default=None,
+                         help="with --area-file: fly only inside the polygon too")
     terrain.add_argument("--outposts", metavar="GEOJSON",
                          help="outposts: GeoJSON Points with height_m and optional range_m")
     for name in ("resolution_m", "geoid_offset_m"):
         _add(terrain, name, float)
-    groups = {
+    fields_of = {
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "seed"),
     }
-    for title, names in groups.items():
+    for title, names in fields_of.items():
+        if title not in groups:
+            continue
         group = parser.add_argument_group(title)
         for name in names:
             kind = int if name in ("uavs", "k", "seed") else float
@@ -127,6 +144,90 @@ def scenario_from_args(args) -> "Scenario":
     overrides = {f.name: getattr(args, f.name, None) for f in fields(Scenario)}
     if args.area is not None:
         overrides["area"] = _area(args.area)
-    if args.launch is not None:
+    if getattr(args, "launch", None) is not None:
         overrides["launch"] = [_latlon(p) for p in args.launch]
     return make_scenario(file_values, overrides, source=getattr(args, "scenario", None) or "options")
+
+
+# -- MAVLink connections and the mission protocol ----------------------------------------
+def add_connection_arguments(parser) -> None:
+    """--connect, --signing-key, --connect-timeout: shared with `gcs download`."""
+    parser.add_argument("--connect", action="append", default=[], metavar="URL", required=True,
+                        help="MAVLink connection, repeatable: tcp:HOST:PORT (ArduPilot SITL "
+                             "5760), udpin:0.0.0.0:14550 (PX4 SITL, telemetry radios), "
+                             "udpout:HOST:PORT, /dev/ttyUSB0,57600 (serial DEVICE,BAUD)")
+    parser.add_argument("--signing-key", metavar="FILE",
+                        help="MAVLink 2 signing key: a 32-byte file, or a text file holding a "
+                             "passphrase (SHA-256, as MAVProxy's 'signing setup'); "
+                             "none: nothing is signed")
+    add_connect_timeout(parser)
+    add_protocol_arguments(parser)
+
+
+#: wall seconds to wait for the vehicles' HEARTBEATs: one value for upload, download and fly
+CONNECT_TIMEOUT_S = 30.0
+
+
+def add_connect_timeout(parser) -> None:
+    """--connect-timeout: the same flag and default for every command that connects."""
+    parser.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT_S, metavar="S",
+                        help="seconds (wall clock) to wait for every vehicle's HEARTBEAT "
+                             f"(default: {CONNECT_TIMEOUT_S:g})")
+
+
+def add_protocol_arguments(parser) -> None:
+    """--protocol-timeout, --protocol-retries: shared by upload, download and fly."""
+    parser.add_argument("--protocol-timeout", type=float, default=1.5, metavar="S",
+                        help="mission protocol: wait this long for each answer before "
+                             "resending (MAVLink recommends 1.5 s; shorter on fast links)")
+    parser.add_argument("--protocol-retries", type=int, default=5, metavar="N",
+                        help="mission protocol (and fly's commands): resend each message up "
+                             "to N times before giving up (MAVLink recommends 5; more on "
+                             "very lossy links)")
+
+
+def protocol_from_args(args) -> dict:
+    """Keyword arguments (timeout_s, retries) of the gcs.mission_protocol calls."""
+    if not args.protocol_timeout > 0:
+        raise InputError("--protocol-timeout", f"must be positive, got {args.protocol_timeout}")
+    if args.protocol_retries < 0:
+        raise InputError("--protocol-retries", f"must be 0 or more, got {args.protocol_retries}")
+    return {"timeout_s": args.protocol_timeout, "retries": args.protocol_retries}
+
+
+def parse_assignments(texts, flag="--vehicle", target="ROUTE") -> dict:
+    """{system id: route}: ``SYSID=N`` texts of option ``flag`` (shared with gcs fly)."""
+    out = {}
+    for text in texts:
+        sysid, sep, route = text.partition("=")
+        if not sep or not sysid.strip().isdigit() or not route.strip().isdigit():
+            raise InputError(flag, f"expected SYSID={target}, got {text!r}")
+        if int(sysid) in out:
+            raise InputError(flag, f"system id {sysid} given twice")
+        out[int(sysid)] = int(route)
+    return out
+
+
+def check_urls(urls, flag="--connect") -> None:
+    """Every URL in a form pymavlink takes (before anything is opened); InputError."""
+    from gcs.link import LinkError, parse_url
+
+    for url in urls:
+        try:
+            parse_url(url)
+        except LinkError as exc:
+            raise InputError(flag, str(exc)) from None
+
+
+def open_link(args, expect):
+    """GroundLink.open from the shared connection options; LinkError -> one line."""
+    from gcs.link import GroundLink, LinkError
+    from gcs.signing import load_key
+
+    check_urls(args.connect)
+    key = load_key(args.signing_key) if args.signing_key else None
+    try:
+        return GroundLink.open(args.connect, signing_key=key, expect=expect,
+                               timeout_s=args.connect_timeout)
+    except LinkError as exc:
+        raise InputError("--connect", str(exc)) from None

@@ -4,11 +4,9 @@ import math
 import time
 
 from autopilots import ARDUPILOT, NAMES
+from common.errors import InputError
 from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
-from gcs.sim.flavours import flavour
-from gcs.sim.fleet import DEFAULT_HOME, FleetConfig, SimFleet, vehicle_port
-from gcs.sim.physics import Limits
-from planner.errors import InputError
+from gcs.sim.physics import DEFAULT_HOME, Limits
 
 HELP = "run simulated vehicles (ArduPilot: TCP 5760+10*i; PX4: UDP 18570+i -> 14550)"
 
@@ -115,7 +113,10 @@ def _point(text: str, option: str, ground=None) -> tuple:
     return values[0], values[1], values[2]
 
 
-def config_from_args(args) -> FleetConfig:
+def config_from_args(args):
+    """The `gcs.sim.FleetConfig` the flags ask for."""
+    from gcs.sim.fleet import FleetConfig
+
     if args.vehicles < 1:
         raise InputError("--vehicles", "need at least one vehicle")
     if args.speedup <= 0:
@@ -175,8 +176,8 @@ def _terrain(path):
     from pathlib import Path
 
     from gcs.sim import terrain_ground
-    from planner.geotiff import read_terrain
     from planner.plan import TERRAIN_FILE
+    from planner.terrain import read_terrain
 
     path = Path(path)
     file = path / TERRAIN_FILE if path.is_dir() else path
@@ -186,6 +187,8 @@ def _terrain(path):
 
 
 def run(args) -> int:
+    from gcs.sim.fleet import SimFleet
+
     config = config_from_args(args)
     fleet = SimFleet(config)
     try:
@@ -201,6 +204,9 @@ def run(args) -> int:
 
 
 def _describe(fleet) -> None:
+    from gcs.sim.flavours import flavour
+    from gcs.sim.fleet import vehicle_port
+
     c = fleet.config
     for i, v in enumerate(fleet.vehicles):
         port = vehicle_port(c.firmware, i, c.base_port)
@@ -211,7 +217,7 @@ def _describe(fleet) -> None:
         else:
             where = f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}"
         lat, lon, alt = v.cfg.home
-        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g}")
+        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g} m AMSL")
     print("connect with: " + " ".join(f"--connect {u}" for u in fleet.urls()))
     print(f"speedup x{c.speedup:g}; Ctrl-C stops", flush=True)
 

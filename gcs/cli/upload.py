@@ -14,51 +14,18 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
-from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn
-from rich.table import Table
-
 from autopilots import NAMES
-from gcs.progress import console
-from planner.errors import InputError
+from common.errors import InputError
+from gcs.cli.options import (
+    add_connection_arguments,
+    check_urls,
+    open_link,
+    parse_assignments,
+    protocol_from_args,
+)
 
 HELP = "upload each vehicle's mission (plan directory or .plan/.waypoints files) and verify it"
 FIRMWARE_CHOICES = ("auto",) + NAMES
-
-
-def add_connection_arguments(parser) -> None:
-    """--connect, --signing-key, --connect-timeout: shared with `gcs download`."""
-    parser.add_argument("--connect", action="append", default=[], metavar="URL", required=True,
-                        help="MAVLink connection, repeatable: tcp:HOST:PORT (ArduPilot SITL "
-                             "5760), udpin:0.0.0.0:14550 (PX4 SITL, telemetry radios), "
-                             "udpout:HOST:PORT, /dev/ttyUSB0,57600 (serial DEVICE,BAUD)")
-    parser.add_argument("--signing-key", metavar="FILE",
-                        help="MAVLink 2 signing key: a 32-byte file, or a text file holding a "
-                             "passphrase (SHA-256, as MAVProxy's 'signing setup'); "
-                             "none: nothing is signed")
-    parser.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
-                        help="seconds (wall clock) to wait for the vehicles' HEARTBEATs")
-    add_protocol_arguments(parser)
-
-
-def add_protocol_arguments(parser) -> None:
-    """--protocol-timeout, --protocol-retries: shared by upload, download and fly."""
-    parser.add_argument("--protocol-timeout", type=float, default=1.5, metavar="S",
-                        help="mission protocol: wait this long for each answer before "
-                             "resending (MAVLink recommends 1.5 s; shorter on fast links)")
-    parser.add_argument("--protocol-retries", type=int, default=5, metavar="N",
-                        help="mission protocol (and fly's commands): resend each message up "
-                             "to N times before giving up (MAVLink recommends 5; more on "
-                             "very lossy links)")
-
-
-def protocol_from_args(args) -> dict:
-    """Keyword arguments (timeout_s, retries) of the gcs.mission_protocol calls."""
-    if not args.protocol_timeout > 0:
-        raise InputError("--protocol-timeout", f"must be positive, got {args.protocol_timeout}")
-    if args.protocol_retries < 0:
-        raise InputError("--protocol-retries", f"must be 0 or more, got {args.protocol_retries}")
-    return {"timeout_s": args.protocol_timeout, "retries": args.protocol_retries}
 
 
 def add_arguments(parser) -> None:
@@ -82,19 +49,6 @@ def add_arguments(parser) -> None:
 
 
 # -- matching ----------------------------------------------------------------------------
-def parse_assignments(texts, flag="--vehicle", target="ROUTE") -> dict:
-    """{system id: route}: ``SYSID=N`` texts of option ``flag`` (shared with gcs fly)."""
-    out = {}
-    for text in texts:
-        sysid, sep, route = text.partition("=")
-        if not sep or not sysid.strip().isdigit() or not route.strip().isdigit():
-            raise InputError(flag, f"expected SYSID={target}, got {text!r}")
-        if int(sysid) in out:
-            raise InputError(flag, f"system id {sysid} given twice")
-        out[int(sysid)] = int(route)
-    return out
-
-
 def match(sysids, routes, assign: dict) -> list:
     """[(sysid, route)]: the assignments first, the rest in order of system id."""
     by_id = {r.id: r for r in routes}
@@ -117,31 +71,6 @@ def match(sysids, routes, assign: dict) -> list:
 
 
 # -- running -----------------------------------------------------------------------------
-def check_urls(urls, flag="--connect") -> None:
-    """Every URL in a form pymavlink takes (before anything is opened); InputError."""
-    from gcs.link import LinkError, parse_url
-
-    for url in urls:
-        try:
-            parse_url(url)
-        except LinkError as exc:
-            raise InputError(flag, str(exc)) from None
-
-
-def open_link(args, expect):
-    """GroundLink.open from the shared connection options; LinkError -> one line."""
-    from gcs.link import GroundLink, LinkError
-    from gcs.signing import load_key
-
-    check_urls(args.connect)
-    key = load_key(args.signing_key) if args.signing_key else None
-    try:
-        return GroundLink.open(args.connect, signing_key=key, expect=expect,
-                               timeout_s=args.connect_timeout)
-    except LinkError as exc:
-        raise InputError("--connect", str(exc)) from None
-
-
 def load_routes(args) -> list:
     """Every source read and checked (InputError on the first bad one); the warning
     for each unproven one printed."""
@@ -172,6 +101,8 @@ def run(args) -> int:
         results = _upload_all(link, pairs, args.firmware, protocol)
     finally:
         link.close()
+    from rich.console import Console
+
     Console().print(_summary(results))
     failed = [r for r in results if r["error"]]
     for r in failed:
@@ -180,6 +111,10 @@ def run(args) -> int:
 
 
 def _upload_all(link, pairs, firmware_choice, protocol) -> list:
+    from rich.progress import BarColumn, Progress, TextColumn
+
+    from gcs.progress import console
+
     bars = Progress(TextColumn("{task.description:<28}"), BarColumn(),
                     TextColumn("{task.completed:>4.0f}/{task.total:.0f}"), console=console,
                     disable=not console.is_terminal)
@@ -214,7 +149,7 @@ def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
     except (mp.MissionError, InputError) as exc:
         result["error"] = str(exc)
     result["seconds"] = time.monotonic() - t0
-    if not console.is_terminal:
+    if not bars.console.is_terminal:
         state = "verified" if not result["error"] else "FAILED"
         print(f"vehicle {vehicle.sysid}: route {route.id}, {result['items']} items, {state}",
               file=sys.stderr, flush=True)
@@ -238,7 +173,9 @@ def _too_long(vehicle, items: int, refused, protocol) -> str:
             + (f"; or {advice}" if advice else ""))
 
 
-def _summary(results) -> Table:
+def _summary(results):
+    from rich.table import Table
+
     table = Table(title="mission upload")
     for column in ("system id", "autopilot", "route", "items", "result", "time"):
         table.add_column(column, justify="right" if column in ("items", "time") else "left")

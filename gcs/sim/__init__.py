@@ -7,13 +7,23 @@ Each vehicle records its true track (`read_track`) to judge flights independentl
 of what the ground station believes.
 """
 
-from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
-from gcs.sim.fleet import (FleetConfig, SimFleet, fleet_for_plan, free_base_port,
-                           free_fleet_ports, terrain_ground, vehicle_url)
-from gcs.sim.physics import Limits
-from gcs.sim.track import Track, read_track, track_path
-from gcs.sim.vehicle import SimVehicle, VehicleConfig
+import importlib
 
-__all__ = ["FaultPlan", "FleetConfig", "Limits", "SimFleet", "SimVehicle", "Track",
-           "VehicleConfig", "fleet_for_plan", "free_base_port", "free_fleet_ports", "parse_cut",
-           "parse_kill", "read_track", "terrain_ground", "track_path", "vehicle_url"]
+#: public name -> the module defining it; loaded on first use, so that importing a
+#: light part (the fault syntax, the physics limits) does not start pymavlink
+_EXPORTS = {
+    "FaultPlan": "faults", "parse_cut": "faults", "parse_kill": "faults",
+    "DEFAULT_HOME": "physics", "Limits": "physics",
+    "FleetConfig": "fleet", "SimFleet": "fleet", "fleet_for_plan": "fleet",
+    "free_base_port": "fleet", "free_fleet_ports": "fleet", "terrain_ground": "fleet",
+    "vehicle_url": "fleet", "vehicle_port": "fleet",
+    "Track": "track", "read_track": "track", "track_path": "track",
+    "SimVehicle": "vehicle", "VehicleConfig": "vehicle",
+}
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name):
+    if name not in _EXPORTS:
+        raise AttributeError(f"module 'gcs.sim' has no attribute {name!r}")
+    return getattr(importlib.import_module(f"gcs.sim.{_EXPORTS[name]}"), name)

@@ -11,7 +11,7 @@ import re
 import threading
 from dataclasses import dataclass, field
 
-from planner.errors import InputError
+from common.errors import InputError
 
 _KILL = re.compile(r"^(\d+)@(?:(\d+(?:\.\d*)?)s|item(\d+))$")
 _CUT = re.compile(r"^(\d+)@(\d+(?:\.\d*)?)s\+(\d+(?:\.\d*)?)s$")

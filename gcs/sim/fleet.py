@@ -19,11 +19,9 @@ from pathlib import Path
 from autopilots import ARDUPILOT
 from gcs.sim.faults import FaultPlan
 from gcs.sim.flavours import flavour
-from gcs.sim.physics import Limits
+from gcs.sim.physics import DEFAULT_HOME, Limits
 from gcs.sim.track import track_path
 from gcs.sim.vehicle import FIRMWARE_CAPACITY, SimVehicle, VehicleConfig
-
-DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
 
 
 def vehicle_port(firmware: str, index: int, base_port: int | None = None) -> int:

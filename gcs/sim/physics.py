@@ -11,6 +11,8 @@ y north) around the vehicle's home, altitude metres AMSL.
 import math
 from dataclasses import dataclass
 
+DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
+
 EARTH_RADIUS_M = 6378137.0
 _CROSS_GAIN = 1.0      # 1/s: cross-track error -> correcting velocity
 _POS_GAIN = 2.0        # 1/s: linear speed profile close to the destination

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.fileio import write_text_atomic
+from common.fileio import write_text_atomic
 
 FORMAT = "gcs-sim-track/1"
 SAMPLE_PERIOD_S = 0.1

@@ -13,7 +13,6 @@ import select
 import socket
 
 
-
 class TcpServerLink:
     def __init__(self, port: int, host: str = "127.0.0.1", banner: bytes = b""):
         self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)

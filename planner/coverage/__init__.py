@@ -13,8 +13,8 @@ route times), greedy (RT/RD phases), setcover, routing (OR-Tools), baselines
 """
 
 from .metrics import coverage_counts, lower_bound
-from .problem import Allocation, CoverageParams, CoverageProblem
+from .problem import Allocation, CoverageParams, CoverageProblem, required_uavs
 from .solve import METHODS, solve
 
 __all__ = ["Allocation", "CoverageParams", "CoverageProblem", "METHODS", "coverage_counts",
-           "lower_bound", "solve"]
+           "lower_bound", "required_uavs", "solve"]

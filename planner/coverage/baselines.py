@@ -23,8 +23,19 @@ from .gains import CoverState
 from .greedy import allocate
 from .insertion import improve_route, insert_cost
 from .local_search import local_search
+from .methods import register
 from .routing import default_time_limit, route_nodes
 from .setcover import dominating_set
+
+
+@register("b", "baseline B: greedy dominating set, then OR-Tools makespan routing")
+def _b(prep, params, progress):
+    return solve_b(prep, params), []
+
+
+@register("c", "baseline C: time clustering, then a dominating set and a tour per cluster")
+def _c(prep, params, progress):
+    return solve_c(prep, params), []
 
 
 def solve_b(prep, params):

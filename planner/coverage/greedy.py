@@ -18,8 +18,8 @@ import math
 import numpy as np
 
 from .gains import CoverState
-from .insertion import (combine_ends, insert_cost, middle_costs_all, route_time,
-                        update_middle_costs)
+from .insertion import combine_ends, insert_cost, middle_costs_all, route_time, update_middle_costs
+from .methods import register
 from .objectives import PER_DISTANCE, PTV, PTV2, best_free_pair, best_pair, best_spread
 
 
@@ -137,6 +137,16 @@ def allocate(prep, params, objective="ptv", routes=None, state=None, progress=No
         if progress is not None:
             progress(1.0 - state.remaining / total)
     return rs.routes, steps
+
+
+@register("rt", "the paper's reduced-time method (PTV allocation, threshold adaptation)")
+def _rt(prep, params, progress):
+    return allocate(prep, params, "ptv", progress=progress)
+
+
+@register("rd", "the per-distance baseline (same starts, no threshold adaptation)")
+def _rd(prep, params, progress):
+    return allocate(prep, params, "per_distance", progress=progress)
 
 
 def _give(rs, state, steps, phase, e, r):

@@ -19,10 +19,15 @@ visits (plus an earlier snapshot) see t, ``dc[t]`` = distinct UAVs with
 ``cnt > 0``.  The result is never worse than the RT allocation it starts from.
 """
 
+from dataclasses import replace
+
 import numpy as np
 from numba import njit
 
+from .greedy import allocate
 from .insertion import improve_route, insert_cost, removal_saving, route_time
+from .methods import register
+from .metrics import evaluate
 
 _EPS = 1e-6
 
@@ -269,3 +274,24 @@ def local_search(prep, routes, rounds=20, select="all", budget=None):
         if not changed or s.budget <= 0:
             break
     return [list(map(int, r)) for r in s.routes]
+
+
+@register("rt+ls", "RT, then our local search (drop, relocate, swap, replace, re-route)")
+def _rt_ls(prep, params, progress):
+    """RT, then local search; restarted with th_ra halved and doubled, best kept.
+
+    The first start is plain RT with ``params``, so the result is never worse
+    than RT.  Restarts only apply when th_ra comes from the factor.
+    """
+    factors = [params.step_cap_factor]
+    if params.step_time_cap is None:
+        factors += [params.step_cap_factor * f for f in (0.5, 2.0)][:max(params.ls_starts - 1, 0)]
+    best = None
+    for i, factor in enumerate(factors):
+        p = replace(params, step_cap_factor=factor)
+        routes, steps = allocate(prep, p, "ptv", progress=progress if i == 0 else None)
+        for r in (routes, local_search(prep, routes, params.ls_rounds)):
+            a = evaluate(prep, r, "rt+ls")
+            if a.covered and (best is None or a.coverage_time < best[0] - 1e-9):
+                best = (a.coverage_time, r, steps)
+    return best[1], best[2]

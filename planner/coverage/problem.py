@@ -13,6 +13,11 @@ from typing import Optional
 import numpy as np
 
 
+def required_uavs(k: int, n_uavs: int) -> int:
+    """How many distinct UAVs must see each target: k + 1, or every UAV when fewer
+    are left (after losses: the paper's rule, everywhere it is needed)."""
+    return int(min(k + 1, max(n_uavs, 1)))
+
 @dataclass
 class CoverageProblem:
     """Viewpoints, targets, travel times and the fault-tolerance requirement.
@@ -165,7 +170,7 @@ def prepare(problem: CoverageProblem) -> Prepared:
         if s.shape != (n, n_t):
             raise ValueError(f"seen must be [{n}, {n_t}]")
         seen0[s] = 1
-    req = (np.full(n_t, k + 1, dtype=np.int32) if problem.required is None
+    req = (np.full(n_t, required_uavs(k, n), dtype=np.int32) if problem.required is None
            else np.asarray(problem.required, dtype=np.int32).copy())
     if req.shape != (n_t,):
         raise ValueError(f"required must have one entry per target ({n_t})")

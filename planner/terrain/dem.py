@@ -34,9 +34,10 @@ from rasterio.windows import Window, from_bounds
 from scipy import ndimage, sparse
 from scipy.sparse.linalg import spsolve
 
+from common.errors import InputError
+
 from . import dem_kernels
-from .errors import InputError
-from .terrain import Terrain, bilinear
+from .grid import Terrain, bilinear
 
 MAX_FILLED_VOID_CELLS = 64  # a void component up to this many source cells is interpolated
 AREA_MARGIN_CELLS = 8  # source cells read beyond --area, for interpolation at its edge

@@ -1,6 +1,6 @@
 """The exposure surface E: where a UAV can fly without being seen.
 
-Visibility model (shared with planner.los): the terrain surface is the bilinear
+Visibility model (shared with planner.exposure.los): the terrain surface is the bilinear
 interpolation of cell centres; an outpost at (x, y) has its eye ``height_m``
 above that surface; it sees a point P when P is within its range and the
 straight segment from the eye to P does not pass below the terrain surface,
@@ -11,11 +11,11 @@ flyable when ``E - hide_margin >= ground + clearance`` and the surface is known
 all around it (`Terrain.solid`); the connected regions of flyable cells are
 where the fleet flies. On a resampled DEM, sight lines are occluded by the
 terrain's lower surface and the outposts' eyes and the clearance stand on its
-upper surface (`planner.terrain`), so E is safe against the source DEM too.
+upper surface (`planner.terrain.grid`), so E is safe against the source DEM too.
 
 ``compute_exposure`` uses a fast ring sweep (``lowest_seen``, alone) that is a
 proven lower bound of the exact lowest seen altitude (the safe side; see
-planner.exposure_kernels).
+planner.exposure.kernels).
 ``is_hidden``, ``segment_hidden`` and ``segment_clear`` are exact or
 conservative checks used to prove that a flown leg is hidden and clear.
 """
@@ -26,7 +26,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
-from . import exposure_kernels as k
+from . import kernels as k
 from .los import DEFAULT_CURVATURE_COEFF
 
 

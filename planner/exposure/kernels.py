@@ -1,6 +1,6 @@
-"""numba kernels of the exposure surface (see planner.exposure for the model).
+"""numba kernels of the exposure surface (see planner.exposure.surface for the model).
 
-Grid coordinates as in planner.los: ``u`` = column, ``v`` = row, cell centre of
+Grid coordinates as in planner.exposure.los: ``u`` = column, ``v`` = row, cell centre of
 (r, c) at (u, v) = (c, r); distances along a ray in grid units unless a name
 ends in ``_m``.
 
@@ -9,7 +9,7 @@ The fast surface: a *lower bound* of the horizon slope H(P) of every cell
 The lowest altitude an outpost sees at P is ``z0 + D H(P) + drop(D)``, H(P)
 the steepest apparent slope of the terrain along the ray O -> P. Every slope
 used here is the *exact* apparent slope at a point of P's *own* ray, or its
-exact maximum over a stretch of it (closed form per patch, as in planner.los).
+exact maximum over a stretch of it (closed form per patch, as in planner.exposure.los).
 Neither is above the maximum over the whole ray, so the computed altitude is
 never above the exact one (up to rounding, ~1e-10 m): safe by construction,
 whatever points and stretches are chosen. The choice only decides how tight
@@ -94,7 +94,7 @@ def ray_max(h, cell, u0, v0, z0, u1, v1, ta, tb, curv):
     """Exact (max, argmax t) of the apparent slope seen from (u0, v0, z0) along
     the segment to (u1, v1), over t in [ta, tb] (tb <= 1); (-inf, ta) if empty.
 
-    Patches touching a NaN height are skipped, as in planner.los.max_slope.
+    Patches touching a NaN height are skipped, as in planner.exposure.los.max_slope.
     """
     n_rows, n_cols = h.shape
     du = u1 - u0
@@ -421,7 +421,7 @@ def _sweep_wedge(h, cell, hf, acc, q, c_o, r_o, u0, v0, z0, base, sa, sb, a_last
                             best, a_best = _better(int(math.floor(x + fa + 0.5)), s, best,
                                                    a_best)
             if near:  # next to the eye a horizon peaks inside a patch: take it exactly,
-                # from a millimetre off the eye as planner.los does (a 0 m eye on a
+                # from a millimetre off the eye as planner.exposure.los does (a 0 m eye on a
                 # rise is blocked by the first centimetres), up to ring line NEAR_RINGS
                 dc, dr = _rotate(q, k, b)
                 s, x = ray_max(h, cell, u0, v0, z0, c_o + dc, r_o + dr, 0.0,
@@ -742,7 +742,7 @@ def legs_hidden(h, cell, grad, eyes, a, b, curv, slack_m):
 @njit(cache=True, parallel=True)
 def legs_min_height(h, a, b):
     """Min over each leg a[k] -> b[k] ((u, v, z)) of altitude minus the bilinear
-    terrain (planner.los.gap_range); NaN next to a void."""
+    terrain (planner.exposure.los.gap_range); NaN next to a void."""
     out = np.empty(a.shape[0])
     for k in prange(a.shape[0]):
         out[k] = gap_range(h, a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2], False)[0]

@@ -1,6 +1,6 @@
 """numba kernels for the visibility sets (see planner/visibility.py).
 
-Grid coordinates as in planner/los.py: ``u`` = column, ``v`` = row, cell
+Grid coordinates as in planner/exposure/los.py: ``u`` = column, ``v`` = row, cell
 centre of (r, c) at (u, v) = (c, r). A viewpoint's candidate targets are the
 cells of a precomputed disk of offsets around its nearest cell; each kernel
 writes one byte per (viewpoint, offset) and the CSR is assembled afterwards
@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .los import _piece_max_slope, curvature_drop, next_patch
+from planner.exposure.los import _piece_max_slope, curvature_drop, next_patch
 
 
 @njit(cache=True)
@@ -30,7 +30,7 @@ def sees_early_exit(h, cell, u0, v0, z0, u1, v1, z1, range_m, curv):
     t_end = max(0.0, 1.0 - 1e-3 / d)
     ue = u0 + t_end * (u1 - u0)
     ve = v0 + t_end * (v1 - v0)
-    # from here on: planner.los.max_slope(h, cell, u0, v0, z0, ue, ve, 0, curv)
+    # from here on: planner.exposure.los.max_slope(h, cell, u0, v0, z0, ue, ve, 0, curv)
     du = ue - u0
     dv = ve - v0
     length_m = cell * math.sqrt(du * du + dv * dv)
@@ -167,7 +167,7 @@ def sweep_geometry(m, cell, range_m, curv):
     position in the (2m+1)^2 square, the two ring k-1 cells its ray passes
     between and the interpolation weight of the second, the distance and
     curvature drop, the ray's end (the target minus its last millimetre, as
-    planner.los.sees) and up to three pieces (relative patch, t range) of the
+    planner.exposure.los.sees) and up to three pieces (relative patch, t range) of the
     ray between the ring k-1 crossing and that end.
     """
     side = 2 * m + 1
@@ -230,7 +230,7 @@ def sweep_geometry(m, cell, range_m, curv):
                 par_a[q] = (i + m) * side + j0 + m
                 par_b[q] = (i + m) * side + j0 + 1 + m if wb[q] > 0.0 else par_a[q]
             t = (k - 1.0) / k / t_end
-        # the patch walk of planner.los.max_slope, relative to the viewpoint cell
+        # the patch walk of planner.exposure.los.max_slope, relative to the viewpoint cell
         while t < 1.0 and n_pieces[q] < 3:
             um = (t + 1e-9) * du[q]
             vm = (t + 1e-9) * dv[q]
@@ -264,10 +264,10 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
     """Ring sweep from the viewpoint above cell (r0, c0), writing out_row[slot[pos]].
 
     horizon[pos] is the steepest apparent slope along the ray to that cell,
-    excluding its last millimetre (as planner.los.sees). The part of the ray
+    excluding its last millimetre (as planner.exposure.los.sees). The part of the ray
     up to the ring k - 1 crossing is taken as the linear interpolation of the
     horizons of the two cells it passes between (XDraw's approximation); the
-    rest, up to the target, is exact (planner.los patch by patch). A target
+    rest, up to the target, is exact (planner.exposure.los patch by patch). A target
     blocked by that exact last piece is hidden for certain; otherwise, when
     its margin against the interpolated part is within ``band_m`` metres, the
     cell is decided by the exact test (sees_early_exit) instead.

@@ -1,4 +1,4 @@
-"""numba kernel for conservative resampling (see planner.dem).
+"""numba kernel for conservative resampling (see planner.terrain.dem).
 
 A working grid resampled from a source DEM has its own bilinear surface W,
 which differs from the source's bilinear surface S between the working cell

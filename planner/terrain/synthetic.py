@@ -14,7 +14,7 @@ from affine import Affine
 from pyproj import Transformer
 
 from .dem import utm_crs
-from .terrain import Terrain
+from .grid import Terrain
 
 FAMILIES = ("hills", "ridges", "peaks", "mixed")
 BASE_M = 300.0  # height of the lowest ground, metres AMSL

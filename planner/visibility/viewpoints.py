@@ -12,7 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import InputError
+from common.errors import InputError
 
 TARGET_CANDIDATES = 3000
 DEFAULT_SENSOR_RANGE_M = 1500.0

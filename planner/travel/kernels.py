@@ -3,7 +3,7 @@
 import numpy as np
 from numba import njit, prange
 
-from .los import gap_range
+from planner.exposure.los import gap_range
 
 
 @njit(cache=True)

@@ -6,9 +6,10 @@ import numpy as np
 import rasterio
 from rasterio.errors import RasterioIOError
 
-from .errors import InputError
-from .fileio import atomic_path
-from .terrain import Terrain
+from common.errors import InputError
+from common.fileio import atomic_path
+
+from .grid import Terrain
 
 
 def write_grid(path, array, terrain: Terrain, nodata=None, descriptions=()) -> None:

@@ -2,7 +2,7 @@
 
 A snapshot from viewpoint v sees terrain cell g when g's centre, raised by
 ``target_height_m`` above the ground, is within ``sensor_range_m`` horizontally,
-the line of sight clears the bilinear terrain (planner.los, with the exposure
+the line of sight clears the bilinear terrain (planner.exposure.los, with the exposure
 surface's curvature coefficient), and, if ``max_off_nadir_deg`` is set, the
 angle between the downward vertical and the line of sight is within it.
 
@@ -17,8 +17,9 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from . import visibility_kernels as K
-from .errors import InputError
+from common.errors import InputError
+
+from . import kernels as K
 
 #: viewpoints per kernel call: bounds the byte buffer to about 64 MB
 _BUFFER_BYTES = 64 * 2**20
@@ -93,12 +94,30 @@ class VisibilityMatrix:
     def target_rowcol(self):
         return np.unravel_index(self.target_cells, self.grid_shape)
 
+    def restricted(self, cells: np.ndarray) -> "VisibilityMatrix":
+        """The same sets with only the targets whose cell is True in ``cells`` (a bool
+        grid, e.g. the area of operations' polygon); target ids are renumbered,
+        viewpoints kept (one that sees none of them gains nothing)."""
+        keep_t = np.asarray(cells, bool).ravel()[self.target_cells]
+        new_id = (np.cumsum(keep_t) - 1).astype(np.int32)
+        rows = np.repeat(np.arange(self.n_viewpoints), np.diff(self.indptr))
+        keep = keep_t[self.indices]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(
+            rows[keep], minlength=self.n_viewpoints))]).astype(np.int64)
+        t_counts = np.diff(self.target_indptr)
+        columns = np.repeat(keep_t, t_counts)
+        return VisibilityMatrix(
+            indptr=indptr, indices=new_id[self.indices[keep]],
+            target_indptr=np.concatenate([[0], np.cumsum(t_counts[keep_t])]).astype(np.int64),
+            target_viewpoints=self.target_viewpoints[columns],
+            target_cells=self.target_cells[keep_t], grid_shape=self.grid_shape)
+
 
 def compute_visibility(surface, viewpoints, sensor=SensorParams(), method="sweep",
                        band_m=0.05) -> VisibilityMatrix:
     """Visibility sets of ``viewpoints`` (above their cells) over ``surface.terrain``.
 
-    ``method="exact"`` runs planner.los per (viewpoint, cell), stopping at the
+    ``method="exact"`` runs planner.exposure.los per (viewpoint, cell), stopping at the
     first blocking patch; ``"sweep"`` (default) is a per-viewpoint ring sweep
     that hands to the exact test every cell whose margin against the
     interpolated horizon is under ``band_m`` metres (see

@@ -14,7 +14,7 @@ Graph: one node per cell of a flyable region (`ExposureSurface.regions`), at
 the cell's ceiling ``E - hide_margin`` (the highest hidden altitude there);
 edges to the 8 or 16 neighbouring cells of the same region, kept when the
 straight 3-D leg between the two nodes passes the exact clearance and ceiling
-tests (planner.los.gap_range) and ``segments_hidden``; when it fails, the edge may
+tests (planner.exposure.los.gap_range) and ``segments_hidden``; when it fails, the edge may
 still "dip": descend to the higher of the two floors (on the raised terrain),
 fly level (checked the same way), climb back.
 Different regions are never joined, so their times are infinite.
@@ -37,10 +37,13 @@ from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import connected_components, dijkstra
 from scipy.spatial import cKDTree
 
-from . import exposure, exposure_kernels
-from . import travel_kernels as K
-from .errors import InputError
-from .terrain import bilinear
+from common.errors import InputError
+from planner import exposure
+from planner.exposure import kernels as exposure_kernels
+from planner.parallel import run_chunks
+from planner.terrain import bilinear
+
+from . import kernels as K
 
 #: MISSION_ITEM_INT carries lat/lon in 1e-7 degree (<= 1.1 cm): every planned leg is
 #: proven hidden and clear with this much room around it on top of the track
@@ -52,6 +55,10 @@ ROUNDING_SLACK_M = 0.05
 CLEARANCE_MARGIN_M = 0.05
 #: cells around a point searched for a node it can be joined to (`attach`)
 ATTACH_REACH_CELLS = 2
+#: nodes, and node pairs, checked per chunk (`planner.parallel.run_chunks`): a few
+#: seconds of work each on large areas, so that progress moves and dask tasks pay
+NODE_CHUNK = 100_000
+EDGE_CHUNK = 100_000
 
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
@@ -101,7 +108,12 @@ def polyline_time(poly, params=TravelParams()) -> float:
 class TravelGraph:
     """The hidden travel graph over the flyable cells of an exposure surface."""
 
-    def __init__(self, surface, params=TravelParams(), neighbours=16):
+    def __init__(self, surface, params=TravelParams(), neighbours=16, edges=None, client=None,
+                 progress=None):
+        """``edges``: the checked edges of an identical graph (`edges()`, e.g. from a
+        plan folder), taken as they are instead of checked again. Otherwise they are
+        checked in chunks (`planner.parallel.run_chunks`: on ``client``'s dask
+        workers when given), ``progress(fraction)`` told as chunks end."""
         if neighbours not in (8, 16):
             raise InputError("neighbours", f"must be 8 or 16, got {neighbours}")
         self.surface = surface
@@ -123,8 +135,12 @@ class TravelGraph:
         x, y = terrain.xy(rows, cols)
         self.node_xyz = np.stack([x, y, surface.ceiling[rows, cols]], axis=1)
         self.node_region = surface.regions[rows, cols]
-        src, dst, dip = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
-                                             np.int64))
+        if edges is None:
+            src, dst, dip = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
+                                                 np.int64), client, progress)
+        else:
+            src, dst, dip = (np.asarray(edges[k]) for k in ("src", "dst", "dip"))
+        self._undirected = (src, dst, dip)
         za, zb = self.node_xyz[src, 2], self.node_xyz[dst, 2]
         low = np.where(np.isnan(dip), np.minimum(za, zb), dip)
         horiz = np.hypot(*(self.node_xyz[dst, :2] - self.node_xyz[src, :2]).T)
@@ -134,6 +150,12 @@ class TravelGraph:
         n = rows.shape[0]
         self.csr = csr_matrix((w, self._nbr.astype(np.int32), self._indptr), shape=(n, n))
         self._csr_reverse = None
+
+    def edges(self) -> dict:
+        """The checked undirected edges (node ids; ``dip``: the level altitude of a
+        dip edge, NaN for a straight one), as `TravelGraph(edges=...)` takes them."""
+        src, dst, dip = self._undirected
+        return {"src": src, "dst": dst, "dip": dip}
 
     @property
     def n_nodes(self) -> int:
@@ -172,7 +194,7 @@ class TravelGraph:
         ok[idx] = _segments_hidden(self.surface, a[idx], b[idx], slack_m)
         return ok
 
-    def _edges(self, half_offsets):
+    def _edges(self, half_offsets, client=None, progress=None):
         """Checked undirected edges (src, dst, dip) between nodes of the same region.
 
         An edge is the straight leg between the two nodes (dip NaN) or, when
@@ -181,31 +203,21 @@ class TravelGraph:
         parts need no check (lower is never less hidden, and they stay above
         the floor); the level part is checked like any leg. A node must pass the
         checks itself (its track-tolerance disc): a dip's vertical part does not
-        prove it.
+        prove it. Nodes, then node pairs, are checked in chunks.
         """
-        p = self.surface.params
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
-        fine = self.legs_ok(self.node_xyz, self.node_xyz)
-        src, dst = src[fine[src] & fine[dst]], dst[fine[src] & fine[dst]]
-        z = np.ascontiguousarray(self.node_xyz[:, 2])
-        ok = K.grid_legs_within(self._h_clear, self._h, self._ceiling, self.node_rows,
-                                self.node_cols, z, src, dst,
-                                p.clearance_m + CLEARANCE_MARGIN_M, p.ceiling_agl_m)
-        idx = np.flatnonzero(ok)
-        ok[idx] = _segments_hidden(self.surface, self.node_xyz[src[idx]],
-                                   self.node_xyz[dst[idx]], self.params.slack_m)
-        floor = self._floor_at_nodes()
-        low = np.maximum(floor[src], floor[dst])
-        dip = np.full(src.shape[0], np.nan)
-        idx = np.flatnonzero(~ok & (low < np.minimum(z[src], z[dst])))
-        if idx.size:
-            z_low = np.ascontiguousarray(low[idx])
-            a = np.column_stack([self.node_xyz[src[idx], :2], z_low])
-            b = np.column_stack([self.node_xyz[dst[idx], :2], z_low])
-            fine = self.legs_ok(a, b)
-            ok[idx[fine]] = True
-            dip[idx[fine]] = z_low[fine]
-        return src[ok], dst[ok], dip[ok]
+        nodes = np.arange(self.n_nodes)
+        fine = np.concatenate([np.zeros(0, bool)] + run_chunks(
+            _fine_nodes, _split(nodes, NODE_CHUNK), (self,), client, _part(progress, 0.0, 0.15)))
+        keep = fine[src] & fine[dst]
+        pairs = np.stack([src[keep], dst[keep]], axis=1)
+        checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self,), client,
+                             _part(progress, 0.15, 1.0))
+        if not checked:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+        ok = np.concatenate([c[0] for c in checked])
+        dip = np.concatenate([c[1] for c in checked])
+        return pairs[ok, 0], pairs[ok, 1], dip[ok]
 
     # --- points <-> nodes -------------------------------------------------------------
     def nodes_of(self, xyz, what="point") -> np.ndarray:
@@ -237,7 +249,13 @@ class TravelGraph:
         """The highest altitude above (x, y) where a vehicle is hidden and clear with
         its track tolerance (the top of a takeoff there), or NaN if there is none.
         Hidden only gets likelier lower down and clear higher up, so the altitudes
-        that pass form one interval: bisect for its top."""
+        that pass form one interval: bisect for its top (once per point)."""
+        key = ("top", round(float(x), 6), round(float(y), 6))
+        if key not in self._attached:
+            self._attached[key] = self._column_top(float(x), float(y))
+        return self._attached[key]
+
+    def _column_top(self, x, y) -> float:
         terrain = self.surface.terrain
         row, col = terrain.rowcol(x, y)
         ceiling = float(bilinear(self._ceiling, np.atleast_1d(row), np.atleast_1d(col))[0])
@@ -363,16 +381,18 @@ class TravelGraph:
         return (times + self._attach_times(src_xyz)[:, None]
                 + self._attach_times(dst_xyz, inbound=True)[None, :])
 
-    def _rows(self, graph, sources, columns):
-        """dijkstra(graph, sources)[:, columns], in chunks that bound the dense output."""
-        out = np.empty((len(sources), len(columns)))
-        chunk = max(1, int(2e7 // max(1, self.n_nodes)))
-        for a in range(0, len(sources), chunk):
-            out[a:a + chunk] = dijkstra(graph, directed=True,
-                                        indices=sources[a:a + chunk])[:, columns]
-        return out
+    def _rows(self, graph, sources, columns, client=None, progress=None):
+        """dijkstra(graph, sources)[:, columns], in chunks that bound the dense output,
+        on every core (or ``client``'s workers)."""
+        if not len(sources):
+            return np.empty((0, len(columns)))
+        size = max(1, min(int(2e7 // max(1, self.n_nodes)), -(-len(sources) // 16)))
+        parts = run_chunks(_dijkstra_rows, _split(np.asarray(sources), size), (graph, columns),
+                           client, progress, threads=_n_threads())
+        return np.vstack(parts)
 
-    def time_matrix(self, xyz, method="auto", radius_factor=3.0) -> np.ndarray:
+    def time_matrix(self, xyz, method="auto", radius_factor=3.0, client=None,
+                    progress=None) -> np.ndarray:
         """[n, n] shortest times between the points (e.g. candidate viewpoints).
 
         ``exact``: one full Dijkstra per point. ``overlay``: an exact bounded
@@ -387,15 +407,12 @@ class TravelGraph:
         if method == "auto":
             method = "exact" if len(nodes) * self.n_nodes <= 3e7 else "overlay"
         if method == "exact":
-            return self._exact_matrix(nodes)
+            return self._rows(self.csr, nodes, nodes, client, progress)
         if method == "overlay":
-            return self._overlay_matrix(nodes, radius_factor)
+            return self._overlay_matrix(nodes, radius_factor, client, progress)
         raise InputError("method", f"unknown time matrix method {method!r}")
 
-    def _exact_matrix(self, nodes):
-        return self._rows(self.csr, nodes, nodes)
-
-    def _overlay_matrix(self, nodes, radius_factor):
+    def _overlay_matrix(self, nodes, radius_factor, client=None, progress=None):
         n = len(nodes)
         if n < 2:
             return np.zeros((n, n))
@@ -407,10 +424,12 @@ class TravelGraph:
         limit = radius_factor * spacing / self.params.speed_mps
         slot = np.full(self.n_nodes, -1, np.int64)
         slot[nodes] = np.arange(n)
-        local = K.bounded_times(self._indptr, self._nbr, self.csr.data, nodes, slot, n, limit,
-                                _n_threads())
+        csr = (self._indptr, self._nbr, self.csr.data, slot, n, limit)
+        local = np.vstack(run_chunks(_bounded_rows, _split(nodes, -(-n // 8)), (csr,), client,
+                                     _part(progress, 0.0, 0.7)))
         indptr, nbr, w = K.dense_to_csr(local, K.undominated_edges(local))
-        times = dijkstra(csr_matrix((w, nbr, indptr), shape=(n, n)), directed=True)
+        overlay = csr_matrix((w, nbr, indptr), shape=(n, n))
+        times = self._rows(overlay, np.arange(n), np.arange(n), None, _part(progress, 0.7, 0.9))
         return self._fill_missed(times, nodes)
 
     def _fill_missed(self, times, nodes):
@@ -538,8 +557,9 @@ class TravelGraph:
         return polyline_time(poly, self.params)
 
 
-def build_travel_graph(surface, params=TravelParams(), neighbours=16) -> TravelGraph:
-    return TravelGraph(surface, params, neighbours)
+def build_travel_graph(surface, params=TravelParams(), neighbours=16, client=None,
+                       progress=None) -> TravelGraph:
+    return TravelGraph(surface, params, neighbours, client=client, progress=progress)
 
 
 def _ceiling_everywhere(surface, h) -> np.ndarray:
@@ -589,6 +609,59 @@ def _segments_hidden(surface, a, b, slack_m) -> np.ndarray:
     if len(a) == 0:
         return np.zeros(0, bool)
     return np.asarray(exposure.segments_hidden(surface, a, b, slack_m), bool)
+
+
+def _dijkstra_rows(graph, columns, sources) -> np.ndarray:
+    return dijkstra(graph, directed=True, indices=sources)[:, columns]
+
+
+def _bounded_rows(csr, sources) -> np.ndarray:
+    """Exact times from each source up to the overlay's radius (inf beyond)."""
+    indptr, nbr, w, slot, n, limit = csr
+    return K.bounded_times(indptr, nbr, w, sources, slot, n, limit, _n_threads())
+
+
+def _fine_nodes(graph, nodes) -> np.ndarray:
+    """Which nodes pass the checks themselves (their track-tolerance disc)."""
+    xyz = graph.node_xyz[nodes]
+    return graph.legs_ok(xyz, xyz)
+
+
+def _checked_edges(graph, pairs):
+    """(ok, dip) of node pairs: the straight leg, else the dip (see `_edges`)."""
+    p = graph.surface.params
+    src, dst = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
+    z = np.ascontiguousarray(graph.node_xyz[:, 2])
+    ok = K.grid_legs_within(graph._h_clear, graph._h, graph._ceiling, graph.node_rows,
+                            graph.node_cols, z, src, dst,
+                            p.clearance_m + CLEARANCE_MARGIN_M, p.ceiling_agl_m)
+    idx = np.flatnonzero(ok)
+    ok[idx] = _segments_hidden(graph.surface, graph.node_xyz[src[idx]],
+                               graph.node_xyz[dst[idx]], graph.params.slack_m)
+    floor = graph._floor_at_nodes()
+    low = np.maximum(floor[src], floor[dst])
+    dip = np.full(src.shape[0], np.nan)
+    idx = np.flatnonzero(~ok & (low < np.minimum(z[src], z[dst])))
+    if idx.size:
+        z_low = np.ascontiguousarray(low[idx])
+        a = np.column_stack([graph.node_xyz[src[idx], :2], z_low])
+        b = np.column_stack([graph.node_xyz[dst[idx], :2], z_low])
+        fine = graph.legs_ok(a, b)
+        ok[idx[fine]] = True
+        dip[idx[fine]] = z_low[fine]
+    return ok, dip
+
+
+def _split(items, size) -> list:
+    """``items`` in consecutive chunks of at most ``size``."""
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def _part(progress, lo, hi):
+    """A progress callback mapping [0, 1] onto [lo, hi] of ``progress``."""
+    if progress is None:
+        return None
+    return lambda f: progress(lo + (hi - lo) * f)
 
 
 def _string_pull(n):

@@ -1,0 +1,137 @@
+"""How the planner's cost grows with the area: wall time, CPU time and peak memory
+per stage for synthetic UTM DEMs of 256², 512², 1024² (and 2048² without
+--quick) cells at 30 m, 5 outposts, one launch point, k = 1, the default
+method; the fitted exponent per stage (time ~ cells^p); and the chunked stages
+(travel graph, travel times) on a dask LocalCluster of 1 and 2 workers.
+
+    .venv/bin/python -m benchmarks scale [--quick]
+
+Each size runs in its own process, so its peak resident memory is its own. The
+goals (issue 22): 1024² with 8 UAVs under 60 s and 4 GiB on 2 cores, both
+cores busy in every stage over a second; 2048² with 12 UAVs under 5 minutes and
+8 GiB.
+"""
+
+import argparse
+import json
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+UAVS = {256: 4, 512: 6, 1024: 8, 2048: 12}
+STAGES = ("terrain", "exposure", "travel graph", "viewpoints", "visibility", "travel times",
+          "allocation", "routes")
+
+
+def _one(n: int, scheduler: str) -> dict:
+    """Plan an n x n terrain in this process; per-stage wall/CPU seconds, peak RSS."""
+    import resource
+    import time
+    import warnings
+
+    warnings.simplefilter("ignore")
+    from planner.pipeline import allocate, launch_starts, prepare
+    from planner.scenario import Scenario
+
+    folder = Path(tempfile.mkdtemp(prefix="bench-scale-"))
+    dem, posts, launch = _inputs(n, folder)
+    scenario = Scenario(dem=[str(dem)], outposts=str(posts), uavs=UAVS[n], k=1,
+                        launch=[launch]).validate()
+    marks = {}
+
+    def progress(stage, fraction):
+        now = (time.perf_counter(), time.process_time())
+        marks.setdefault(stage, [now, now])[1] = now
+
+    ctx = prepare(scenario, progress,
+                  scheduler=None if scheduler == "none" else scheduler)
+    allocate(ctx, scenario.uavs, launch_starts(ctx), progress=progress)
+    stages = {s: [m[1][0] - m[0][0], m[1][1] - m[0][1]] for s, m in marks.items()}
+    return {"n": n, "stages": stages, "viewpoints": len(ctx.viewpoints),
+            "targets": int(ctx.visibility.n_targets),
+            "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+
+
+def _inputs(n, folder):
+    """A seeded synthetic DEM in its UTM zone, 5 outposts and a hidden launch point."""
+    import rasterio
+
+    from planner.exposure import compute_exposure, load_outposts
+    from planner.terrain import synthetic_terrain
+
+    t = synthetic_terrain(n, n, cell=30.0, seed=11, family="mixed")
+    dem = folder / "dem.tif"
+    with rasterio.open(dem, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
+                       crs=t.crs, transform=t.transform) as ds:
+        ds.write(t.height.astype(np.float32), 1)
+    rng = np.random.default_rng(2)
+    features = []
+    for k in range(5):
+        lon, lat = t.to_lonlat(*t.xy(*rng.integers(n // 8, 7 * n // 8, 2)))
+        features.append({"type": "Feature", "properties": {"name": f"P{k + 1}", "height_m": 10},
+                         "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]}})
+    posts = folder / "posts.geojson"
+    posts.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
+    surface = compute_exposure(t, load_outposts(posts, t))
+    largest = np.bincount(surface.regions.ravel())[1:].argmax() + 1
+    cells = np.argwhere(surface.regions == largest)
+    lon, lat = t.to_lonlat(*t.xy(*cells[len(cells) // 2]))
+    return dem, posts, (float(lat), float(lon))
+
+
+def _run(n, scheduler="none") -> dict:
+    out = subprocess.run([sys.executable, __file__, "--one", str(n), "--scheduler", scheduler],
+                         capture_output=True, text=True, cwd=ROOT, check=True)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="up to 1024² only")
+    ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
+    ap.add_argument("--scheduler", default="none", help=argparse.SUPPRESS)
+    args, _ = ap.parse_known_args(argv)
+    if args.one:
+        print(json.dumps(_one(args.one, args.scheduler)))
+        return
+    sizes = (256, 512, 1024) if args.quick else (256, 512, 1024, 2048)
+    runs = [_run(n) for n in sizes]
+    head = f"{'stage':<14}" + "".join(f"{f'{n}² wall/cpu s':>20}" for n in sizes) + "  exponent"
+    print(head)
+    print("-" * len(head))
+    cells = np.array([float(n) ** 2 for n in sizes])
+    for stage in STAGES:
+        walls = np.array([r["stages"].get(stage, [np.nan, np.nan])[0] for r in runs])
+        cpus = [r["stages"].get(stage, [np.nan, np.nan])[1] for r in runs]
+        ok = walls > 0.05
+        p = np.polyfit(np.log(cells[ok]), np.log(walls[ok]), 1)[0] if ok.sum() >= 2 else np.nan
+        print(f"{stage:<14}" + "".join(f"{w:12.1f} /{c:6.1f}" for w, c in zip(walls, cpus))
+              + f"  {p:8.2f}")
+    total = [sum(w for w, _ in r["stages"].values()) for r in runs]
+    print(f"{'total':<14}" + "".join(f"{t:20.1f}" for t in total))
+    print(f"{'peak GiB':<14}" + "".join(f"{r['peak_gib']:20.2f}" for r in runs))
+    print(f"{'viewpoints':<14}" + "".join(f"{r['viewpoints']:20d}" for r in runs))
+    print(f"{'UAVs':<14}" + "".join(f"{UAVS[n]:20d}" for n in sizes))
+    print("\nchunked stages on a dask LocalCluster, 1024²:")
+    for workers in (1, 2):
+        r = _cluster_run(1024, workers)
+        print(f"  {workers} worker(s): travel graph {r['stages']['travel graph'][0]:.1f} s, "
+              f"travel times {r['stages']['travel times'][0]:.1f} s")
+
+
+def _cluster_run(n, workers) -> dict:
+    """The plan with its chunked stages on a LocalCluster of ``workers`` processes."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster:
+        return _run(n, cluster.scheduler_address)
+
+
+if __name__ == "__main__":
+    sys.path.insert(0, str(ROOT))
+    main()

@@ -1,0 +1,137 @@
+"""What the commands show: result tables, the live flight view and its prompt.
+
+Shared by the commands (`gcs plan` and `gcs demo` show a plan; `gcs fly` and
+`gcs demo` fly one), so that no command imports another.
+"""
+
+import sys
+from pathlib import Path
+
+from rich.console import Group
+from rich.live import Live
+from rich.table import Table
+from rich.text import Text
+
+from gcs.progress import console
+
+
+# -- a plan --------------------------------------------------------------------------------
+def plan_summary(plan) -> Group:
+    """The per-UAV table and the coverage lines `gcs plan` ends with."""
+    m = plan.metrics
+    table = Table(title=f"{plan.method.upper()} plan, k = {m['k']}")
+    for col in ("UAV", "snapshots", "coverage time", "mission time", "path"):
+        table.add_column(col, justify="right")
+    for v in plan.vehicles:
+        table.add_row(str(v.id), str(len(v.snapshots)), _minutes(v.coverage_time_s),
+                      _minutes(v.mission_time_s), f"{v.path_length_m / 1000:.1f} km")
+    ratio = m.get("ratio_to_lower_bound")
+    cover = (f"coverage time {_minutes(m['coverage_time_s'])} (lower bound "
+             f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f})" if ratio else
+             f"coverage time {_minutes(m['coverage_time_s'])}")
+    targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
+               f"UAVs ({100 * m['k_covered'] / max(m['targets'], 1):.1f} %); "
+               f"planned in {plan.timing_s.get('total', 0):.1f} s")
+    return Group(table, Text(cover), Text(targets))
+
+
+def _minutes(seconds) -> str:
+    return f"{seconds / 60:.1f} min"
+
+
+# -- a flight -------------------------------------------------------------------------------
+def fly_plan(plan_dir, urls, options, ctx=None) -> dict:
+    """Fly with a live status table on a terminal, event lines on stderr otherwise;
+    FlightError when the flight could not go on (the report is written first).
+    ``ctx``: the plan's context when it is in memory."""
+    from gcs.fly import Flight
+
+    live = console.is_terminal
+    flight = Flight(plan_dir, urls, options, ctx=ctx,
+                    log=(lambda text: None) if live else
+                    (lambda text: print(text, file=sys.stderr, flush=True)))
+    return fly_flight(flight, live)
+
+
+def fly_flight(flight, live: bool) -> dict:
+    """Run ``flight``: on a terminal with the status table, and Ctrl-C or --timeout
+    answered by the user; otherwise Ctrl-C leaves the vehicles flying and the
+    timeout brings them home."""
+    if live:
+        with Live(status_table([]), console=console, refresh_per_second=4) as view:
+            timeout = flight.options.timeout_s
+            return flight.run(lambda rows: view.update(status_table(rows)),
+                              lambda: ask(view, "interrupted"),
+                              lambda: ask(view, f"timed out after {timeout:g} s"))
+    return flight.run(on_interrupt=lambda: "leave", on_timeout=lambda: "home")
+
+
+ANSWERS = {"h": "home", "home": "home", "l": "leave", "leave": "leave"}
+
+
+def ask(view, why: str) -> str:
+    """Ctrl-C or the timeout during a flight: bring every vehicle home along hidden
+    paths, or leave them flying on their missions. Asks again until the answer is
+    one it knows; end of input (or a second Ctrl-C) leaves them."""
+    view.stop()
+    # "\[" keeps rich from reading [h] and [l] as markup tags and swallowing them
+    prompt = (f"[bold]{why}[/bold]: bring every vehicle home along hidden paths? "
+              "\\[h]ome / \\[l]eave them on their missions: ")
+    while True:
+        try:
+            answer = console.input(prompt)
+        except (EOFError, KeyboardInterrupt):
+            return "leave"
+        choice = ANSWERS.get(answer.strip().lower())
+        if choice is not None:
+            break
+        console.print(f"please answer h (home) or l (leave), not {answer.strip()!r}",
+                      markup=False, highlight=False)
+    if choice == "home":
+        view.start()
+    return choice
+
+
+ALT_COLUMN = "alt above home"
+
+
+def status_table(rows) -> Table:
+    table = Table(title="vehicles", expand=False)
+    # "alt" is GLOBAL_POSITION_INT.relative_alt: above home (QGroundControl's "Alt (Rel)"),
+    # negative over valleys lower than the launch point
+    for col in ("sysid", "UAV", "mode", "item", "mission", "snapshots", ALT_COLUMN,
+                "heartbeat", "battery", "state"):
+        table.add_column(col, justify="right")
+    for r in rows:
+        style = {"lost": "red", "landed": "green", "holding": "yellow"}.get(r["state"], "")
+        table.add_row(str(r["sysid"]), str(r["vehicle"]), r["mode"], r["item"],
+                      str(r["mission"]), r["snapshots"],
+                      "-" if r["alt"] is None else f"{r['alt']:.0f} m",
+                      f"{r['heartbeat_s']:.1f} s", "-" if r["battery"] is None else
+                      f"{r['battery']} %", f"[{style}]{r['state']}[/{style}]" if style
+                      else r["state"], style=None)
+    return table
+
+
+def summary(report, output=None) -> None:
+    """Losses, re-plans and coverage reached; the files written when ``output`` is given."""
+    for loss in report["losses"]:
+        console.print(f"vehicle {loss['sysid']} lost at {loss['detected_s']:.1f} s "
+                      f"({loss['reason']})")
+    for r in report["replans"]:
+        console.print(f"re-plan at {r['t_s']:.1f} s for {r['survivors']}: planned in "
+                      f"{r['planning_s']:.1f} s, uploaded in {r['upload_s']:.1f} s; "
+                      f"coverage time {r['planned'].get('coverage_time_s', 0) / 60:.1f} min")
+    cov = report["coverage"].get("survivors")
+    if cov:
+        console.print(f"k = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
+                      f"{cov['required_uavs']} surviving vehicle(s) "
+                      f"({100 * cov['fraction_k_covered']:.1f} %) in {report['duration_s']:.0f} s")
+    outcome = report.get("outcome", {})
+    if outcome.get("ok"):
+        console.print("outcome: required coverage reached, no vehicle lost, all landed")
+    for problem in outcome.get("problems", []):
+        console.print(f"outcome: {problem}", style="red", markup=False, highlight=False)
+    if output is not None:
+        console.print(f"  {Path(output) / 'flight.json'}  [dim]flight report[/dim]")
+        console.print(f"  {Path(output) / 'flight.png'}  [dim]map of the flight[/dim]")

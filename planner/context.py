@@ -1,0 +1,185 @@
+"""The planning context: everything a plan was made in, in memory and in its folder.
+
+`planner.pipeline.prepare` makes a `PlanningContext` (terrain, outposts,
+exposure surface, viewpoints, visibility sets, travel graph, travel times);
+re-planning in flight, exports and mission checks use it again. ``save``
+writes what cannot be cheaply recomputed into the plan folder, in files a user
+can open too, and ``load`` reads it back without redoing the heavy stages:
+
+| file | contents |
+|---|---|
+| ``plan.json`` | the scenario (``params``) and the outposts (with their ground) |
+| ``terrain.tif`` | the working grid: line-of-sight and clearance surfaces (float64) |
+| ``lowest_seen.tif`` | lowest altitude any outpost sees, per cell (float64; inf: none) |
+| ``viewpoints.csv`` | candidate viewpoints: id, lon, lat, alt_amsl, row, col, region |
+| ``visibility.npz`` | visibility sets (CSR rows per viewpoint, target cells) |
+| ``travel.npz`` | the hidden travel graph's checked edges (node cells, dip altitudes) |
+
+The viewpoint-to-viewpoint times are recomputed from the graph on first use
+(`PlanningContext.travel`), a few seconds, on a background thread in `gcs fly`.
+A folder without these files (written by an older version) gets its stages
+run again from its terrain and outposts.
+"""
+
+import csv
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from common.errors import InputError
+from planner.exposure import ExposureParams, ExposureSurface, Outpost, surface_from_lowest
+from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
+from planner.scenario import Scenario
+from planner.terrain import Terrain, read_terrain, write_grid
+from planner.travel import TravelGraph, TravelParams
+from planner.visibility import Viewpoints, VisibilityMatrix
+
+LOWEST_SEEN_FILE = "lowest_seen.tif"
+VIEWPOINTS_FILE = "viewpoints.csv"
+VISIBILITY_FILE = "visibility.npz"
+TRAVEL_FILE = "travel.npz"
+
+
+@dataclass
+class PlanningContext:
+    scenario: Scenario
+    terrain: Terrain
+    outposts: list  # [Outpost]
+    surface: ExposureSurface
+    regions: tuple  # flyable region ids the fleet uses
+    viewpoints: Viewpoints
+    visibility: VisibilityMatrix
+    graph: TravelGraph
+    times: Optional[np.ndarray] = None  # [n_vp, n_vp] hidden times, s; see `travel`
+    timing_s: dict = field(default_factory=dict)
+
+    @property
+    def travel(self) -> np.ndarray:
+        """[n_vp, n_vp] hidden travel times between viewpoints (s), computed once."""
+        if self.times is None:
+            self.times = self.graph.time_matrix(self.viewpoints.xyz)
+        return self.times
+
+    @property
+    def travel_params(self) -> TravelParams:
+        return self.scenario.travel_params()
+
+    # --- the plan folder ----------------------------------------------------------------
+    def save(self, directory) -> list:
+        """Write the context's files into ``directory`` (beside plan.json and
+        terrain.tif, which the plan writes); returns [(path, what)]."""
+        d = Path(directory)
+        write_grid(d / LOWEST_SEEN_FILE, self.surface.lowest_seen, self.terrain,
+                   descriptions=("lowest altitude an outpost sees, m AMSL (inf: none)",))
+        _write_viewpoints(d / VIEWPOINTS_FILE, self.terrain, self.viewpoints)
+        v = self.visibility
+        np.savez_compressed(d / VISIBILITY_FILE, indptr=v.indptr, indices=v.indices,
+                            target_indptr=v.target_indptr,
+                            target_viewpoints=v.target_viewpoints,
+                            target_cells=v.target_cells, grid_shape=np.array(v.grid_shape))
+        np.savez_compressed(d / TRAVEL_FILE, **self.graph.edges(), regions=np.array(self.regions))
+        return [(d / LOWEST_SEEN_FILE, "lowest altitude any outpost sees, float64"),
+                (d / VIEWPOINTS_FILE, "candidate viewpoints (for re-planning)"),
+                (d / VISIBILITY_FILE, "visibility sets of the viewpoints (numpy npz)"),
+                (d / TRAVEL_FILE, "hidden travel graph (numpy npz)")]
+
+    @classmethod
+    def load(cls, directory, plan: Optional[Plan] = None) -> "PlanningContext":
+        """The context a saved plan was made in, from its folder."""
+        d = Path(directory)
+        plan = plan or Plan.load(d)
+        surface = load_surface(d, plan)
+        scenario = Scenario.from_params(plan.params, source=d / PLAN_FILE)
+        if scenario.area_flight:  # re-planned routes stay inside the polygon too
+            from planner.pipeline import area_of, restrict_surface
+
+            surface = restrict_surface(surface, area_of(scenario, surface.terrain))
+        if not all((d / name).is_file() for name in (VIEWPOINTS_FILE, VISIBILITY_FILE,
+                                                      TRAVEL_FILE)):
+            # a folder written before the context was saved: its stages run again
+            from planner.pipeline import prepare
+
+            return prepare(scenario, terrain=surface.terrain, outposts=surface.outposts)
+        with np.load(d / TRAVEL_FILE) as saved:
+            graph = TravelGraph(surface, scenario.travel_params(),
+                                edges={k: saved[k] for k in ("src", "dst", "dip")})
+            regions = tuple(int(r) for r in saved["regions"])
+        with np.load(d / VISIBILITY_FILE) as saved:
+            visibility = VisibilityMatrix(saved["indptr"], saved["indices"],
+                                          saved["target_indptr"], saved["target_viewpoints"],
+                                          saved["target_cells"], tuple(saved["grid_shape"]))
+        viewpoints = _read_viewpoints(d / VIEWPOINTS_FILE, surface)
+        return cls(scenario, surface.terrain, surface.outposts, surface, regions, viewpoints,
+                   visibility, graph)
+
+
+def load_surface(directory, plan: Plan) -> ExposureSurface:
+    """The exposure surface a saved plan was made against: its terrain, outposts
+    and lowest seen altitudes, as planned (no sweep is run again; a folder
+    without lowest_seen.tif, from an older version, gets it computed)."""
+    from planner.exposure import lowest_seen
+
+    d = Path(directory)
+    terrain = read_terrain(d / TERRAIN_FILE)
+    outposts = plan_outposts(terrain, plan)
+    p = plan.params
+    params = ExposureParams(ceiling_agl_m=p["ceiling_agl_m"], clearance_m=p["clearance_m"],
+                            hide_margin_m=p["hide_margin_m"],
+                            curvature_coeff=p["curvature_coeff"])
+    if (d / LOWEST_SEEN_FILE).is_file():
+        lowest = read_terrain(d / LOWEST_SEEN_FILE).height
+        if lowest.shape != terrain.shape:
+            raise InputError(d / LOWEST_SEEN_FILE, "not on the grid of terrain.tif")
+    else:
+        lowest = lowest_seen(terrain, outposts, params)
+    return surface_from_lowest(terrain, outposts, params, lowest)
+
+
+def plan_outposts(terrain, plan: Plan) -> list:
+    """The plan's outposts on the working grid (their ground as planned)."""
+    lon = np.array([o["lon"] for o in plan.outposts], float)
+    lat = np.array([o["lat"] for o in plan.outposts], float)
+    x, y = terrain.from_lonlat(lon, lat) if len(lon) else ([], [])
+    return [Outpost(float(xi), float(yi), float(o["height_m"]),
+                    float("inf") if o.get("range_m") is None else float(o["range_m"]),
+                    float(o["lon"]), float(o["lat"]), o.get("name", ""),
+                    float("nan") if o.get("ground_amsl") is None else float(o["ground_amsl"]))
+            for xi, yi, o in zip(x, y, plan.outposts)]
+
+
+def outposts_json(outposts) -> list:
+    """The outposts as plan.json keeps them (`plan_outposts` reads them back)."""
+    return [{"lon": o.lon, "lat": o.lat, "height_m": o.height_m,
+             "range_m": o.range_m if np.isfinite(o.range_m) else None, "name": o.name,
+             "ground_amsl": o.ground_m} for o in outposts]
+
+
+_VIEWPOINT_COLUMNS = ("id", "lon", "lat", "alt_amsl", "row", "col", "region")
+
+
+def _write_viewpoints(path, terrain, viewpoints) -> None:
+    lon, lat = terrain.to_lonlat(viewpoints.xyz[:, 0], viewpoints.xyz[:, 1])
+    with open(path, "w", newline="", encoding="utf-8") as f:
+        out = csv.writer(f)
+        out.writerow(_VIEWPOINT_COLUMNS)
+        for i in range(len(viewpoints)):
+            r, c = viewpoints.indices[i]
+            out.writerow([i, f"{lon[i]:.9f}", f"{lat[i]:.9f}", repr(float(viewpoints.xyz[i, 2])),
+                          int(r), int(c), int(viewpoints.region[i])])
+
+
+def _read_viewpoints(path, surface) -> Viewpoints:
+    """Viewpoints at their cells' centres and saved altitudes (exact: the cells' own
+    centres, not the rounded lon/lat, place them)."""
+    try:
+        with open(path, newline="", encoding="utf-8") as f:
+            rows = list(csv.DictReader(f))
+        cells = np.array([[int(r["row"]), int(r["col"])] for r in rows], np.int64).reshape(-1, 2)
+        z = np.array([float(r["alt_amsl"]) for r in rows])
+        region = np.array([int(r["region"]) for r in rows], np.int32)
+    except (KeyError, ValueError) as exc:
+        raise InputError(path, f"malformed viewpoints file ({exc})") from None
+    x, y = surface.terrain.xy(cells[:, 0], cells[:, 1])
+    return Viewpoints(cells, np.stack([x, y, z], axis=1).reshape(-1, 3), region)

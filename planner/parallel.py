@@ -1,0 +1,95 @@
+"""Chunked stages, in this process or as dask.distributed tasks.
+
+The heavy stages whose work splits into independent chunks (checking the
+travel graph's edges, rows of hidden travel times) hand their chunks to
+`run_chunks`. Without a dask client the chunks run here in order (each one
+uses every core through numba's threads) and report progress as they end;
+with a client they run as tasks on its workers, the data every chunk shares
+scattered to them once. Either way the results come back in chunk order, so
+a plan is the same wherever it was computed.
+
+Dask is the scheduler: nothing here decides where a task runs.
+"""
+
+from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
+from typing import Callable, Optional
+
+#: above this many grid cells `gcs plan` starts a local dask cluster by itself
+LOCAL_CLUSTER_CELLS = 3_000_000
+
+def run_chunks(fn: Callable, chunks: list, shared: tuple = (), client=None,
+               progress: Optional[Callable[[float], None]] = None, threads: int = 1) -> list:
+    """[fn(*shared, chunk) for chunk in chunks], here or on ``client``'s workers.
+    ``threads`` > 1: here, on that many threads (for work that releases the GIL
+    but has no threads of its own, such as scipy's Dijkstra)."""
+    if not chunks:
+        return []
+    if client is None:
+        out = []
+        with ThreadPoolExecutor(max(threads, 1)) as pool:
+            for i, result in enumerate(pool.map(lambda chunk: fn(*shared, chunk), chunks)):
+                out.append(result)
+                if progress is not None:
+                    progress((i + 1) / len(chunks))
+        return out
+    from distributed import as_completed
+
+    # hash=False: a later stage scattering the same data must not share (and lose) its key
+    scattered = client.scatter(list(shared), broadcast=True, hash=False) if shared else []
+    futures = [client.submit(_on_worker, fn, *scattered, chunk, pure=False) for chunk in chunks]
+    done = 0
+    for _ in as_completed(futures):
+        done += 1
+        if progress is not None:
+            progress(done / len(chunks))
+    return client.gather(futures)
+
+
+def _on_worker(fn, *args):
+    """A chunk on a dask worker: one numba thread per worker thread, as the cluster
+    already runs one task per core."""
+    import numba
+
+    numba.set_num_threads(1)
+    return fn(*args)
+
+
+@contextmanager
+def dask_client(scheduler, cells: int, log=None):
+    """The dask client a plan's chunked stages use, closed afterwards if made here:
+    ``scheduler`` a ``distributed.Client`` (used as it is), the address of a dask
+    scheduler, "auto" (a LocalCluster with a worker per core for a grid over
+    `LOCAL_CLUSTER_CELLS` cells, else none), or None (none: this process).
+    ``log`` is told which cluster, when there is one."""
+    if scheduler is None or (scheduler == "auto" and cells <= LOCAL_CLUSTER_CELLS):
+        yield None
+        return
+    if not isinstance(scheduler, str):
+        yield scheduler
+        return
+    client = _start(None if scheduler == "auto" else scheduler, cells, log)
+    try:
+        yield client
+    finally:
+        client.close()
+        if client.cluster is not None:
+            client.cluster.close()
+
+
+def _start(address: Optional[str], cells: int, log=None):
+    from distributed import Client, LocalCluster
+
+    if address is not None:
+        client = Client(address)
+        what = f"dask cluster at {address} ({len(client.scheduler_info()['workers'])} workers)"
+    else:
+        import os
+
+        cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1,
+                               processes=True, dashboard_address=None)
+        client = Client(cluster)
+        what = f"a local dask cluster of {len(cluster.workers)} worker processes"
+    if log is not None:
+        log(f"{cells:,} grid cells: the travel graph and travel times run on {what}")
+    return client

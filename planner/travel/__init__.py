@@ -1,0 +1,18 @@
+"""Stage 4, travel: hidden travel times and paths between viewpoints.
+
+Modules: graph (the hidden travel graph, leg checks, shortest paths, string
+pulling), kernels (numba).
+"""
+
+from .graph import (
+                    ROUNDING_SLACK_M,
+                    TravelGraph,
+                    TravelParams,
+                    build_travel_graph,
+                    leg_time,
+                    polyline_time,
+                    raised_terrain,
+)
+
+__all__ = ["ROUNDING_SLACK_M", "TravelGraph", "TravelParams", "build_travel_graph", "leg_time",
+           "polyline_time", "raised_terrain"]

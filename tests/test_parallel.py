@@ -1,0 +1,58 @@
+"""The heavy stages on a dask cluster (two worker processes) give the same plan as
+in this process; and a plan's heaviest stage keeps more than one core busy."""
+
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+from planner.exposure import Outpost, compute_exposure
+from planner.pipeline import allocate, launch_starts, prepare
+from planner.scenario import Scenario
+from planner.terrain import synthetic_terrain
+from planner.travel import build_travel_graph
+
+
+def _problem(n, seed):
+    terrain = synthetic_terrain(n, n, cell=30.0, seed=seed, family="mixed")
+    outposts = []
+    for k, (r, c) in enumerate([(n // 3, n // 3), (2 * n // 3, n // 2)]):
+        x, y = terrain.xy(r, c)
+        lon, lat = terrain.to_lonlat(x, y)
+        outposts.append(Outpost(float(x), float(y), 10.0, float("inf"), float(lon),
+                                float(lat), f"P{k}"))
+    scenario = Scenario(sample=True, uavs=3, sensor_range_m=900.0).validate()
+    return scenario, terrain, outposts
+
+
+def test_local_cluster_gives_the_same_context_and_plan():
+    distributed = pytest.importorskip("distributed")
+    scenario, terrain, outposts = _problem(120, 5)
+    here = prepare(scenario, terrain=terrain, outposts=outposts, scheduler=None)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                      dashboard_address=None) as cluster, \
+                distributed.Client(cluster) as client:
+            there = prepare(scenario, terrain=terrain, outposts=outposts, scheduler=client)
+            assert len(client.scheduler_info()["workers"]) == 2
+    for name in ("src", "dst", "dip"):
+        np.testing.assert_array_equal(here.graph.edges()[name], there.graph.edges()[name])
+    np.testing.assert_array_equal(here.travel, there.travel)
+    a = allocate(here, 3, launch_starts(here))
+    b = allocate(there, 3, launch_starts(there))
+    assert [v.waypoints for v in a.plan.vehicles] == [v.waypoints for v in b.plan.vehicles]
+
+
+def test_the_heaviest_stage_uses_more_than_one_core():
+    """On 512 x 512 cells the travel graph (the heaviest terrain-bound stage) runs
+    its checks on numba's threads: more CPU seconds than wall seconds."""
+    scenario, terrain, outposts = _problem(512, 9)
+    surface = compute_exposure(terrain, outposts, scenario.exposure_params())
+    warm = synthetic_terrain(64, 64, cell=30.0, seed=1)
+    build_travel_graph(compute_exposure(warm, []), scenario.travel_params())  # compiled first
+    wall, cpu = time.perf_counter(), time.process_time()
+    build_travel_graph(surface, scenario.travel_params())
+    wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+    assert wall > 1.0 and cpu / wall > 1.2, (cpu, wall)
