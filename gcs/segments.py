@@ -20,8 +20,7 @@ from dataclasses import asdict, dataclass
 
 from gcs import commands
 from gcs.mavlink import M
-from gcs.mission_protocol import (MissionError, known_capacity, learn_capacity,
-                                  upload_verified)
+from gcs.mission_protocol import MissionError, known_capacity, learn_capacity, upload_verified
 from gcs.monitor import FLYING, HOLDING, LOST
 
 

@@ -40,8 +40,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 from affine import Affine
-
 from judge import Judge
+
 from planner.context import PlanningContext
 from planner.exposure import sample_outposts
 from planner.pipeline import plan_mission, prepare

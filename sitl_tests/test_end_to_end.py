@@ -18,8 +18,8 @@ import time
 
 import numpy as np
 import pytest
-
 from conftest import LONG, REAL_BACKENDS, SPEEDUP, start_backend
+
 from gcs.fly import Flight, FlyOptions
 from planner.exposure import segments_clear, segments_hidden
 from planner.replan import coverage_summary, seen_matrix

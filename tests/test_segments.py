@@ -15,18 +15,16 @@ import numpy as np
 import pytest
 
 from autopilots import NAMES, profile
+from common.errors import InputError
 from gcs import mission_protocol as mp
 from gcs.cli import main
 from gcs.link import GroundLink
-from gcs.mavlink import M
 from gcs.segments import upload_route
-from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track, \
-    track_path
+from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track, track_path
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import CheckedMission, checked
 from missions.items import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
-from common.errors import InputError
 from planner.exposure import segments_hidden
 
 pytestmark = pytest.mark.timeout(120)
