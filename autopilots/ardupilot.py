@@ -45,7 +45,7 @@ IN_LOCATION = POSITION_COMMANDS | {30, 82, 84, 85, 92, 94, 179, 188, 189, 191, 1
 #: with the conversion its storage applies (mission_cmd_to_mavlink_int); a
 #: command missing here is compared as sent (frame aside)
 _int = int
-_sign = lambda v: -1.0 if v < 0 else 1.0        # noqa: E731: NaN is not negative
+_sign = lambda v: -1.0 if v < 0 else 1.0        # noqa: E731 - NaN is not negative
 KEPT = {
     16: {"param1": lambda v: float(min(max(_int(v), 0), 65535))},   # hold, whole s
     19: {"param1": float, "param3": _sign, "param4": float},
