@@ -81,6 +81,7 @@ class VehicleState:
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
     images: int = 0                          # CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED seen
     statustext: list = field(default_factory=list)   # last (severity, text)
+    text_chunk: int = 0                      # STATUSTEXT.id of the last one (chunks)
 
 
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
@@ -92,6 +93,8 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         s.mode = mode_name(flavour, msg.custom_mode, mav_type)
         s.system_status = msg.system_status
     elif kind == "GLOBAL_POSITION_INT":
+        if not has_position(msg):
+            return                     # ArduPilot before its EKF origin: no position yet
         s.lat, s.lon = msg.lat * 1e-7, msg.lon * 1e-7
         s.alt_amsl, s.relative_alt = msg.alt * 1e-3, msg.relative_alt * 1e-3
         if msg.hdg != 65535:
@@ -114,7 +117,20 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     elif kind in ("CAMERA_FEEDBACK", "CAMERA_IMAGE_CAPTURED"):
         s.images += 1
     elif kind == "STATUSTEXT":
-        s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+        chunk = getattr(msg, "id", 0)
+        if chunk and getattr(msg, "chunk_seq", 0) > 0 and s.statustext \
+                and s.text_chunk == chunk:     # PX4 sends a long text in 50-char chunks
+            severity, text = s.statustext[-1]
+            s.statustext = s.statustext[:-1] + [(severity, text + msg.text)]
+        else:
+            s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+        s.text_chunk = chunk
+
+
+def has_position(msg) -> bool:
+    """A GLOBAL_POSITION_INT that holds a position: ArduPilot reports 0, 0 until its
+    EKF has an origin (about 20 s after boot)."""
+    return not (msg.lat == 0 and msg.lon == 0)
 
 
 def _prearm_ok(msg, gps_fix: int) -> bool:
@@ -343,6 +359,8 @@ class VehicleLink:
         self.profile = profile_of(self.flavour)     # autopilots profile; None: generic
         self.state = VehicleState()
         self.signs = False            # its packets carry signatures (seen without a key)
+        self.mission_capacity = None  # items it holds, once learned (mission_protocol)
+        self.mission_fits = 0         # the longest upload it took
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
         self._cond = threading.Condition()
@@ -371,11 +389,17 @@ class VehicleLink:
 
     def request_streams(self, rate_hz: int = STREAM_RATE_HZ) -> None:
         """Ask for telemetry: ArduPilot streams on a port only what a ground station
-        requests (MAVProxy does the same); PX4 streams to its GCS link by itself.
+        requests (MAVProxy does the same); PX4 streams to its GCS link by itself,
+        and the profile's ``message_rates`` slow what it sends faster than read.
         Fire and forget: this runs on the reader thread, which must not wait."""
-        if self.profile is not None and self.profile.request_streams:
+        if self.profile is None:
+            return
+        if self.profile.request_streams:
             self.send("REQUEST_DATA_STREAM", req_stream_id=M.MAV_DATA_STREAM_ALL,
                       req_message_rate=rate_hz, start_stop=1)
+        for message, hz in self.profile.message_rates:
+            self.send("COMMAND_LONG", command=M.MAV_CMD_SET_MESSAGE_INTERVAL,
+                      param1=float(message), param2=1e6 / hz if hz > 0 else -1.0)
 
     def send_msg(self, msg) -> None:
         conn, addr = self._route

@@ -1,21 +1,32 @@
-"""End-to-end fixtures: one plan per session on the sample terrain, and a fleet to fly it.
+"""End-to-end fixtures: plans on the sample terrain, and a fleet to fly them.
 
-The fleet is the built-in simulator (`gcs.sim`) unless the environment names a
-real SITL binary:
+The fleet is the built-in simulator (`gcs.sim`), or real SITL when the
+environment names its binary; the tests start and stop it themselves:
 
 - ``ARDUPILOT_SITL_BIN`` (or ``ARDUPILOT_SITL``): an ``arducopter`` binary, started
-  per vehicle as ``arducopter --model + --speedup S --defaults PARAMS -I i
-  --sysid i+1 --home LAT,LON,ALT,0`` in its own working directory, with
-  ``ARDUPILOT_DEFAULTS`` naming the parameter file (optional);
-- ``PX4_SITL_BIN`` (or ``PX4_SITL``): a ``px4`` binary of a ``px4_sitl_default``
-  build, started from ``PX4_SITL_DIR`` (default: four folders above the binary,
-  the PX4 source folder) with the SIH simulator, instance i on UDP 18570+i
-  sending to 14550.
+  per vehicle as ``arducopter --model + --speedup S --defaults PARAMS,camera.parm
+  -I i --sysid i+1 --home LAT,LON,ALT,0`` in a scratch working directory (it
+  writes eeprom.bin, logs/, terrain/ there), ``ARDUPILOT_DEFAULTS`` naming its
+  parameter file (Tools/autotest/default_params/copter.parm; optional), and
+  ``CAM1_TYPE 1`` (and ``CAM2_TYPE 0``) so that it reports where its camera fires;
+- ``PX4_SITL_BIN`` (or ``PX4_SITL``): the ``px4`` binary of a ``px4_sitl_default``
+  build, started per vehicle as ``px4 -i i -d -w SCRATCH PX4_SITL_DIR/etc`` with
+  the SIH simulator (``PX4_SYS_AUTOSTART=10040 PX4_SIMULATOR=sihsim HEADLESS=1``),
+  ``PX4_HOME_LAT/LON/ALT`` at the launch point, ``PX4_SIM_SPEED_FACTOR`` and
+  ``TRIG_MODE 1`` (camera feedback); ``PX4_SITL_DIR`` is the build folder
+  (default: the binary's parent's parent). Instance i talks to the ground
+  station from UDP 18570+i to 14550.
 
-Tests parametrised over ``backend`` run once per backend; a real backend not
-named in the environment is skipped with that reason. Vehicles are judged
-from what they really flew: the simulator's recorded track, or for real SITL the
-positions the vehicle itself reported in its .tlog.
+Tests parametrised over ``backend`` run once per backend; a real backend whose
+binary is not named is skipped with that reason. Flights are judged from what
+the vehicles really flew: the simulator's recorded true track, or for real SITL
+what the autopilot reports of itself on its second link (`judge.Judge`:
+ArduPilot TCP 5762+10i, PX4's onboard link UDP 14540+i), never from what the
+ground station believes.
+
+Real SITL flies a smaller plan than the simulator (3 vehicles on a 4 km window,
+at 10x for ArduPilot and 4x for PX4, whose SIH takes about 0.4 of a core per
+vehicle at 4x), to keep the wall time down; see the README for the times.
 """
 
 import os
@@ -29,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from affine import Affine
+from judge import Judge
 
 from planner.context import PlanningContext
 from planner.exposure import sample_outposts
@@ -37,21 +49,39 @@ from planner.plan import TERRAIN_FILE, Plan
 from planner.scenario import Scenario
 from planner.terrain import Terrain, sample_terrain, write_terrain
 
-VEHICLES = 4
-RESOLUTION_M = 100.0          # coarse: the whole plan takes a few seconds
-CROP = (190, 130, 80)         # row, col, size of the sample-terrain window (8 km, 2 outposts)
-SENSOR_RANGE_M = 1000.0
-SPEEDUP = {"sim": 100.0, "sim-px4": 100.0, "ardupilot": 10.0, "px4": 10.0}
+
+@dataclass(frozen=True)
+class Setting:
+    """A planning problem on a window of the sample terrain."""
+    vehicles: int
+    resolution_m: float
+    crop: tuple                    # row, col, size of the window (cells)
+    sensor_range_m: float
+    extra: tuple = ()              # more Scenario fields, as (name, value) pairs
+
+
+#: the simulator: 4 vehicles on an 8 km window with 2 outposts
+SIM = Setting(4, 100.0, (190, 130, 80), 1000.0)
+#: real SITL: 3 vehicles on a 4 km window with 1 outpost (flights of 10-20 min
+#: of simulated time)
+REAL = Setting(3, 100.0, (215, 130, 40), 1200.0)
+#: one route longer than ArduPilot SITL's 650 items (after merging): a 3 km window
+#: at 50 m, a 150 m sensor, viewpoints 50 m apart: 336 snapshots, about 755 items
+LONG = Setting(1, 50.0, (440, 270, 60), 150.0,
+               (("viewpoint_spacing_m", 50.0), ("speed_mps", 15.0)))
+VEHICLES = SIM.vehicles
+SPEEDUP = {"sim": 100.0, "sim-px4": 100.0, "ardupilot": 10.0, "px4": 4.0}
 
 ARDUPILOT_BIN = os.environ.get("ARDUPILOT_SITL_BIN") or os.environ.get("ARDUPILOT_SITL")
 PX4_BIN = os.environ.get("PX4_SITL_BIN") or os.environ.get("PX4_SITL")
+REAL_BACKENDS = ("ardupilot", "px4")
 
 
 # -- the plan ------------------------------------------------------------------------
-def cropped_sample() -> tuple:
+def cropped_sample(setting: Setting = SIM) -> tuple:
     """A window of the built-in sample terrain and the sample outposts inside it."""
-    full = sample_terrain(resolution=RESOLUTION_M)
-    r0, c0, n = CROP
+    full = sample_terrain(resolution=setting.resolution_m)
+    r0, c0, n = setting.crop
     window = (slice(r0, r0 + n), slice(c0, c0 + n))
     terrain = Terrain(full.height[window].copy(), full.transform @ Affine.translation(c0, r0),
                       full.crs, "sample terrain window", height_upper=full.upper[window].copy(),
@@ -60,13 +90,14 @@ def cropped_sample() -> tuple:
     return terrain, outposts
 
 
-def launch_point(terrain, outposts) -> tuple:
+def launch_point(terrain, outposts, setting: Setting = SIM) -> tuple:
     """(lat, lon) of the lowest flyable cell of the largest hidden region, off the edge.
 
-    Lowest, so that real ArduPilot SITL's flat ground (at the home altitude) lies
-    below everything the plan flies over."""
-    ctx = prepare(Scenario(sample=True, uavs=VEHICLES, sensor_range_m=SENSOR_RANGE_M)
-                  .validate(), terrain=terrain, outposts=outposts)
+    Lowest, so that real SITL's flat ground (at the home altitude) lies below
+    everything the plan flies over."""
+    ctx = prepare(Scenario(sample=True, uavs=setting.vehicles,
+                           sensor_range_m=setting.sensor_range_m).validate(),
+                  terrain=terrain, outposts=outposts)
     regions = ctx.surface.regions
     sizes = np.bincount(regions.ravel())
     sizes[0] = 0
@@ -79,11 +110,13 @@ def launch_point(terrain, outposts) -> tuple:
     return float(lat), float(lon)
 
 
-def make_plan(directory: Path, k: int) -> Path:
-    """Plan the sample window for 4 vehicles and write what `gcs plan` writes for fly."""
-    terrain, outposts = cropped_sample()
-    scenario = Scenario(sample=True, uavs=VEHICLES, k=k, sensor_range_m=SENSOR_RANGE_M,
-                        launch=[launch_point(terrain, outposts)]).validate()
+def make_plan(directory: Path, k: int, setting: Setting = SIM) -> Path:
+    """Plan a window of the sample terrain and write what `gcs plan` writes for fly."""
+    terrain, outposts = cropped_sample(setting)
+    scenario = Scenario(sample=True, uavs=setting.vehicles, k=k,
+                        sensor_range_m=setting.sensor_range_m,
+                        launch=[launch_point(terrain, outposts, setting)],
+                        **dict(setting.extra)).validate()
     ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
     directory.mkdir(parents=True, exist_ok=True)
     outcome.plan.save(directory)
@@ -102,14 +135,21 @@ class Planned:
 
 @pytest.fixture(scope="session")
 def planned(tmp_path_factory):
-    """{k: Planned} for k = 0 and 1, planned once per session."""
-    out = {}
-    for k in (0, 1):
-        d = make_plan(tmp_path_factory.mktemp(f"plan_k{k}"), k)
-        plan = Plan.load(d)
-        ctx = PlanningContext.load(d, plan)
-        out[k] = Planned(d, plan, ctx, ctx.surface)
-    return out
+    """``planned(k, backend)``: the Planned for ``backend`` (the simulator's or real
+    SITL's setting, or a Setting) and k, planned once per session."""
+    cache = {}
+
+    def get(k: int = 0, backend="sim") -> Planned:
+        setting = backend if isinstance(backend, Setting) else \
+            (REAL if backend in REAL_BACKENDS else SIM)
+        if (k, setting) not in cache:
+            d = make_plan(tmp_path_factory.mktemp(f"plan_k{k}"), k, setting)
+            plan = Plan.load(d)
+            ctx = PlanningContext.load(d, plan)
+            cache[k, setting] = Planned(d, plan, ctx, ctx.surface)
+        return cache[k, setting]
+
+    return get
 
 
 # -- fleets --------------------------------------------------------------------------
@@ -119,7 +159,7 @@ class SimBackend:
     name = "sim"
     firmware = "ardupilot"
 
-    def __init__(self, plan: Plan, workdir: Path, speedup: float):
+    def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None):
         from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
 
         homes = [(v.launch.lat, v.launch.lon, v.launch.alt_amsl) for v in plan.vehicles]
@@ -127,6 +167,7 @@ class SimBackend:
         self.fleet = SimFleet(FleetConfig(
             vehicles=len(homes), firmware=self.firmware, homes=homes, speedup=speedup,
             track_dir=self.track_dir, warmup_s=1.0, auto_disarm_s=50.0 * speedup,
+            **({} if capacity is None else {"mission_capacity": capacity}),
             **free_fleet_ports(self.firmware, len(homes)))).start()
         # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be
         # 0.1 s of wall time, shorter than one command retry on a lossy link
@@ -159,72 +200,101 @@ class SimBackend:
 
 
 class ProcessBackend:
-    """Real SITL processes, one per vehicle; judged from the vehicles' own reports."""
+    """Real SITL processes, one per vehicle, each watched by a `judge.Judge` on its
+    second link; a kill is a SIGKILL of the process."""
 
-    def __init__(self, plan: Plan, workdir: Path, speedup: float):
+    def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None):
         self.plan = plan
-        self.procs = {}
         self.workdir = workdir
-        for i, v in enumerate(plan.vehicles):
-            self.procs[i + 1] = self._start(i, v.launch, speedup)
+        self.procs, self.judges = {}, {}
+        self.homes = {i + 1: (v.launch.lat, v.launch.lon, v.launch.alt_amsl)
+                      for i, v in enumerate(plan.vehicles)}
+        try:
+            for i, v in enumerate(plan.vehicles):
+                self.procs[i + 1] = self._start(i, v.launch, speedup)
+            self._ready()
+        except BaseException:
+            self.stop()
+            raise
+
+    def _ready(self) -> None:
+        """Wait until the ground station can connect."""
+
+    def set_drop(self, pct: float) -> None:
+        raise NotImplementedError("packet loss is injected by the simulated vehicles only")
 
     def kill(self, sysid: int) -> float:
         proc = self.procs[sysid]
-        proc.send_signal(signal.SIGKILL)
+        os.killpg(proc.pid, signal.SIGKILL)
         t = time.time()
         proc.wait(timeout=10)
         return t
 
     def stop(self) -> None:
+        for judge in self.judges.values():
+            judge.stop()
         for proc in self.procs.values():
             if proc.poll() is None:
-                proc.terminate()
                 try:
+                    os.killpg(proc.pid, signal.SIGTERM)
                     proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
+                except (subprocess.TimeoutExpired, ProcessLookupError):
+                    pass
+            if proc.poll() is None:
+                try:
+                    os.killpg(proc.pid, signal.SIGKILL)
+                except ProcessLookupError:
+                    pass
+                proc.wait(timeout=10)
 
     def tracks(self, flight_dir: Path) -> dict:
-        """Positions and camera feedback the vehicles reported, read from the .tlog files."""
-        from gcs.mavlink import mavutil
+        """What each autopilot reported of itself on its second link (also written to
+        ``flight_dir/judge_<sysid>.json``)."""
+        import json
 
-        out = {}
-        for sysid, v in zip(self.procs, self.plan.vehicles):
-            path = flight_dir / f"vehicle_{sysid}.tlog"
-            log = mavutil.mavlink_connection(str(path))
-            t, lat, lon, alt, snaps = [], [], [], [], []
-            while True:
-                msg = log.recv_match(type=["GLOBAL_POSITION_INT", "CAMERA_FEEDBACK",
-                                           "CAMERA_IMAGE_CAPTURED"])
-                if msg is None:
-                    break
-                if msg.get_type() == "GLOBAL_POSITION_INT":
-                    t.append(msg._timestamp)
-                    lat.append(msg.lat * 1e-7)
-                    lon.append(msg.lon * 1e-7)
-                    alt.append(msg.alt * 1e-3)
-                elif msg.get_type() == "CAMERA_FEEDBACK":
-                    snaps.append((msg.lat * 1e-7, msg.lng * 1e-7, msg.alt_msl))
-                else:
-                    snaps.append((msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3))
-            home = (v.launch.lat, v.launch.lon, v.launch.alt_amsl)
-            out[sysid] = tuple(np.asarray(a, float) for a in (t, lat, lon, alt)) + (snaps, home)
+        out = {sysid: judge.track() for sysid, judge in sorted(self.judges.items())}
+        for sysid, (t, lat, lon, alt, shots, home) in out.items():
+            (flight_dir / f"judge_{sysid}.json").write_text(json.dumps({
+                "samples": np.stack([t, lat, lon, alt], axis=1).tolist(), "shots": shots,
+                "home": home}))
         return out
+
+    def _popen(self, cmd, cwd, env=None):
+        log = open(cwd / "sitl.log", "wb")
+        return subprocess.Popen(cmd, cwd=cwd, env=env, stdout=log, stderr=subprocess.STDOUT,
+                                stdin=subprocess.DEVNULL, start_new_session=True)
 
 
 class ArduPilotBackend(ProcessBackend):
     name = "ardupilot"
+    firmware = "ardupilot"
 
     def _start(self, i, launch, speedup):
         cwd = self.workdir / f"ardupilot_{i}"
         cwd.mkdir(parents=True, exist_ok=True)
-        cmd = [ARDUPILOT_BIN, "--model", "+", "--speedup", str(speedup), "-I", str(i),
+        # the camera reports where it fires (CAMERA_FEEDBACK); CAM2_TYPE too, or
+        # ArduPilot's parameter conversion from CAM_TRIGG_TYPE resets CAM1_TYPE to 0
+        camera = cwd / "camera.parm"
+        camera.write_text("CAM1_TYPE 1\nCAM2_TYPE 0\n")
+        defaults = [os.environ["ARDUPILOT_DEFAULTS"]] if os.environ.get("ARDUPILOT_DEFAULTS") \
+            else []
+        cmd = [ARDUPILOT_BIN, "--model", "+", "--speedup", str(speedup),
+               "--defaults", ",".join(defaults + [str(camera)]), "-I", str(i),
                "--sysid", str(i + 1),
                "--home", f"{launch.lat},{launch.lon},{launch.alt_amsl},0"]
-        if os.environ.get("ARDUPILOT_DEFAULTS"):
-            cmd[1:1] = ["--defaults", os.environ["ARDUPILOT_DEFAULTS"]]
-        return subprocess.Popen(cmd, cwd=cwd, stdout=subprocess.DEVNULL,
-                                stderr=subprocess.DEVNULL)
+        return self._popen(cmd, cwd)
+
+    def _ready(self) -> None:
+        """Its first port listening (without connecting: the first client takes it);
+        each judge connects to the second port once the ground station has
+        connected to the first (only then does it open)."""
+        from judge import wait_listening
+
+        for sysid, proc in self.procs.items():
+            wait_listening(5760 + 10 * (sysid - 1), 30.0, lambda: proc.poll() is None)
+            self.judges[sysid] = Judge.ardupilot(sysid, self.homes[sysid],
+                                                 5762 + 10 * (sysid - 1),
+                                                 lambda p=proc: p.poll() is None)
 
     def urls(self) -> list:
         return [f"tcp:127.0.0.1:{5760 + 10 * i}" for i in range(len(self.procs))]
@@ -232,18 +302,23 @@ class ArduPilotBackend(ProcessBackend):
 
 class Px4Backend(ProcessBackend):
     name = "px4"
+    firmware = "px4"
 
     def _start(self, i, launch, speedup):
         binary = Path(PX4_BIN).resolve()
-        src = Path(os.environ.get("PX4_SITL_DIR", binary.parents[3]))
-        rootfs = src / "build" / "px4_sitl_default" / "rootfs" / str(i)
-        shutil.rmtree(rootfs, ignore_errors=True)
-        env = dict(os.environ, PX4_SYS_AUTOSTART="10040", PX4_SIM_MODEL="sihsim_quadx",
-                   PX4_PARAM_SIH_LOC_LAT0=str(launch.lat), PX4_PARAM_SIH_LOC_LON0=str(launch.lon),
-                   PX4_PARAM_SIH_LOC_H0=str(launch.alt_amsl), PX4_SIM_SPEED_FACTOR=str(speedup))
-        return subprocess.Popen([str(binary), "-i", str(i), "-d"], cwd=src, env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
-                                stdin=subprocess.DEVNULL)
+        build = Path(os.environ.get("PX4_SITL_DIR") or binary.parents[1])
+        cwd = self.workdir / f"px4_{i}"
+        shutil.rmtree(cwd, ignore_errors=True)
+        cwd.mkdir(parents=True)
+        sysid = i + 1
+        self.judges[sysid] = Judge.px4(sysid, self.homes[sysid], 14540 + i, 14580 + i)
+        env = dict(os.environ, PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", HEADLESS="1",
+                   PX4_HOME_LAT=repr(launch.lat), PX4_HOME_LON=repr(launch.lon),
+                   PX4_HOME_ALT=repr(launch.alt_amsl), PX4_SIM_SPEED_FACTOR=str(speedup),
+                   PX4_PARAM_TRIG_MODE="1")
+        env.pop("PX4_SIM_MODEL", None)
+        return self._popen([str(binary), "-i", str(i), "-d", "-w", str(cwd),
+                            str(build / "etc")], cwd, env)
 
     def urls(self) -> list:
         return ["udpin:0.0.0.0:14550"]
@@ -256,21 +331,37 @@ class SimPx4Backend(SimBackend):
     firmware = "px4"
 
 
-BACKENDS = {"sim": (SimBackend, None), "sim-px4": (SimPx4Backend, None), "ardupilot": (ArduPilotBackend, ARDUPILOT_BIN),
-            "px4": (Px4Backend, PX4_BIN)}
+BACKENDS = {"sim": (SimBackend, None), "sim-px4": (SimPx4Backend, None),
+            "ardupilot": (ArduPilotBackend, ARDUPILOT_BIN), "px4": (Px4Backend, PX4_BIN)}
+
+
+def skip_unless_configured(name: str) -> None:
+    cls, binary = BACKENDS[name]
+    if name in REAL_BACKENDS and not binary:
+        var = "ARDUPILOT_SITL_BIN" if name == "ardupilot" else "PX4_SITL_BIN"
+        pytest.skip(f"real {name} SITL not configured: set {var} to its binary")
 
 
 @pytest.fixture(params=["sim", "ardupilot", "px4"])
 def backend(request):
     """The name of a backend that is available here (real SITL skipped unless named)."""
-    name = request.param
-    cls, binary = BACKENDS[name]
-    if name != "sim" and not binary:
-        var = "ARDUPILOT_SITL_BIN" if name == "ardupilot" else "PX4_SITL_BIN"
-        pytest.skip(f"real {name} SITL not configured: set {var} to its binary")
-    return name
+    skip_unless_configured(request.param)
+    return request.param
 
 
-def start_backend(name: str, plan: Plan, workdir: Path, speedup: float | None = None):
+def start_backend(name: str, plan: Plan, workdir: Path, speedup: float | None = None,
+                  capacity=None):
     cls, _ = BACKENDS[name]
-    return cls(plan, workdir, speedup or SPEEDUP[name])
+    return cls(plan, workdir, speedup or SPEEDUP[name], capacity)
+
+
+#: wall seconds a real-SITL test may take (a flight of up to ~40 min of simulated
+#: time at 4x, its boot and its uploads), instead of the file's own timeout
+REAL_TIMEOUT_S = 1800
+
+
+def pytest_collection_modifyitems(items):
+    for item in items:
+        callspec = getattr(item, "callspec", None)
+        if callspec is not None and callspec.params.get("backend") in REAL_BACKENDS:
+            item.add_marker(pytest.mark.timeout(REAL_TIMEOUT_S))

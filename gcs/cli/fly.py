@@ -38,6 +38,10 @@ def add_arguments(parser) -> None:
     parser.add_argument("--timeout", type=float, metavar="S",
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
+    parser.add_argument("--max-items", type=int, metavar="N",
+                        help="upload at most N mission items at a time: longer routes fly in "
+                             "segments, the next uploaded in flight (default: as many as each "
+                             "vehicle holds, learned when it refuses more)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
     view = parser.add_argument_group("watching the flight elsewhere")
     view.add_argument("--forward", action="append", default=[], metavar="URL",
@@ -65,6 +69,10 @@ def add_arguments(parser) -> None:
                      help="first simulator port; none = 5760 (ArduPilot TCP), 18570 (PX4 UDP)")
     sim.add_argument("--sim-gcs-port", type=int, default=14550, metavar="P",
                      help="PX4 flavour: UDP port the simulated vehicles send to")
+    sim.add_argument("--sim-capacity", type=int, metavar="N",
+                     help="mission items each simulated vehicle holds (default: the "
+                          "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
+                          "segments")
 
 
 def options_from_args(args):
@@ -73,6 +81,8 @@ def options_from_args(args):
     if not args.lost_after > 0:
         raise InputError("--lost-after", f"must be positive, got {args.lost_after}")
     protocol = protocol_from_args(args)
+    if args.max_items is not None and args.max_items < 1:
+        raise InputError("--max-items", f"must be at least 1, got {args.max_items}")
     key = None
     if args.signing_key:
         from gcs.signing import load_key
@@ -82,7 +92,7 @@ def options_from_args(args):
                       connect_timeout_s=args.connect_timeout,
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
                       protocol_timeout_s=protocol["timeout_s"],
-                      protocol_retries=protocol["retries"],
+                      protocol_retries=protocol["retries"], max_items=args.max_items,
                       tlog=not args.no_tlog)
 
 
@@ -98,6 +108,9 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim", "need at least one vehicle")
     if args.speedup <= 0:
         raise InputError("--speedup", "must be positive")
+    if args.sim_capacity is not None and args.sim_capacity < 1:
+        raise InputError("--sim-capacity", f"must be at least 1, got {args.sim_capacity}")
+    capacity = {} if args.sim_capacity is None else {"mission_capacity": args.sim_capacity}
     faults = {}
     for text in args.kill:
         sysid, at_s, at_item = parse_kill(text)
@@ -107,7 +120,7 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     try:
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
             "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
-            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks",
+            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
     except ValueError as exc:
         raise InputError("--sim", str(exc)) from None
