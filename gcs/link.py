@@ -40,6 +40,7 @@ from gcs.mavlink import (
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
+STREAM_RETRY_S = 2.0             # asked again when nothing but HEARTBEATs came this long
 POLL_S = 0.05
 QUEUE_DEPTH = 500            # messages kept per type and vehicle for recv()
 STATUSTEXT_KEPT = 20
@@ -361,6 +362,7 @@ class VehicleLink:
         self.signs = False            # its packets carry signatures (seen without a key)
         self.mission_capacity = None  # items it holds, once learned (mission_protocol)
         self.mission_fits = 0         # the longest upload it took
+        self._streamed_at = self._asked_at = 0.0   # last telemetry / stream request (monotonic)
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
         self._cond = threading.Condition()
@@ -394,6 +396,7 @@ class VehicleLink:
         Fire and forget: this runs on the reader thread, which must not wait."""
         if self.profile is None:
             return
+        self._asked_at = time.monotonic()
         if self.profile.request_streams:
             self.send("REQUEST_DATA_STREAM", req_stream_id=M.MAV_DATA_STREAM_ALL,
                       req_message_rate=rate_hz, start_stop=1)
@@ -474,14 +477,27 @@ class VehicleLink:
                 self._route = (conn, addr)
                 self.signs = _is_signed(msg)
                 _update_state(self.state, msg, self.flavour, self.mav_type)
+                ask_again = self._streams_missing(msg)
             if _addressed_to_us(msg):
                 self._queues[msg.get_type()].append((index, msg))
                 self._cond.notify_all()
+        if from_autopilot and ask_again:
+            self.request_streams()
         for callback in list(self._subscribers):
             try:
                 callback(msg)
             except Exception:    # a broken subscriber must not stop the reader thread
                 pass
+
+    def _streams_missing(self, msg) -> bool:
+        """True on a HEARTBEAT when no telemetry came for STREAM_RETRY_S since the last
+        request: that request (or the stream) was lost on the way, as packets are on a
+        radio link, and the vehicle streams nothing until asked again."""
+        now = time.monotonic()
+        if msg.get_type() != "HEARTBEAT":
+            self._streamed_at = now
+            return False
+        return now - max(self._streamed_at, self._asked_at) >= STREAM_RETRY_S
 
 
 def _is_signed(msg) -> bool:

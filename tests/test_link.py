@@ -47,6 +47,29 @@ def wait_until(predicate, timeout=5.0):
 
 
 # -- finding vehicles ------------------------------------------------------------------
+def test_a_lost_stream_request_is_sent_again(fleet_of, monkeypatch):
+    """ArduPilot streams nothing until asked; when that request is lost (a radio
+    drops packets) the ground station asks again on a later HEARTBEAT."""
+    from gcs.link import VehicleLink
+
+    asked = []
+    real = VehicleLink.request_streams
+
+    def first_one_lost(self, *a, **kw):
+        asked.append(time.monotonic())
+        if len(asked) == 1:
+            self._asked_at = time.monotonic()    # sent, and lost on the way
+            return
+        real(self, *a, **kw)
+
+    monkeypatch.setattr(VehicleLink, "request_streams", first_one_lost)
+    fleet = fleet_of(fleet_config("ardupilot", 1))
+    with GroundLink.open(fleet.urls(), expect=1, timeout_s=10) as link:
+        v = link.vehicles[1]
+        assert wait_until(lambda: v.state.lat is not None, timeout=10.0)
+        assert len(asked) >= 2
+
+
 @pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
 def test_vehicles_found_by_heartbeat(fleet_of, firmware):
     fleet = fleet_of(fleet_config(firmware, 3))
