@@ -2,7 +2,8 @@
 
 - Mission item 0 is home: the vehicle overwrites it with the real home and
   reads it back so; item 1 is the first flown, and MISSION_CURRENT /
-  MISSION_ITEM_REACHED count home as 0.
+  MISSION_ITEM_REACHED count home as 0. In a ``.waypoints`` file home is line 0,
+  uploaded as item 0.
 - Modes are plain numbers in ``custom_mode`` (pymavlink's table per vehicle
   type). Re-tasking holds in GUIDED; the mission flies in AUTO; a finished
   mission leaves the copter in LOITER.
@@ -13,19 +14,60 @@
   resumes at the old index.
 - Camera: DO_DIGICAM_CONTROL with param5 = 1 (shoot). Yaw 0 in navigation
   items (ignored: WP_YAW_BEHAVIOR rules).
-- Read-back: commands without a position come back in frame 0 whatever frame
-  they were sent in; their other fields are kept.
-- Capacity: SITL holds 650 items by default (boards with more storage hold more).
+- Read-back (AP_Mission stores each command in 15 bytes, so it keeps what
+  that holds): commands without a position come back in frame 0 whatever frame
+  they were sent in, with x, y, z zero unless the command stores them
+  (DO_DIGICAM_CONTROL keeps x and y); of params 1-4 only those the command
+  stores come back (NAV_WAYPOINT: the hold, in whole seconds; NAV_TAKEOFF:
+  param1; NAV_LAND: param1, and param4 as -1 or 1), the rest as 0; altitudes
+  in whole centimetres, cut toward zero. As read from ArduPilot 4.7's
+  AP_Mission::mission_cmd_to_mavlink_int and checked against its SITL.
+- Capacity: SITL holds 650 items counting home (boards: about 700-724 in
+  internal storage); a longer upload gets MAV_MISSION_NO_SPACE at once and the
+  STATUSTEXT "Only 650 items are supported". BRD_SD_MISSION moves missions to
+  the SD card (64 kB: about 4,368 items).
 - Telemetry streams only what a ground station asks for (REQUEST_DATA_STREAM).
 """
 
+import math
+import struct
 from dataclasses import dataclass
 
-from .base import FRAME_GLOBAL, Autopilot, Step
+from .base import FRAME_GLOBAL, POSITION_COMMANDS, Autopilot, Step
 
 MAV_AUTOPILOT_ARDUPILOTMEGA = 3
 MAV_TYPE_QUADROTOR = 2
 DO_DIGICAM_CONTROL = 203
+
+#: commands whose x, y, z are kept as a location (AP_Mission::stored_in_location)
+IN_LOCATION = POSITION_COMMANDS | {30, 82, 84, 85, 92, 94, 179, 188, 189, 191, 195, 201}
+#: per command, the fields besides the location that a read-back returns, each
+#: with the conversion its storage applies (mission_cmd_to_mavlink_int); a
+#: command missing here is compared as sent (frame aside)
+_int = int
+_sign = lambda v: -1.0 if v < 0 else 1.0        # noqa: E731 - NaN is not negative
+KEPT = {
+    16: {"param1": lambda v: float(min(max(_int(v), 0), 65535))},   # hold, whole s
+    19: {"param1": float, "param3": _sign, "param4": float},
+    20: {},
+    21: {"param1": float, "param4": _sign},
+    22: {"param1": float},
+    31: {"param2": float, "param4": float},
+    82: {"param1": float},
+    112: {"param1": float},
+    115: {"param1": float, "param2": float, "param3": float, "param4": float},
+    177: {"param1": float, "param2": float},
+    178: {"param1": lambda v: float(_int(v) & 0xFF), "param2": float, "param3": float},
+    183: {"param1": float, "param2": float},
+    201: {"param1": float},
+    203: {"param1": lambda v: float(_int(v) & 0xFF), "param2": lambda v: float(_int(v) & 0xFF),
+          "param3": float, "param4": lambda v: float(_int(v) & 0xFF),
+          "x": lambda v: _int(v) & 0xFF, "y": lambda v: _int(v) & 0xFF},   # x, y: wire ints
+    206: {"param1": float, "param3": float},
+    2000: {"param1": lambda v: float(_int(v) & 0xFF), "param2": float,
+           "param3": lambda v: float(_int(v) & 0xFFFF),
+           "param4": lambda v: float(_int(v) & 0xFFFF)},
+}
 
 
 @dataclass(frozen=True)
@@ -47,6 +89,37 @@ class ArduPilot(Autopilot):
             raise KeyError(f"unknown ArduPilot mode {name!r}; known: {', '.join(sorted(modes))}")
         return modes[name], modes[name], 0
 
+    def read_back(self, wire: dict):
+        if int(wire["seq"]) == 0:
+            return None                  # home reads back as the real home
+        command = int(wire["command"])
+        kept = KEPT.get(command)
+        located = command in IN_LOCATION
+        out = dict(wire)
+        if kept is None:                 # not modelled: as sent, DO commands in frame 0
+            if not located:
+                out["frame"] = FRAME_GLOBAL
+            return out
+        for name in ("param1", "param2", "param3", "param4"):
+            out[name] = 0.0
+        for name, convert in kept.items():
+            value = float(wire[name])
+            out[name] = convert(value) if math.isfinite(value) or convert in (float, _sign) \
+                else 0.0
+        if located:
+            # centimetres in an int32: the wire's float32 times 100, cut toward zero
+            out["z"] = math.trunc(_float32(_float32(wire["z"]) * 100.0)) / 100.0
+        else:
+            out["frame"] = FRAME_GLOBAL
+            out["x"] = int(out["x"]) if "x" in kept else 0
+            out["y"] = int(out["y"]) if "y" in kept else 0
+            out["z"] = 0.0
+        return out
+
+
+def _float32(value: float) -> float:
+    return struct.unpack("f", struct.pack("f", float(value)))[0]
+
 
 PROFILE = ArduPilot(
     name="ardupilot",
@@ -65,5 +138,7 @@ PROFILE = ArduPilot(
     start_sequence=(Step("set_current"), Step("mode", "GUIDED"), Step("arm"),
                     Step("takeoff"), Step("mode", "AUTO"), Step("mission_start")),
     request_streams=True,
-    do_frame_read_back=FRAME_GLOBAL,
+    capacity_text=r"Only (\d+) items are supported",
+    capacity_advice="raise it with the parameter BRD_SD_MISSION (kB of the SD card kept for "
+                    "missions: 64 holds about 4,368 items), then reboot",
 )

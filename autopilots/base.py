@@ -5,12 +5,14 @@ not), how modes are named and packed into HEARTBEAT ``custom_mode``, which
 modes hold, fly the mission, land or take guided positions, the start sequence
 as a list of steps (executed by `gcs.commands.start_mission`), the camera
 command written at a snapshot, the yaw written in navigation items, what a
-mission read-back keeps, and how many items a vehicle holds.
+mission read-back keeps (`read_back`: an item as the firmware reports it), how
+many items a vehicle holds, how it says so, and how that is raised.
 
 Numbers are MAVLink's (common.xml); nothing here talks to a vehicle, so
 `missions`, `gcs` and the simulator can all import it.
 """
 
+import re
 from dataclasses import dataclass
 
 # MAV_FRAME / MAV_CMD numbers used by the profiles (common.xml)
@@ -43,10 +45,12 @@ class Autopilot:
     name: str                     # "ardupilot" | "px4": --firmware, plan.json, reports
     title: str                    # for people: "ArduPilot", "PX4"
     mav_autopilot: int            # HEARTBEAT.autopilot (MAV_AUTOPILOT); .plan firmwareType
-    home_item: bool               # mission item 0 is home: written, overwritten, not flown
+    home_item: bool               # mission item 0 is home: written, overwritten, not flown;
+    #                               else a .waypoints file's home line 0 is not uploaded
     yaw: float                    # param4 of takeoff / waypoint / land items
     camera_command: int           # MAV_CMD written after a snapshot waypoint
-    mission_capacity: int | None  # items a vehicle holds by default (None: no limit known)
+    mission_capacity: int | None  # items a vehicle holds by default (None: no limit known);
+                                  # a ground station learns each vehicle's own (NO_SPACE)
     hold_mode: str                # where re-tasking holds a vehicle before a new upload
     mission_mode: str             # flies the uploaded mission
     land_mode: str
@@ -55,7 +59,14 @@ class Autopilot:
     mission_end_mode: str         # where the autopilot puts itself when a mission ends
     start_sequence: tuple         # of `Step`, after pre-arm readiness
     request_streams: bool         # telemetry must be asked for (REQUEST_DATA_STREAM)
-    do_frame_read_back: int | None = None   # DO commands read back in this frame (None: as sent)
+    #: STATUSTEXT pattern whose group 1 is the capacity, sent with a NO_SPACE refusal
+    capacity_text: str | None = None
+    #: how a user raises the capacity (said when a mission does not fit)
+    capacity_advice: str = ""
+    #: (MAVLink message id, Hz) asked with MAV_CMD_SET_MESSAGE_INTERVAL when the
+    #: vehicle is found: what the ground station reads at its rate, and the heavy
+    #: streams it does not read slowed down (PX4 SITL sends 50 Hz streams)
+    message_rates: tuple = ()
 
     # -- missions -----------------------------------------------------------------
     @property
@@ -68,15 +79,23 @@ class Autopilot:
         """The seven params of the camera command for the ``shot``-th snapshot (from 1)."""
         raise NotImplementedError
 
-    def kept_on_read_back(self, seq: int, command: int, frame: int) -> tuple:
-        """(compared, frame_kept): whether item ``seq`` is compared at all after a
-        read-back, and whether its frame is (the other fields always are)."""
-        if self.home_item and seq == 0:
-            return False, False          # home reads back as the real home
-        if self.do_frame_read_back is not None and int(command) not in POSITION_COMMANDS \
-                and int(frame) not in GLOBAL_FRAMES:
-            return True, False           # a DO command comes back in another frame
-        return True, True
+    def read_back(self, wire: dict):
+        """A mission item as the firmware reports it when its mission is read back:
+        ``wire`` holds MISSION_ITEM_INT's fields as sent (x, y the wire's integers);
+        returns them as they come back (the fields it keeps, as it stores them), or
+        None for an item that reads back as something else altogether (ArduPilot's
+        home). The ground station compares a read-back with this; the simulator
+        stores it."""
+        if self.home_item and int(wire["seq"]) == 0:
+            return None
+        return dict(wire)
+
+    def capacity_said(self, text: str) -> int | None:
+        """The capacity a STATUSTEXT states (with a NO_SPACE refusal), else None."""
+        if not self.capacity_text:
+            return None
+        found = re.search(self.capacity_text, str(text))
+        return int(found.group(1)) if found else None
 
     # -- modes --------------------------------------------------------------------
     def modes(self, mav_type: int = 2) -> dict:

@@ -1,7 +1,9 @@
 """PX4 as a ground station meets it.
 
 - No home item: item 0 is the first flown (the takeoff), and MISSION_CURRENT /
-  MISSION_ITEM_REACHED start there.
+  MISSION_ITEM_REACHED start there. A ``.waypoints`` file still starts with a
+  home line 0 (the launch point), as QGroundControl writes and reads them; it is
+  dropped on reading (`missions.wpl`), so the takeoff never becomes home.
 - Modes: the main mode in bits 16-23 of ``custom_mode``, the sub mode in bits
   24-31 (AUTO.MISSION = main 4, sub 4); MAV_CMD_DO_SET_MODE carries them as
   param2 and param3. A bare AUTO (no sub mode) is reported while holding:
@@ -10,8 +12,13 @@
   then arm: it takes off on its own with the mission's takeoff item.
 - Camera: IMAGE_START_CAPTURE, one image (param3 = 1), capture number 1, 2, ...
   (param4). Yaw NaN in navigation items (keep the heading mode).
-- Read-back keeps every field as sent; no item limit is known.
-- Streams telemetry to its ground-station link by itself.
+- Read-back keeps every field as sent (positions come back in
+  MAV_FRAME_GLOBAL_INT, the same frame); PX4 SITL holds any number of items, a
+  board's dataman 500 with the RAM backend and about 2,000 on the SD card; past
+  that MISSION_COUNT gets MAV_MISSION_NO_SPACE without a STATUSTEXT.
+- Streams telemetry to its ground-station link by itself; SITL's GCS link sends
+  several streams at 50 Hz (of simulated time), which the ground station slows
+  to what it reads (MAV_CMD_SET_MESSAGE_INTERVAL).
 """
 
 from dataclasses import dataclass
@@ -92,5 +99,11 @@ PROFILE = PX4(
     start_sequence=(Step("set_current"), Step("mission_start", "AUTO.MISSION"), Step("arm"),
                     Step("airborne")),
     request_streams=False,
-    do_frame_read_back=None,
+    capacity_advice="a board keeps missions in its dataman: on the SD card (SYS_DM_BACKEND 0) "
+                    "it holds more than in RAM",
+    # GLOBAL_POSITION_INT at the ground station's rate; POSITION_TARGET_LOCAL_NED,
+    # LOCAL_POSITION_NED, ATTITUDE, ATTITUDE_QUATERNION, ATTITUDE_TARGET,
+    # SERVO_OUTPUT_RAW, RC_CHANNELS, OPTICAL_FLOW_RAD (unread) at 1 Hz
+    message_rates=((33, 4.0), (85, 1.0), (32, 1.0), (30, 1.0), (31, 1.0), (83, 1.0),
+                   (36, 1.0), (65, 1.0), (106, 1.0)),
 )

@@ -242,19 +242,26 @@ def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
     takeoff item itself. Returns once the vehicle is airborne in its mission mode.
     retries: resends of each command (more on a lossy link)."""
     profile = autopilot(link)
+    ready_by = time.monotonic() + ready_timeout_s
     wait_ready(link, ready_timeout_s)
-    run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries)
+    run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries, ready_by)
     for step in profile.start_sequence:
         getattr(run, step.action)(step.argument)
+
+
+#: wall seconds between arming attempts refused while the vehicle gets ready
+ARM_RETRY_S = 1.0
 
 
 class _StartRun:
     """The steps a start sequence is made of (`autopilots.base.Step`)."""
 
-    def __init__(self, link, profile, takeoff_alt_amsl, climb_timeout_s, retries):
+    def __init__(self, link, profile, takeoff_alt_amsl, climb_timeout_s, retries,
+                 ready_by=None):
         self.link, self.profile = link, profile
         self.takeoff_alt_amsl = takeoff_alt_amsl
         self.climb_timeout_s, self.retries = climb_timeout_s, retries
+        self.ready_by = ready_by            # until then a refused arming is tried again
         self.armed_at = None
 
     def set_current(self, _=None) -> None:
@@ -264,7 +271,18 @@ class _StartRun:
         set_mode(self.link, name, retries=self.retries)
 
     def arm(self, _=None) -> None:
-        arm(self.link, retries=self.retries)
+        """Arm; refused (PX4 reports no pre-arm bit, so readiness is its arming
+        result: "Arming denied" until its estimator is ready), try again until the
+        ready timeout."""
+        while True:
+            try:
+                arm(self.link, retries=self.retries)
+                break
+            except CommandError as exc:
+                if exc.result is None or self.ready_by is None or \
+                        time.monotonic() + ARM_RETRY_S > self.ready_by:
+                    raise
+                time.sleep(ARM_RETRY_S)
         self.armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
 
     def mission_start(self, fallback_mode=None) -> None:

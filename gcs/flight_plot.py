@@ -1,4 +1,14 @@
-"""flight.png: what was flown, where vehicles were lost, what the survivors were re-tasked to."""
+"""flight.png: what was flown, where vehicles were lost, what the survivors were
+re-tasked to; a timeline of each vehicle and its altitude against the terrain and
+the hidden ceiling.
+
+Times are *mission time*: seconds on the vehicles' own clocks since the flight
+began (GLOBAL_POSITION_INT ``time_boot_ms``, the fifth column of a track sample),
+which is what the plan's times and ``gcs sim --kill SYSID@Ts`` count. In a
+sped-up simulation it runs faster than the wall clock that ``flight.json``'s
+``t_s`` fields count; with real vehicles the two agree. A report without vehicle
+times (an older ``flight.json``) is drawn on wall time and says so.
+"""
 
 import matplotlib
 
@@ -6,65 +16,277 @@ matplotlib.use("Agg")
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
 
-from gcs.plots import ROUTE_COLOURS, _lonlat_km, _save, draw_background  # noqa: E402
+from common.colours import vehicle_colour  # noqa: E402
+from gcs.plots import (  # noqa: E402
+    _lonlat_km,
+    _save,
+    draw_background,
+    draw_bases,
+    symbol_legend,
+)
+from planner.terrain.grid import bilinear  # noqa: E402
+
+TERRAIN_FILL = "#a0785a"
+CEILING_LINE = "#08306b"
+REPLAN_SHADE = "#bdbdbd"
 
 
+# -- mission time ---------------------------------------------------------------------------
+class MissionClock:
+    """Wall seconds since the flight started -> mission seconds, per vehicle and for
+    the fleet (the median of the vehicles' clocks; past a vehicle's last report its
+    clock is carried on at its own rate)."""
+
+    def __init__(self, report: dict):
+        self._per = {}
+        starts = []
+        for v in report.get("vehicles", []):
+            t = np.asarray(v.get("track") or [], float)
+            if t.ndim != 2 or t.shape[0] < 2 or t.shape[1] < 5:
+                continue
+            wall, boot = t[:, 0], t[:, 4]
+            keep = np.concatenate([[True], np.diff(wall) > 0])
+            wall, boot = wall[keep], boot[keep]
+            if len(wall) < 2:
+                continue
+            rates = np.diff(boot) / np.diff(wall)
+            rate = float(np.median(rates[np.isfinite(rates)])) if len(rates) else 1.0
+            self._per[v["sysid"]] = (wall, boot, max(rate, 1e-6))
+            starts.append(wall[0])
+        self.mission = bool(self._per)
+        self._t0 = min(starts) if starts else 0.0
+        rates = [r for _, _, r in self._per.values()]
+        self.rate = float(np.median(rates)) if rates else 1.0
+        # each vehicle's clock, shifted so that all read the same at the first report
+        self._offset = {s: boot[0] - (wall[0] - self._t0) * rate
+                        for s, (wall, boot, rate) in self._per.items()}
+
+    @property
+    def label(self) -> str:
+        return "mission time (s, vehicle clocks)" if self.mission else "wall time (s)"
+
+    def vehicle(self, sysid, wall_s):
+        """Mission time of ``wall_s`` on vehicle ``sysid``'s clock (the fleet's if none)."""
+        if sysid not in self._per:
+            return self.fleet(wall_s)
+        wall, boot, rate = self._per[sysid]
+        w = np.asarray(wall_s, float)
+        inside = np.interp(w, wall, boot)
+        out = np.where(w < wall[0], boot[0] + (w - wall[0]) * rate,
+                       np.where(w > wall[-1], boot[-1] + (w - wall[-1]) * rate, inside))
+        return out - self._offset[sysid]
+
+    def fleet(self, wall_s):
+        """Mission time of ``wall_s`` for events of no one vehicle (re-plans, losses)."""
+        if not self._per:
+            return np.asarray(wall_s, float)
+        return np.median([self.vehicle(s, wall_s) for s in self._per], axis=0)
+
+    def track_time(self, v) -> np.ndarray:
+        """The mission time of each of a vehicle's track samples."""
+        t = np.asarray(v["track"], float)
+        if t.shape[1] >= 5 and v["sysid"] in self._per:
+            return t[:, 4] - self._offset[v["sysid"]]
+        return self.vehicle(v["sysid"], t[:, 0])
+
+
+# -- the picture ----------------------------------------------------------------------------
 def flight_png(path, terrain, surface, plan, report: dict) -> None:
-    """Recorded tracks (solid), planned routes (faint), re-planned routes (dashed),
-    snapshots taken (dots), losses (crosses), and the coverage reached in the title."""
-    fig, ax = plt.subplots(figsize=(10, 9), dpi=110)
+    """The map (recorded tracks solid, planned routes faint, re-planned routes
+    dashed, snapshots taken, losses), the timeline and the altitude profiles."""
+    _save(flight_figure(terrain, surface, plan, report), path)
+
+
+def flight_figure(terrain, surface, plan, report: dict):
+    vehicles = report["vehicles"]
+    clock = MissionClock(report)
+    n = max(len(vehicles), 1)
+    fig = plt.figure(figsize=(17, max(9.5, 2.0 + 1.9 * (n + 1))), dpi=100)
+    grid = fig.add_gridspec(n + 1, 2, width_ratios=[1.05, 1], height_ratios=[1.3] + [1] * n,
+                            wspace=0.12, hspace=0.45)
+    ax = fig.add_subplot(grid[:, 0])
     im = draw_background(ax, terrain, surface)
-    colour = {v["sysid"]: ROUTE_COLOURS[i % len(ROUTE_COLOURS)]
-              for i, v in enumerate(report["vehicles"])}
+    draw_flight_map(ax, terrain, surface, plan, report, clock)
+    fig.colorbar(im, ax=ax, shrink=0.5, pad=0.02,
+                 label="hidden ceiling above ground (m): room to fly unseen")
+    timeline = fig.add_subplot(grid[0, 1])
+    draw_timeline(timeline, report, clock)
+    first = None
+    for i, v in enumerate(vehicles):
+        pax = fig.add_subplot(grid[i + 1, 1], sharex=timeline if first is None else first)
+        first = first or pax
+        draw_altitude_profile(pax, terrain, surface, v, clock, last=i == len(vehicles) - 1)
+    fig.suptitle(_title(report, clock), fontsize=12)
+    return fig
+
+
+def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
     planned = {r.id: r for r in plan.vehicles}
+    handles = []
     for v in report["vehicles"]:
-        c = colour[v["sysid"]]
+        c = vehicle_colour(v["vehicle"])
         route = planned.get(v["vehicle"])
         if route is not None and route.waypoints:
             x, y = _lonlat_km(terrain, [w.lon for w in route.waypoints],
                               [w.lat for w in route.waypoints])
-            ax.plot(x, y, "-", color=c, linewidth=0.8, alpha=0.35)
-        _draw_track(ax, terrain, v, c)
+            ax.plot(x, y, "-", color=c, linewidth=0.9, alpha=0.35, zorder=4)
+        handles.append(_draw_track(ax, terrain, v, c, clock))
     for r in report["replans"]:
         for sysid, points in r["routes"].items():
-            if points:
-                p = np.asarray(points, float)
-                x, y = _lonlat_km(terrain, p[:, 0], p[:, 1])
-                ax.plot(x, y, "--", color=colour.get(int(sysid), "black"), linewidth=1.4)
-    ax.set_title(_title(report))
-    fig.colorbar(im, ax=ax, shrink=0.7, label="hidden ceiling above ground (m)")
-    ax.legend(loc="upper right", fontsize=8, framealpha=0.85)
-    _save(fig, path)
+            if not points:
+                continue
+            p = np.asarray(points, float)
+            x, y = _lonlat_km(terrain, p[:, 0], p[:, 1])
+            c = _colour_of_sysid(report, int(sysid))
+            ax.plot(x, y, "-", color="white", linewidth=3.2, alpha=0.8, zorder=6)
+            ax.plot(x, y, linestyle=(0, (4, 2)), color=c, linewidth=1.8, zorder=7)
+    draw_bases(ax, terrain, plan)
+    handles += [Line2D([], [], color="grey", linewidth=0.9, alpha=0.5,
+                       label="planned route (faint)"),
+                Line2D([], [], color="grey", linewidth=1.8, linestyle=(0, (4, 2)),
+                       label="re-planned route (dashed)"),
+                Line2D([], [], linestyle="none", marker="X", color="grey", markersize=10,
+                       markeredgecolor="black", label="where a vehicle was lost")]
+    handles += symbol_legend(surface, snapshots=True, base=True)
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2,
+              fontsize=8, framealpha=0.9)
 
 
-def _draw_track(ax, terrain, v, c) -> None:
-    label = f"sysid {v['sysid']} (UAV {v['vehicle']}): {v['state']}"
+def _colour_of_sysid(report, sysid):
+    for v in report["vehicles"]:
+        if v["sysid"] == sysid:
+            return vehicle_colour(v["vehicle"])
+    return "black"
+
+
+def _draw_track(ax, terrain, v, c, clock):
+    label = f"sysid {v['sysid']} (UAV {v['vehicle']}) flown: {v['state']}"
+    handle = Line2D([], [], color=c, linewidth=2.0, label=label)
     if v["track"]:
         t = np.asarray(v["track"], float)
         x, y = _lonlat_km(terrain, t[:, 1], t[:, 2])
-        ax.plot(x, y, "-", color=c, linewidth=1.8, label=label)
+        ax.plot(x, y, "-", color=c, linewidth=2.0, zorder=5)
         if v["state"] == "lost":
             ax.plot(x[-1], y[-1], "X", color=c, markersize=14, markeredgecolor="black",
-                    zorder=7)
-            ax.annotate(f"lost {v['lost_at_s']:.0f} s", (x[-1], y[-1]), fontsize=8,
-                        xytext=(6, 6), textcoords="offset points")
-    else:
-        ax.plot([], [], "-", color=c, label=label)
+                    zorder=11)
+            last = float(clock.track_time(v)[-1])
+            detected = f" (detected {float(clock.fleet(v['lost_at_s'])):.0f} s)" \
+                if v.get("lost_at_s") is not None else ""
+            ax.annotate(f"UAV {v['vehicle']} lost at {last:.0f} s\nmission time{detected}",
+                        (x[-1], y[-1]),
+                        fontsize=8, xytext=(8, 6), textcoords="offset points", zorder=11,
+                        bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=c, alpha=0.85))
     if v["snapshots"]:
         s = v["snapshots"]
         x, y = _lonlat_km(terrain, [p["lon"] for p in s], [p["lat"] for p in s])
-        ax.plot(x, y, "o", color=c, markersize=3.5, markeredgecolor="black",
-                markeredgewidth=0.4, alpha=0.4 if v["state"] == "lost" else 1.0)
+        ax.plot(x, y, "o", color=c, markersize=4, markeredgecolor="black",
+                markeredgewidth=0.5, alpha=0.4 if v["state"] == "lost" else 1.0, zorder=8)
+    return handle
 
 
-def _title(report) -> str:
+def draw_timeline(ax, report, clock) -> None:
+    """One row per vehicle: flown (line), snapshots (ticks), loss (X), landing
+    (square); re-plans as shaded spans across every row."""
+    vehicles = report["vehicles"]
+    for n, r in enumerate(report["replans"], start=1):
+        t0 = float(clock.fleet(r["t_s"]))
+        t1 = float(clock.fleet(r["done_t_s"])) if r.get("done_t_s") is not None else t0
+        ax.axvspan(t0, max(t1, t0 + 1e-3), color=REPLAN_SHADE, alpha=0.6, zorder=1)
+        ax.axvline(t0, color="black", linewidth=0.8, linestyle=":", zorder=2)
+        ax.text(t0, len(vehicles) - 0.45, f" re-plan {n}", fontsize=8, va="bottom", zorder=5)
+    for row, v in enumerate(vehicles):
+        y = len(vehicles) - 1 - row
+        c = vehicle_colour(v["vehicle"])
+        if v["track"]:
+            tt = clock.track_time(v)
+            end = tt[-1]
+            if v["state"] == "landed" and v.get("landed_at_s") is not None:
+                end = min(end, float(clock.vehicle(v["sysid"], v["landed_at_s"])))
+            ax.plot([tt[0], end], [y, y], "-", color=c, linewidth=5, alpha=0.55,
+                    solid_capstyle="butt", zorder=3)
+        if v["snapshots"]:
+            ts = clock.vehicle(v["sysid"], [s["t_s"] for s in v["snapshots"]])
+            ax.plot(ts, np.full(len(ts), y), "|", color="black", markersize=11,
+                    markeredgewidth=1.2, zorder=4)
+        if v["state"] == "lost" and v.get("lost_at_s") is not None:
+            last = clock.track_time(v)[-1] if v["track"] else clock.fleet(v["lost_at_s"])
+            ax.plot([last], [y], "X", color=c, markersize=13, markeredgecolor="black",
+                    zorder=6)
+            detected = float(clock.fleet(v["lost_at_s"]))
+            ax.annotate(f"lost at {float(last):.0f} s (detected {detected:.0f} s)", (last, y),
+                        xytext=(8, 5),
+                        textcoords="offset points", fontsize=8, zorder=6)
+        if v["state"] == "landed" and v.get("landed_at_s") is not None:
+            ax.plot([clock.vehicle(v["sysid"], v["landed_at_s"])], [y], "s", color="white",
+                    markeredgecolor="black", markersize=8, zorder=6)
+    ax.set_yticks(range(len(vehicles)))
+    ax.set_yticklabels([f"sysid {v['sysid']}\nUAV {v['vehicle']}" for v in reversed(vehicles)],
+                       fontsize=8)
+    ax.set_ylim(-0.7, len(vehicles) - 0.1)
+    ax.set_xlabel(clock.label, fontsize=8)
+    ax.tick_params(axis="x", labelsize=8)
+    ax.grid(axis="x", alpha=0.3)
+    ax.set_title("timeline", fontsize=10, loc="left")
+    handles = [Line2D([], [], color="grey", linewidth=5, alpha=0.55, label="flying"),
+               Line2D([], [], linestyle="none", marker="|", color="black", markersize=10,
+                      label="snapshot taken"),
+               Line2D([], [], linestyle="none", marker="X", color="grey",
+                      markeredgecolor="black", markersize=9, label="lost (last report)"),
+               Line2D([], [], linestyle="none", marker="s", color="white",
+                      markeredgecolor="black", markersize=7, label="landed"),
+               plt.Rectangle((0, 0), 1, 1, color=REPLAN_SHADE, alpha=0.6,
+                             label="re-planning (survivors held)")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 1.32), ncol=5,
+              fontsize=7.5, framealpha=0.9)
+
+
+def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
+    """A vehicle's altitude (AMSL) over mission time, the terrain under it and the
+    hidden ceiling above it (NaN where the point is not in the flyable region)."""
+    c = vehicle_colour(v["vehicle"])
+    ax.set_title(f"sysid {v['sysid']} (UAV {v['vehicle']}): altitude, metres AMSL",
+                 fontsize=9, loc="left")
+    if not v["track"]:
+        ax.text(0.5, 0.5, "no position reports", transform=ax.transAxes, ha="center")
+        return
+    t = np.asarray(v["track"], float)
+    tt = clock.track_time(v)
+    x, y = terrain.from_lonlat(t[:, 1], t[:, 2])
+    row, col = terrain.rowcol(x, y)
+    ground = bilinear(terrain.height, row, col)
+    ceiling = bilinear(surface.ceiling, row, col)
+    bottom = np.nanmin(ground) - 30 if np.isfinite(ground).any() else np.nanmin(t[:, 3]) - 30
+    ax.fill_between(tt, bottom, ground, color=TERRAIN_FILL, alpha=0.6, linewidth=0,
+                    label="terrain under it")
+    ax.plot(tt, ceiling, "--", color=CEILING_LINE, linewidth=1.0,
+            label="hidden ceiling there (fly below)")
+    ax.plot(tt, t[:, 3], "-", color=c, linewidth=1.6, label="flown altitude")
+    if v["state"] == "lost":
+        ax.plot(tt[-1], t[-1, 3], "X", color=c, markersize=10, markeredgecolor="black")
+    ax.set_ylim(bottom, np.nanmax([np.nanmax(t[:, 3]), np.nanmax(ceiling) if np.isfinite(
+        ceiling).any() else np.nan]) + 30)
+    ax.tick_params(labelsize=7)
+    ax.grid(alpha=0.3)
+    ax.set_ylabel("m AMSL", fontsize=8)
+    if last:
+        ax.set_xlabel(clock.label, fontsize=8)
+    ax.legend(loc="upper right", fontsize=7, ncol=3, framealpha=0.8)
+
+
+def _title(report, clock) -> str:
     cov = report.get("coverage", {}).get("survivors")
     losses = len(report["losses"])
     text = f"flight: {len(report['vehicles'])} vehicles, {losses} lost, " \
            f"{len(report['replans'])} re-plan(s)"
+    if clock.mission:
+        text += f"; mission time ran {clock.rate:.3g} × the wall clock"
     if cov:
         text += (f"\nk = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
                  f"{cov['required_uavs']} surviving vehicle(s) "
                  f"({100 * cov['fraction_k_covered']:.1f} %)")
     return text
+
+
+__all__ = ["MissionClock", "flight_figure", "flight_png"]

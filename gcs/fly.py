@@ -9,7 +9,10 @@ hidden and clear against the plan's surface (`missions.check.checked`: only a
 checked mission, uploaded with read-back (`gcs.mission_protocol.upload_verified`);
 `gcs.commands.start_mission` takes off; `gcs.monitor` follows them and detects
 losses (silence, a fall, a touchdown away from launch or before the last item,
-flight below the terrain); `gcs.retask` re-plans the survivors. At the end
+flight below the terrain); `gcs.retask` re-plans the survivors. Missions fly
+the fewest waypoints the leg proofs allow (`missions.segments.fewer_waypoints`);
+a route longer than its vehicle holds (its capacity, learned at the first
+upload) is flown in segments, the next uploaded in flight (`gcs.segments`). At the end
 ``flight.json`` and ``flight.png`` are written to the output directory, with
 one ``.tlog`` per vehicle beside them.
 
@@ -31,11 +34,13 @@ from common.errors import InputError
 from common.fileio import write_text_atomic
 from gcs import commands
 from gcs.link import GroundLink, LinkError
-from gcs.mission_protocol import MissionError, upload_verified
+from gcs.mission_protocol import MissionError
 from gcs.monitor import FLYING, LANDED, LOST, STARTING, Monitor
 from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
+from gcs.segments import Segments, upload_route
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
+from missions.segments import RouteMissions, fewer_waypoints, leg_prover
 from planner.context import PlanningContext
 from planner.plan import PLAN_FILE, Plan
 from planner.replan import coverable_targets, coverage_summary, seen_matrix
@@ -59,8 +64,10 @@ class FlyOptions:
     ready_timeout_s: float = 60.0
     protocol_timeout_s: float = 1.5  # mission protocol: wait per message before a retry
     protocol_retries: int = 5  # mission protocol and commands: resends before giving up
+    max_items: int | None = None  # items per upload at most (segments below the capacity)
     timeout_s: float | None = None  # after this many wall seconds: ask, or bring them home
     tlog: bool = True
+    forward: object = None  # gcs.forward.Forwarder: the fleet's MAVLink relayed (--forward)
     live: bool = True  # rich status table on a terminal, event lines otherwise
     plot: bool = True
 
@@ -110,6 +117,7 @@ class Flight:
         self.output = Path(options.output)
         self.log = log or (lambda text: None)
         self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
+        self.segments = Segments(self.monitor, options.protocol, options.max_items)
         self.start_unix = time.time()
         self.link = None
         self.retasks = []
@@ -229,7 +237,8 @@ class Flight:
         tlog = str(self.output / TLOG_PATTERN) if o.tlog else None
         try:
             self.link = GroundLink.open(self.urls, o.signing_key, expect=expect,
-                                        timeout_s=o.connect_timeout_s, tlog=tlog)
+                                        timeout_s=o.connect_timeout_s, tlog=tlog,
+                                        forward=o.forward)
         except LinkError as exc:
             raise FlightError(str(exc)) from None
         vehicles = self.link.vehicles
@@ -243,14 +252,41 @@ class Flight:
             self.monitor.event(sysid, "connected", flavour=link.flavour, vehicle=route.id,
                                items=len(mission.items))
 
+    def route_missions(self, route, firmware) -> RouteMissions:
+        """The missions that fly ``route`` with ``firmware``: as few waypoints as the
+        leg proofs allow, each mission proven by the gate (`checked`)."""
+        try:
+            prove = leg_prover(self.context())
+        except Exception:       # no planning context: repeated places only
+            prove = None
+        clearance = self.plan.params.get("clearance_m")
+        name = f"{self.plan_dir / PLAN_FILE}: vehicle {route.id}"
+        return RouteMissions(route, firmware, self.mission_options,
+                             lambda mission: checked(mission, self.surface, clearance, name=name),
+                             fly=fewer_waypoints(route, prove))
+
     def upload(self) -> None:
         m = self.monitor
+        missions = {}
+        for sysid, v in m.vehicles.items():
+            try:
+                missions[sysid] = self.route_missions(v.route, m.links[sysid].flavour)
+            except InputError as exc:
+                raise FlightError(str(exc)) from None
 
         def one(sysid):
-            upload_verified(m.links[sysid], m.vehicles[sysid].mission, **self.options.protocol)
-            m.event(sysid, "mission uploaded and verified")
+            def learned(capacity, how):
+                m.event(sysid, "mission capacity", capacity=capacity, how=how)
 
-        self._all(one, "upload", MissionError)
+            mission = upload_route(m.links[sysid], missions[sysid], self.options.protocol,
+                                   on_capacity=learned, limit=self.options.max_items)
+            m.set_mission(sysid, mission)
+            self.segments.fly(sysid, missions[sysid])
+            whole = len(missions[sysid])
+            m.event(sysid, "mission uploaded and verified", items=len(mission),
+                    **({} if mission.final else {"route_items": whole, "segment": 1}))
+
+        self._all(one, "upload", (MissionError, InputError))
 
     def start(self) -> None:
         m = self.monitor
@@ -299,6 +335,9 @@ class Flight:
         while not m.all_finished():
             if m.check_losses():
                 self.retask()
+            due = self.segments.due()
+            if due:
+                self.next_segments(due)
             if status is not None:
                 status(m.status_rows())
             if end is not None and time.monotonic() > end and not m.all_finished():
@@ -306,6 +345,18 @@ class Flight:
             time.sleep(LOOP_S)
         if status is not None:
             status(m.status_rows())
+
+    def next_segments(self, sysids) -> None:
+        """Send ``sysids`` their next segments; a loss meanwhile re-tasks the survivors
+        (as a loss during re-tasking does)."""
+        m = self.monitor
+        try:
+            lost = self.segments.switch(sysids, lambda fn, s: _in_parallel(fn, s, m))
+        except Exception as exc:       # a vehicle still heard from refused or failed
+            raise FlightError(f"next segment failed: {exc}") from None
+        if lost:
+            m.event(None, "lost during a segment upload", lost=lost)
+            self.retask()
 
     def retask(self, home: bool = False) -> None:
         m = self.monitor
@@ -315,8 +366,8 @@ class Flight:
             raise FlightError(f"cannot re-plan: {exc}") from None
         m.event(None, "re-planning", survivors=m.survivors())
         try:
-            record = Retasker(ctx, m, self.mission_options,
-                              self.options.protocol).retask(home)
+            record = Retasker(ctx, m, self.mission_options, self.options.protocol,
+                              segments=self.segments).retask(home)
         except RetaskError as exc:
             raise FlightError(str(exc)) from None
         self.retasks.append(record)
@@ -337,6 +388,7 @@ class Flight:
             "outcome": self.outcome(coverage),
             "vehicles": vehicles, "losses": losses,
             "replans": [asdict(r) for r in self.retasks],
+            "segments": self.segments.report(),
             "coverage": coverage, "events": list(m.events),
         }
 
@@ -366,9 +418,12 @@ class Flight:
                 "timed_out": self.timed_out, "in_air": in_air, "problems": problems}
 
     def _vehicle_report(self, v) -> dict:
+        m = self.monitor
         return {
             "sysid": v.sysid, "vehicle": v.vehicle_id, "flavour": v.flavour, "state": v.state,
-            "missions": v.generation + 1, "lost_at_s": v.lost_at_s,
+            "missions": v.generation + 1, "segments": v.segments,
+            "mission_capacity": getattr(m.links.get(v.sysid), "mission_capacity", None),
+            "lost_at_s": v.lost_at_s,
             "lost_reason": v.lost_reason, "landed_at_s": v.landed_at_s,
             "snapshots": [asdict(s) for s in v.snapshots],
             "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],

@@ -40,6 +40,7 @@ from gcs.mavlink import (
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
+STREAM_RETRY_S = 2.0             # asked again when nothing but HEARTBEATs came this long
 POLL_S = 0.05
 QUEUE_DEPTH = 500            # messages kept per type and vehicle for recv()
 STATUSTEXT_KEPT = 20
@@ -81,6 +82,7 @@ class VehicleState:
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
     images: int = 0                          # CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED seen
     statustext: list = field(default_factory=list)   # last (severity, text)
+    text_chunk: int = 0                      # STATUSTEXT.id of the last one (chunks)
 
 
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
@@ -92,6 +94,8 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         s.mode = mode_name(flavour, msg.custom_mode, mav_type)
         s.system_status = msg.system_status
     elif kind == "GLOBAL_POSITION_INT":
+        if not has_position(msg):
+            return                     # ArduPilot before its EKF origin: no position yet
         s.lat, s.lon = msg.lat * 1e-7, msg.lon * 1e-7
         s.alt_amsl, s.relative_alt = msg.alt * 1e-3, msg.relative_alt * 1e-3
         if msg.hdg != 65535:
@@ -114,7 +118,20 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     elif kind in ("CAMERA_FEEDBACK", "CAMERA_IMAGE_CAPTURED"):
         s.images += 1
     elif kind == "STATUSTEXT":
-        s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+        chunk = getattr(msg, "id", 0)
+        if chunk and getattr(msg, "chunk_seq", 0) > 0 and s.statustext \
+                and s.text_chunk == chunk:     # PX4 sends a long text in 50-char chunks
+            severity, text = s.statustext[-1]
+            s.statustext = s.statustext[:-1] + [(severity, text + msg.text)]
+        else:
+            s.statustext = (s.statustext + [(msg.severity, msg.text)])[-STATUSTEXT_KEPT:]
+        s.text_chunk = chunk
+
+
+def has_position(msg) -> bool:
+    """A GLOBAL_POSITION_INT that holds a position: ArduPilot reports 0, 0 until its
+    EKF has an origin (about 20 s after boot)."""
+    return not (msg.lat == 0 and msg.lon == 0)
 
 
 def _prearm_ok(msg, gps_fix: int) -> bool:
@@ -343,6 +360,9 @@ class VehicleLink:
         self.profile = profile_of(self.flavour)     # autopilots profile; None: generic
         self.state = VehicleState()
         self.signs = False            # its packets carry signatures (seen without a key)
+        self.mission_capacity = None  # items it holds, once learned (mission_protocol)
+        self.mission_fits = 0         # the longest upload it took
+        self._streamed_at = self._asked_at = 0.0   # last telemetry / stream request (monotonic)
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
         self._cond = threading.Condition()
@@ -371,11 +391,18 @@ class VehicleLink:
 
     def request_streams(self, rate_hz: int = STREAM_RATE_HZ) -> None:
         """Ask for telemetry: ArduPilot streams on a port only what a ground station
-        requests (MAVProxy does the same); PX4 streams to its GCS link by itself.
+        requests (MAVProxy does the same); PX4 streams to its GCS link by itself,
+        and the profile's ``message_rates`` slow what it sends faster than read.
         Fire and forget: this runs on the reader thread, which must not wait."""
-        if self.profile is not None and self.profile.request_streams:
+        if self.profile is None:
+            return
+        self._asked_at = time.monotonic()
+        if self.profile.request_streams:
             self.send("REQUEST_DATA_STREAM", req_stream_id=M.MAV_DATA_STREAM_ALL,
                       req_message_rate=rate_hz, start_stop=1)
+        for message, hz in self.profile.message_rates:
+            self.send("COMMAND_LONG", command=M.MAV_CMD_SET_MESSAGE_INTERVAL,
+                      param1=float(message), param2=1e6 / hz if hz > 0 else -1.0)
 
     def send_msg(self, msg) -> None:
         conn, addr = self._route
@@ -450,14 +477,27 @@ class VehicleLink:
                 self._route = (conn, addr)
                 self.signs = _is_signed(msg)
                 _update_state(self.state, msg, self.flavour, self.mav_type)
+                ask_again = self._streams_missing(msg)
             if _addressed_to_us(msg):
                 self._queues[msg.get_type()].append((index, msg))
                 self._cond.notify_all()
+        if from_autopilot and ask_again:
+            self.request_streams()
         for callback in list(self._subscribers):
             try:
                 callback(msg)
             except Exception:    # a broken subscriber must not stop the reader thread
                 pass
+
+    def _streams_missing(self, msg) -> bool:
+        """True on a HEARTBEAT when no telemetry came for STREAM_RETRY_S since the last
+        request: that request (or the stream) was lost on the way, as packets are on a
+        radio link, and the vehicle streams nothing until asked again."""
+        now = time.monotonic()
+        if msg.get_type() != "HEARTBEAT":
+            self._streamed_at = now
+            return False
+        return now - max(self._streamed_at, self._asked_at) >= STREAM_RETRY_S
 
 
 def _is_signed(msg) -> bool:
@@ -493,10 +533,13 @@ def build_message(name: str, fields: dict):
 class GroundLink:
     """The ground station's side of every connection, and the vehicles found on them."""
 
-    def __init__(self, urls, signing_key: bytes | None = None, tlog=None):
+    def __init__(self, urls, signing_key: bytes | None = None, tlog=None, forward=None):
+        """``forward``: a `gcs.forward.Forwarder` that every vehicle message is relayed
+        to (and that reads the forwarded side); closed with the link."""
         if isinstance(urls, str):
             urls = [urls]
         self.signing_key = signing_key
+        self.forward = forward
         self.connections = []
         self._vehicles = {}
         self._lock = threading.Lock()
@@ -516,14 +559,14 @@ class GroundLink:
 
     @classmethod
     def open(cls, urls, signing_key: bytes | None = None, expect=None, timeout_s: float = 10,
-             tlog=None) -> "GroundLink":
+             tlog=None, forward=None) -> "GroundLink":
         """Connect to `urls` and wait for vehicles.
 
         expect: a number of vehicles, or an iterable of system ids, to wait for; None
         waits until every connection has shown one vehicle and then one more
         heartbeat period for others sharing a port. Raises LinkError naming what is
         missing after `timeout_s`."""
-        link = cls(urls, signing_key, tlog)
+        link = cls(urls, signing_key, tlog, forward)
         link.start()
         try:
             link.wait_vehicles(expect, timeout_s)
@@ -541,6 +584,8 @@ class GroundLink:
         t = threading.Thread(target=self._heartbeats, daemon=True, name="gcs-heartbeat")
         t.start()
         self._threads.append(t)
+        if self.forward is not None:
+            self.forward.start(self)
         return self
 
     @property
@@ -607,6 +652,11 @@ class GroundLink:
             self._packer.seq = (self._packer.seq + 1) % 256
             conn.write(packet, addr)
 
+    def _write_raw(self, conn: Connection, packet: bytes, addr=None) -> None:
+        """Write a packet someone else packed (a forwarded station's), as it is."""
+        with self._send_lock:
+            conn.write(packet, addr)
+
     def _heartbeats(self) -> None:
         hb = build_message("HEARTBEAT", {"type": M.MAV_TYPE_GCS,
                                          "autopilot": M.MAV_AUTOPILOT_INVALID,
@@ -637,6 +687,8 @@ class GroundLink:
         if self._tlog is not None:
             self._tlog.write(vehicle.sysid, bytes(msg.get_msgbuf()))
         vehicle._deliver(msg, next(self._counter), conn, addr)
+        if self.forward is not None:
+            self.forward.relay(vehicle, msg)
 
     def _discover(self, msg, conn, addr) -> None:
         """A HEARTBEAT from an autopilot makes a vehicle; everything else waits for one.
@@ -664,6 +716,8 @@ class GroundLink:
             t.join(timeout=2)
         self._threads = []
         self._close_connections()
+        if self.forward is not None:
+            self.forward.close()
         if self._tlog is not None:
             self._tlog.close()
 

@@ -3,7 +3,10 @@
 A `Monitor` subscribes to every `gcs.link.VehicleLink` of the flight. From the
 reader threads it records the track (GLOBAL_POSITION_INT), the mission items
 reached (MISSION_ITEM_REACHED, mapped to plan waypoints through
-`VehicleMission.waypoint_of_item`) and camera feedback. A snapshot counts as
+`VehicleMission.waypoint_of_item`; an item reached means every waypoint before it
+was, as PX4 reports a waypoint followed by DO commands with the number of the last
+of them, and only the latest of several reached between two reports) and camera
+feedback. A snapshot counts as
 taken when its waypoint is reached: ArduPilot reports MISSION_ITEM_REACHED for
 navigation items only, and camera feedback only with a camera configured, so
 the waypoint is the one signal every autopilot gives. Camera feedback, where
@@ -25,6 +28,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from gcs.link import has_position
 from gcs.mavlink import M
 from missions.items import NAV_LAND
 
@@ -83,7 +87,7 @@ class VehicleProgress:
     done: set = field(default_factory=set)  # route waypoint indices reached in this mission
     snapshots: list = field(default_factory=list)  # [Snapshot], every mission
     camera: list = field(default_factory=list)  # camera feedback positions [(t, lon, lat, alt)]
-    track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL)]
+    track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL, vehicle time s)]
     airborne: bool = False
     lost_at_s: float | None = None
     lost_reason: str | None = None
@@ -92,6 +96,7 @@ class VehicleProgress:
     disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
     disarmed_reports: int = 0  # position reports since
     relaunched: int = 0  # times sent up again after landing
+    segments: int = 0  # segments sent in flight (a route longer than the vehicle holds)
 
     @property
     def snapshot_total(self) -> int:
@@ -116,6 +121,8 @@ class VehicleProgress:
         """The mission item a proper landing comes after: the last waypoint (above
         launch) before the final NAV_LAND, or the last position item."""
         items = getattr(self.mission, "items", None) or []
+        if not getattr(self.mission, "final", True):
+            return len(items)           # a segment that does not land: no touchdown is one
         positions = [it.seq for it in items if it.is_position]
         if not positions:
             return None
@@ -182,6 +189,21 @@ class Monitor:
             v.generation += 1
             v.reached, v.done = set(), set()
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
+
+    def set_mission(self, sysid: int, mission) -> None:
+        """The mission uploaded for the current route (the whole, or its first segment)."""
+        with self._lock:
+            self.vehicles[sysid].mission = mission
+
+    def next_segment(self, sysid: int, mission) -> None:
+        """The vehicle now flies the next segment of the same route: item numbers
+        start again, the waypoints reached and snapshots taken stay."""
+        with self._lock:
+            v = self.vehicles[sysid]
+            v.mission = mission
+            v.reached = set()
+            v.segments += 1
+            self.links[sysid].state.mission_seq = None
 
     def relaunch(self, sysid: int) -> None:
         """A landed survivor goes up again (after a loss left coverage short)."""
@@ -276,6 +298,8 @@ class Monitor:
                           f"({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
 
     def _position(self, v, msg) -> None:
+        if not has_position(msg):
+            return                     # no position yet (ArduPilot before its EKF origin)
         t = self.now()
         agl = msg.relative_alt * 1e-3
         _note_airborne(v, self.links[v.sysid].state.armed, agl)
@@ -288,22 +312,37 @@ class Monitor:
             self._judge_disarm(v, agl)
         if v.track and t - v.track[-1][0] < TRACK_PERIOD_S:
             return
-        v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3))
+        # the vehicle's own clock too: mission time, which runs faster than the wall
+        # clock in a sped-up simulation
+        boot = getattr(msg, "time_boot_ms", None)
+        v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3,
+                        None if boot is None else round(boot * 1e-3, 3)))
 
     def _reached(self, v, msg) -> None:
+        """An item reached: its waypoint, and every waypoint of the mission before it
+        not counted yet, since a mission is flown in order. PX4 reports a waypoint
+        followed by DO commands (the camera) once they are done, with the last
+        one's number, and only the latest item reached when several are reached
+        between two of its reports (close waypoints)."""
         seq = int(msg.seq)
         if seq in v.reached:
             return
         v.reached.add(seq)
         of_item = v.mission.waypoint_of_item
-        index = of_item[seq] if 0 <= seq < len(of_item) else None
-        if index is None or index in v.done:
-            return
-        v.done.add(index)
-        w = v.route.waypoints[index]
-        if w.snapshot:
-            v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
-                                        v.generation, index))
+        passed = []
+        for item in range(min(seq, len(of_item) - 1), -1, -1):
+            index = of_item[item]
+            if index is None:
+                continue
+            if index in v.done:
+                break                   # counted, and so is everything before it
+            passed.append(index)
+        for index in reversed(passed):
+            v.done.add(index)
+            w = v.route.waypoints[index]
+            if w.snapshot:
+                v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
+                                            v.generation, index))
 
     def _camera(self, v, msg) -> None:
         if msg.get_type() == "CAMERA_FEEDBACK":

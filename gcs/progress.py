@@ -4,7 +4,13 @@ import contextlib
 import sys
 
 from rich.console import Console
-from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
 
 console = Console(stderr=True, soft_wrap=True)  # long paths stay on one line in logs
 
@@ -30,7 +36,8 @@ def stage_progress(enabled=None):
         yield lambda stage, fraction: None
         return
     bars = Progress(TextColumn("{task.description:<24}"), BarColumn(), TextColumn(
-        "{task.percentage:>3.0f}%"), TimeElapsedColumn(), console=console,
+        "{task.percentage:>3.0f}%"), TimeElapsedColumn(), TextColumn("left"),
+        TimeRemainingColumn(), console=console,
         transient=False, disable=not console.is_terminal)
     tasks = {}
 

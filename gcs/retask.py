@@ -14,7 +14,9 @@ Setting the current item is not optional: ArduPilot resumes at the old index
 after an upload.
 
 A loss during any of this (another vehicle silent, an upload failing because
-its vehicle is gone) restarts the re-plan with the remaining survivors.
+its vehicle is gone) restarts the re-plan with the remaining survivors. A new
+route longer than its vehicle holds goes up as its first segment, the rest in
+flight (`gcs.segments`).
 """
 
 import threading
@@ -25,9 +27,10 @@ import numpy as np
 
 from common.errors import InputError
 from gcs import commands
-from gcs.mission_protocol import upload_verified
 from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, distance_m
-from missions.build import MissionOptions, vehicle_mission
+from gcs.segments import upload_route
+from missions.build import MissionOptions
+from missions.segments import RouteMissions, fewer_waypoints, leg_prover
 from planner.replan import (
     Survivor,
     coverable_targets,
@@ -152,8 +155,11 @@ class Retasker:
     """Re-plans and re-uploads the survivors of a flight (see module doc)."""
 
     def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions(),
-                 protocol=None):
+                 protocol=None, segments=None):
+        """``segments``: the flight's `gcs.segments.Segments`, told what each re-tasked
+        vehicle flies from now on."""
         self.ctx = ctx
+        self.segments = segments
         self.monitor = monitor
         self.mission_options = mission_options
         self.protocol = protocol or {}  # timeout_s / retries of the mission protocol
@@ -275,31 +281,46 @@ class Retasker:
         tasked = list(sysids) + up
         record.survivors, record.relaunched = tasked, up
         try:
-            missions = {s: self._mission(s, routes[s]) for s in tasked}
+            missions = {s: self._missions(s, routes[s]) for s in tasked}
         except InputError as exc:       # nothing is sent: the vehicles stay held
             raise RetaskError(f"re-planned mission refused by the check: {exc}") from None
         record.routes = {s: [[w.lon, w.lat, w.alt_amsl] for w in routes[s].waypoints]
                          for s in tasked}
         t1 = time.perf_counter()
-        self._step(tasked, lambda s: upload_verified(m.links[s], missions[s], **self.protocol))
+        uploaded = {}
+
+        def upload(s):
+            def learned(capacity, how):
+                m.event(s, "mission capacity", capacity=capacity, how=how)
+
+            uploaded[s] = upload_route(m.links[s], missions[s], self.protocol, learned,
+                                       limit=getattr(self.segments, "limit", None))
+
+        self._step(tasked, upload)
         record.upload_s = round(time.perf_counter() - t1, 3)
         for s in tasked:
-            m.new_mission(s, routes[s], missions[s])
-        self._step(sysids, lambda s: self._resume(s, missions[s]))
+            m.new_mission(s, routes[s], uploaded[s])
+            if self.segments is not None:
+                self.segments.fly(s, missions[s])
+        self._step(sysids, lambda s: self._resume(s, uploaded[s]))
         for s in up:
             m.relaunch(s)
         self._step(up, lambda s: self._launch(s, routes[s]))
         for s in tasked:
             m.set_state(s, FLYING)
 
-    def _mission(self, sysid, route):
-        """The new mission, proven hidden and clear leg by leg: the `CheckedMission`
-        that is the only thing the upload takes."""
+    def _missions(self, sysid, route) -> RouteMissions:
+        """The new route's missions (the whole, or segments), each proven hidden and
+        clear leg by leg: `CheckedMission`, the only thing the upload takes; the
+        fewest waypoints the planner's leg proofs allow."""
         from missions.check import checked
 
         link = self.monitor.links[sysid]
-        mission = vehicle_mission(route, link.flavour, self.mission_options)
-        return checked(mission, self.ctx.surface, self.ctx.scenario.clearance_m)
+        ctx = self.ctx
+        return RouteMissions(route, link.flavour, self.mission_options,
+                             lambda mission: checked(mission, ctx.surface,
+                                                     ctx.scenario.clearance_m),
+                             fly=fewer_waypoints(route, leg_prover(ctx)))
 
     def _step(self, sysids, fn) -> None:
         """fn on every survivor at once; a failure of a vehicle found lost restarts."""

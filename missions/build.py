@@ -58,15 +58,38 @@ class VehicleMission:
     items: list  # [MissionItem], seq 0..n-1
     # per seq: index into route.waypoints of that position item, None otherwise
     waypoint_of_item: list = field(default_factory=list)
+    # a segment of a route too long for its vehicle (`missions.segments`): which one
+    # (0 = the first, or the whole route), the route waypoints it flies (first and
+    # last index), and whether it is the last one (it lands)
+    segment: int = 0
+    first_waypoint: int = 0
+    last_waypoint: int | None = None
+    final: bool = True
 
     @property
     def name(self) -> str:
         return f"vehicle {self.vehicle_id}"
 
 
-def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptions()
-                    ) -> VehicleMission:
-    """The mission items that fly ``route`` (a planner.plan.VehicleRoute)."""
+def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptions(),
+                    fly=None) -> VehicleMission:
+    """The mission items that fly ``route`` (a planner.plan.VehicleRoute).
+
+    ``fly``: the indices of the route waypoints to fly (in order; default: all);
+    the others are left out, e.g. where `missions.segments.fewer_waypoints`
+    proved the straight leg past them (snapshot waypoints are always flown)."""
+    fly = list(range(len(route.waypoints))) if fly is None else list(fly)
+    return route_items(route, firmware, options, fly, takeoff=True, land=True)
+
+
+def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=0,
+                shots_before=0, skip_camera=()) -> VehicleMission:
+    """The items of route waypoints ``fly`` (indices): the whole route, or one
+    segment of it (`missions.segments`). ``takeoff``: it starts the route (a
+    takeoff first when it starts above launch); ``land``: it ends the route (the
+    landing when it ends above launch: the last segment); ``shots_before``
+    snapshots precede it (PX4 numbers its images); no camera command at the
+    waypoints in ``skip_camera`` (taken already)."""
     autopilot = firmware_profile(firmware)
     if not route.waypoints:
         raise InputError(f"vehicle {route.id}", "route has no waypoints")
@@ -77,24 +100,28 @@ def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptio
     if autopilot.home_item:
         home = route.launch or first
         out.add(_position(NAV_WAYPOINT, home.lat, home.lon, home.alt_amsl))
-    if options.takeoff and _above_launch(route.launch, first):
+    if options.takeoff and takeoff and _above_launch(route.launch, first):
         out.add(_position(NAV_TAKEOFF, route.launch.lat, route.launch.lon, first.alt_amsl,
                           p4=yaw))
     if options.speed_mps:
         out.add(_command(DO_CHANGE_SPEED, SPEED_TYPE_GROUND, float(options.speed_mps),
                          NO_THROTTLE_CHANGE, 0.0))
-    shots = 0
-    for index, w in enumerate(waypoints):
+    shots = shots_before
+    for index in fly:
+        w = waypoints[index]
         hold = float(options.hold_s) if w.snapshot else 0.0
         out.add(_position(NAV_WAYPOINT, w.lat, w.lon, w.alt_amsl, p1=hold,
                           p2=float(options.acceptance_m), p4=yaw), waypoint=index)
         if w.snapshot and options.camera:
             shots += 1
-            out.add(_command(autopilot.camera_command, *autopilot.camera_params(shots)))
-    if options.takeoff and _above_launch(route.launch, last):
+            if index not in skip_camera:
+                out.add(_command(autopilot.camera_command, *autopilot.camera_params(shots)))
+    if options.takeoff and land and _above_launch(route.launch, last):
         out.add(_position(NAV_LAND, route.launch.lat, route.launch.lon, route.launch.alt_amsl,
                           p4=yaw))
-    return VehicleMission(route.id, autopilot.name, renumber(out.items), out.waypoint_of_item)
+    return VehicleMission(route.id, autopilot.name, renumber(out.items), out.waypoint_of_item,
+                          segment=segment, first_waypoint=fly[0] if fly else 0,
+                          last_waypoint=fly[-1] if fly else None, final=bool(land))
 
 
 def firmware_profile(firmware: str):

@@ -148,7 +148,7 @@ class CheckedMission:
     """
 
     __slots__ = ("vehicle_id", "firmware", "name", "_items", "waypoint_of_item", "proven",
-                 "unproven_note")
+                 "unproven_note", "segment", "first_waypoint", "last_waypoint", "final")
 
     def __init__(self, mission, proven: str, unproven_note, name, _token=None):
         if _token is not _TOKEN:
@@ -162,6 +162,11 @@ class CheckedMission:
                                      or [None] * len(self._items))
         self.proven = proven
         self.unproven_note = unproven_note
+        # which segment of its route it is (`missions.segments`; 0 and final: the whole)
+        self.segment = getattr(mission, "segment", 0)
+        self.first_waypoint = getattr(mission, "first_waypoint", 0)
+        self.last_waypoint = getattr(mission, "last_waypoint", None)
+        self.final = getattr(mission, "final", True)
 
     @property
     def items(self) -> list:

@@ -68,7 +68,8 @@ def _vehicle_files(directory, mission, plan, speed, formats, fences) -> list:
         out.append((path, f"{what} (QGroundControl .plan)"))
     if "waypoints" in formats:
         path = vehicle_file(directory, mission.vehicle_id, "waypoints")
-        wpl.write_waypoints(path, mission.items)
+        wpl.write_waypoints(path, mission.items, mission.firmware,
+                            home=_home(plan, mission.vehicle_id))
         out.append((path, f"{what} (QGC WPL 110: Mission Planner, MAVProxy)"))
     return out
 

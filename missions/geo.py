@@ -3,6 +3,9 @@
 Both hold, per vehicle, the hidden route as a 3-D line (altitudes AMSL), its
 snapshot points and its launch point, plus the outposts and their detection
 ranges (geodesic circles). Coordinates are WGS 84 longitude, latitude.
+Colours are the PNG plots' (`common.colours`): in GeoJSON as simplestyle
+properties (``stroke``, ``marker-color``, ``fill``), which geojson.io, GitHub and
+QGIS's simplestyle support read; in KML as styles.
 """
 
 import json
@@ -12,13 +15,11 @@ import xml.etree.ElementTree as ET
 import numpy as np
 from pyproj import Geod
 
+from common.colours import OUTPOST_COLOUR, VEHICLE_COLOURS, kml_colour, vehicle_colour
 from common.fileio import write_text_atomic
 
 CIRCLE_VERTICES = 72
 KML_NS = "http://www.opengis.net/kml/2.2"
-# KML colours are aabbggrr
-VEHICLE_COLOURS = ("ff0000ff", "ffff0000", "ff00aa00", "ff00ffff", "ffff00ff", "ffffff00",
-                   "ff0080ff", "ff800080")
 
 
 # --- GeoJSON ------------------------------------------------------------------------------
@@ -38,30 +39,35 @@ def write_geojson(path, plan) -> None:
 
 def _vehicle_features(v) -> list:
     out = []
+    colour = vehicle_colour(v.id)
     if v.waypoints:
         out.append(_feature("LineString", [_lonlatalt(w) for w in v.waypoints], {
             "kind": "route", "vehicle": v.id, "waypoints": len(v.waypoints),
             "snapshots": len(v.snapshots), "coverage_time_s": v.coverage_time_s,
             "mission_time_s": v.mission_time_s, "path_length_m": v.path_length_m,
-            "altitude": "metres AMSL"}))
+            "altitude": "metres AMSL", "stroke": colour, "stroke-width": 3}))
     for index, w in enumerate(v.waypoints):
         if w.snapshot:
             out.append(_feature("Point", _lonlatalt(w), {
                 "kind": "snapshot", "vehicle": v.id, "waypoint": index, "t_s": w.t_s,
-                "alt_amsl_m": w.alt_amsl}))
+                "alt_amsl_m": w.alt_amsl, "marker-color": colour, "marker-size": "small"}))
     if v.launch is not None:
         out.append(_feature("Point", _lonlatalt(v.launch), {
-            "kind": "launch", "vehicle": v.id, "alt_amsl_m": v.launch.alt_amsl}))
+            "kind": "launch", "vehicle": v.id, "alt_amsl_m": v.launch.alt_amsl,
+            "marker-color": "#ffffff", "marker-symbol": "square"}))
     return out
 
 
 def _outpost_features(n, o) -> list:
     props = {"kind": "outpost", "name": o.get("name") or f"outpost {n + 1}",
              "height_m": o.get("height_m"), "range_m": o.get("range_m")}
-    out = [_feature("Point", [o["lon"], o["lat"]], props)]
+    out = [_feature("Point", [o["lon"], o["lat"]], {**props, "marker-color": OUTPOST_COLOUR,
+                                                     "marker-symbol": "triangle"})]
     if o.get("range_m") is not None and math.isfinite(float(o["range_m"])):
         ring = range_circle(o["lon"], o["lat"], o["range_m"])
-        out.append(_feature("Polygon", [ring], {**props, "kind": "outpost range"}))
+        out.append(_feature("Polygon", [ring], {**props, "kind": "outpost range",
+                                                "stroke": OUTPOST_COLOUR, "fill": OUTPOST_COLOUR,
+                                                "fill-opacity": 0.08}))
     return out
 
 
@@ -103,8 +109,8 @@ def routes_kml(plan) -> str:
     doc = ET.SubElement(kml, _k("Document"))
     _text(doc, "name", f"{plan.method.upper()} hidden coverage plan")
     for n, colour in enumerate(VEHICLE_COLOURS):
-        _style(doc, f"vehicle{n}", colour)
-    _style(doc, "outpost", "ff0000ff", fill="330000ff")
+        _style(doc, f"vehicle{n}", kml_colour(colour))
+    _style(doc, "outpost", kml_colour(OUTPOST_COLOUR), fill=kml_colour(OUTPOST_COLOUR, 0x33))
     for v in plan.vehicles:
         _vehicle_folder(doc, v, f"vehicle{(v.id - 1) % len(VEHICLE_COLOURS)}")
     if plan.outposts:

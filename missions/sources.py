@@ -210,7 +210,14 @@ def _file_missions(path: Path, route_id: int) -> tuple:
             except InputError as exc:
                 missions[fw] = exc
         return missions, own
-    from .wpl import read_waypoints
+    from .wpl import mission_items, read_waypoints
 
-    items = read_waypoints(path)
-    return {fw: VehicleMission(route_id, fw, items, [None] * len(items)) for fw in NAMES}, None
+    lines = read_waypoints(path)                     # InputError for a bad file
+    missions = {}
+    for fw in NAMES:                                 # line 0 is home: kept or dropped per firmware
+        try:
+            items = mission_items(lines, fw, path)
+            missions[fw] = VehicleMission(route_id, fw, items, [None] * len(items))
+        except InputError as exc:
+            missions[fw] = exc
+    return missions, None

@@ -2,25 +2,76 @@
 
 One header line ``QGC WPL 110``, then one tab-separated line per item:
 ``seq current frame command param1 param2 param3 param4 x y z autocontinue``,
-x / y in degrees for global frames. The file holds exactly the items uploaded,
-so what line 0 is depends on the firmware's `autopilots` profile: home where
-the firmware keeps home as item 0 (ArduPilot); otherwise the first real item
-(PX4: a program that takes line 0 for home should be given the ``.plan``).
+x / y in degrees for global frames.
+
+Line 0 is always home, as QGroundControl and Mission Planner write and read
+these files (a ``NAV_WAYPOINT`` at the launch point, ground altitude AMSL).
+What happens to it on upload is the firmware's (`autopilots` profile,
+``home_item``): ArduPilot keeps home as mission item 0, so the file holds
+exactly the items uploaded; PX4 has no home item, so line 0 is written from the
+launch point for the other programs and dropped on reading (the mission is
+lines 1.., renumbered from 0). Files written before this layout, whose line 0
+is the PX4 takeoff (``NAV_TAKEOFF``), are read too: a file whose line 0 is not
+a ``NAV_WAYPOINT`` has no home line.
 """
 
 import math
+from dataclasses import replace
 
+from autopilots import profile
 from common.errors import InputError
 from common.fileio import write_text_atomic
 
-from .items import MissionItem
+from .items import FRAME_GLOBAL, NAV_WAYPOINT, MissionItem, renumber
 
 HEADER = "QGC WPL 110"
 
 
-def waypoints_text(items) -> str:
+def file_items(items, firmware: str | None = None, home=None) -> list:
+    """The lines of a file for mission ``items`` of ``firmware``: as they are where
+    the firmware has a home item (or ``firmware`` is None), else a home line 0
+    first (``home`` (lat, lon, alt AMSL), default the first position item's)."""
+    items = list(items)
+    if firmware is None or profile(firmware).home_item:
+        return items
+    if home is None:
+        first = next((it for it in items if it.is_position), None)
+        home = (first.x, first.y, first.z) if first is not None else (0.0, 0.0, 0.0)
+    line0 = MissionItem(0, FRAME_GLOBAL, NAV_WAYPOINT, 1, 1, 0.0, 0.0, 0.0, 0.0,
+                        float(home[0]), float(home[1]), float(home[2]))
+    return renumber([line0] + [_copy(it) for it in items])
+
+
+def split_home(items) -> tuple:
+    """(home item or None, the other items) of a file's lines: line 0 is home when
+    it is a NAV_WAYPOINT (QGroundControl's layout), not when it is anything else
+    (a PX4 file of the old layout starts with its takeoff)."""
+    items = list(items)
+    if items and items[0].seq == 0 and int(items[0].command) == NAV_WAYPOINT:
+        return items[0], items[1:]
+    return None, items
+
+
+def mission_items(items, firmware: str, source="waypoints") -> list:
+    """What ``firmware`` is given from a file's lines: home as item 0 where the
+    firmware keeps one (InputError if the file has no home line), else without it."""
+    home, rest = split_home(items)
+    autopilot = profile(firmware)
+    if autopilot.home_item:
+        if home is None:
+            raise InputError(source, f"line 2 is not a home position (a NAV_WAYPOINT): "
+                                     f"{autopilot.title} missions start with home")
+        return renumber([_copy(home)] + [_copy(it) for it in rest])
+    return renumber([_copy(it) for it in rest])
+
+
+def _copy(it) -> MissionItem:
+    return replace(it)
+
+
+def waypoints_text(items, firmware: str | None = None, home=None) -> str:
     lines = [HEADER]
-    for it in items:
+    for it in file_items(items, firmware, home):
         values = [f"{int(it.seq)}", f"{int(it.current)}", f"{int(it.frame)}", f"{int(it.command)}",
                   *(_number(v) for v in (it.param1, it.param2, it.param3, it.param4)),
                   _number(it.x, 9 if it.is_global else None),
@@ -30,12 +81,14 @@ def waypoints_text(items) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_waypoints(path, items) -> None:
-    write_text_atomic(path, waypoints_text(items))
+def write_waypoints(path, items, firmware: str | None = None, home=None) -> None:
+    """Write ``items`` (a mission for ``firmware``; None: the lines as given)."""
+    write_text_atomic(path, waypoints_text(items, firmware, home))
 
 
-def read_waypoints(path) -> list:
-    """The items of a ``QGC WPL 110`` file, in file order."""
+def read_waypoints(path, firmware: str | None = None) -> list:
+    """The items of a ``QGC WPL 110`` file: its lines in file order, or with
+    ``firmware`` the mission that firmware is given (`mission_items`)."""
     try:
         with open(path, encoding="utf-8") as f:
             text = f.read()
@@ -43,7 +96,8 @@ def read_waypoints(path) -> list:
         raise InputError(path, "no such file") from None
     except UnicodeDecodeError:
         raise InputError(path, "not a QGC WPL 110 file (not text)") from None
-    return parse_waypoints(text, path)
+    items = parse_waypoints(text, path)
+    return items if firmware is None else mission_items(items, firmware, path)
 
 
 def parse_waypoints(text: str, source="waypoints") -> list:

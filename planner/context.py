@@ -92,6 +92,10 @@ class PlanningContext:
         plan = plan or Plan.load(d)
         surface = load_surface(d, plan)
         scenario = Scenario.from_params(plan.params, source=d / PLAN_FILE)
+        if scenario.area_flight:  # re-planned routes stay inside the polygon too
+            from planner.pipeline import area_of, restrict_surface
+
+            surface = restrict_surface(surface, area_of(scenario, surface.terrain))
         if not all((d / name).is_file() for name in (VIEWPOINTS_FILE, VISIBILITY_FILE,
                                                       TRAVEL_FILE)):
             # a folder written before the context was saved: its stages run again

@@ -23,6 +23,7 @@ from planner.exposure import (
     segments_hidden,
 )
 from planner.terrain import load_dem, sample_terrain
+from planner.terrain.area import area_mask, read_area
 from planner.travel import build_travel_graph, leg_time
 from planner.visibility import (
     candidate_viewpoints,
@@ -72,8 +73,12 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
     ``log(text)`` is told which, when it is not this process."""
     s = scenario
     timing = {}
+    polygons = read_area(s.area_file) if s.area_file else None   # a bad file fails first
     surface = exposure_stages(s, progress, timing, terrain, outposts)
     terrain, outposts = surface.terrain, surface.outposts
+    area = area_of(s, terrain, polygons)
+    if area is not None and s.area_flight:
+        surface = restrict_surface(surface, area)
     launch_xy = _launch_xy(terrain, s)
     regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
     with dask_client(scheduler, terrain.height.size, log) as client:
@@ -93,6 +98,11 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
                                  "larger --area, a lower --clearance or --track-tolerance)")
         with _stage("visibility", timing, progress):
             visibility = compute_visibility(surface, viewpoints, s.sensor_params())
+            if area is not None:
+                visibility = visibility.restricted(area)
+                if not visibility.n_targets:
+                    raise InputError(s.area_file, "no target inside the polygon: no viewpoint "
+                                                  "the fleet reaches sees any cell in it")
         with _stage("travel times", timing, progress):
             times = graph.time_matrix(viewpoints.xyz, client=client,
                                       progress=_fraction(progress, "travel times"))
@@ -117,6 +127,30 @@ def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, 
     with _stage("exposure", timing, progress):
         return compute_exposure(terrain, outposts, s.exposure_params(),
                                 progress=_fraction(progress, "exposure"))
+
+
+def area_of(s: Scenario, terrain, polygons=None):
+    """bool [rows, cols] of the cells inside ``s.area_file``'s polygon; None without one."""
+    if not s.area_file:
+        return None
+    inside = area_mask(terrain, polygons if polygons is not None else read_area(s.area_file))
+    if not inside.any():
+        raise InputError(s.area_file, "the polygon covers no cell of the terrain (outside the "
+                                      "DEM or the --area crop?)")
+    return inside
+
+
+def restrict_surface(surface, inside):
+    """The surface with nothing flyable outside ``inside`` (the polygon); what is
+    hidden (``lowest_seen``) is unchanged."""
+    from dataclasses import replace
+
+    from scipy import ndimage
+
+    flyable = surface.flyable & inside
+    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
+    return replace(surface, exposure=np.where(flyable, surface.exposure, np.nan),
+                   flyable=flyable, regions=regions.astype(np.int32))
 
 
 def _fraction(progress, stage):

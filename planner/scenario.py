@@ -25,6 +25,8 @@ class Scenario:
     dem: list = field(default_factory=list)  # DEM files (GeoTIFF, .hgt); empty with sample = true
     sample: bool = False  # the built-in terrain and outposts
     area: Optional[tuple] = None  # (south, west, north, east) degrees
+    area_file: Optional[str] = None  # polygon (GeoJSON, KML, KMZ): targets only inside it
+    area_flight: bool = False  # and flight too: nothing flown outside the polygon
     resolution_m: Optional[float] = None  # default: the DEM's own spacing
     geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
     # [outposts]
@@ -72,6 +74,8 @@ class Scenario:
             (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
             (self.time_budget_s is None or _positive(self.time_budget_s),
              f"time_budget_s must be a positive number, got {self.time_budget_s}"),
+            (self.area_file or not self.area_flight,
+             "area_flight restricts flight to the area_file polygon: give area_file too"),
             (len(self.launch) in (0, 1, self.uavs),
              f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
              f"got {len(self.launch)}"),
@@ -146,7 +150,8 @@ def _positive(x) -> bool:
 
 # TOML section of each field; a key may also stand at the top level.
 SECTIONS = {
-    "terrain": ("dem", "sample", "area", "resolution_m", "geoid_offset_m"),
+    "terrain": ("dem", "sample", "area", "area_file", "area_flight", "resolution_m",
+                "geoid_offset_m"),
     "outposts": ("outposts",),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
@@ -186,8 +191,9 @@ def read_scenario(path) -> dict:
     if isinstance(values.get("dem"), str):
         values["dem"] = [values["dem"]]
     values["dem"] = [str(_resolve(path, p)) for p in values.get("dem", [])]
-    if values.get("outposts"):
-        values["outposts"] = str(_resolve(path, values["outposts"]))
+    for name in ("outposts", "area_file"):
+        if values.get(name):
+            values[name] = str(_resolve(path, values[name]))
     if values.get("area") is not None:
         values["area"] = tuple(float(v) for v in values["area"])
     if values.get("launch"):

@@ -81,21 +81,68 @@ def test_missions_follow_the_profile(name):
     assert (math.isnan(yaw) and math.isnan(p.yaw)) or yaw == p.yaw
 
 
+def _as_ardupilot_reads_back(item):
+    """What ArduPilot 4.7 SITL sent back for the items of our missions (observed):
+    DO commands in frame 0 with x, y, z zero (DO_DIGICAM_CONTROL keeps x, y),
+    NAV_LAND's param4 as 1, params a command does not store as 0, altitudes cut to
+    whole centimetres."""
+    wire = item.to_int()
+    if not item.is_position:
+        wire["frame"] = FRAME_GLOBAL
+        if item.command != 203:
+            wire["x"] = wire["y"] = 0
+        wire["z"] = 0.0
+    else:
+        wire["z"] = math.floor(wire["z"] * 100) / 100
+    if item.command == 21:
+        wire["param4"] = 1.0
+    if item.command in (16, 21, 22):
+        wire["param2"] = wire["param3"] = 0.0
+    if item.command == 16:
+        wire["param1"] = float(int(wire["param1"]))
+    return MissionItem.from_int(SimpleNamespace(**wire))
+
+
 def test_read_back_compares_the_fields_each_firmware_keeps():
-    items = vehicle_mission(_route(), "ardupilot", MissionOptions(speed_mps=5.0)).items
-    back = []
-    for it in items:                  # as MISSION_ITEM_INT brings it back from ArduPilot
-        wire = it.to_int()
-        if not it.is_position:
-            wire["frame"] = FRAME_GLOBAL                      # DO commands in frame 0
-        back.append(MissionItem.from_int(SimpleNamespace(**wire)))
+    items = vehicle_mission(_route(), "ardupilot", MissionOptions(speed_mps=5.0, hold_s=2.5)
+                            ).items
+    back = [_as_ardupilot_reads_back(it) for it in items]
     back[0].x += 0.001                                        # the real home
     assert compare(items, back, "ardupilot") == []
     assert compare(items, back, "px4") != []                  # PX4 keeps every frame
+    assert any("frame 2 != 0" in p for p in compare(items, back, None))
     speed = next(it for it in back if it.command == 178)
     speed.param2 += 1.0                                       # a kept field still counts
     problems = compare(items, back, "ardupilot")
     assert len(problems) == 1 and "param2" in problems[0]
+    speed.param2 -= 1.0
+    land = back[-1]
+    land.z += 0.02                                            # 2 cm are kept
+    assert "z " in compare(items, back, "ardupilot")[0]
+
+
+def test_ardupilot_read_back_is_what_its_storage_keeps():
+    ap = profile("ardupilot")
+    wire = {"seq": 3, "frame": 2, "command": 203, "current": 0, "autocontinue": 1,
+            "param1": 0.0, "param2": 0.0, "param3": 0.0, "param4": 0.0, "x": 1, "y": 0,
+            "z": 7.0, "mission_type": 0}
+    back = ap.read_back(wire)
+    assert (back["frame"], back["x"], back["z"]) == (0, 1, 0.0)
+    wp = dict(wire, command=16, frame=0, param1=2.7, param2=3.0, param4=float("nan"),
+              x=365519720, y=-842666433, z=575.9439086914062)
+    back = ap.read_back(wp)
+    assert (back["param1"], back["param2"], back["param4"]) == (2.0, 0.0, 0.0)
+    assert back["z"] == 575.94 and back["x"] == wp["x"]
+    assert ap.read_back(dict(wp, seq=0)) is None                 # home
+    assert ap.read_back(dict(wp, command=21, param4=-3.0))["param4"] == -1.0
+    assert profile("px4").read_back(wp) == wp
+
+
+def test_capacity_is_learned_from_what_the_vehicle_says():
+    assert profile("ardupilot").capacity_said("Only 650 items are supported") == 650
+    assert profile("ardupilot").capacity_said("Flight plan received") is None
+    assert profile("px4").capacity_said("Only 650 items are supported") is None
+    assert "BRD_SD_MISSION" in profile("ardupilot").capacity_advice
 
 
 def _imports(path: Path) -> set:

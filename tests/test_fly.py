@@ -146,3 +146,30 @@ def test_cli_dry_run_with_a_kill(plan_dir, tmp_path):
         assert abs(track.alt[-1] - track.home[2]) < 1.0
     assert read_track(track_path(out / "tracks", 2)).killed_at is not None
     assert wall < 60
+
+
+def test_an_item_reached_means_every_waypoint_before_it_was(plan_dir):
+    """PX4 reports a waypoint followed by its camera command with the camera's
+    number, and only the latest of several items reached between two reports:
+    every waypoint up to the item reported counts as reached, snapshots with it."""
+    plan = Plan.load(plan_dir)
+    route = plan.vehicles[0]
+    m = Monitor(lost_after_s=5.0)
+    link = _FakeLink(1)
+    # takeoff, speed, then waypoints 0..5 each followed by a camera command
+    of_item = [None, None]
+    for i in range(6):
+        of_item += [i, None]
+    m.follow(link, route.id, route, SimpleNamespace(items=[], waypoint_of_item=of_item))
+
+    def reached(seq):
+        link._send(SimpleNamespace(seq=seq, get_type=lambda: "MISSION_ITEM_REACHED"))
+
+    reached(3)                           # the camera after waypoint 0
+    assert m.vehicles[1].done == {0}
+    reached(9)                           # 5 and 7 never reported: waypoints 1-3 reached
+    assert m.vehicles[1].done == {0, 1, 2, 3}
+    snapshots = [i for i in range(4) if route.waypoints[i].snapshot]
+    assert [s.waypoint for s in m.vehicles[1].snapshots] == snapshots
+    reached(9)                           # repeated reports change nothing
+    assert len(m.vehicles[1].snapshots) == len(snapshots)

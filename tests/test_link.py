@@ -47,6 +47,29 @@ def wait_until(predicate, timeout=5.0):
 
 
 # -- finding vehicles ------------------------------------------------------------------
+def test_a_lost_stream_request_is_sent_again(fleet_of, monkeypatch):
+    """ArduPilot streams nothing until asked; when that request is lost (a radio
+    drops packets) the ground station asks again on a later HEARTBEAT."""
+    from gcs.link import VehicleLink
+
+    asked = []
+    real = VehicleLink.request_streams
+
+    def first_one_lost(self, *a, **kw):
+        asked.append(time.monotonic())
+        if len(asked) == 1:
+            self._asked_at = time.monotonic()    # sent, and lost on the way
+            return
+        real(self, *a, **kw)
+
+    monkeypatch.setattr(VehicleLink, "request_streams", first_one_lost)
+    fleet = fleet_of(fleet_config("ardupilot", 1))
+    with GroundLink.open(fleet.urls(), expect=1, timeout_s=10) as link:
+        v = link.vehicles[1]
+        assert wait_until(lambda: v.state.lat is not None, timeout=10.0)
+        assert len(asked) >= 2
+
+
 @pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
 def test_vehicles_found_by_heartbeat(fleet_of, firmware):
     fleet = fleet_of(fleet_config(firmware, 3))
@@ -244,3 +267,26 @@ def test_tlog_replays_with_pymavlink(fleet_of, tmp_path):
         assert {"HEARTBEAT", "GLOBAL_POSITION_INT", "SYS_STATUS"} <= kinds
         assert t0 - 0.1 <= stamps[0] <= stamps[-1] <= t1 + 0.1
         assert stamps == sorted(stamps)
+
+
+def test_what_a_real_autopilot_sends_is_read_as_it_means():
+    """PX4 sends a STATUSTEXT longer than 50 characters in chunks (same id,
+    chunk_seq 0, 1, ...): one text. ArduPilot's GLOBAL_POSITION_INT reads 0, 0
+    until its EKF has an origin: no position yet."""
+    from gcs.link import VehicleState, _update_state
+
+    s = VehicleState()
+    text = "Preflight Fail: ekf2 missing data, waiting for a GPS fix and a heading"
+    for seq, start in enumerate(range(0, len(text), 50)):
+        _update_state(s, build_message("STATUSTEXT", {"severity": 4, "text": text[start:start + 50].encode(),
+                                                      "id": 7, "chunk_seq": seq}), "px4", 2)
+    _update_state(s, build_message("STATUSTEXT", {"severity": 6, "text": b"Takeoff detected"}),
+                  "px4", 2)
+    assert s.statustext == [(4, text), (6, "Takeoff detected")]
+    _update_state(s, build_message("GLOBAL_POSITION_INT", {"lat": 0, "lon": 0, "alt": 0}),
+                  "ardupilot", 2)
+    assert s.lat is None and s.alt_amsl is None
+    _update_state(s, build_message("GLOBAL_POSITION_INT", {"lat": 365519720, "lon": -842666433,
+                                                           "alt": 477600, "hdg": 65535}),
+                  "ardupilot", 2)
+    assert (round(s.lat, 7), s.alt_amsl) == (36.551972, 477.6)

@@ -17,6 +17,7 @@ from hypothesis import strategies as st
 
 from common.errors import InputError
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
+from missions import wpl
 from missions.build import MissionOptions, plan_missions, vehicle_mission
 from missions.check import check_mission, check_structure
 from missions.export import export_plan_dir
@@ -204,11 +205,52 @@ def _loader_items(path):
     return [MissionItem.from_int(loader.wp(i)) for i in range(loader.count())]
 
 
-def test_waypoints_read_by_pymavlink(exported):
+def _file_lines(plan, m):
+    """What a .waypoints file holds for mission ``m``: line 0 home (the launch point)."""
+    launch = next(v.launch for v in plan.vehicles if v.id == m.vehicle_id)
+    return wpl.file_items(m.items, m.firmware, (launch.lat, launch.lon, launch.alt_amsl))
+
+
+def test_waypoints_read_by_pymavlink(exported, plan):
     for firmware, (directory, _, missions) in exported.items():
         for m in missions:
             got = _loader_items(directory / f"vehicle-{m.vehicle_id}.waypoints")
-            assert first_difference(m.items, got) is None, firmware
+            assert first_difference(_file_lines(plan, m), got) is None, firmware
+
+
+def test_waypoints_line0_is_home_for_every_firmware(exported, plan):
+    """QGroundControl's WPL loader takes line 0 for home: every file starts with the
+    launch point at ground altitude, and the PX4 takeoff is line 1, not home."""
+    for firmware, (directory, _, missions) in exported.items():
+        for m in missions:
+            launch = next(v.launch for v in plan.vehicles if v.id == m.vehicle_id)
+            lines = read_waypoints(directory / f"vehicle-{m.vehicle_id}.waypoints")
+            home = lines[0]
+            assert (home.seq, home.command, home.frame) == (0, 16, 0), firmware
+            assert (home.x, home.y, home.z) == pytest.approx(
+                (launch.lat, launch.lon, launch.alt_amsl), abs=1e-7), firmware
+            assert lines[1].command == 22, firmware         # NAV_TAKEOFF: never home
+            assert [it.seq for it in lines] == list(range(len(lines)))
+
+
+def test_waypoints_old_px4_layout_still_read(exported, tmp_path):
+    """A PX4 file of the old layout (line 0 the takeoff, no home line) gives the same
+    PX4 mission; ArduPilot, whose missions start with home, refuses it by name."""
+    directory, _, missions = exported["px4"]
+    m = missions[0]
+    old = tmp_path / "old.waypoints"
+    wpl.write_waypoints(old, m.items)                 # the lines as given: no home line
+    assert read_waypoints(old)[0].command == 22
+    assert first_difference(m.items, read_waypoints(old, "px4")) is None
+    with pytest.raises(InputError, match="old.waypoints: line 2 is not a home position"):
+        read_waypoints(old, "ardupilot")
+    new = directory / f"vehicle-{m.vehicle_id}.waypoints"
+    assert first_difference(m.items, read_waypoints(new, "px4")) is None
+    # an ArduPilot file read for PX4 loses its home item, and the reverse gains one
+    a = exported["ardupilot"][2][0]
+    path = exported["ardupilot"][0] / f"vehicle-{a.vehicle_id}.waypoints"
+    px4 = read_waypoints(path, "px4")
+    assert first_difference(renumber(copy.deepcopy(a.items[1:])), px4) is None
 
 
 def _free_udp_port() -> int:
@@ -267,19 +309,20 @@ def test_plan_read_by_mavsdk(exported, mavsdk_importer, plan):
                                                                          abs=1e-7)
 
 
-def test_waypoints_read_by_mavsdk(exported, mavsdk_importer):
+def test_waypoints_read_by_mavsdk(exported, mavsdk_importer, plan):
     for firmware, (directory, _, missions) in exported.items():
         for m in missions:
             path = directory / f"vehicle-{m.vehicle_id}.waypoints"
             data = mavsdk_importer.import_mission_planner_mission(str(path))
-            assert first_difference(m.items, _mavsdk_items(data.mission_items)) is None
+            got = _mavsdk_items(data.mission_items)
+            assert first_difference(_file_lines(plan, m), got) is None, firmware
 
 
 def test_our_readers_read_our_files(exported):
     for firmware, (directory, _, missions) in exported.items():
         for m in missions:
             assert first_difference(m.items, read_waypoints(
-                directory / f"vehicle-{m.vehicle_id}.waypoints")) is None
+                directory / f"vehicle-{m.vehicle_id}.waypoints", firmware)) is None
             assert first_difference(m.items, read_plan_file(
                 directory / f"vehicle-{m.vehicle_id}.plan")) is None
 
@@ -444,9 +487,10 @@ def test_round_trip_random_routes(route, firmware, hold, speed):
     with tempfile.TemporaryDirectory() as tmp:
         plan_path, wp_path = Path(tmp) / "v.plan", Path(tmp) / "v.waypoints"
         qgc.write_plan_file(plan_path, mission, speed, home=home)
-        wpl.write_waypoints(wp_path, mission.items)
-        for back in (qgc.read_plan_file(plan_path), wpl.read_waypoints(wp_path),
-                     _loader_items(wp_path)):
+        wpl.write_waypoints(wp_path, mission.items, firmware, home)
+        lines = wpl.file_items(mission.items, firmware, home)
+        assert first_difference(lines, _loader_items(wp_path)) is None
+        for back in (qgc.read_plan_file(plan_path), wpl.read_waypoints(wp_path, firmware)):
             assert first_difference(mission.items, back) is None
             # lossless against the route itself: 1e-7 degrees, 1 cm
             for seq, index in enumerate(mission.waypoint_of_item):

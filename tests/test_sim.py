@@ -41,9 +41,14 @@ pytestmark = pytest.mark.timeout(60)
 class Client:
     """A pymavlink connection that keeps a log of everything it read."""
 
-    def __init__(self, url: str):
+    def __init__(self, url: str, streams=True):
         self.m = mavutil.mavlink_connection(url, source_system=250, source_component=190)
         self.log = []
+        if streams:        # ArduPilot streams only what a ground station asks for
+            self.request_streams()
+
+    def request_streams(self):
+        self.m.mav.request_data_stream_send(0, 0, M.MAV_DATA_STREAM_ALL, 4, 1)
 
     def close(self):
         self.m.close()
@@ -227,6 +232,35 @@ def test_ardupilot_banner_heartbeat_and_endpoints():
         fleet.stop()
 
 
+def test_ardupilot_boots_like_its_sitl():
+    """ArduPilot SITL starts when the first client connects; it sends HEARTBEAT
+    only until streams are asked for; GLOBAL_POSITION_INT reads 0, 0 until the
+    EKF has an origin, and arming waits for readiness: all on the firmware's
+    boot times divided by the speedup (45 s to armable, here 2.25 s at 20x)."""
+    base = free_base_port()
+    fleet = SimFleet(FleetConfig(base_port=base, speedup=20.0, no_space_s=0.0)).start()
+    try:
+        time.sleep(1.0)                                  # nobody connected: not booted
+        assert fleet.vehicles[0].boot_wall is None
+        c = Client(fleet.urls()[0], streams=False)
+        t0 = time.monotonic()
+        quiet = {m.get_type() for m in c.pump(0.4)}
+        assert quiet <= {"HEARTBEAT", "STATUSTEXT"} and "HEARTBEAT" in quiet
+        c.request_streams()
+        first = c.wait("GLOBAL_POSITION_INT")
+        assert (first.lat, first.lon) == (0, 0)          # no EKF origin yet
+        assert c.command(1, M.MAV_CMD_DO_SET_MODE, 1, 4) == M.MAV_RESULT_ACCEPTED
+        assert c.command(1, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_FAILED
+        c.wait("GLOBAL_POSITION_INT", lambda g: g.lat != 0)
+        assert time.monotonic() - t0 >= 20.0 / 20 - 0.1
+        wait_ready(c)
+        assert time.monotonic() - t0 >= 45.0 / 20 - 0.1
+        assert c.command(1, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        c.close()
+    finally:
+        fleet.stop()
+
+
 def test_too_fast_for_the_machine_slows_mission_time_not_the_link():
     """At a speedup no machine keeps up with, a vehicle still streams at
     wall-clock rates (a ground station must not judge it lost), and mission
@@ -305,9 +339,15 @@ def test_ardupilot_mission_protocol_quirks():
         assert len(got) == len(items)
         assert (got[0].x, got[0].y, got[0].z) == (e7(HOME[0]), e7(HOME[1]), HOME[2])
         for sent, item in zip(items[1:], got[1:]):
-            assert (item.frame, item.command, item.param1, item.param3, item.x, item.y,
-                    item.z) == (sent[0], sent[1], sent[2], sent[4], sent[6], sent[7],
-                                pytest.approx(sent[8]))
+            do = sent[1] >= M.MAV_CMD_NAV_LAST          # kept in frame 0, as ArduPilot does
+            assert (item.frame, item.command, item.param1, item.x, item.y) == \
+                (0 if do else sent[0], sent[1], sent[2], sent[6], sent[7])
+            assert item.z == (0.0 if do else pytest.approx(sent[8]))
+            if sent[1] == M.MAV_CMD_IMAGE_START_CAPTURE:
+                assert item.param3 == sent[4]
+        # Longer than ArduPilot SITL's 650 items: refused at once, and it says why.
+        assert c.upload(1, [items[2]] * 651)[0] == M.MAV_MISSION_NO_SPACE
+        c.said(lambda t: t == "Only 650 items are supported")
         # A new upload keeps the current index (ArduPilot resumes where it was).
         c.m.mav.mission_set_current_send(1, 1, 4)
         c.wait("MISSION_CURRENT", lambda m: m.seq == 4)
@@ -430,7 +470,9 @@ def test_px4_over_udp():
         c.wait("HEARTBEAT", lambda h: h.system_status == M.MAV_STATE_ACTIVE)
         c.wait("HEARTBEAT", lambda h: not h.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED,
                timeout=30)
-        assert [r.seq for r in c.seen("MISSION_ITEM_REACHED")] == [0, 1, 2, 3]
+        # as PX4 1.17 SITL does: a waypoint followed by DO commands is reported once
+        # they are done, with the number of the last
+        assert [r.seq for r in c.seen("MISSION_ITEM_REACHED")] == [0, 2, 3]
         shots = c.seen("CAMERA_IMAGE_CAPTURED")
         assert len(shots) == 1
         dist = GEOD.inv(shots[0].lon * 1e-7, shots[0].lat * 1e-7, a[1], a[0])[2]

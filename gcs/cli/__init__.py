@@ -1,7 +1,7 @@
 """The `gcs` command line: a thin layer, one module per command.
 
 Each command module defines ``HELP`` (one line), ``add_arguments(parser)`` and
-``run(args) -> int``. Bad input raises `planner.errors.InputError`, which is
+``run(args) -> int``. Bad input raises `common.errors.InputError`, which is
 printed as one line with exit status 2.
 """
 

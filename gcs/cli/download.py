@@ -71,9 +71,9 @@ def _write(output: Path, vehicle, items, home) -> None:
     from missions import qgc, wpl
     from missions.build import VehicleMission
 
-    if output.suffix.lower() == ".waypoints":
-        wpl.write_waypoints(output, items)
-        return
     autopilot = vehicle.profile or profile(PX4)     # a generic autopilot: no home item
+    if output.suffix.lower() == ".waypoints":       # line 0 home, as QGroundControl's
+        wpl.write_waypoints(output, items, autopilot.name, home=home)
+        return
     mission = VehicleMission(vehicle.sysid, autopilot.name, items, [None] * len(items))
     qgc.write_plan_file(output, mission, home=None if autopilot.home_item else home)

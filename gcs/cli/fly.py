@@ -6,6 +6,7 @@ from pathlib import Path
 from autopilots import ARDUPILOT, NAMES
 from common.errors import InputError
 from gcs.cli.options import (
+    add_connect_timeout,
     add_protocol_arguments,
     check_urls,
     parse_assignments,
@@ -30,15 +31,29 @@ def add_arguments(parser) -> None:
     parser.add_argument("--assign", action="append", default=[], metavar="SYSID=VEHICLE",
                         help="fly plan vehicle VEHICLE with system id SYSID (repeatable; "
                              "none: system ids in ascending order take vehicles 1..n)")
-    parser.add_argument("--connect-timeout", type=float, default=30.0, metavar="S",
-                        help="wait this long for every vehicle's HEARTBEAT")
+    add_connect_timeout(parser)
     parser.add_argument("--ready-timeout", type=float, default=60.0, metavar="S",
                         help="wait this long for pre-arm readiness (EKF/GPS)")
     add_protocol_arguments(parser)
     parser.add_argument("--timeout", type=float, metavar="S",
                         help="stop monitoring after S wall seconds (default: until every "
                              "vehicle has landed or is lost)")
+    parser.add_argument("--max-items", type=int, metavar="N",
+                        help="upload at most N mission items at a time: longer routes fly in "
+                             "segments, the next uploaded in flight (default: as many as each "
+                             "vehicle holds, learned when it refuses more)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
+    view = parser.add_argument_group("watching the flight elsewhere")
+    view.add_argument("--forward", action="append", default=[], metavar="URL",
+                      help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
+                           "--out (QGroundControl: udpout:127.0.0.1:14550; a router: "
+                           "tcp:HOST:PORT); what comes back from there is dropped")
+    view.add_argument("--map", nargs="?", const="", metavar="HOST:PORT",
+                      help="serve a live map of the flight to a web browser (offline: the "
+                           "plan's own terrain, no tiles) on 127.0.0.1:8750, or HOST:PORT")
+    view.add_argument("--forward-commands", action="store_true",
+                      help="pass what the forwarded side sends on to the vehicles (a second "
+                           "station can then command them, and fight the re-tasking)")
     sim = parser.add_argument_group("dry run with the built-in simulated vehicles")
     sim.add_argument("--sim", type=int, metavar="N",
                      help="start N simulated vehicles with homes at the plan's launch points "
@@ -54,6 +69,10 @@ def add_arguments(parser) -> None:
                      help="first simulator port; none = 5760 (ArduPilot TCP), 18570 (PX4 UDP)")
     sim.add_argument("--sim-gcs-port", type=int, default=14550, metavar="P",
                      help="PX4 flavour: UDP port the simulated vehicles send to")
+    sim.add_argument("--sim-capacity", type=int, metavar="N",
+                     help="mission items each simulated vehicle holds (default: the "
+                          "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
+                          "segments")
 
 
 def options_from_args(args):
@@ -62,6 +81,8 @@ def options_from_args(args):
     if not args.lost_after > 0:
         raise InputError("--lost-after", f"must be positive, got {args.lost_after}")
     protocol = protocol_from_args(args)
+    if args.max_items is not None and args.max_items < 1:
+        raise InputError("--max-items", f"must be at least 1, got {args.max_items}")
     key = None
     if args.signing_key:
         from gcs.signing import load_key
@@ -71,7 +92,7 @@ def options_from_args(args):
                       connect_timeout_s=args.connect_timeout,
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
                       protocol_timeout_s=protocol["timeout_s"],
-                      protocol_retries=protocol["retries"],
+                      protocol_retries=protocol["retries"], max_items=args.max_items,
                       tlog=not args.no_tlog)
 
 
@@ -87,6 +108,9 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim", "need at least one vehicle")
     if args.speedup <= 0:
         raise InputError("--speedup", "must be positive")
+    if args.sim_capacity is not None and args.sim_capacity < 1:
+        raise InputError("--sim-capacity", f"must be at least 1, got {args.sim_capacity}")
+    capacity = {} if args.sim_capacity is None else {"mission_capacity": args.sim_capacity}
     faults = {}
     for text in args.kill:
         sysid, at_s, at_item = parse_kill(text)
@@ -96,12 +120,49 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     try:
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
             "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
-            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks",
+            gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
     except ValueError as exc:
         raise InputError("--sim", str(exc)) from None
     except OSError as exc:
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
+
+
+def start_map(flight, args):
+    """The live map of --map (None without), serving before any vehicle is contacted."""
+    if args.map is None:
+        return None
+    from gcs.livemap import LiveMap, parse_address
+
+    try:
+        host, port = parse_address(args.map)
+    except ValueError as exc:
+        raise InputError("--map", str(exc)) from None
+    area = None
+    area_file = flight.plan.params.get("area_file")
+    if area_file and Path(area_file).is_file():
+        from planner.terrain.area import read_area
+        area = read_area(area_file)
+    try:
+        live = LiveMap(flight, flight.ctx, host, port, area).start()
+    except OSError as exc:
+        raise InputError("--map", f"cannot serve on {host}:{port}: {exc.strerror}") from None
+    print(f"live map: {live.url}", file=sys.stderr, flush=True)
+    return live
+
+
+def forwarder(args):
+    """The `gcs.forward.Forwarder` of --forward URLs (None without); opened now, so a
+    URL that cannot be opened is bad input before any vehicle is contacted."""
+    if not args.forward:
+        return None
+    from gcs.forward import Forwarder
+    from gcs.link import LinkError
+
+    try:
+        return Forwarder(args.forward, args.forward_commands)
+    except LinkError as exc:
+        raise InputError("--forward", str(exc)) from None
 
 
 def run(args) -> int:
@@ -110,23 +171,33 @@ def run(args) -> int:
     from gcs.progress import console
 
     check_urls(args.connect)
+    check_urls(args.forward, "--forward")
     if not args.connect and not args.sim:
         raise InputError("--connect", "give at least one --connect URL (or --sim N)")
+    if args.forward_commands and not args.forward:
+        raise InputError("--forward-commands", "give --forward URL too")
     options = options_from_args(args)
     live = console.is_terminal
     flight = Flight(args.plan_dir, list(args.connect), options,
                     log=(lambda text: None) if live else
                     (lambda text: print(text, file=sys.stderr, flush=True)))
     flight.prepare()                  # the plan read and every mission proven: no link yet
-    fleet = None
-    if args.sim:
-        plan = flight.plan
-        fleet = sim_fleet(plan, args.plan_dir, args, options.output)
-        flight.urls = flight.urls or fleet.urls()
-        if options.timeout_s is None:
-            longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
-            options.timeout_s = 120.0 + 4.0 * longest / args.speedup
+    options.forward = forwarder(args)
     try:
+        live_map = start_map(flight, args)
+    except InputError:
+        if options.forward is not None:
+            options.forward.close()
+        raise
+    fleet = None
+    try:
+        if args.sim:
+            plan = flight.plan
+            fleet = sim_fleet(plan, args.plan_dir, args, options.output)
+            flight.urls = flight.urls or fleet.urls()
+            if options.timeout_s is None:
+                longest = max((v.mission_time_s for v in plan.vehicles), default=0.0)
+                options.timeout_s = 120.0 + 4.0 * longest / args.speedup
         report = fly_flight(flight, live)
     except FlightError as exc:
         print(f"gcs fly: error: {exc} (see {Path(options.output) / 'flight.json'})",
@@ -135,6 +206,11 @@ def run(args) -> int:
     finally:
         if fleet is not None:
             fleet.stop()
+        if options.forward is not None:
+            options.forward.close()
+            print(options.forward.summary(), file=sys.stderr)
+        if live_map is not None:
+            live_map.stop()
     summary(report, options.output)
     return 0 if report["outcome"]["ok"] else 1
 

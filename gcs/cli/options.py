@@ -85,6 +85,11 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                          help="use the built-in terrain (USGS Jacksboro DEM) and outposts")
     terrain.add_argument("--area", type=str, metavar="S,W,N,E",
                          help="crop to this area of operations, degrees")
+    terrain.add_argument("--area-file", metavar="FILE",
+                         help="area of operations as a polygon (GeoJSON Polygon / MultiPolygon, "
+                              "KML or KMZ): only terrain inside it is a target")
+    terrain.add_argument("--area-flight", action="store_true", default=None,
+                         help="with --area-file: fly only inside the polygon too")
     terrain.add_argument("--outposts", metavar="GEOJSON",
                          help="outposts: GeoJSON Points with height_m and optional range_m")
     for name in ("resolution_m", "geoid_offset_m"):
@@ -158,9 +163,19 @@ def add_connection_arguments(parser) -> None:
                         help="MAVLink 2 signing key: a 32-byte file, or a text file holding a "
                              "passphrase (SHA-256, as MAVProxy's 'signing setup'); "
                              "none: nothing is signed")
-    parser.add_argument("--connect-timeout", type=float, default=15.0, metavar="S",
-                        help="seconds (wall clock) to wait for the vehicles' HEARTBEATs")
+    add_connect_timeout(parser)
     add_protocol_arguments(parser)
+
+
+#: wall seconds to wait for the vehicles' HEARTBEATs: one value for upload, download and fly
+CONNECT_TIMEOUT_S = 30.0
+
+
+def add_connect_timeout(parser) -> None:
+    """--connect-timeout: the same flag and default for every command that connects."""
+    parser.add_argument("--connect-timeout", type=float, default=CONNECT_TIMEOUT_S, metavar="S",
+                        help="seconds (wall clock) to wait for every vehicle's HEARTBEAT "
+                             f"(default: {CONNECT_TIMEOUT_S:g})")
 
 
 def add_protocol_arguments(parser) -> None:

@@ -44,8 +44,15 @@ def add_arguments(parser) -> None:
                          help="descent rate limit")
     vehicle.add_argument("--accel", type=float, default=defaults.accel_mps2, metavar="M/S2",
                          help="horizontal acceleration limit")
-    vehicle.add_argument("--warmup", type=float, default=2.0, metavar="S",
-                         help="wall seconds of GPS/EKF warm-up before arming is allowed")
+    vehicle.add_argument("--warmup", type=float, default=None, metavar="S",
+                         help="wall seconds of GPS/EKF warm-up before arming is allowed "
+                              "(default: the firmware's SITL, sped up: ArduPilot GPS 10 s, "
+                              "position 20 s, armable 45 s after the first client connects; "
+                              "PX4 1.5, 2 and 5 s after start; divided by --speedup)")
+    vehicle.add_argument("--capacity", type=int, default=None, metavar="N",
+                         help="mission items a vehicle holds, home included; longer uploads "
+                              "are refused with MAV_MISSION_NO_SPACE (default: the "
+                              "firmware's: ArduPilot 650, PX4 no limit; 0 = no limit)")
     vehicle.add_argument("--auto-disarm", type=float, default=10.0, metavar="S",
                          help="disarm after S mission seconds armed and idle on the ground "
                               "(0 = never)")
@@ -145,6 +152,10 @@ def config_from_args(args):
         plan(sysid, "--cut").cuts.append((start, seconds))
     for sysid in args.refuse_arm:
         plan(sysid, "--refuse-arm").refuse_arm = True
+    if args.capacity is not None and args.capacity < 0:
+        raise InputError("--capacity", f"must not be negative, got {args.capacity}")
+    if args.warmup is not None and args.warmup < 0:
+        raise InputError("--warmup", f"must not be negative, got {args.warmup}")
     limits = Limits(args.speed, args.climb, args.descent, args.accel)
     if min(limits.speed_mps, limits.climb_mps, limits.descent_mps, limits.accel_mps2) <= 0:
         raise InputError("--speed/--climb/--descent/--accel", "limits must be positive")
@@ -152,6 +163,7 @@ def config_from_args(args):
         vehicles=args.vehicles, firmware=args.firmware, home=home,
         homes=homes, speedup=args.speedup, base_port=args.base_port, gcs_port=args.gcs_port,
         bind_host=args.bind, limits=limits, warmup_s=args.warmup,
+        **({} if args.capacity is None else {"mission_capacity": args.capacity or None}),
         auto_disarm_s=args.auto_disarm, camera=not args.no_camera,
         auto_options=args.auto_options, drop_pct=args.drop, faults=faults,
         track_dir=args.track_dir, seed=args.seed, terrain=terrain,
@@ -205,7 +217,7 @@ def _describe(fleet) -> None:
         else:
             where = f"UDP {c.bind_host}:{port} -> 127.0.0.1:{c.gcs_port}"
         lat, lon, alt = v.cfg.home
-        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g}")
+        print(f"vehicle {v.sysid} ({c.firmware}): {where}  home {lat:.6f},{lon:.6f},{alt:g} m AMSL")
     print("connect with: " + " ".join(f"--connect {u}" for u in fleet.urls()))
     print(f"speedup x{c.speedup:g}; Ctrl-C stops", flush=True)
 

@@ -139,8 +139,13 @@ def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
         result["items"] = len(mission)
         task = bars.add_task(f"vehicle {vehicle.sysid} <- route {route.id}",
                              total=2 * len(mission))
-        mp.upload_verified(vehicle, mission, **protocol,
-                           progress=lambda done, total: bars.update(task, completed=done))
+        try:
+            mp.upload_verified(vehicle, mission, **protocol,
+                               progress=lambda done, total: bars.update(task, completed=done))
+        except mp.MissionError as exc:
+            if exc.result != mp.M.MAV_MISSION_NO_SPACE:
+                raise
+            result["error"] = _too_long(vehicle, len(mission), exc, protocol)
     except (mp.MissionError, InputError) as exc:
         result["error"] = str(exc)
     result["seconds"] = time.monotonic() - t0
@@ -149,6 +154,23 @@ def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
         print(f"vehicle {vehicle.sysid}: route {route.id}, {result['items']} items, {state}",
               file=sys.stderr, flush=True)
     return result
+
+
+def _too_long(vehicle, items: int, refused, protocol) -> str:
+    """A mission longer than the vehicle holds: how many it holds (what it said, or
+    found by asking), and how to fly it anyway."""
+    from gcs import mission_protocol as mp
+
+    try:
+        capacity = mp.learn_capacity(vehicle, items, refused.capacity, **protocol)
+        how = "it said so" if refused.capacity else "found by asking"
+        holds = f"the vehicle holds {capacity} mission items ({how})"
+    except mp.MissionError:
+        holds = "the vehicle has no room for it (MAV_MISSION_NO_SPACE)"
+    advice = getattr(vehicle.profile, "capacity_advice", "")
+    return (f"vehicle {vehicle.sysid}: the mission has {items} items and {holds}: "
+            f"`gcs fly` flies it in segments, uploading the next in flight"
+            + (f"; or {advice}" if advice else ""))
 
 
 def _summary(results):

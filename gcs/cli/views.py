@@ -95,10 +95,15 @@ def ask(view, why: str) -> str:
     return choice
 
 
+ALT_COLUMN = "alt above home"
+
+
 def status_table(rows) -> Table:
     table = Table(title="vehicles", expand=False)
-    for col in ("sysid", "UAV", "mode", "item", "mission", "snapshots", "alt", "heartbeat",
-                "battery", "state"):
+    # "alt" is GLOBAL_POSITION_INT.relative_alt: above home (QGroundControl's "Alt (Rel)"),
+    # negative over valleys lower than the launch point
+    for col in ("sysid", "UAV", "mode", "item", "mission", "snapshots", ALT_COLUMN,
+                "heartbeat", "battery", "state"):
         table.add_column(col, justify="right")
     for r in rows:
         style = {"lost": "red", "landed": "green", "holding": "yellow"}.get(r["state"], "")

@@ -24,12 +24,23 @@ MANUAL, GUIDED, AUTO, RTL, LAND, TAKEOFF = "manual", "guided", "auto", "rtl", "l
 
 @dataclass(frozen=True)
 class Texts:
-    """STATUSTEXTs of a flavour: arming refusals and readiness."""
+    """STATUSTEXTs of a flavour: arming refusals, readiness, a mission too long."""
     refused: str                   # arming refused on request (--refuse-arm)
     no_gps: str
     no_ekf: str
     bad_mode: str
     ready: str
+    no_space: str | None = None    # with a NO_SPACE refusal, "{n}" the capacity
+
+
+@dataclass(frozen=True)
+class Boot:
+    """When a freshly started autopilot gets there, in simulated seconds (divided by
+    the speedup on the wall clock), as its SITL does: GPS fix, EKF origin (a
+    position in GLOBAL_POSITION_INT), ready to arm."""
+    gps_s: float
+    origin_s: float
+    ready_s: float
 
 
 @dataclass(frozen=True)
@@ -39,7 +50,8 @@ class Flavour:
     initial_mode: str
     armable: frozenset             # modes that allow arming (AUTO on ArduPilot: see AUTO_OPTIONS)
     legacy_request: bool           # asks for items with MISSION_REQUEST, not _INT (ArduPilot)
-    reached_do_items: bool         # MISSION_ITEM_REACHED also for DO commands (PX4)
+    reached_after_do_items: bool   # MISSION_ITEM_REACHED once the DO commands after a
+                                   # navigation item are done, with the last one's seq (PX4)
     resume_old_index: bool         # a new upload keeps the current index (ArduPilot)
     arm_in_auto_starts: bool       # arming in the mission mode takes off at once (PX4)
     start_needs_armed: bool        # MISSION_START is refused while disarmed (ArduPilot)
@@ -58,6 +70,13 @@ class Flavour:
     base_port: int                 # first SITL port
     port_step: int                 # between instances
     banner: bytes = b""            # plain text greeting the first TCP client
+    boot: Boot = Boot(1.0, 1.0, 2.0)
+    boot_on_connect: bool = False  # starts only when the first TCP client connects
+                                   # (ArduPilot SITL waits for it on SERIAL0)
+    streams_on_request: bool = False   # only HEARTBEAT until a ground station asks
+                                       # (REQUEST_DATA_STREAM / SET_MESSAGE_INTERVAL)
+    zero_position: bool = False    # GLOBAL_POSITION_INT reads 0, 0 until the EKF origin;
+                                   # else none is sent until then
     params: dict = field(default_factory=dict)
     modes: dict = field(default_factory=dict)    # mode name -> custom_mode (from the profile)
 
@@ -129,7 +148,7 @@ ARDUPILOT = Flavour(
     initial_mode="STABILIZE",
     armable=frozenset({"STABILIZE", "GUIDED", "LOITER"}),
     legacy_request=True,
-    reached_do_items=False,
+    reached_after_do_items=False,
     resume_old_index=True,
     arm_in_auto_starts=False,
     start_needs_armed=True,
@@ -142,13 +161,19 @@ ARDUPILOT = Flavour(
     version=(4, 7),
     texts=Texts(refused="PreArm: Simulated arming failure", no_gps="PreArm: GPS 1: Bad fix",
                 no_ekf="PreArm: EKF3 still initialising", bad_mode="Arm: Mode not armable",
-                ready="EKF3 IMU0 is using GPS"),
+                ready="EKF3 IMU0 is using GPS", no_space="Only {n} items are supported"),
     deny_result=mavlink.MAV_RESULT_FAILED,
     transport="tcp",
     base_port=5760,
     port_step=10,
     banner=(b"Init ArduCopter V4.7.0-dev (simulated)\r\n"
             b"Free RAM: 65535\r\nFrame: QUAD/PLUS\r\n"),
+    # ArduCopter 4.7 SITL at --speedup 1: GPS ~10 s, EKF origin ~20 s, arming in
+    # GUIDED accepted ~45 s after the first client connects
+    boot=Boot(gps_s=10.0, origin_s=20.0, ready_s=45.0),
+    boot_on_connect=True,
+    streams_on_request=True,
+    zero_position=True,
     params={"AUTO_OPTIONS": 0.0, "WPNAV_RADIUS": 200.0, "RTL_ALT": 1500.0,
             "DISARM_DELAY": 10.0},
 )
@@ -161,7 +186,7 @@ PX4 = Flavour(
     initial_mode="AUTO.LOITER",
     armable=frozenset({"MANUAL", "POSCTL", "AUTO.TAKEOFF", "AUTO.LOITER", "AUTO.MISSION"}),
     legacy_request=False,
-    reached_do_items=True,
+    reached_after_do_items=True,
     resume_old_index=False,
     arm_in_auto_starts=True,
     start_needs_armed=False,
@@ -181,6 +206,8 @@ PX4 = Flavour(
     transport="udp",
     base_port=18570,
     port_step=1,
+    # PX4 v1.17 SIH: HEARTBEAT ~1-2 s after start, arming accepted ~3-7 s
+    boot=Boot(gps_s=1.5, origin_s=2.0, ready_s=5.0),
     params={"NAV_ACC_RAD": 2.0, "RTL_RETURN_ALT": 15.0, "COM_DISARM_PRFLT": 10.0},
 )
 

@@ -21,7 +21,7 @@ from gcs.sim.faults import FaultPlan
 from gcs.sim.flavours import flavour
 from gcs.sim.physics import DEFAULT_HOME, Limits
 from gcs.sim.track import track_path
-from gcs.sim.vehicle import SimVehicle, VehicleConfig
+from gcs.sim.vehicle import FIRMWARE_CAPACITY, SimVehicle, VehicleConfig
 
 
 def vehicle_port(firmware: str, index: int, base_port: int | None = None) -> int:
@@ -49,7 +49,7 @@ class FleetConfig:
     gcs_port: int = 14550                       # PX4: where telemetry is sent
     bind_host: str = "127.0.0.1"
     limits: Limits = field(default_factory=Limits)
-    warmup_s: float = 2.0
+    warmup_s: float | None = None               # None: the firmware's boot times / speedup
     no_space_s: float = 1.0
     auto_disarm_s: float = 10.0
     camera: bool = True
@@ -63,6 +63,7 @@ class FleetConfig:
                                                 # at each home's altitude, as SITL
     transport: str | None = None                # "pty": each vehicle on a serial line
     serial_baud: int = 57600                    # what urls() asks a pty link for
+    mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
 
     def vehicle_configs(self) -> list:
         flavour(self.firmware)                  # ValueError naming the choices
@@ -85,7 +86,7 @@ class FleetConfig:
                 faults=replace(self.faults.get(sysid, FaultPlan())),
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
                 seed=self.seed, signing_key=self.signing_key, terrain=self.terrain,
-                transport=self.transport))
+                transport=self.transport, mission_capacity=self.mission_capacity))
         return configs
 
 

@@ -6,7 +6,11 @@ for. ArduPilot quirks, when its flavour says so: items are requested with the
 legacy MISSION_REQUEST, an upload in the first second after boot is refused with
 MAV_MISSION_NO_SPACE, item 0 is home and always reads back as the real home, and
 items are written into the live mission as they arrive (uploads are not atomic).
-A mission longer than the profile's capacity is refused with NO_SPACE.
+Items are stored as the firmware's profile says it keeps them (`read_back`:
+ArduPilot's DO commands in frame 0, only the params each command stores), so
+a download returns what the real autopilot would. A mission longer than the
+vehicle's capacity (the profile's: ArduPilot 650, PX4 none; or as configured)
+is refused with NO_SPACE at MISSION_COUNT, with the STATUSTEXT ArduPilot sends.
 PX4 requests with MISSION_REQUEST_INT and swaps the mission in when complete.
 """
 
@@ -40,7 +44,9 @@ class MissionItem:
 
     @property
     def param5(self) -> float:
-        return self.x * 1e-7 if self.frame in GLOBAL_FRAMES else float(self.x)
+        """x as a command reads it: a latitude for a navigation command in a global
+        frame, else the plain value (a DO command kept in frame 0 by ArduPilot)."""
+        return self.x * 1e-7 if self.frame in GLOBAL_FRAMES and self.is_nav else float(self.x)
 
     @property
     def lat(self) -> float:
@@ -77,14 +83,29 @@ class MissionServer:
     """
 
     def __init__(self, flavour, mav, send, say, home, current, changed, boot_time: float,
-                 no_space_s: float = 1.0):
+                 no_space_s: float = 1.0, capacity: int | None = None):
         self.flavour = flavour
+        self.capacity = capacity           # items it holds (home included); None: no limit
         self._mav, self._send, self._say = mav, send, say
         self._home, self._current, self._changed = home, current, changed
         self._boot, self._no_space_s = boot_time, no_space_s
         self.items = [self._home_item()] if flavour.home_item else []
         self._up = None            # upload in progress
         self._done = None          # (partner, count) of the last finished upload, to re-ACK
+
+    def booted(self, now: float) -> None:
+        """The autopilot started now (ArduPilot refuses uploads for a moment)."""
+        self._boot = now
+
+    def kept(self, item) -> MissionItem:
+        """``item`` as the firmware stores it (its profile's ``read_back``)."""
+        wire = {name: getattr(item, name) for name in
+                ("seq", "frame", "command", "param1", "param2", "param3", "param4", "x", "y",
+                 "z", "autocontinue")}
+        back = self.flavour.profile.read_back(wire)
+        if back is None:
+            return item
+        return MissionItem(**{name: back[name] for name in wire})
 
     # -- dispatch ---------------------------------------------------------------------
     def handle(self, msg, now: float) -> bool:
@@ -121,11 +142,9 @@ class MissionServer:
                       else mavlink.MAV_MISSION_UNSUPPORTED)
             return self._ack(partner, result, msg.mission_type)
         if self.flavour.home_item and now - self._boot < self._no_space_s:
-            self._say(mavlink.MAV_SEVERITY_WARNING, "Only 0 items are supported")
-            return self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
-        capacity = self.flavour.capacity       # the firmware's profile: None = no limit
-        if capacity is not None and msg.count > capacity:
-            return self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
+            return self._no_space(partner, 0)
+        if self.capacity is not None and msg.count > self.capacity:
+            return self._no_space(partner, self.capacity)
         self._done = None
         if msg.count == 0:
             self._up = None
@@ -134,6 +153,14 @@ class MissionServer:
         self._up = {"partner": partner, "count": msg.count, "next": 0, "tries": 0,
                     "asked": now, "items": []}
         self._request(now)
+
+    def _no_space(self, partner, capacity: int) -> None:
+        """NO_SPACE at MISSION_COUNT, then what the firmware says (ArduPilot: "Only N
+        items are supported"; PX4 says nothing)."""
+        self._ack(partner, mavlink.MAV_MISSION_NO_SPACE)
+        if self.flavour.texts.no_space:
+            self._say(mavlink.MAV_SEVERITY_WARNING,
+                      self.flavour.texts.no_space.format(n=capacity))
 
     def _on_item(self, msg, partner, now) -> None:
         if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
@@ -150,7 +177,7 @@ class MissionServer:
         if msg.frame not in SUPPORTED_FRAMES:
             self._up = None
             return self._ack(partner, mavlink.MAV_MISSION_UNSUPPORTED_FRAME)
-        item = MissionItem.from_msg(msg)
+        item = self.kept(MissionItem.from_msg(msg))
         up["items"].append(item)
         if self.flavour.home_item:                      # written into the live mission now
             self._write_live(item)

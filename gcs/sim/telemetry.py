@@ -61,6 +61,9 @@ def sys_status(v):
 def global_position(v):
     lat, lon, alt = v.position()
     east, north, up = v.body.vel
+    if not v.has_origin:             # ArduPilot before its EKF origin: zeros
+        return v.mav.global_position_int_encode(int(v.t * 1000), 0, 0, 0, 0, 0, 0, 0,
+                                                65535)
     return v.mav.global_position_int_encode(
         int(v.t * 1000), _e7(lat), _e7(lon), int(round(alt * 1000)),
         int(round((alt - v.home[2]) * 1000)), int(north * 100), int(east * 100),

@@ -34,6 +34,8 @@ FORCE_DISARM = 21196
 LAND_SLOW_AGL_M = 10.0
 LAND_SLOW_MPS = 1.0
 TAKEOFF_TOLERANCE_M = 0.5
+#: VehicleConfig.mission_capacity: what the firmware's profile says
+FIRMWARE_CAPACITY = "firmware"
 
 _WAYPOINT_LIKE = (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_UNLIM,
                   M.MAV_CMD_NAV_LOITER_TURNS, M.MAV_CMD_NAV_LOITER_TIME,
@@ -50,7 +52,8 @@ class VehicleConfig:
     bind_host: str = "127.0.0.1"
     speedup: float = 1.0
     limits: Limits = field(default_factory=Limits)
-    warmup_s: float = 2.0                      # wall s until GPS/EKF are ready to arm
+    warmup_s: float | None = None              # wall s until GPS/EKF are ready to arm;
+                                               # None: the firmware's boot times / speedup
     no_space_s: float = 1.0                    # wall s after boot refusing uploads (ArduPilot)
     auto_disarm_s: float = 10.0                # mission s armed on the ground idle; 0 = never
     camera: bool = True                        # a camera is configured: feedback messages
@@ -64,6 +67,7 @@ class VehicleConfig:
     signing_key: bytes | None = None           # sign what we send, require signed input
     terrain: Callable | None = None            # (lat, lon) -> ground m AMSL; None: flat
     transport: str | None = None               # "pty": a serial line; None: the flavour's
+    mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
 
 
 class _LinkWriter:
@@ -115,10 +119,10 @@ class SimVehicle:
         self._ready_announced = False
         self._idle_since = None
         self._cuts_done = set()
-        self._periods = dict(telemetry.STREAMS)
-        if not self.flavour.ekf_status:
-            for msgid in telemetry.ARDUPILOT_ONLY:
-                del self._periods[msgid]
+        self._periods = {}
+        self._streams_requested = False
+        self._warm = (math.inf, math.inf, math.inf)   # gps, origin, ready: wall s after boot
+        self._default_streams()
         self._due = {}
         self._clients_seen = 0
         self._images = 0
@@ -149,10 +153,26 @@ class SimVehicle:
             self.link = TcpServerLink(cfg.port, cfg.bind_host, self.flavour.banner)
         else:
             self.link = UdpLink(cfg.port, tuple(cfg.gcs_address), cfg.bind_host)
-        self.boot_wall = time.monotonic()
+        capacity = self.flavour.capacity if cfg.mission_capacity == FIRMWARE_CAPACITY \
+            else cfg.mission_capacity
         self.mission = MissionServer(self.flavour, self.mav, self._send, self._say,
                                      self.home_geo, lambda: self.current,
-                                     self._mission_changed, self.boot_wall, cfg.no_space_s)
+                                     self._mission_changed, time.monotonic(), cfg.no_space_s,
+                                     capacity=capacity)
+        if not (self.flavour.boot_on_connect and isinstance(self.link, TcpServerLink)):
+            self._boot(time.monotonic())
+
+    def _boot(self, now: float) -> None:
+        """Start the autopilot (ArduPilot SITL: when the first client connects)."""
+        self.boot_wall = now
+        self.mission.booted(now)
+        warm = self.cfg.warmup_s
+        boot = self.flavour.boot
+        if warm is None:                  # the firmware's own times, sped up
+            scale = 1.0 / max(self.cfg.speedup, 1e-9)
+            self._warm = (boot.gps_s * scale, boot.origin_s * scale, boot.ready_s * scale)
+        else:                             # ready after warmup_s, in the same proportions
+            self._warm = (warm / 2, warm * min(1.0, boot.origin_s / boot.ready_s), warm)
         self.track.event(0.0, "boot")
         self._sample(force=True)
 
@@ -166,6 +186,11 @@ class SimVehicle:
                     break
                 chunks = self.link.poll(max(0.0, next_tick - time.monotonic()))
                 now = time.monotonic()
+                if self.boot_wall is None:           # waiting for the first client
+                    if self.link.accepted:
+                        self._boot(now)
+                    last = next_tick = now
+                    continue
                 for chunk in chunks:
                     self._receive(chunk, now)
                 if now >= next_tick:
@@ -199,15 +224,22 @@ class SimVehicle:
         lat, lon = self.frame.to_geo(x, y)
         return lat, lon, z
 
+    def _booted_for(self) -> float:
+        return -1.0 if self.boot_wall is None else time.monotonic() - self.boot_wall
+
     @property
     def ready(self) -> bool:
-        return self.boot_wall is not None and \
-            time.monotonic() - self.boot_wall >= self.cfg.warmup_s
+        """Pre-arm checks pass (EKF and GPS good)."""
+        return self._booted_for() >= self._warm[2]
+
+    @property
+    def has_origin(self) -> bool:
+        """The EKF has an origin: GLOBAL_POSITION_INT holds a position."""
+        return self._booted_for() >= self._warm[1]
 
     @property
     def gps_fix(self) -> bool:
-        return self.boot_wall is not None and \
-            time.monotonic() - self.boot_wall >= self.cfg.warmup_s / 2
+        return self._booted_for() >= self._warm[0]
 
     # -- time -------------------------------------------------------------------------
     def _advance(self, wall_dt: float, now: float) -> None:
@@ -298,6 +330,9 @@ class SimVehicle:
             self._set_current(msg.seq)
         elif kind == "SET_POSITION_TARGET_GLOBAL_INT":
             self._on_position_target(msg)
+        elif kind == "REQUEST_DATA_STREAM":
+            if msg.start_stop:
+                self._request_streams()
         elif kind in ("PARAM_REQUEST_LIST", "PARAM_REQUEST_READ", "PARAM_SET"):
             self._on_param(msg)
 
@@ -357,6 +392,26 @@ class SimVehicle:
 
     def _cmd_set_current(self, p, frame) -> int:
         return M.MAV_RESULT_ACCEPTED if self._set_current(int(p[0])) else M.MAV_RESULT_DENIED
+
+    def _default_streams(self) -> None:
+        """What streams before a ground station asks: everything, or (ArduPilot)
+        HEARTBEAT only."""
+        self._periods = dict(telemetry.STREAMS)
+        if not self.flavour.ekf_status:
+            for msgid in telemetry.ARDUPILOT_ONLY:
+                del self._periods[msgid]
+        if self.flavour.streams_on_request and not self._streams_requested:
+            self._periods = {M.MAVLINK_MSG_ID_HEARTBEAT: telemetry.STREAMS[
+                M.MAVLINK_MSG_ID_HEARTBEAT]}
+
+    def _request_streams(self) -> None:
+        """A ground station asked for telemetry: the default streams from now on."""
+        if not self._streams_requested:
+            self._streams_requested = True
+            asked = self._periods
+            self._default_streams()
+            self._periods.update(asked)
+            self._due.clear()
 
     def _cmd_message_interval(self, p, frame) -> int:
         msgid, interval_us = int(p[0]), p[1]
@@ -632,22 +687,30 @@ class SimVehicle:
             self._report_reached(task["seq"])
 
     # -- the mission ------------------------------------------------------------------
-    def _run_mission(self, seq: int) -> None:
-        """Execute from item `seq`: DO commands at once, up to the next nav item."""
+    def _run_mission(self, seq: int, reached: int | None = None) -> None:
+        """Execute from item `seq`: DO commands at once, up to the next nav item.
+        ``reached``: a navigation item just completed whose MISSION_ITEM_REACHED
+        waits for the DO commands after it (PX4 then reports the last of them)."""
         seq = max(seq, self.flavour.first_item)
         while not self.dead:
             item = self.mission.item(seq)
             if item is None:
+                self._reached_after(reached)
                 return self._mission_done(seq)
             self._set_current(seq, run=False)
             if item.is_nav:
+                self._reached_after(reached)
                 return self._start_item(item)
             if self._kill_at_item(seq):
                 return
             self._do(item)
-            if self.flavour.reached_do_items:
-                self._report_reached(seq)
+            if reached is not None:
+                reached = seq
             seq += 1
+
+    def _reached_after(self, seq) -> None:
+        if seq is not None:
+            self._report_reached(seq)
 
     def _start_item(self, item) -> None:
         cmd = item.command
@@ -688,6 +751,8 @@ class SimVehicle:
     def _item_complete(self, seq: int, killed_checked=False) -> None:
         if not killed_checked and self._kill_at_item(seq):
             return
+        if self.flavour.reached_after_do_items:
+            return self._run_mission(seq + 1, reached=seq)
         self._report_reached(seq)
         self._run_mission(seq + 1)
 
@@ -798,5 +863,8 @@ class SimVehicle:
             return M.MAV_RESULT_DENIED
         if msgid == M.MAVLINK_MSG_ID_HOME_POSITION and not self.ready:
             return M.MAV_RESULT_DENIED          # home is set once the EKF has a position
+        if msgid == M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT and not self.has_origin \
+                and not self.flavour.zero_position:
+            return M.MAV_RESULT_DENIED          # PX4: no global position before the EKF
         self._send(build(self))
         return M.MAV_RESULT_ACCEPTED

@@ -58,7 +58,7 @@ def load_outposts(path, terrain) -> list:
 
 
 def sample_outposts(terrain) -> list:
-    """The built-in outposts that go with `planner.dem.sample_terrain`.
+    """The built-in outposts that go with `planner.terrain.sample_terrain`.
 
     On a sample cropped with ``area``, posts outside the crop are left out:
     their lines of sight would cross terrain the crop no longer holds.

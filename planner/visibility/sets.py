@@ -94,6 +94,24 @@ class VisibilityMatrix:
     def target_rowcol(self):
         return np.unravel_index(self.target_cells, self.grid_shape)
 
+    def restricted(self, cells: np.ndarray) -> "VisibilityMatrix":
+        """The same sets with only the targets whose cell is True in ``cells`` (a bool
+        grid, e.g. the area of operations' polygon); target ids are renumbered,
+        viewpoints kept (one that sees none of them gains nothing)."""
+        keep_t = np.asarray(cells, bool).ravel()[self.target_cells]
+        new_id = (np.cumsum(keep_t) - 1).astype(np.int32)
+        rows = np.repeat(np.arange(self.n_viewpoints), np.diff(self.indptr))
+        keep = keep_t[self.indices]
+        indptr = np.concatenate([[0], np.cumsum(np.bincount(
+            rows[keep], minlength=self.n_viewpoints))]).astype(np.int64)
+        t_counts = np.diff(self.target_indptr)
+        columns = np.repeat(keep_t, t_counts)
+        return VisibilityMatrix(
+            indptr=indptr, indices=new_id[self.indices[keep]],
+            target_indptr=np.concatenate([[0], np.cumsum(t_counts[keep_t])]).astype(np.int64),
+            target_viewpoints=self.target_viewpoints[columns],
+            target_cells=self.target_cells[keep_t], grid_shape=self.grid_shape)
+
 
 def compute_visibility(surface, viewpoints, sensor=SensorParams(), method="sweep",
                        band_m=0.05) -> VisibilityMatrix:

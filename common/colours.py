@@ -1,0 +1,23 @@
+"""One palette for every picture and file: PNG plots, KML, GeoJSON and the live map.
+
+A vehicle's colour follows its plan vehicle id (UAV 1 is always the first
+colour), whatever draws it. Red belongs to the outposts and their ranges, so
+no vehicle is red; the base (launch point) is a white square.
+"""
+
+#: vehicle colours, by plan vehicle id (1 -> the first); no red, which marks outposts
+VEHICLE_COLOURS = ("#1f77b4", "#ff7f0e", "#9467bd", "#17becf", "#e377c2", "#8c564b",
+                   "#bcbd22", "#000000")
+OUTPOST_COLOUR = "#d62728"
+BASE_COLOUR = "#ffffff"
+
+
+def vehicle_colour(vehicle_id: int) -> str:
+    """``#rrggbb`` of plan vehicle ``vehicle_id`` (1, 2, ...)."""
+    return VEHICLE_COLOURS[(int(vehicle_id) - 1) % len(VEHICLE_COLOURS)]
+
+
+def kml_colour(rgb: str, alpha: int = 0xFF) -> str:
+    """KML's ``aabbggrr`` of ``#rrggbb``."""
+    r, g, b = rgb[1:3], rgb[3:5], rgb[5:7]
+    return f"{alpha:02x}{b}{g}{r}".lower()

@@ -1,0 +1,146 @@
+"""Routes in as few items as the proofs allow, and routes longer than a vehicle holds.
+
+Fewer items: `fewer_waypoints` leaves out a waypoint that repeats the one before
+(a zero-length leg) and, given a prover (`leg_prover`: the planner's own leg
+proofs, hidden with the track tolerance around it, clear of the terrain, under
+the ceiling), every waypoint that is not a snapshot where the straight leg past
+it passes them all. The camera command already comes only after snapshot
+waypoints (`missions.build`).
+
+Segments: ArduPilot SITL holds 650 items, a board about 700 (more with
+BRD_SD_MISSION); a route may need thousands. `RouteMissions` makes the missions
+that fly one route on one vehicle: the whole route when it fits, else
+segments. A segment is a run of the route's waypoints that fits the vehicle's
+capacity (home, speed, its waypoints and their camera commands; the first one
+takes off, the last one lands). It ends at a waypoint, whose leg was proven,
+so a vehicle whose next segment is late holds there, hidden; the next segment
+starts at the waypoint the vehicle was flying to when it was held (the end of
+the last one at the latest), so the leg from where it is to there is part of a
+proven leg. Every mission made here passes `check` (the mission gate,
+`missions.check.checked`): the whole route once, when made, so every leg of
+every segment is proven before the first is flown, and each segment again.
+"""
+
+import math
+
+import numpy as np
+
+from common.errors import InputError
+
+from .build import _above_launch, firmware_profile, route_items
+
+#: waypoints closer than this (m, horizontally and vertically) are the same place
+SAME_PLACE_M = 0.01
+
+
+def fewer_waypoints(route, prove=None) -> list:
+    """Indices of the route waypoints a mission must fly (see module doc).
+
+    ``prove(a, b)``: whether the straight leg between waypoints a and b passes
+    every proof of a planned leg (None: only repeated places are left out)."""
+    w = route.waypoints
+    keep = []
+    for i, p in enumerate(w):
+        if keep and _same_place(w[keep[-1]], p):
+            if p.snapshot and not w[keep[-1]].snapshot:
+                keep[-1] = i                    # the snapshot is the one flown
+            continue
+        keep.append(i)
+    if prove is None or len(keep) < 3:
+        return keep
+    out = [keep[0]]
+    for j in range(1, len(keep) - 1):
+        i = keep[j]
+        if w[i].snapshot or not prove(w[out[-1]], w[keep[j + 1]]):
+            out.append(i)
+    out.append(keep[-1])
+    return out
+
+
+def _same_place(a, b) -> bool:
+    dlat = math.radians(b.lat - a.lat) * 6371008.8
+    dlon = math.radians(b.lon - a.lon) * 6371008.8 * math.cos(math.radians(a.lat))
+    return math.hypot(dlat, dlon) < SAME_PLACE_M and abs(b.alt_amsl - a.alt_amsl) < SAME_PLACE_M
+
+
+def leg_prover(ctx):
+    """``prove(a, b)`` for `fewer_waypoints` from a planning context (its travel
+    graph's leg proofs, on its terrain's projection)."""
+    terrain, graph = ctx.terrain, ctx.graph
+
+    def prove(a, b) -> bool:
+        x, y = terrain.from_lonlat(np.array([a.lon, b.lon], float),
+                                   np.array([a.lat, b.lat], float))
+        xyz = np.stack([x, y, [a.alt_amsl, b.alt_amsl]], axis=1)
+        return bool(graph.legs_ok(xyz[:1], xyz[1:])[0])
+
+    return prove
+
+
+class RouteMissions:
+    """The missions that fly ``route`` on one vehicle (see module doc).
+
+    ``check(mission) -> CheckedMission`` is the mission gate; ``fly`` the route
+    waypoints to fly (default: `fewer_waypoints` without a prover)."""
+
+    def __init__(self, route, firmware, options, check, fly=None):
+        self.route, self.firmware, self.options, self.check = route, firmware, options, check
+        self.fly = list(fewer_waypoints(route) if fly is None else fly)
+        if not self.fly:
+            raise InputError(f"vehicle {route.id}", "route has no waypoints")
+        self.profile = firmware_profile(firmware)
+        self.whole = check(route_items(route, firmware, options, self.fly))
+
+    def __len__(self) -> int:
+        """Items of the whole route as one mission."""
+        return len(self.whole)
+
+    def fits(self, capacity) -> bool:
+        return capacity is None or len(self.whole) <= capacity
+
+    def first(self, capacity):
+        """The mission to upload before takeoff: the whole route if it fits."""
+        return self.whole if self.fits(capacity) else self.segment(capacity, self.fly[0], 0)
+
+    def segment(self, capacity: int, start: int, index: int, taken: bool = False):
+        """Segment ``index``: the checked mission from route waypoint ``start`` (one
+        of ``fly``) on, as long as ``capacity`` items allow; ``taken``: the snapshot
+        at ``start`` is taken already (no camera command there)."""
+        if start not in self.fly:
+            raise ValueError(f"waypoint {start} is not one the route flies")
+        k = self.fly.index(start)
+        fly, land = self._span(k, capacity)
+        shots = sum(1 for i in self.fly[:k] if self.route.waypoints[i].snapshot)
+        mission = route_items(self.route, self.firmware, self.options, fly,
+                              takeoff=k == 0, land=land, segment=index, shots_before=shots,
+                              skip_camera={start} if taken else ())
+        if len(mission.items) > capacity:       # the counting below is wrong: never upload
+            raise AssertionError(f"segment of {len(mission.items)} items > {capacity}")
+        return self.check(mission)
+
+    def _span(self, k: int, capacity: int) -> tuple:
+        """The waypoints (indices) of the longest segment from fly[k] that fits, and
+        whether it lands (it reaches the route's end)."""
+        w, o = self.route.waypoints, self.options
+        used = (1 if self.profile.home_item else 0) + (1 if o.speed_mps else 0)
+        if k == 0 and o.takeoff and _above_launch(self.route.launch, w[0]):
+            used += 1
+        landing = 1 if o.takeoff and _above_launch(self.route.launch, w[-1]) else 0
+        end = k
+        for j in range(k, len(self.fly)):
+            cost = 1 + (1 if w[self.fly[j]].snapshot and o.camera else 0)
+            last = j == len(self.fly) - 1
+            if used + cost + (landing if last else 0) > capacity:
+                break
+            used += cost
+            end = j + 1
+        if end == len(self.fly):
+            return self.fly[k:], True
+        if end - k < 2:
+            raise InputError(f"vehicle {self.route.id}",
+                             f"the vehicle holds {capacity} mission items: too few for a "
+                             f"segment of two waypoints from waypoint {self.fly[k]}")
+        return self.fly[k:end], False
+
+
+__all__ = ["RouteMissions", "fewer_waypoints", "leg_prover"]

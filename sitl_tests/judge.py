@@ -1,0 +1,187 @@
+"""What an autopilot reports of itself on a link of its own: the judge of a flight.
+
+`gcs fly` talks to each vehicle on its ground-station link; the judge listens on
+the autopilot's second link, which gcs never touches, and keeps what the
+autopilot says of itself: its positions (GLOBAL_POSITION_INT) and where its
+camera fired (ArduPilot CAMERA_FEEDBACK, PX4 CAMERA_IMAGE_CAPTURED).
+
+- ArduPilot SITL instance i: SERIAL1 on TCP 5762 + 10 i, open once its first
+  port has a client; it streams what is asked (REQUEST_DATA_STREAM).
+- PX4 SITL instance i: its onboard link sends to UDP 14540 + i from 14580 + i,
+  at up to 50 Hz of simulated time per stream; the judge slows GLOBAL_POSITION_INT
+  to 10 Hz on that link and decodes only the messages it keeps.
+"""
+
+import socket
+import threading
+import time
+
+import numpy as np
+
+from gcs.mavlink import M
+
+POSITION, FEEDBACK, CAPTURED = 33, 180, 263
+WANTED = frozenset({POSITION, FEEDBACK, CAPTURED})
+JUDGE_SYSID = 254          # not 255: ArduPilot forwards between its links
+RATE_HZ = 10
+
+
+def listening(port: int) -> bool:
+    """Whether a local TCP port is in LISTEN, without connecting (ArduPilot SITL
+    gives its port to the first client that connects)."""
+    suffix = f":{port:04X}"
+    for name in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            lines = open(name).read().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            if fields[1].endswith(suffix) and fields[3] == "0A":
+                return True
+    return False
+
+
+def wait_listening(port: int, timeout_s: float, alive=lambda: True) -> None:
+    end = time.monotonic() + timeout_s
+    while not listening(port):
+        if time.monotonic() > end or not alive():
+            raise RuntimeError(f"nothing listens on TCP {port} after {timeout_s:g} s")
+        time.sleep(0.05)
+
+
+def frames(buf: bytes):
+    """(MAVLink frames [(msgid, sysid, bytes)], bytes left over) of a byte stream,
+    without decoding their payloads (PX4 sends thousands a second)."""
+    out, i, n = [], 0, len(buf)
+    while i < n:
+        b = buf[i]
+        if b == 0xFD:                                  # MAVLink 2
+            if i + 10 > n:
+                break
+            total = 12 + buf[i + 1] + (13 if buf[i + 2] & 1 else 0)
+            if i + total > n:
+                break
+            out.append((buf[i + 7] | buf[i + 8] << 8 | buf[i + 9] << 16, buf[i + 5],
+                        buf[i:i + total]))
+            i += total
+        elif b == 0xFE:                                # MAVLink 1
+            if i + 6 > n:
+                break
+            total = 8 + buf[i + 1]
+            if i + total > n:
+                break
+            out.append((buf[i + 5], buf[i + 3], buf[i:i + total]))
+            i += total
+        else:
+            i += 1
+    return out, buf[i:]
+
+
+class Judge:
+    """Positions and camera shots one autopilot reports on its second link."""
+
+    def __init__(self, sysid: int, home: tuple):
+        self.sysid, self.home = sysid, home
+        self.samples = []                  # (wall t, lat, lon, alt AMSL)
+        self.shots = []                    # (lat, lon, alt AMSL)
+        self._mav = M.MAVLink(None, srcSystem=JUDGE_SYSID, srcComponent=190)
+        self._mav.robust_parsing = True
+        self._stop = threading.Event()
+        self._thread = None
+
+    # -- transports -------------------------------------------------------------------
+    @classmethod
+    def ardupilot(cls, sysid, home, port, alive=lambda: True, timeout_s=60.0) -> "Judge":
+        """Connect to ArduPilot's SERIAL1 once it listens (after gcs has connected)."""
+        judge = cls(sysid, home)
+
+        def connect():
+            wait_listening(port, timeout_s, alive)
+            sock = socket.create_connection(("127.0.0.1", port), timeout=5)
+            sock.settimeout(0.2)
+            ask = judge._mav.request_data_stream_encode(sysid, 1, M.MAV_DATA_STREAM_POSITION,
+                                                        RATE_HZ, 1)
+            sock.sendall(ask.pack(judge._mav))
+            return sock
+
+        judge._start(lambda: judge._run_tcp(connect))
+        return judge
+
+    @classmethod
+    def px4(cls, sysid, home, listen_port, px4_port) -> "Judge":
+        """Listen where PX4's onboard link sends (bound before PX4 starts)."""
+        judge = cls(sysid, home)
+        sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        sock.bind(("127.0.0.1", listen_port))
+        sock.settimeout(0.2)
+        judge._start(lambda: judge._run_udp(sock, ("127.0.0.1", px4_port)))
+        return judge
+
+    def _start(self, target) -> None:
+        self._thread = threading.Thread(target=target, daemon=True,
+                                        name=f"judge-{self.sysid}")
+        self._thread.start()
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def _run_tcp(self, connect) -> None:
+        try:
+            sock = connect()
+        except (OSError, RuntimeError):
+            return
+        rest = b""
+        with sock:
+            while not self._stop.is_set():
+                try:
+                    data = sock.recv(65536)
+                except socket.timeout:
+                    continue
+                except OSError:
+                    return
+                if not data:
+                    return                                  # the process is gone
+                found, rest = frames(rest + data)
+                self._keep(found)
+
+    def _run_udp(self, sock, px4) -> None:
+        asked = False
+        with sock:
+            while not self._stop.is_set():
+                try:
+                    data = sock.recv(65536)
+                except socket.timeout:
+                    continue
+                except OSError:
+                    return
+                if not asked:                               # 10 Hz is plenty
+                    ask = self._mav.command_long_encode(
+                        self.sysid, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, POSITION,
+                        1e6 / RATE_HZ, 0, 0, 0, 0, 0)
+                    sock.sendto(ask.pack(self._mav), px4)
+                    asked = True
+                self._keep(frames(data)[0])
+
+    def _keep(self, found) -> None:
+        now = time.time()
+        for msgid, sysid, frame in found:
+            if msgid not in WANTED or sysid != self.sysid:
+                continue
+            for msg in self._mav.parse_buffer(frame) or []:
+                kind = msg.get_type()
+                if kind == "GLOBAL_POSITION_INT":
+                    if msg.lat or msg.lon:                  # 0, 0: no EKF origin yet
+                        self.samples.append((now, msg.lat * 1e-7, msg.lon * 1e-7,
+                                             msg.alt * 1e-3))
+                elif kind == "CAMERA_FEEDBACK":
+                    self.shots.append((msg.lat * 1e-7, msg.lng * 1e-7, msg.alt_msl))
+                elif kind == "CAMERA_IMAGE_CAPTURED":
+                    self.shots.append((msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3))
+
+    def track(self) -> tuple:
+        """(t, lat, lon, alt, shots, home), as the fixtures' ``tracks()`` give them."""
+        rows = np.array(self.samples, float).reshape(-1, 4)
+        return (rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], list(self.shots), self.home)

@@ -1,0 +1,206 @@
+"""What an operator reads (issue 23): maps with a legend entry for every symbol,
+named outposts, a graticule, scale bar and north arrow; the 3-D view's colour bar
+and vertical exaggeration; flight.png on mission time with a timeline and
+altitude profiles; altitude frames; one palette in PNG, KML and GeoJSON; one
+connect timeout. The plan is tests/conftest.py's."""
+
+import argparse
+import json
+import math
+import xml.etree.ElementTree as ET
+
+import numpy as np
+import pytest
+from matplotlib.colors import to_hex
+
+from common.colours import OUTPOST_COLOUR, VEHICLE_COLOURS, kml_colour, vehicle_colour
+from gcs.flight_plot import MissionClock, flight_figure
+from gcs.plots import north_angle, overview_figure, view3d_figure
+from missions.geo import routes_geojson, routes_kml
+
+pytestmark = pytest.mark.timeout(120)
+
+
+def _texts(fig) -> list:
+    out = []
+    for ax in fig.axes:
+        out += [t.get_text() for t in ax.texts]
+        legend = ax.get_legend()
+        if legend is not None:
+            out += [t.get_text() for t in legend.get_texts()]
+        out += [ax.get_title(loc=where) for where in ("left", "center", "right")]
+        out += [ax.get_xlabel(), ax.get_ylabel()]
+    if fig._suptitle is not None:
+        out.append(fig._suptitle.get_text())
+    return out
+
+
+def _legend(fig) -> list:
+    return [t.get_text() for ax in fig.axes if ax.get_legend() is not None
+            for t in ax.get_legend().get_texts()]
+
+
+def test_overview_explains_every_symbol(planned):
+    ctx, plan = planned.ctx, planned.plan
+    fig = overview_figure(ctx.terrain, ctx.surface, plan)
+    legend, texts = _legend(fig), _texts(fig)
+    for needed in ("snapshot", "base", "outpost (named)", "outpost detection range",
+                   "grey: no hidden room"):
+        assert any(needed in t for t in legend), (needed, legend)
+    for v in plan.vehicles:
+        assert any(t.startswith(f"UAV {v.id} route") for t in legend)
+    # the post is named beside it with its range (its circle, wherever it crosses the
+    # map, is labelled "hill: 2.5 km range"; here it lies outside the 1.8 km map)
+    assert any(t.startswith("hill (2.5 km range)") for t in texts), texts
+    # latitude / longitude labels, a scale bar and a north arrow
+    assert any(t.endswith(("°N", "°S")) for t in texts) and \
+        any(t.endswith(("°E", "°W")) for t in texts), texts
+    assert any(t.endswith(" km") or t.endswith(" m") for t in texts)
+    assert "N" in texts
+
+
+def test_graticule_labels_are_where_those_coordinates_are(planned):
+    """A longitude label on the bottom edge stands where that meridian crosses it."""
+    ctx = planned.ctx
+    fig = overview_figure(ctx.terrain, ctx.surface, planned.plan)
+    ax = fig.axes[0]
+    checked = 0
+    for t in ax.texts:
+        text = t.get_text()
+        if text.endswith(("°E", "°W")):
+            x, y = t.get_position()
+            value = float(text[:-2]) * (-1 if text.endswith("W") else 1)
+            from gcs.plots import _from_km
+            lon, _ = ctx.terrain.to_lonlat(*_from_km(ctx.terrain, x, y))
+            assert abs(lon - value) < 1e-6
+            checked += 1
+    assert checked >= 1
+
+
+def test_north_arrow_is_true_north(planned):
+    """On a UTM grid true north leans from grid north by the meridian convergence:
+    east of the central meridian it leans west (counter-clockwise: a positive angle)."""
+    t = planned.ctx.terrain
+    a = north_angle(t)
+    lon, lat = t.to_lonlat(*t.xy(t.shape[0] / 2, t.shape[1] / 2))
+    zone_meridian = -183 + 6 * (int((lon + 180) // 6) + 1)
+    expected = math.atan(math.tan(math.radians(lon - zone_meridian)) * math.sin(
+        math.radians(lat)))
+    assert a == pytest.approx(expected, abs=2e-3)
+
+
+def test_view3d_has_colour_bar_and_states_exaggeration(planned):
+    ctx = planned.ctx
+    fig = view3d_figure(ctx.terrain, ctx.surface, planned.plan)
+    assert len(fig.axes) == 2                             # the 3-D view and its colour bar
+    assert "terrain altitude AMSL (m)" in fig.axes[1].get_ylabel()
+    title = fig.axes[0].get_title()
+    assert "vertical exaggeration ×" in title
+    legend = _legend(fig)
+    assert {"hidden ceiling (mesh)", "outpost", "base"} <= set(legend)
+
+
+def _report(planned, rate=10.0):
+    """A flight report as gcs fly writes it: vehicle clocks running ``rate`` times
+    the wall clock, vehicle 2 lost at wall 6 s (last report at 4 s)."""
+    plan = planned.plan
+    vehicles = []
+    for sysid, route in enumerate(plan.vehicles, start=1):
+        w = route.waypoints
+        end = 10 if sysid != 2 else 4
+        walls = np.linspace(0.5, end, 20)
+        pts = [w[min(int(i / 20 * len(w)), len(w) - 1)] for i in range(20)]
+        track = [[float(t), p.lon, p.lat, p.alt_amsl, 100.0 + sysid + rate * float(t)]
+                 for t, p in zip(walls, pts)]
+        snaps = [{"t_s": 2.0, "lon": pts[5].lon, "lat": pts[5].lat, "alt_amsl": pts[5].alt_amsl,
+                  "mission": 0, "waypoint": 5}]
+        vehicles.append({"sysid": sysid, "vehicle": route.id, "flavour": "ardupilot",
+                         "state": "lost" if sysid == 2 else "landed", "missions": 1,
+                         "lost_at_s": 6.0 if sysid == 2 else None, "lost_reason": "silent",
+                         "landed_at_s": None if sysid == 2 else 10.0, "snapshots": snaps,
+                         "camera": [], "track": track})
+    replans = [{"t_s": 6.5, "done_t_s": 7.0, "routes": {"1": [[p[1], p[2], p[3]] for p in
+                                                               vehicles[0]["track"][10:]]}}]
+    return {"vehicles": vehicles, "losses": [{"sysid": 2}], "replans": replans,
+            "coverage": {}}
+
+
+def test_mission_clock_runs_on_vehicle_time(planned):
+    clock = MissionClock(_report(planned, rate=10.0))
+    assert clock.mission and clock.rate == pytest.approx(10.0)
+    assert clock.fleet(0.5) == pytest.approx(0.0, abs=1e-6)
+    assert clock.fleet(6.0) == pytest.approx(55.0, abs=1e-6)   # past vehicle 2's clock too
+    old = MissionClock({"vehicles": [{"sysid": 1, "track": [[0, 0, 0, 0], [1, 0, 0, 0]]}]})
+    assert not old.mission and old.label == "wall time (s)"
+
+
+def test_flight_figure_on_mission_time_with_timeline_and_profiles(planned):
+    ctx = planned.ctx
+    fig = flight_figure(ctx.terrain, ctx.surface, planned.plan, _report(planned))
+    texts = _texts(fig)
+    # mission time, not wall time: lost at 35 s (its last report), detected at 55 s
+    assert any("lost at 35 s" in t and "detected 55 s" in t for t in texts), texts
+    assert any(t == "mission time (s, vehicle clocks)" for t in texts)
+    assert any("10 × the wall clock" in t for t in texts)
+    assert any(t == "timeline" for t in texts)
+    assert any(" re-plan 1" == t for t in texts)
+    profiles = [t for t in texts if t.endswith("altitude, metres AMSL")]
+    assert len(profiles) == len(planned.plan.vehicles)
+    legend = _legend(fig)
+    for needed in ("terrain under it", "hidden ceiling there (fly below)", "flown altitude",
+                   "snapshot taken", "re-planning (survivors held)", "re-planned route (dashed)",
+                   "planned route (faint)", "base: launch and landing point"):
+        assert needed in legend, needed
+
+
+def test_one_palette_in_png_kml_and_geojson(planned):
+    """UAV n has one colour everywhere; no vehicle is red, the outposts' colour."""
+    ctx, plan = planned.ctx, planned.plan
+    assert OUTPOST_COLOUR not in VEHICLE_COLOURS
+    fig = overview_figure(ctx.terrain, ctx.surface, plan)
+    png = {line.get_label(): to_hex(line.get_color()) for line in fig.axes[0].lines}
+    doc = routes_geojson(plan)
+    kml = ET.fromstring(routes_kml(plan))
+    ns = {"k": "http://www.opengis.net/kml/2.2"}
+    styles = {s.get("id"): s.find("k:LineStyle/k:color", ns).text
+              for s in kml.findall(".//k:Style", ns)}
+    for v in plan.vehicles:
+        colour = vehicle_colour(v.id)
+        assert any(label.startswith(f"UAV {v.id} route") and c == colour
+                   for label, c in png.items()), png
+        route = next(f for f in doc["features"] if f["properties"]["kind"] == "route"
+                     and f["properties"]["vehicle"] == v.id)
+        assert route["properties"]["stroke"] == colour
+        mark = next(p for p in kml.iter("{http://www.opengis.net/kml/2.2}Placemark")
+                    if p.find("k:name", ns).text == f"vehicle {v.id} route")
+        style = mark.find("k:styleUrl", ns).text.lstrip("#")
+        assert styles[style] == kml_colour(colour)
+    outpost = next(f for f in doc["features"] if f["properties"]["kind"] == "outpost")
+    assert outpost["properties"]["marker-color"] == OUTPOST_COLOUR
+    assert styles["outpost"] == kml_colour(OUTPOST_COLOUR)
+    assert kml_colour("#1f77b4") == "ffb4771f"
+    json.dumps(doc, allow_nan=False)
+
+
+def test_live_table_says_alt_is_above_home():
+    from gcs.cli.views import status_table
+
+    table = status_table([{"sysid": 1, "vehicle": 1, "mode": "AUTO", "item": "3/9",
+                           "mission": 0, "snapshots": "1 (1/4)", "alt": -129.0,
+                           "heartbeat_s": 0.2, "battery": 90, "state": "flying"}])
+    headers = [c.header for c in table.columns]
+    assert "alt above home" in headers and "alt" not in headers
+
+
+def test_one_connect_timeout_for_upload_download_and_fly():
+    from gcs.cli import download, fly, upload
+    from gcs.cli.options import CONNECT_TIMEOUT_S
+    from gcs.fly import FlyOptions
+
+    defaults = set()
+    for module in (upload, download, fly):
+        parser = argparse.ArgumentParser()
+        module.add_arguments(parser)
+        defaults.add(parser.get_default("connect_timeout"))
+    assert defaults == {CONNECT_TIMEOUT_S}
+    assert FlyOptions().connect_timeout_s == CONNECT_TIMEOUT_S
