@@ -27,11 +27,10 @@ def run_chunks(fn: Callable, chunks: list, shared: tuple = (), client=None,
         return []
     if client is None:
         out = []
-        with ThreadPoolExecutor(max(threads, 1)) as pool:
-            for i, result in enumerate(pool.map(lambda chunk: fn(*shared, chunk), chunks)):
-                out.append(result)
-                if progress is not None:
-                    progress((i + 1) / len(chunks))
+        for i, result in enumerate(_here(fn, shared, chunks, threads)):
+            out.append(result)
+            if progress is not None:
+                progress((i + 1) / len(chunks))
         return out
     from distributed import as_completed
 
@@ -44,6 +43,17 @@ def run_chunks(fn: Callable, chunks: list, shared: tuple = (), client=None,
         if progress is not None:
             progress(done / len(chunks))
     return client.gather(futures)
+
+
+def _here(fn, shared, chunks, threads):
+    """The chunks' results in order, in this thread (whose numba threads then serve
+    every chunk) or on a pool of ``threads``."""
+    if threads <= 1:
+        for chunk in chunks:
+            yield fn(*shared, chunk)
+        return
+    with ThreadPoolExecutor(threads) as pool:
+        yield from pool.map(lambda chunk: fn(*shared, chunk), chunks)
 
 
 def _on_worker(fn, *args):

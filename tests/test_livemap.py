@@ -57,7 +57,7 @@ def _wait(predicate, timeout, what):
 class Flying:
     """`gcs fly --sim 3 --map` in a thread; ``result`` is its exit status."""
 
-    def __init__(self, plan_dir, out, port, speedup="12", kill="2@item12"):
+    def __init__(self, plan_dir, out, port, speedup="25", kill="2@item12"):
         self.port, self.result = port, None
         argv = ["fly", str(plan_dir), "--sim", "3", "--speedup", speedup, "--lost-after", "2",
                 "--sim-base-port", str(free_base_port(10, 3)), "--map", f"127.0.0.1:{port}",
