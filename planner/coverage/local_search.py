@@ -24,25 +24,13 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
+from .alns_kernels import apply_visit
 from .greedy import allocate
 from .insertion import improve_route, insert_cost, removal_saving, route_time
 from .methods import register
 from .metrics import evaluate
 
 _EPS = 1e-6
-
-
-@njit(cache=True)
-def _apply(cnt, dc, r, e, delta, vis_indptr, vis_indices):
-    """Add (delta=1) or remove (delta=-1) UAV r's visit of e."""
-    for j in range(vis_indptr[e], vis_indptr[e + 1]):
-        t = vis_indices[j]
-        before = cnt[r, t]
-        cnt[r, t] = before + delta
-        if before == 0 and delta > 0:
-            dc[t] += 1
-        elif before + delta == 0 and delta < 0:
-            dc[t] -= 1
 
 
 @njit(cache=True)
@@ -88,7 +76,7 @@ class Search:
 
     # -- bookkeeping -------------------------------------------------------
     def _apply(self, r, e, delta):
-        _apply(self.cnt, self.dc, r, e, delta, self.p.vis_indptr, self.p.vis_indices)
+        apply_visit(self.cnt, self.dc, r, e, delta, self.p.vis_indptr, self.p.vis_indices)
 
     def _ok(self, *viewpoints):
         return all(_ok(self.dc, self.p.required, e, self.p.vis_indptr, self.p.vis_indices)
