@@ -40,7 +40,7 @@ from gcs.mavlink import (
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
-STREAM_RETRY_S = 2.0             # asked again when nothing but HEARTBEATs came this long
+STREAM_RETRY_S = 2.0             # streams asked again after this long with HEARTBEATs only
 POLL_S = 0.05
 QUEUE_DEPTH = 500            # messages kept per type and vehicle for recv()
 STATUSTEXT_KEPT = 20
@@ -362,7 +362,7 @@ class VehicleLink:
         self.signs = False            # its packets carry signatures (seen without a key)
         self.mission_capacity = None  # items it holds, once learned (mission_protocol)
         self.mission_fits = 0         # the longest upload it took
-        self._streamed_at = self._asked_at = 0.0   # last telemetry / stream request (monotonic)
+        self._streaming, self._asked_at = False, 0.0   # telemetry seen; last request (monotonic)
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
         self._cond = threading.Condition()
@@ -490,14 +490,14 @@ class VehicleLink:
                 pass
 
     def _streams_missing(self, msg) -> bool:
-        """True on a HEARTBEAT when no telemetry came for STREAM_RETRY_S since the last
-        request: that request (or the stream) was lost on the way, as packets are on a
-        radio link, and the vehicle streams nothing until asked again."""
-        now = time.monotonic()
+        """True on a HEARTBEAT when no telemetry has come yet, STREAM_RETRY_S after
+        the last request: that request was lost on the way, as packets are on a
+        radio link, and the vehicle streams nothing until asked again. (Once it
+        streams, it goes on: a quiet spell later is not a lost request.)"""
         if msg.get_type() != "HEARTBEAT":
-            self._streamed_at = now
+            self._streaming = True
             return False
-        return now - max(self._streamed_at, self._asked_at) >= STREAM_RETRY_S
+        return not self._streaming and time.monotonic() - self._asked_at >= STREAM_RETRY_S
 
 
 def _is_signed(msg) -> bool:
