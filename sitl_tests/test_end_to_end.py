@@ -266,12 +266,12 @@ def test_one_killed_with_20_percent_packet_loss_throughout(planned, tmp_path):
     --lost-after is 8 s (1e-6 of a false loss per second); the mission protocol
     resends after 0.15 s (the simulator answers within milliseconds; a radio
     needs more) and up to 10 times (5 would fail an item 0.2 % of the time).
-    At 40x the flights last about 30 s of wall time, so the survivors are mostly
+    At 60x the flights last about 30 s of wall time, so the survivors are mostly
     still in the air when the loss is found 8 s after the kill (a landed one is sent
     up again when the loss leaves coverage short: ``relaunched``)."""
     p = planned(0, "sim")                     # packets are dropped by the simulated vehicles
     backend = "sim"
-    result = fly_case(p, backend, tmp_path, kills=[(2, 0.15)], drop_pct=20.0, speedup=40.0,
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.15)], drop_pct=20.0, speedup=60.0,
                       lost_after_s=8.0, protocol_timeout_s=0.15, protocol_retries=10)
     cov = assert_one_loss_retasked(p, result, 2)
     _print("one killed, 20 % packet loss", result, cov, loss_latency(result, 2))
