@@ -40,6 +40,8 @@ from gcs.mavlink import (
 
 HEARTBEAT_PERIOD_S = 1.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
+#: what a requested stream carries (TIMESYNC, STATUSTEXT flow before any request)
+STREAMED = frozenset({"SYS_STATUS", "GLOBAL_POSITION_INT", "GPS_RAW_INT"})
 STREAM_RETRY_S = 2.0             # streams asked again after this long with HEARTBEATs only
 POLL_S = 0.05
 QUEUE_DEPTH = 500            # messages kept per type and vehicle for recv()
@@ -494,8 +496,9 @@ class VehicleLink:
         the last request: that request was lost on the way, as packets are on a
         radio link, and the vehicle streams nothing until asked again. (Once it
         streams, it goes on: a quiet spell later is not a lost request.)"""
-        if msg.get_type() != "HEARTBEAT":
+        if msg.get_type() in STREAMED:
             self._streaming = True
+        if msg.get_type() != "HEARTBEAT":
             return False
         return not self._streaming and time.monotonic() - self._asked_at >= STREAM_RETRY_S
 
