@@ -264,7 +264,7 @@ class Retasker:
             survivor, positions[s] = self._survivor(s, landed=s in landed)
             survivors.append(survivor)
         seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone])
-        record.survivors, record.starts = list(everyone), positions
+        record.survivors, record.starts = sorted(everyone), positions
         record.required_uavs = int(requirement(ctx, len(everyone))[1][0])
         record.seen_before = coverage_summary(ctx, seen, ctx.scenario.k)
         record.original = original_outlook(ctx, m, everyone, len(record.lost))
@@ -279,7 +279,7 @@ class Retasker:
         # a landed vehicle goes up only if the re-plan gives it something to see
         up = [s for s in landed if any(w.snapshot for w in routes[s].waypoints)]
         tasked = list(sysids) + up
-        record.survivors, record.relaunched = tasked, up
+        record.survivors, record.relaunched = sorted(tasked), up  # in system-id order
         try:
             missions = {s: self._missions(s, routes[s]) for s in tasked}
         except InputError as exc:       # nothing is sent: the vehicles stay held

@@ -162,15 +162,16 @@ def test_flat_ground_above_the_valleys_is_a_loss_not_a_landing(planned, tmp_path
             assert touched and far < 3.0, sysid
 
 
-def _shoot_when_the_others_landed(fleet, victim, limit_s=60.0):
-    """Kill ``victim`` as soon as every other vehicle has flown and is down again."""
+def _shoot_when_the_others_landed(fleet, victim, shot: list, limit_s=60.0):
+    """Kill ``victim`` as soon as every other vehicle has flown and is down again;
+    ``shot`` gets True, or False when the victim was down first."""
     others = [v for v in fleet.vehicles if v.sysid != victim]
     flew = set()
     deadline = time.monotonic() + limit_s
     while time.monotonic() < deadline:
         flew |= {v.sysid for v in others if not v.landed}
         if len(flew) == len(others) and all(v.landed for v in others):
-            assert not fleet.vehicle(victim).landed, "the victim landed before the others"
+            shot.append(not fleet.vehicle(victim).landed)
             fleet.kill(victim)
             return
         time.sleep(0.01)
@@ -192,8 +193,13 @@ def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp
         "--track-dir", str(out / "tracks")])
     config = sim_cli.config_from_args(args)
     assert config.home[2] == pytest.approx(planned.launch[2], abs=0.01)
-    fleet = SimFleet(config).start()
-    shooter = threading.Thread(target=_shoot_when_the_others_landed, args=(fleet, victim),
+    fleet = SimFleet(config)
+    # the victim's clock runs at half speed: it is surely still up when the others
+    # are down (planned mission times alone differ by a fraction of a wall second)
+    fleet.vehicle(victim).cfg.speedup = 50
+    fleet.start()
+    shot = []
+    shooter = threading.Thread(target=_shoot_when_the_others_landed, args=(fleet, victim, shot),
                                daemon=True)
     shooter.start()
     try:
@@ -204,6 +210,7 @@ def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp
         fleet.stop()
     report = json.loads((out / "flight.json").read_text())
     survivors = sorted(set(ends) - {victim})
+    assert shot == [True], "the victim was down before the others"
     assert code == 1 and report["outcome"]["lost"] == [victim]
     assert report["outcome"]["coverage_reached"] and report["outcome"]["in_air"] == []
     relaunched = report["replans"][0]["relaunched"]
