@@ -121,7 +121,6 @@ class Flight:
         self.start_unix = time.time()
         self.link = None
         self.retasks = []
-        self._lost_early = False  # a vehicle was lost before monitoring began
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
         self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
         self.ctx = ctx
@@ -319,22 +318,23 @@ class Flight:
                     raise FlightError(f"{what} failed: {exc}") from None
                 raise exc
         lost = [s for s in sysids if m.vehicles[s].state == LOST]
-        for sysid in lost:
+        for sysid in lost:  # re-tasked for once monitoring begins (`watch`)
             error = errors.get(sysid)  # none when it fell silent before failing
             m.event(sysid, f"lost during {what}", **({"error": str(error)} if error else {}))
-        self._lost_early = self._lost_early or bool(lost)
 
     def watch(self, status=None, timeout_s=None) -> None:
         """Monitor until every vehicle has landed or is lost; re-task on each loss.
         _TimedOut after ``timeout_s`` wall seconds with vehicles still flying."""
         m = self.monitor
         end = None if timeout_s is None else time.monotonic() + timeout_s
-        if self._lost_early:
-            self._lost_early = False
-            self.retask()
-        while not m.all_finished():
-            if m.check_losses():
+        while True:
+            # every loss found so far, here or while waiting on vehicles (uploads,
+            # segment switches): the last one flying may leave the others down
+            m.check_losses()
+            if m.take_losses():
                 self.retask()
+            if m.all_finished():
+                break
             due = self.segments.due()
             if due:
                 self.next_segments(due)
@@ -348,7 +348,7 @@ class Flight:
 
     def next_segments(self, sysids) -> None:
         """Send ``sysids`` their next segments; a loss meanwhile re-tasks the survivors
-        (as a loss during re-tasking does)."""
+        (`watch` takes it next)."""
         m = self.monitor
         try:
             lost = self.segments.switch(sysids, lambda fn, s: _in_parallel(fn, s, m))
@@ -356,7 +356,6 @@ class Flight:
             raise FlightError(f"next segment failed: {exc}") from None
         if lost:
             m.event(None, "lost during a segment upload", lost=lost)
-            self.retask()
 
     def retask(self, home: bool = False) -> None:
         m = self.monitor

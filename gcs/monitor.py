@@ -144,6 +144,7 @@ class Monitor:
         self.links = {}  # sysid -> VehicleLink
         self.events = []  # [{"t_s", "sysid", "event", ...}]
         self._lock = threading.RLock()
+        self._untaken = []  # lost vehicles not yet taken by the flight (`take_losses`)
         self._unsubscribe = []
         self._on_event = on_event
 
@@ -357,7 +358,8 @@ class Monitor:
 
     # -- losses (flight loop) ---------------------------------------------------------
     def check_losses(self) -> list:
-        """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock)."""
+        """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock). Each
+        is also kept for `take_losses`, whoever called this."""
         lost = []
         with self._lock:
             for sysid, v in self.vehicles.items():
@@ -372,7 +374,16 @@ class Monitor:
                     self._lose(v, f"no HEARTBEAT for {age:.1f} s")
                     v._reported = True
                     lost.append(sysid)
+            self._untaken.extend(lost)
         return lost
+
+    def take_losses(self) -> list:
+        """Vehicles found lost since the last call, by any `check_losses` (a loss
+        found while waiting on other vehicles is not forgotten): the flight
+        re-tasks once for them all."""
+        with self._lock:
+            taken, self._untaken = self._untaken, []
+        return taken
 
     def _lose(self, v, reason: str) -> None:
         v.state = LOST

@@ -221,6 +221,7 @@ class Retasker:
         record = Retask(t_s=round(m.now(), 3), lost=lost)
         for attempt in range(1, MAX_ATTEMPTS + 1):
             record.attempts = attempt
+            m.take_losses()  # this attempt re-tasks for every loss so far
             sysids = self.flying()
             landed = [] if home else self._relaunchable(sysids)
             if not sysids and not landed:

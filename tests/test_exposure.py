@@ -338,6 +338,35 @@ def test_segment_hidden_never_passes_a_visible_leg(seed, curvature, range_m):
             assert not _leg_seen_by_sampling(terrain, posts, a[k], b[k], curvature)
 
 
+@settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(seed=st.integers(0, 10_000), curvature=st.sampled_from([0.0, K]))
+def test_horizon_hints_never_lose_a_proof_nor_prove_a_seen_leg(seed, curvature):
+    """Hints (any distance, right, wrong or none) only save work: every leg proven
+    without them is proven with them, and no leg proven with them is seen."""
+    terrain = _terrain(_rough(seed, relief=80.0))
+    rng = np.random.default_rng(seed)
+    posts = [_outpost(terrain, *rng.uniform([0, 0], [27, 31]), height=2.0) for _ in range(2)]
+    surface = compute_exposure(terrain, posts, ExposureParams(curvature_coeff=curvature))
+    exact = _exact_lowest(terrain, posts, curvature)
+    n_legs = 40
+    r0, c0 = rng.integers(0, 28, n_legs), rng.integers(0, 32, n_legs)
+    r1 = np.clip(r0 + rng.integers(-2, 3, n_legs), 0, 27)
+    c1 = np.clip(c0 + rng.integers(-2, 3, n_legs), 0, 31)
+    za = np.minimum(exact[r0, c0], terrain.height[r0, c0] + 200.0) - rng.uniform(0, 8, n_legs)
+    zb = np.minimum(exact[r1, c1], terrain.height[r1, c1] + 200.0) - rng.uniform(0, 8, n_legs)
+    a = np.stack([*terrain.xy(r0, c0), za], axis=1)
+    b = np.stack([*terrain.xy(r1, c1), zb], axis=1)
+    found = np.full((n_legs, 2), np.nan)
+    plain = segments_hidden(surface, a, b, 5.0, found)
+    # the horizons found, jittered by up to 3 cells, and random distances
+    hints = np.where(rng.random((n_legs, 2)) < 0.5, found + rng.uniform(-90, 90, (n_legs, 2)),
+                     rng.uniform(0, 1500, (n_legs, 2)))
+    hinted = segments_hidden(surface, a, b, 5.0, hints)
+    assert np.all(hinted[plain])
+    for k in np.flatnonzero(hinted & ~plain):
+        assert not _leg_seen_by_sampling(terrain, posts, a[k], b[k], curvature)
+
+
 def test_segment_hidden_proves_legs_with_room_and_rejects_seen_ones():
     h = _ridge()
     terrain = _terrain(h)

@@ -12,6 +12,7 @@ from common.errors import InputError
 from gcs.cli import main
 from gcs.fly import assign_vehicles
 from gcs.monitor import HOLDING, LANDED, LOST, Monitor
+from gcs.retask import _in_parallel
 from gcs.sim import free_base_port, read_track, track_path
 from planner.plan import Plan
 
@@ -97,6 +98,28 @@ def test_loss_after_silence_not_before(plan_dir):
     # and stays landed: a re-task that held it as it touched down does not revive it
     m.set_state(1, HOLDING)
     assert m.vehicles[1].state == LANDED
+
+
+def test_a_loss_found_while_waiting_on_another_vehicle_is_not_forgotten(plan_dir):
+    """Vehicle 2 falls silent while the flight waits on vehicle 1 (a segment switch):
+    the loss found there is taken by the flight loop once, for one re-task."""
+    plan = Plan.load(plan_dir)
+    m = Monitor(lost_after_s=0.2)
+    links = [_FakeLink(1), _FakeLink(2)]
+    for link, route in zip(links, plan.vehicles):
+        m.follow(link, route.id, route, SimpleNamespace(items=[], waypoint_of_item=[]))
+
+    def switch(sysid):          # vehicle 1 answers for 0.5 s; vehicle 2 is silent
+        end = time.monotonic() + 0.5
+        while time.monotonic() < end:
+            links[sysid - 1].beat()
+            time.sleep(0.02)
+
+    assert _in_parallel(switch, [1], m) == {1: None}
+    assert m.vehicles[2].state == LOST
+    assert m.check_losses() == []            # found already, while waiting ...
+    assert m.take_losses() == [2]            # ... and still to be re-tasked for
+    assert m.take_losses() == []
 
 
 def test_landing_after_flying_only_below_home(plan_dir):

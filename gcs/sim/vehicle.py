@@ -765,7 +765,8 @@ class SimVehicle:
     def _mission_done(self, seq: int) -> None:
         self._last_dest = None
         if not self.landed:
-            self.mode = self.flavour.hold_mode       # hold where the mission ended
+            # hold where the mission ended, still in the mission mode: ArduCopter's
+            # AUTO loiters (exit_mission), PX4 hovers in Mission mode
             self._go_to(self.body.pos)
         else:
             self.task = None

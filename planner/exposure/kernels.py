@@ -632,15 +632,40 @@ def _local_gradient(grad, g_max, u, v, rho):
     return m
 
 
+#: a piece's proof first tries the terrain within this many cells of a hinted horizon
+HINT_CELLS = 2.0
+PROVEN, SEEN, UNPROVEN = 1, 0, -1
+
+
+@njit(cache=True, inline="always")
+def _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m, ta, tb, curv, half_h,
+                 half_z, r_max):
+    """(PROVEN | SEEN | UNPROVEN, t) of a piece of a leg (see `_leg_hidden_from`) by
+    the highest terrain point of the ray to its midpoint over t in [ta, tb], at t.
+    SEEN (the midpoint is seen) is certain only when [ta, tb] is the whole ray."""
+    s, t = ray_max(h, cell, u0, v0, z0, um, vm, ta, tb, curv)
+    margin = z0 + d_m * s + curv * d_m * d_m / (2.0 * EARTH_RADIUS_M) - zm
+    if not (margin > 0.0):
+        return SEEN, t
+    rho = t * half_h / cell
+    lip = _local_gradient(grad, g_max, u0 + t * (um - u0), v0 + t * (vm - v0), rho)
+    need = (lip + 2.0 * curv * r_max / EARTH_RADIUS_M) * half_h + half_z
+    if margin > need * (1.0 + 1e-9) + 1e-6:
+        return PROVEN, t
+    return UNPROVEN, t
+
+
 MAX_PIECES = 4000  # pieces per leg and outpost before giving up (answer: not proven)
 MIN_PIECE_M = 1e-3
 
 
 @njit(cache=True)
-def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m):
-    """Whether every point within ``slack_m`` (horizontally) of the leg a -> b
-    ((u, v, z), grid units and m AMSL) is hidden from one eye (u, v, z, range_m).
-    Conservative: False when not proven.
+def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m, hint):
+    """(hidden, horizon): whether every point within ``slack_m`` (horizontally) of
+    the leg a -> b ((u, v, z), grid units and m AMSL) is hidden from one eye
+    (u, v, z, range_m), and the distance (m) from the eye of the horizon of the
+    whole leg: found by walking its ray, else ``hint``. Conservative: False when
+    not proven.
 
     A piece of the leg is proven by its midpoint m: if the terrain point X* at
     fraction t* of the ray O -> m (its horizon) rises `margin` = zmin(m) - z(m)
@@ -654,6 +679,13 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m):
     With a slack, half_h grows by ``slack_m`` and ranges by as much, so that
     the leg's ends may move that far (e.g. rounded to degE7) and stay hidden.
     Pieces that fail are halved; a midpoint seen (margin <= 0) ends the test.
+
+    The proof holds for any terrain point X on the ray, not only the horizon,
+    so a piece is first tried with the highest slope within `HINT_CELLS` of the
+    distance ``hint`` (m; NaN: none) from the eye, a few patches instead of the
+    whole ray: legs next to each other share their horizon (``hint`` is the
+    horizon of a neighbouring leg, then of the whole leg). Only when that fails
+    is the whole ray walked, as without a hint, so a hint never loses a proof.
     """
     u0, v0, z0, range_m = eye[0], eye[1], eye[2], eye[3]
     stack_a = np.empty(64)
@@ -664,13 +696,15 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m):
     pieces = 0
     leg_h = cell * math.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2)
     leg_z = abs(b[2] - a[2])
+    horizon = hint  # replaced by the whole leg's horizon if its ray is walked
+    walked = False
     while top > 0:
         top -= 1
         sa = stack_a[top]
         sb = stack_b[top]
         pieces += 1
         if pieces > MAX_PIECES:
-            return False
+            return False, horizon
         # horizontal distance from the outpost to the piece's ends and nearest point
         ua = a[0] + sa * (b[0] - a[0])
         va = a[1] + sa * (b[1] - a[1])
@@ -696,31 +730,42 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m):
         d_m = cell * math.sqrt((um - u0) ** 2 + (vm - v0) ** 2)
         if d_m <= range_m + slack_m:
             if d_m == 0.0:
-                return False  # straight above the outpost
+                return False, horizon  # straight above the outpost
             # from 1e-3 grid units on: at the eye (T - z0) / d is rounding noise, and a
             # shorter stretch only lowers zmin (conservative)
-            s, t = ray_max(h, cell, u0, v0, z0, um, vm, 1e-3 * cell / d_m, 1.0, curv)
-            margin = z0 + d_m * s + curv * d_m * d_m / (2.0 * EARTH_RADIUS_M) - zm
-            if not (margin > 0.0):
-                return False  # the midpoint is seen
-            rho = t * half_h / cell
-            lip = _local_gradient(grad, g_max, u0 + t * (um - u0), v0 + t * (vm - v0), rho)
-            need = (lip + 2.0 * curv * r_max / EARTH_RADIUS_M) * half_h + half_z
-            if margin > need * (1.0 + 1e-9) + 1e-6:
+            t_eye = 1e-3 * cell / d_m
+            if hint == hint:
+                lo = max(t_eye, (hint - HINT_CELLS * cell) / d_m)
+                hi = min(1.0, (hint + HINT_CELLS * cell) / d_m)
+                if lo < hi and _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m,
+                                            lo, hi, curv, half_h, half_z, r_max)[0] == PROVEN:
+                    continue
+            found, t = _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m,
+                                    t_eye, 1.0, curv, half_h, half_z, r_max)
+            hint = d_m * t
+            if not walked:
+                horizon, walked = hint, True
+            if found == SEEN:
+                return False, horizon  # the midpoint is seen
+            if found == PROVEN:
                 continue
         if half_h - slack_m + half_z < MIN_PIECE_M or top + 2 > stack_a.shape[0]:
-            return False  # grazing: not provable at this resolution
+            return False, horizon  # grazing: not provable at this resolution
         stack_a[top] = sa
         stack_b[top] = sm
         stack_a[top + 1] = sm
         stack_b[top + 1] = sb
         top += 2
-    return True
+    return True, horizon
 
 
 @njit(cache=True, parallel=True)
-def legs_hidden(h, cell, grad, eyes, a, b, curv, slack_m):
-    """segment hidden from every eye, for each leg a[k] -> b[k] ((u, v, z) rows)."""
+def legs_hidden(h, cell, grad, eyes, a, b, curv, slack_m, horizons):
+    """segment hidden from every eye, for each leg a[k] -> b[k] ((u, v, z) rows).
+
+    ``horizons`` [n legs, n eyes]: in, a hinted horizon distance (m; NaN: none)
+    of each leg from each eye (`_leg_hidden_from`); out, the horizon of the whole
+    leg (found, else the hint; NaN after an eye that saw the leg)."""
     n = a.shape[0]
     out = np.zeros(n, np.bool_)
     g_max = 0.0
@@ -730,8 +775,12 @@ def legs_hidden(h, cell, grad, eyes, a, b, curv, slack_m):
     for k in prange(n):
         ok = True
         for o in range(eyes.shape[0]):
-            if not _leg_hidden_from(h, cell, grad, g_max, eyes[o], a[k], b[k], curv, slack_m):
+            hidden, horizons[k, o] = _leg_hidden_from(h, cell, grad, g_max, eyes[o], a[k],
+                                                      b[k], curv, slack_m, horizons[k, o])
+            if not hidden:
                 ok = False
+                for rest in range(o + 1, eyes.shape[0]):
+                    horizons[k, rest] = np.nan
                 break
         out[k] = ok
     return out

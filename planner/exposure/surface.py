@@ -144,15 +144,22 @@ def segment_hidden(surface, a_xyz, b_xyz, slack_m=0.0) -> bool:
     return bool(segments_hidden(surface, [a_xyz], [b_xyz], slack_m)[0])
 
 
-def segments_hidden(surface, a_xyz, b_xyz, slack_m=0.0) -> np.ndarray:
-    """`segment_hidden` for many legs a[k] -> b[k] at once (in parallel)."""
+def segments_hidden(surface, a_xyz, b_xyz, slack_m=0.0, horizons=None) -> np.ndarray:
+    """`segment_hidden` for many legs a[k] -> b[k] at once (in parallel).
+
+    ``horizons``: optional float [n legs, n outposts], updated in place: in, the
+    distance (m) from each outpost of a horizon that may prove each leg (that of
+    a neighbouring leg: a few cells of terrain are tried there before the
+    whole ray; NaN for none), out, the horizon found for each leg (else its
+    hint). A hint saves whole-ray walks and may prove a leg that
+    would not be proven without it (each proof is as strict), never the reverse."""
     terrain = surface.terrain
     a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
-    h = _heights(terrain)
-    grad = _gradient_bound(surface)
-    eyes = _eyes(terrain, surface.outposts)
-    hidden = k.legs_hidden(h, terrain.cell_size, grad, eyes, a, b,
-                           float(surface.params.curvature_coeff), float(slack_m))
+    if horizons is None:
+        horizons = np.full((len(a), len(surface.outposts)), np.nan)
+    hidden = k.legs_hidden(_heights(terrain), terrain.cell_size, _gradient_bound(surface),
+                           _eyes(terrain, surface.outposts), a, b,
+                           float(surface.params.curvature_coeff), float(slack_m), horizons)
     return hidden & inside
 
 

@@ -16,7 +16,11 @@ edges to the 8 or 16 neighbouring cells of the same region, kept when the
 straight 3-D leg between the two nodes passes the exact clearance and ceiling
 tests (planner.exposure.los.gap_range) and ``segments_hidden``; when it fails, the edge may
 still "dip": descend to the higher of the two floors (on the raised terrain),
-fly level (checked the same way), climb back.
+fly level (checked the same way), climb back. Rays to neighbouring cells mostly
+meet the same ridge, so each proof first tries the horizon a neighbour's proof
+found (a few cells of terrain instead of the whole ray; the whole ray when that
+fails): a lattice of nodes first, the other nodes from them, edges from their
+source node.
 Different regions are never joined, so their times are infinite.
 
 Paths found on the graph are smoothed by string pulling: a run of vertices
@@ -59,6 +63,9 @@ ATTACH_REACH_CELLS = 2
 #: seconds of work each on large areas, so that progress moves and dask tasks pay
 NODE_CHUNK = 100_000
 EDGE_CHUNK = 100_000
+#: nodes on every HINT_LATTICE-th row and column are checked first; their horizons
+#: then hint the proofs of the nodes around them (`TravelGraph._check_nodes`)
+HINT_LATTICE = 3
 
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
@@ -166,12 +173,14 @@ class TravelGraph:
         return int(self.csr.nnz)
 
     # --- legs -----------------------------------------------------------------------
-    def legs_ok(self, a, b, strict=True) -> np.ndarray:
+    def legs_ok(self, a, b, strict=True, horizons=None) -> np.ndarray:
         """Which straight legs a[k] -> b[k] (projected x, y, alt) are flyable hidden:
         at least clearance_m and at most ceiling_agl_m above the terrain, and hidden.
         ``strict`` (every planned leg): also under the ceiling E - hide_margin all
         along, and every point within track_tolerance_m of the leg hidden and
-        clearance_m above the terrain; else the leg alone, rounded."""
+        clearance_m above the terrain; else the leg alone, rounded. ``horizons``:
+        as `planner.exposure.segments_hidden` takes them (rows of legs that fail
+        before the hidden test are left as they are)."""
         a = np.atleast_2d(np.asarray(a, float))
         b = np.atleast_2d(np.asarray(b, float))
         terrain = self.surface.terrain
@@ -191,7 +200,7 @@ class TravelGraph:
             with np.errstate(invalid="ignore"):
                 ok &= K.legs_gaps(self._ceiling, ca, ra, za, cb, rb, zb)[1] <= 1e-6
         idx = np.flatnonzero(ok)
-        ok[idx] = _segments_hidden(self.surface, a[idx], b[idx], slack_m)
+        ok[idx] = _segments_hidden(self.surface, a[idx], b[idx], slack_m, horizons, idx)
         return ok
 
     def _edges(self, half_offsets, client=None, progress=None):
@@ -206,18 +215,45 @@ class TravelGraph:
         prove it. Nodes, then node pairs, are checked in chunks.
         """
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
-        nodes = np.arange(self.n_nodes)
-        fine = np.concatenate([np.zeros(0, bool)] + run_chunks(
-            _fine_nodes, _split(nodes, NODE_CHUNK), (self,), client, _part(progress, 0.0, 0.15)))
+        fine, horizons = self._check_nodes(client, progress)
         keep = fine[src] & fine[dst]
         pairs = np.stack([src[keep], dst[keep]], axis=1)
-        checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self,), client,
-                             _part(progress, 0.15, 1.0))
+        checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self, horizons),
+                             client, _part(progress, 0.15, 1.0))
         if not checked:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         ok = np.concatenate([c[0] for c in checked])
         dip = np.concatenate([c[1] for c in checked])
         return pairs[ok, 0], pairs[ok, 1], dip[ok]
+
+    def _check_nodes(self, client=None, progress=None) -> tuple:
+        """(fine, horizons) of every node (`_fine_nodes`). The nodes of every
+        `HINT_LATTICE`-th row and column go first, walking whole rays; the others
+        then start from the horizons of the lattice node nearest them (rays to
+        neighbouring cells mostly meet the same ridge)."""
+        fine = np.zeros(self.n_nodes, bool)
+        horizons = np.full((self.n_nodes, len(self.surface.outposts)), np.nan)
+        on_lattice = (self.node_rows % HINT_LATTICE == 0) & (self.node_cols % HINT_LATTICE == 0)
+        hinted_by = self._nearest_lattice_node()
+        for select, lo, hi in ((on_lattice, 0.0, 0.04), (~on_lattice, 0.04, 0.15)):
+            nodes = np.flatnonzero(select)
+            hints = np.full((len(nodes), horizons.shape[1]), np.nan)
+            has = hinted_by[nodes] >= 0
+            hints[has] = horizons[hinted_by[nodes[has]]]
+            chunks = list(zip(_split(nodes, NODE_CHUNK), _split(hints, NODE_CHUNK)))
+            for (part, _), (ok, found) in zip(chunks, run_chunks(
+                    _fine_nodes, chunks, (self,), client, _part(progress, lo, hi))):
+                fine[part], horizons[part] = ok, found
+        return fine, horizons
+
+    def _nearest_lattice_node(self) -> np.ndarray:
+        """The node of the `HINT_LATTICE` cell nearest each node's cell (-1: none)."""
+        n_rows, n_cols = self.node_of_cell.shape
+        r = np.minimum(np.rint(self.node_rows / HINT_LATTICE).astype(np.int64) * HINT_LATTICE,
+                       (n_rows - 1) // HINT_LATTICE * HINT_LATTICE)
+        c = np.minimum(np.rint(self.node_cols / HINT_LATTICE).astype(np.int64) * HINT_LATTICE,
+                       (n_cols - 1) // HINT_LATTICE * HINT_LATTICE)
+        return self.node_of_cell[r, c]
 
     # --- points <-> nodes -------------------------------------------------------------
     def nodes_of(self, xyz, what="point") -> np.ndarray:
@@ -603,12 +639,17 @@ def _edge_time(horiz, z_from, z_low, z_to, params):
     return np.where(direct, straight, dip)
 
 
-def _segments_hidden(surface, a, b, slack_m) -> np.ndarray:
+def _segments_hidden(surface, a, b, slack_m, horizons=None, rows=None) -> np.ndarray:
     """exposure.segments_hidden (proven hidden from every outpost, with every point
-    within ``slack_m`` of the leg), for many legs."""
+    within ``slack_m`` of the leg), for many legs; ``horizons[rows]`` its hints."""
     if len(a) == 0:
         return np.zeros(0, bool)
-    return np.asarray(exposure.segments_hidden(surface, a, b, slack_m), bool)
+    if horizons is None:
+        return np.asarray(exposure.segments_hidden(surface, a, b, slack_m), bool)
+    mine = np.ascontiguousarray(horizons[rows])
+    hidden = np.asarray(exposure.segments_hidden(surface, a, b, slack_m, mine), bool)
+    horizons[rows] = mine
+    return hidden
 
 
 def _dijkstra_rows(graph, columns, sources) -> np.ndarray:
@@ -621,14 +662,19 @@ def _bounded_rows(csr, sources) -> np.ndarray:
     return K.bounded_times(indptr, nbr, w, sources, slot, n, limit, _n_threads())
 
 
-def _fine_nodes(graph, nodes) -> np.ndarray:
-    """Which nodes pass the checks themselves (their track-tolerance disc)."""
+def _fine_nodes(graph, chunk) -> tuple:
+    """Which nodes pass the checks themselves (their track-tolerance disc), and the
+    horizon of each from each outpost (`planner.exposure.segments_hidden`), which
+    hints its edges' proofs. ``chunk``: (nodes, hinted horizons of each)."""
+    nodes, horizons = chunk
     xyz = graph.node_xyz[nodes]
-    return graph.legs_ok(xyz, xyz)
+    horizons = horizons.copy()
+    return graph.legs_ok(xyz, xyz, horizons=horizons), horizons
 
 
-def _checked_edges(graph, pairs):
-    """(ok, dip) of node pairs: the straight leg, else the dip (see `_edges`)."""
+def _checked_edges(graph, node_horizons, pairs):
+    """(ok, dip) of node pairs: the straight leg, else the dip (see `_edges`); the
+    source node's horizons hint the legs' proofs."""
     p = graph.surface.params
     src, dst = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
     z = np.ascontiguousarray(graph.node_xyz[:, 2])
@@ -636,8 +682,9 @@ def _checked_edges(graph, pairs):
                             graph.node_cols, z, src, dst,
                             p.clearance_m + CLEARANCE_MARGIN_M, p.ceiling_agl_m)
     idx = np.flatnonzero(ok)
+    hints = node_horizons[src]
     ok[idx] = _segments_hidden(graph.surface, graph.node_xyz[src[idx]],
-                               graph.node_xyz[dst[idx]], graph.params.slack_m)
+                               graph.node_xyz[dst[idx]], graph.params.slack_m, hints, idx)
     floor = graph._floor_at_nodes()
     low = np.maximum(floor[src], floor[dst])
     dip = np.full(src.shape[0], np.nan)
@@ -646,7 +693,7 @@ def _checked_edges(graph, pairs):
         z_low = np.ascontiguousarray(low[idx])
         a = np.column_stack([graph.node_xyz[src[idx], :2], z_low])
         b = np.column_stack([graph.node_xyz[dst[idx], :2], z_low])
-        fine = graph.legs_ok(a, b)
+        fine = graph.legs_ok(a, b, horizons=node_horizons[src[idx]])
         ok[idx[fine]] = True
         dip[idx[fine]] = z_low[fine]
     return ok, dip
