@@ -35,7 +35,7 @@ from common.fileio import write_text_atomic
 from gcs import commands
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
-from gcs.monitor import FLYING, LANDED, LOST, STARTING, Monitor
+from gcs.monitor import FLYING, LANDED, LOST, STARTING, STRANDED, Monitor
 from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
 from gcs.segments import Segments, upload_route
 from missions.build import MissionOptions, vehicle_mission
@@ -397,7 +397,8 @@ class Flight:
         lost and none left in the air; ``problems`` says what went wrong, one line each."""
         m = self.monitor
         lost = [s for s, v in sorted(m.vehicles.items()) if v.state == LOST]
-        in_air = [s for s, v in sorted(m.vehicles.items()) if not v.finished]
+        stranded = [s for s, v in sorted(m.vehicles.items()) if v.state == STRANDED]
+        flying = [s for s, v in sorted(m.vehicles.items()) if not v.finished]
         survivors = coverage.get("survivors")
         reached = bool(survivors) and survivors["k_covered"] >= coverage["coverable_targets"]
         problems = []
@@ -410,11 +411,15 @@ class Flight:
                 f"{survivors['k_covered']} of {coverage['coverable_targets']} coverable targets "
                 f"seen by {survivors['required_uavs']} surviving vehicle(s)" if survivors
                 else coverage.get("error", "no coverage computed")))
-        if in_air:
+        if stranded:
+            problems.append(f"vehicle(s) {', '.join(map(str, stranded))} stranded: held in "
+                            "the air where no hidden leg joins them, left to the operator")
+        if flying:
             why = "timed out" if self.timed_out else (self.stopped or "stopped")
-            problems.append(f"{why} with vehicle(s) {', '.join(map(str, in_air))} in the air")
+            problems.append(f"{why} with vehicle(s) {', '.join(map(str, flying))} in the air")
         return {"ok": not problems, "coverage_reached": reached, "lost": lost,
-                "timed_out": self.timed_out, "in_air": in_air, "problems": problems}
+                "timed_out": self.timed_out, "in_air": sorted(flying + stranded),
+                "stranded": stranded, "problems": problems}
 
     def _vehicle_report(self, v) -> dict:
         m = self.monitor

@@ -35,6 +35,9 @@ from missions.items import NAV_LAND
 # Flight states of a vehicle, as shown in the status table and flight.json.
 WAITING, STARTING, FLYING, HOLDING, RETURNING, LANDED, LOST = (
     "waiting", "starting", "flying", "holding", "returning", "landed", "lost")
+#: held in the air where no hidden leg joins it to the hidden volume (a re-plan
+#: cannot route it): left to the operator, still watched for a loss
+STRANDED = "stranded"
 #: below this height above home (m) a disarmed vehicle has landed, above it it fell
 LANDED_AGL_M = 3.0
 #: keep one track sample per this many wall seconds (telemetry comes at a few Hz)
@@ -109,7 +112,8 @@ class VehicleProgress:
 
     @property
     def finished(self) -> bool:
-        return self.state in (LANDED, LOST)
+        """Nothing more for the flight to do with it (a stranded one is the operator's)."""
+        return self.state in (LANDED, LOST, STRANDED)
 
     @property
     def launch_point(self):
@@ -363,7 +367,7 @@ class Monitor:
         lost = []
         with self._lock:
             for sysid, v in self.vehicles.items():
-                if v.finished:
+                if v.finished and v.state != STRANDED:
                     if v.state == LOST and v.lost_at_s is not None and not getattr(
                             v, "_reported", False):
                         v._reported = True

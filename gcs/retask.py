@@ -27,7 +27,7 @@ import numpy as np
 
 from common.errors import InputError
 from gcs import commands
-from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, distance_m
+from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, STRANDED, distance_m
 from gcs.segments import upload_route
 from missions.build import MissionOptions
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
@@ -58,6 +58,7 @@ class Retask:
     t_s: float
     lost: list  # system ids lost so far when it was made
     survivors: list = field(default_factory=list)  # system ids re-tasked
+    stranded: list = field(default_factory=list)  # held: no hidden leg joins them
     relaunched: list = field(default_factory=list)  # of them, landed ones sent up again
     attempts: int = 0
     planning_s: float = 0.0
@@ -171,7 +172,7 @@ class Retasker:
         (touched down at the end of a mission: it stays down unless re-launched)."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
-                if v.state not in (LOST, LANDED)
+                if v.state not in (LOST, LANDED, STRANDED)
                 and not (v.airborne and not m.links[s].state.armed)]
 
     def landed_at_launch(self) -> list:
@@ -230,6 +231,9 @@ class Retasker:
             try:
                 self._attempt(record, sysids, landed)
                 record.done_t_s = round(m.now(), 3)
+                if not record.survivors:
+                    m.event(None, "re-plan skipped: every survivor is stranded")
+                    return record
                 m.event(None, "re-tasked", survivors=record.survivors, attempt=attempt,
                         **({"relaunched": record.relaunched} if record.relaunched else {}))
                 return record
@@ -258,6 +262,9 @@ class Retasker:
             self._settle(sysids)
             if self.flying() != sysids:     # one touched down before it was held
                 raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
+            sysids = self._strand_unjoined(record, sysids)
+            if not sysids and not landed:
+                return
         t0 = time.perf_counter()
         everyone = list(sysids) + landed
         survivors, positions = [], {}
@@ -322,6 +329,22 @@ class Retasker:
                              lambda mission: checked(mission, ctx.surface,
                                                      ctx.scenario.clearance_m),
                              fly=fewer_waypoints(route, leg_prover(ctx)))
+
+    def _strand_unjoined(self, record, sysids) -> list:
+        """``sysids`` without the held vehicles no hidden leg joins to the hidden
+        volume: no route can start there, so they stay held, left to the operator,
+        and the others are re-planned (one stray vehicle does not stop the flight)."""
+        m, joined = self.monitor, []
+        for s in sysids:
+            try:
+                survivor_start(self.ctx, self._survivor(s)[0])
+                joined.append(s)
+            except InputError as exc:
+                m.set_state(s, STRANDED)
+                m.event(s, "stranded: held where it is, the operator takes over",
+                        reason=str(exc))
+                record.stranded.append(s)
+        return joined
 
     def _step(self, sysids, fn) -> None:
         """fn on every survivor at once; a failure of a vehicle found lost restarts."""

@@ -12,10 +12,12 @@ from types import SimpleNamespace
 
 import pytest
 
+from autopilots import profile
+from common.errors import InputError
 from gcs import mission_protocol as mp
 from gcs.cli import main
 from gcs.link import GroundLink
-from gcs.monitor import Monitor
+from gcs.monitor import STRANDED, Monitor
 from gcs.retask import Retask, Retasker, RetaskError
 from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
 from missions import qgc, wpl
@@ -217,4 +219,35 @@ def test_re_tasking_uploads_only_checked_missions(planned, vehicle, monkeypatch)
             Retasker(planned.ctx, monitor).\
                 _attempt(Retask(t_s=0.0, lost=[]), [1])
         assert held(vehicle) == before
+        monitor.close()
+
+
+def test_a_survivor_no_hidden_leg_joins_is_stranded_not_the_flight(planned, vehicle,
+                                                                    monkeypatch):
+    """A held vehicle whose position no hidden leg joins to the hidden volume cannot
+    start a route: it stays held, stranded (the operator's), nothing is uploaded to
+    it, and the re-tasking goes on with the others (here: none) instead of failing."""
+    route = planned.plan.vehicles[0]
+    options = MissionOptions(speed_mps=planned.plan.params["speed_mps"])
+    first = checked(vehicle_mission(route, "ardupilot", options), planned.ctx.surface,
+                    planned.plan.params["clearance_m"])
+    with GroundLink.open(vehicle.urls(), expect=1, timeout_s=10) as link:
+        v = link.vehicles[1]
+        mp.upload_verified(v, first)
+        before = held(vehicle)
+        monitor = Monitor(5.0)
+        monitor.follow(v, route.id, route, first)
+
+        def unjoined(ctx, survivor):
+            raise InputError(f"vehicle {survivor.vehicle_id}", "its position is not joined "
+                                                                "to the hidden volume")
+
+        monkeypatch.setattr("gcs.retask.survivor_start", unjoined)
+        monkeypatch.setattr("gcs.retask.replan", lambda *a, **k: pytest.fail("re-planned"))
+        record = Retasker(planned.ctx, monitor).retask()
+        assert record.stranded == [1] and record.survivors == []
+        assert monitor.vehicles[1].state == STRANDED and monitor.vehicles[1].finished
+        assert vehicle.vehicle(1).mode == profile("ardupilot").hold_mode  # held there
+        assert held(vehicle) == before                       # nothing uploaded
+        assert any(e["event"].startswith("stranded") for e in monitor.events)
         monitor.close()

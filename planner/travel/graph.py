@@ -116,15 +116,17 @@ class TravelGraph:
     """The hidden travel graph over the flyable cells of an exposure surface."""
 
     def __init__(self, surface, params=TravelParams(), neighbours=16, edges=None, client=None,
-                 progress=None):
+                 progress=None, hints=True):
         """``edges``: the checked edges of an identical graph (`edges()`, e.g. from a
         plan folder), taken as they are instead of checked again. Otherwise they are
         checked in chunks (`planner.parallel.run_chunks`: on ``client``'s dask
-        workers when given), ``progress(fraction)`` told as chunks end."""
+        workers when given), ``progress(fraction)`` told as chunks end. ``hints``
+        False: every proof walks whole rays (the reference benchmarks compare with)."""
         if neighbours not in (8, 16):
             raise InputError("neighbours", f"must be 8 or 16, got {neighbours}")
         self.surface = surface
         self.params = params
+        self.hints = hints
         terrain = surface.terrain
         self._h = np.ascontiguousarray(terrain.height, np.float64)
         ground = np.ascontiguousarray(terrain.upper, np.float64)
@@ -216,6 +218,8 @@ class TravelGraph:
         """
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
         fine, horizons = self._check_nodes(client, progress)
+        if not self.hints:
+            horizons[:] = np.nan
         keep = fine[src] & fine[dst]
         pairs = np.stack([src[keep], dst[keep]], axis=1)
         checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self, horizons),
@@ -235,6 +239,8 @@ class TravelGraph:
         horizons = np.full((self.n_nodes, len(self.surface.outposts)), np.nan)
         on_lattice = (self.node_rows % HINT_LATTICE == 0) & (self.node_cols % HINT_LATTICE == 0)
         hinted_by = self._nearest_lattice_node()
+        if not self.hints:
+            on_lattice[:], hinted_by[:] = True, -1
         for select, lo, hi in ((on_lattice, 0.0, 0.04), (~on_lattice, 0.04, 0.15)):
             nodes = np.flatnonzero(select)
             hints = np.full((len(nodes), horizons.shape[1]), np.nan)
