@@ -3,7 +3,10 @@
 import contextlib
 import os
 import tempfile
+import zipfile
 from pathlib import Path
+
+import numpy as np
 
 
 @contextlib.contextmanager
@@ -29,6 +32,16 @@ def atomic_path(path):
 def write_text_atomic(path, text: str) -> None:
     with atomic_path(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
+
+
+def save_npz(path, **arrays) -> None:
+    """``numpy.savez_compressed`` at the fastest deflate level: the plan folder's
+    arrays (hundreds of MB on large areas) are written in a fraction of the time
+    for a slightly larger file; `numpy.load` reads it as any .npz."""
+    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as archive:
+        for name, array in arrays.items():
+            with archive.open(f"{name}.npy", "w", force_zip64=True) as out:
+                np.lib.format.write_array(out, np.asanyarray(array), allow_pickle=False)
 
 
 def _umask() -> int:

@@ -29,6 +29,7 @@ from typing import Optional
 import numpy as np
 
 from common.errors import InputError
+from common.fileio import save_npz
 from planner.exposure import ExposureParams, ExposureSurface, Outpost, surface_from_lowest
 from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
 from planner.scenario import Scenario
@@ -75,11 +76,11 @@ class PlanningContext:
                    descriptions=("lowest altitude an outpost sees, m AMSL (inf: none)",))
         _write_viewpoints(d / VIEWPOINTS_FILE, self.terrain, self.viewpoints)
         v = self.visibility
-        np.savez_compressed(d / VISIBILITY_FILE, indptr=v.indptr, indices=v.indices,
-                            target_indptr=v.target_indptr,
-                            target_viewpoints=v.target_viewpoints,
-                            target_cells=v.target_cells, grid_shape=np.array(v.grid_shape))
-        np.savez_compressed(d / TRAVEL_FILE, **self.graph.edges(), regions=np.array(self.regions))
+        save_npz(d / VISIBILITY_FILE, indptr=v.indptr, indices=v.indices,
+                 target_indptr=v.target_indptr, target_viewpoints=v.target_viewpoints,
+                 target_cells=v.target_cells, grid_shape=np.array(v.grid_shape))
+        save_npz(d / TRAVEL_FILE, **self.graph.edges(compact=True),
+                 regions=np.array(self.regions))
         return [(d / LOWEST_SEEN_FILE, "lowest altitude any outpost sees, float64"),
                 (d / VIEWPOINTS_FILE, "candidate viewpoints (for re-planning)"),
                 (d / VISIBILITY_FILE, "visibility sets of the viewpoints (numpy npz)"),
@@ -104,7 +105,7 @@ class PlanningContext:
             return prepare(scenario, terrain=surface.terrain, outposts=surface.outposts)
         with np.load(d / TRAVEL_FILE) as saved:
             graph = TravelGraph(surface, scenario.travel_params(),
-                                edges={k: saved[k] for k in ("src", "dst", "dip")})
+                                edges={k: saved[k] for k in saved.files if k != "regions"})
             regions = tuple(int(r) for r in saved["regions"])
         with np.load(d / VISIBILITY_FILE) as saved:
             visibility = VisibilityMatrix(saved["indptr"], saved["indices"],

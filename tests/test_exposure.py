@@ -311,6 +311,19 @@ def _leg_seen_by_sampling(terrain, posts, a, b, curvature, n=600):
     return False
 
 
+def _legs_under_lowest(terrain, exact, rng, n_legs, reach):
+    """Legs a -> b between cell centres up to ``reach`` cells apart, each end at or
+    up to 8 m under the exact lowest seen altitude (200 m above the ground at most)."""
+    r0, c0 = rng.integers(0, 28, n_legs), rng.integers(0, 32, n_legs)
+    r1 = np.clip(r0 + rng.integers(-reach, reach + 1, n_legs), 0, 27)
+    c1 = np.clip(c0 + rng.integers(-reach, reach + 1, n_legs), 0, 31)
+    cap = terrain.height + 200.0
+    za = np.minimum(exact[r0, c0], cap[r0, c0]) - rng.uniform(0.0, 8.0, n_legs)
+    zb = np.minimum(exact[r1, c1], cap[r1, c1]) - rng.uniform(0.0, 8.0, n_legs)
+    return (np.stack([*terrain.xy(r0, c0), za], axis=1),
+            np.stack([*terrain.xy(r1, c1), zb], axis=1))
+
+
 @settings(max_examples=15, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(seed=st.integers(0, 10_000), curvature=st.sampled_from([0.0, K]),
        range_m=st.sampled_from([math.inf, 500.0]))
@@ -321,16 +334,8 @@ def test_segment_hidden_never_passes_a_visible_leg(seed, curvature, range_m):
              for _ in range(2)]
     surface = compute_exposure(terrain, posts, ExposureParams(curvature_coeff=curvature))
     exact = _exact_lowest(terrain, posts, curvature)
-    # legs between nearby cell centres, at or just under the exact lowest seen altitude
     n_legs = 12
-    r0, c0 = rng.integers(0, 28, n_legs), rng.integers(0, 32, n_legs)
-    r1 = np.clip(r0 + rng.integers(-4, 5, n_legs), 0, 27)
-    c1 = np.clip(c0 + rng.integers(-4, 5, n_legs), 0, 31)
-    cap = terrain.height + 200.0
-    za = np.minimum(exact[r0, c0], cap[r0, c0]) - rng.uniform(0.0, 8.0, n_legs)
-    zb = np.minimum(exact[r1, c1], cap[r1, c1]) - rng.uniform(0.0, 8.0, n_legs)
-    a = np.stack([*terrain.xy(r0, c0), za], axis=1)
-    b = np.stack([*terrain.xy(r1, c1), zb], axis=1)
+    a, b = _legs_under_lowest(terrain, exact, rng, n_legs, reach=4)
     proven = segments_hidden(surface, a, b)
     for k in range(n_legs):
         assert proven[k] == segment_hidden(surface, a[k], b[k])
@@ -349,13 +354,7 @@ def test_horizon_hints_never_lose_a_proof_nor_prove_a_seen_leg(seed, curvature):
     surface = compute_exposure(terrain, posts, ExposureParams(curvature_coeff=curvature))
     exact = _exact_lowest(terrain, posts, curvature)
     n_legs = 40
-    r0, c0 = rng.integers(0, 28, n_legs), rng.integers(0, 32, n_legs)
-    r1 = np.clip(r0 + rng.integers(-2, 3, n_legs), 0, 27)
-    c1 = np.clip(c0 + rng.integers(-2, 3, n_legs), 0, 31)
-    za = np.minimum(exact[r0, c0], terrain.height[r0, c0] + 200.0) - rng.uniform(0, 8, n_legs)
-    zb = np.minimum(exact[r1, c1], terrain.height[r1, c1] + 200.0) - rng.uniform(0, 8, n_legs)
-    a = np.stack([*terrain.xy(r0, c0), za], axis=1)
-    b = np.stack([*terrain.xy(r1, c1), zb], axis=1)
+    a, b = _legs_under_lowest(terrain, exact, rng, n_legs, reach=2)
     found = np.full((n_legs, 2), np.nan)
     plain = segments_hidden(surface, a, b, 5.0, found)
     # the horizons found, jittered by up to 3 cells, and random distances

@@ -8,6 +8,7 @@ ground station at all (its TCP server's accepted clients), never by what gcs say
 import json
 import shutil
 import time
+from contextlib import contextmanager
 from types import SimpleNamespace
 
 import pytest
@@ -194,9 +195,10 @@ def test_fly_refuses_an_edited_plan_before_connecting(plan_copy, vehicle, tmp_pa
     assert never_contacted(vehicle) and not out.exists()
 
 
-def test_re_tasking_uploads_only_checked_missions(planned, vehicle, monkeypatch):
-    """A re-plan whose route was raised into view is refused by the check: the vehicle
-    keeps the mission it had. And nothing but a CheckedMission is sent at all."""
+@contextmanager
+def _followed(planned, vehicle):
+    """The simulated vehicle flying vehicle 1's checked mission, followed by a
+    `Monitor`: (monitor, its link, the mission, what the vehicle stores)."""
     route = planned.plan.vehicles[0]
     options = MissionOptions(speed_mps=planned.plan.params["speed_mps"])
     first = checked(vehicle_mission(route, "ardupilot", options), planned.ctx.surface,
@@ -204,13 +206,22 @@ def test_re_tasking_uploads_only_checked_missions(planned, vehicle, monkeypatch)
     with GroundLink.open(vehicle.urls(), expect=1, timeout_s=10) as link:
         v = link.vehicles[1]
         mp.upload_verified(v, first)
-        before = held(vehicle)
+        monitor = Monitor(5.0)
+        monitor.follow(v, route.id, route, first)
+        try:
+            yield monitor, v, first, held(vehicle)
+        finally:
+            monitor.close()
+
+
+def test_re_tasking_uploads_only_checked_missions(planned, vehicle, monkeypatch):
+    """A re-plan whose route was raised into view is refused by the check: the vehicle
+    keeps the mission it had. And nothing but a CheckedMission is sent at all."""
+    with _followed(planned, vehicle) as (monitor, v, first, before):
         with pytest.raises(TypeError, match="only a checked mission"):
             mp.upload_verified(v, first.items)
         with pytest.raises(TypeError, match="made only by"):
-            CheckedMission(vehicle_mission(route, "ardupilot", options), "x", None, None)
-        monitor = Monitor(5.0)
-        monitor.follow(v, route.id, route, first)
+            CheckedMission(first.items, "x", None, None)
         bad = Plan.from_dict(planned.plan.to_dict()).vehicles[0]
         bad.waypoints[len(bad.waypoints) // 2].alt_amsl += 200.0
         monkeypatch.setattr("gcs.retask.replan", lambda *a, **k: SimpleNamespace(
@@ -219,7 +230,6 @@ def test_re_tasking_uploads_only_checked_missions(planned, vehicle, monkeypatch)
             Retasker(planned.ctx, monitor).\
                 _attempt(Retask(t_s=0.0, lost=[]), [1])
         assert held(vehicle) == before
-        monitor.close()
 
 
 def test_a_survivor_no_hidden_leg_joins_is_stranded_not_the_flight(planned, vehicle,
@@ -227,17 +237,7 @@ def test_a_survivor_no_hidden_leg_joins_is_stranded_not_the_flight(planned, vehi
     """A held vehicle whose position no hidden leg joins to the hidden volume cannot
     start a route: it stays held, stranded (the operator's), nothing is uploaded to
     it, and the re-tasking goes on with the others (here: none) instead of failing."""
-    route = planned.plan.vehicles[0]
-    options = MissionOptions(speed_mps=planned.plan.params["speed_mps"])
-    first = checked(vehicle_mission(route, "ardupilot", options), planned.ctx.surface,
-                    planned.plan.params["clearance_m"])
-    with GroundLink.open(vehicle.urls(), expect=1, timeout_s=10) as link:
-        v = link.vehicles[1]
-        mp.upload_verified(v, first)
-        before = held(vehicle)
-        monitor = Monitor(5.0)
-        monitor.follow(v, route.id, route, first)
-
+    with _followed(planned, vehicle) as (monitor, _, _, before):
         def unjoined(ctx, survivor):
             raise InputError(f"vehicle {survivor.vehicle_id}", "its position is not joined "
                                                                 "to the hidden volume")
@@ -250,4 +250,3 @@ def test_a_survivor_no_hidden_leg_joins_is_stranded_not_the_flight(planned, vehi
         assert vehicle.vehicle(1).mode == profile("ardupilot").hold_mode  # held there
         assert held(vehicle) == before                       # nothing uploaded
         assert any(e["event"].startswith("stranded") for e in monitor.events)
-        monitor.close()

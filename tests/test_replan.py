@@ -85,6 +85,8 @@ def test_saved_context_is_the_context(tmp_path, planned):
     assert np.array_equal(again.viewpoints.xyz, ctx.viewpoints.xyz)
     assert np.array_equal(again.visibility.indices, ctx.visibility.indices)
     assert again.graph.n_edges == ctx.graph.n_edges
+    for name, edges in ctx.graph.edges().items():       # stored compactly, read back exact
+        assert np.array_equal(again.graph.edges()[name], edges, equal_nan=True), name
     assert np.array_equal(again.travel, ctx.travel)
     survivor, snaps = _midway(ctx, outcome, 0)
     here = replan(ctx, [survivor], seen_matrix(ctx, [snaps]))

@@ -70,6 +70,7 @@ HINT_LATTICE = 3
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
 _HALF_16 = _HALF_8 + ((1, -2), (1, 2), (2, -1), (2, 1))
+_HALF_16_ARRAY = np.array(_HALF_16, np.int64)
 
 
 @dataclass(frozen=True)
@@ -148,7 +149,7 @@ class TravelGraph:
             src, dst, dip = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
                                                  np.int64), client, progress)
         else:
-            src, dst, dip = (np.asarray(edges[k]) for k in ("src", "dst", "dip"))
+            src, dst, dip = self._decoded(edges)
         self._undirected = (src, dst, dip)
         za, zb = self.node_xyz[src, 2], self.node_xyz[dst, 2]
         low = np.where(np.isnan(dip), np.minimum(za, zb), dip)
@@ -160,11 +161,36 @@ class TravelGraph:
         self.csr = csr_matrix((w, self._nbr.astype(np.int32), self._indptr), shape=(n, n))
         self._csr_reverse = None
 
-    def edges(self) -> dict:
+    def edges(self, compact=False) -> dict:
         """The checked undirected edges (node ids; ``dip``: the level altitude of a
-        dip edge, NaN for a straight one), as `TravelGraph(edges=...)` takes them."""
+        dip edge, NaN for a straight one), as `TravelGraph(edges=...)` takes them.
+
+        ``compact``: the same edges in a few bytes each, for the plan folder
+        (millions of them on large areas): source ids as steps, the neighbour
+        as its offset's index, levels only of the dip edges."""
         src, dst, dip = self._undirected
-        return {"src": src, "dst": dst, "dip": dip}
+        if not compact:
+            return {"src": src, "dst": dst, "dip": dip}
+        dr = self.node_rows[dst] - self.node_rows[src]
+        dc = self.node_cols[dst] - self.node_cols[src]
+        offset = np.argmax((_HALF_16_ARRAY[:, 0] == dr[:, None])
+                           & (_HALF_16_ARRAY[:, 1] == dc[:, None]), axis=1)
+        dipped = np.flatnonzero(~np.isnan(dip))
+        return {"src_step": np.diff(src, prepend=0).astype(np.int32),
+                "offset": offset.astype(np.uint8),
+                "dip_step": np.diff(dipped, prepend=0).astype(np.int32),
+                "dip_level": dip[dipped]}
+
+    def _decoded(self, edges) -> tuple:
+        """(src, dst, dip) from `edges()`, compact or not."""
+        if "src" in edges:
+            return tuple(np.asarray(edges[k]) for k in ("src", "dst", "dip"))
+        src = np.cumsum(edges["src_step"], dtype=np.int64)
+        dr, dc = _HALF_16_ARRAY[np.asarray(edges["offset"], np.int64)].T
+        dst = self.node_of_cell[self.node_rows[src] + dr, self.node_cols[src] + dc]
+        dip = np.full(len(src), np.nan)
+        dip[np.cumsum(edges["dip_step"], dtype=np.int64)] = edges["dip_level"]
+        return src, dst, dip
 
     @property
     def n_nodes(self) -> int:
