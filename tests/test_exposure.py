@@ -391,6 +391,29 @@ def test_segment_hidden_proves_legs_with_room_and_rejects_seen_ones():
     assert not segment_hidden(surface, low[0], np.array([X0 - 100.0, y1, 500.0]))
 
 
+def test_leg_across_the_range_circle_is_proven_by_the_terrain():
+    """A leg in the ridge's shadow crossing an outpost's range circle, with only
+    0.4 mm of it inside: hidden by the terrain, whatever the range (halving alone
+    never reached a midpoint inside the circle and gave up). The same leg in the
+    open, above the sight line, is seen."""
+    h = _ridge()
+    terrain = _terrain(h)
+    eye = np.array([*terrain.xy(20.0, 5.0), h[20, 5] + 2.0])
+    z0 = eye[2]
+    x, y = terrain.xy(10.0, 50.0)
+    radial = np.array([x, y]) - eye[:2]
+    reach = float(np.hypot(*radial))
+    u = radial / reach
+    post = _outpost(terrain, 20.0, 5.0, height=2.0, range_m=reach)
+    surface = compute_exposure(terrain, [post], ExposureParams(curvature_coeff=0.0))
+    ends = [eye[:2] + u * (reach - 0.0004), eye[:2] + u * (reach + 1.2)]
+    slope = (400.0 - z0) / (25.0 * CELL)              # the sight line over the crest
+    below = [np.array([*p, z0 + slope * np.hypot(*(p - eye[:2])) - 20.0]) for p in ends]
+    assert segment_hidden(surface, *below)
+    above = [p + [0.0, 0.0, 200.0] for p in below]
+    assert not segment_hidden(surface, *above)
+
+
 @settings(max_examples=30, deadline=None)
 @given(seed=st.integers(0, 10_000), a=st.tuples(st.floats(0, 31), st.floats(0, 27)),
        b=st.tuples(st.floats(0, 31), st.floats(0, 27)), za=st.floats(-20, 80),

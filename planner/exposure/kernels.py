@@ -679,6 +679,9 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m, hint):
     With a slack, half_h grows by ``slack_m`` and ranges by as much, so that
     the leg's ends may move that far (e.g. rounded to degE7) and stay hidden.
     Pieces that fail are halved; a midpoint seen (margin <= 0) ends the test.
+    The terrain proof does not need the range: a piece across an outpost's range
+    circle with its midpoint beyond it is proven by the terrain too, or halved
+    (halving alone never ends at the circle: it gave up at a millimetre).
 
     The proof holds for any terrain point X on the ray, not only the horizon,
     so a piece is first tried with the highest slope within `HINT_CELLS` of the
@@ -728,27 +731,26 @@ def _leg_hidden_from(h, cell, grad, g_max, eye, a, b, curv, slack_m, hint):
         half_h = 0.5 * (sb - sa) * leg_h + slack_m
         half_z = 0.5 * (sb - sa) * leg_z
         d_m = cell * math.sqrt((um - u0) ** 2 + (vm - v0) ** 2)
-        if d_m <= range_m + slack_m:
-            if d_m == 0.0:
-                return False, horizon  # straight above the outpost
-            # from 1e-3 grid units on: at the eye (T - z0) / d is rounding noise, and a
-            # shorter stretch only lowers zmin (conservative)
-            t_eye = 1e-3 * cell / d_m
-            if hint == hint:
-                lo = max(t_eye, (hint - HINT_CELLS * cell) / d_m)
-                hi = min(1.0, (hint + HINT_CELLS * cell) / d_m)
-                if lo < hi and _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m,
-                                            lo, hi, curv, half_h, half_z, r_max)[0] == PROVEN:
-                    continue
-            found, t = _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m,
-                                    t_eye, 1.0, curv, half_h, half_z, r_max)
-            hint = d_m * t
-            if not walked:
-                horizon, walked = hint, True
-            if found == SEEN:
-                return False, horizon  # the midpoint is seen
-            if found == PROVEN:
+        if d_m == 0.0:
+            return False, horizon  # straight above the outpost
+        # from 1e-3 grid units on: at the eye (T - z0) / d is rounding noise, and a
+        # shorter stretch only lowers zmin (conservative)
+        t_eye = 1e-3 * cell / d_m
+        if hint == hint:
+            lo = max(t_eye, (hint - HINT_CELLS * cell) / d_m)
+            hi = min(1.0, (hint + HINT_CELLS * cell) / d_m)
+            if lo < hi and _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m,
+                                        lo, hi, curv, half_h, half_z, r_max)[0] == PROVEN:
                 continue
+        found, t = _piece_proof(h, cell, grad, g_max, u0, v0, z0, um, vm, zm, d_m,
+                                t_eye, 1.0, curv, half_h, half_z, r_max)
+        hint = d_m * t
+        if not walked:
+            horizon, walked = hint, True
+        if found == PROVEN:
+            continue
+        if found == SEEN and d_m <= range_m + slack_m:
+            return False, horizon  # the midpoint is seen
         if half_h - slack_m + half_z < MIN_PIECE_M or top + 2 > stack_a.shape[0]:
             return False, horizon  # grazing: not provable at this resolution
         stack_a[top] = sa
