@@ -53,6 +53,9 @@ class Flavour:
     reached_after_do_items: bool   # MISSION_ITEM_REACHED once the DO commands after a
                                    # navigation item are done, with the last one's seq (PX4)
     resume_old_index: bool         # a new upload keeps the current index (ArduPilot)
+    holds_in_hold_mode: bool       # at a mission's end switches to its hold mode (PX4:
+                                   # AUTO.LOITER); ArduCopter stays in AUTO, loitering
+                                   # (both seen on real SITL)
     arm_in_auto_starts: bool       # arming in the mission mode takes off at once (PX4)
     start_needs_armed: bool        # MISSION_START is refused while disarmed (ArduPilot)
     takeoff_mode: str | None       # NAV_TAKEOFF switches to this mode, altitude AMSL (PX4);
@@ -150,6 +153,7 @@ ARDUPILOT = Flavour(
     legacy_request=True,
     reached_after_do_items=False,
     resume_old_index=True,
+    holds_in_hold_mode=False,
     arm_in_auto_starts=False,
     start_needs_armed=True,
     takeoff_mode=None,
@@ -188,6 +192,7 @@ PX4 = Flavour(
     legacy_request=False,
     reached_after_do_items=True,
     resume_old_index=False,
+    holds_in_hold_mode=True,
     arm_in_auto_starts=True,
     start_needs_armed=False,
     takeoff_mode="AUTO.TAKEOFF",

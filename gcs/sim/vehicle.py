@@ -765,8 +765,10 @@ class SimVehicle:
     def _mission_done(self, seq: int) -> None:
         self._last_dest = None
         if not self.landed:
-            # hold where the mission ended, still in the mission mode: ArduCopter's
-            # AUTO loiters (exit_mission), PX4 hovers in Mission mode
+            # hold where the mission ended: ArduCopter loiters in AUTO, PX4 switches
+            # to AUTO.LOITER
+            if self.flavour.holds_in_hold_mode:
+                self.mode = self.flavour.hold_mode
             self._go_to(self.body.pos)
         else:
             self.task = None
