@@ -244,8 +244,6 @@ class TravelGraph:
         """
         src, dst = K.grid_neighbours(self.node_of_cell, self.node_region, half_offsets)
         fine, horizons = self._check_nodes(client, progress)
-        if not self.hints:
-            horizons[:] = np.nan
         keep = fine[src] & fine[dst]
         pairs = np.stack([src[keep], dst[keep]], axis=1)
         checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self, horizons),
@@ -260,7 +258,8 @@ class TravelGraph:
         """(fine, horizons) of every node (`_fine_nodes`). The nodes of every
         `HINT_LATTICE`-th row and column go first, walking whole rays; the others
         then start from the horizons of the lattice node nearest them (rays to
-        neighbouring cells mostly meet the same ridge)."""
+        neighbouring cells mostly meet the same ridge). Without ``hints`` every
+        node walks whole rays and no horizon is handed on to the edges."""
         fine = np.zeros(self.n_nodes, bool)
         horizons = np.full((self.n_nodes, len(self.surface.outposts)), np.nan)
         on_lattice = (self.node_rows % HINT_LATTICE == 0) & (self.node_cols % HINT_LATTICE == 0)
@@ -276,7 +275,7 @@ class TravelGraph:
             for (part, _), (ok, found) in zip(chunks, run_chunks(
                     _fine_nodes, chunks, (self,), client, _part(progress, lo, hi))):
                 fine[part], horizons[part] = ok, found
-        return fine, horizons
+        return fine, horizons if self.hints else np.full_like(horizons, np.nan)
 
     def _nearest_lattice_node(self) -> np.ndarray:
         """The node of the `HINT_LATTICE` cell nearest each node's cell (-1: none)."""
