@@ -110,6 +110,27 @@ def test_alns_is_deterministic_for_a_seed_and_budget():
     assert c.coverage_time <= solve(problem, "rt", params).coverage_time + 1e-9
 
 
+def test_two_chains_are_never_worse_than_one_and_run_at_once():
+    """The first chain is the single search (same stream); the second runs beside
+    it on another thread, which only pays if the kernels release the GIL."""
+    from numba.core.registry import CPUDispatcher
+
+    from planner.coverage import alns_kernels
+
+    problem = random_problem(n_viewpoints=120, n_targets=900, n_uavs=4, k=1, seed=9,
+                             family="clustered", launch=True, size_m=3000.0, sensor_m=450.0)
+    prep = prepare(problem)
+    start = solve(problem, "rt").routes
+    one = search(prep, [start], CoverageParams(seed=5), units=20_000_000, chains=1)
+    two = search(prep, [start], CoverageParams(seed=5), units=20_000_000, chains=2)
+    assert two.best_time <= one.best_time + 1e-9
+    assert two.iterations > one.iterations
+    assert brute_force_shortfall(problem, two.routes) == 0
+    kernels = [f for f in vars(alns_kernels).values() if isinstance(f, CPUDispatcher)
+               and f.py_func.__module__ == alns_kernels.__name__]
+    assert kernels and all(f.targetoptions.get("nogil") for f in kernels)
+
+
 def test_default_budget_grows_with_the_plan_within_bounds():
     assert default_budget_s(0) <= default_budget_s(100) <= default_budget_s(10_000)
     assert default_budget_s(10**6) == default_budget_s(10**7)

@@ -180,3 +180,34 @@ def test_raised_terrain_bounds_the_ground_within_the_tolerance(seed, rough, tol,
     assert known[deep].all()
     assert (up[np.isfinite(up)] >= h[np.isfinite(up)]).all()
     assert (raised_terrain(h, cell, 0.0) == h).all()
+
+
+@settings(max_examples=12, deadline=None)
+@given(seed=st.integers(0, 10_000), family=st.sampled_from(["hills", "ridges", "peaks"]),
+       n_posts=st.integers(0, 3))
+def test_node_paths_are_shortest_as_dijkstra_finds_them(seed, family, n_posts):
+    """The guided searches of `node_paths` (route polylines) against scipy's
+    Dijkstra on the same graph: same reachability, same time, real edges."""
+    from scipy.sparse.csgraph import dijkstra
+
+    from planner.terrain import synthetic_terrain
+
+    t = synthetic_terrain(36, 44, cell=CELL, seed=seed, family=family)
+    rng = np.random.default_rng(seed)
+    posts = [Outpost(x=float(x), y=float(y), height_m=10.0)
+             for x, y in (t.xy(*rng.integers(0, 36, 2)) for _ in range(n_posts))]
+    graph = TravelGraph(compute_exposure(t, posts, ExposureParams()))
+    if graph.n_nodes < 2:
+        return
+    pairs = rng.integers(0, graph.n_nodes, (25, 2))
+    paths = graph.node_paths(pairs)
+    exact = dijkstra(graph.csr, indices=np.unique(pairs[:, 0]))
+    row = {s: i for i, s in enumerate(np.unique(pairs[:, 0]))}
+    for (a, b), path in zip(pairs, paths):
+        best = exact[row[a], b]
+        assert (len(path) > 0) == np.isfinite(best)
+        if len(path):
+            assert path[0] == a and path[-1] == b
+            legs = np.array([graph.csr[u, v] for u, v in zip(path[:-1], path[1:])])
+            assert (legs > 0).all()  # every step an edge of the graph
+            assert math.isclose(legs.sum(), best, rel_tol=1e-9, abs_tol=1e-9)

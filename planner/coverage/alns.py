@@ -30,6 +30,7 @@ The default budget (None) scales with the problem (`default_budget_s`).
 """
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -49,6 +50,7 @@ from .alns_kernels import (
     time_of,
 )
 from .classes import target_classes
+from .insertion import nearest_other
 from .methods import method, register
 
 #: work units per nominal second of budget.  Measured on this 2-core machine
@@ -68,6 +70,11 @@ MIN_BUDGET_S, MAX_BUDGET_S = 0.1, 5.0
 #: whole default budget and RT polished is the start (the benchmark has ALNS
 #: ahead of RT+LS there anyway)
 LS_START_SIZE = 2000
+#: independent annealing chains searched at once (threads: the kernels release the
+#: GIL), each with the whole budget; the best is kept. A fixed number, not the
+#: machine's core count, so that a plan stays a function of the problem, the
+#: seed and the budget
+CHAINS = 2
 #: weight of the mean route time next to the makespan in the objective
 MEAN_WEIGHT = 0.2
 #: order passes (2-opt, or-opt) per changed route and iteration
@@ -122,12 +129,9 @@ class Alns:
             for e in self.R[r, :self.L[r]]:
                 apply_visit(self.cnt, self.dc, r, e, 1, prep.vis_indptr, prep.vis_indices)
         self.times = np.array([self._time(r) for r in range(n)])
-        t = prep.travel.copy()
-        np.fill_diagonal(t, np.inf)
-        nn = t.min(axis=1)
+        nn = nearest_other(prep.travel)
         nn = nn[np.isfinite(nn)]
         self.eps = max(1e-3 * float(np.median(nn)) if len(nn) else 1e-3, 1e-6)
-        self.sym = None  # symmetric travel, built on first use (related removal)
         self.work = 0
         self.mark_vp = np.zeros(n_vp, np.int8)  # scratch
         self.mark_t = np.zeros(prep.problem.n_targets, np.int8)
@@ -143,6 +147,15 @@ class Alns:
 
     def snapshot(self):
         return self.R.copy(), self.L.copy(), self.times.copy()
+
+    def copy(self, rng):
+        """An independent search from this state, drawing from ``rng``."""
+        other = object.__new__(Alns)
+        other.__dict__.update(self.__dict__)
+        for name in ("R", "L", "cnt", "dc", "times", "mark_vp", "mark_t", "removed"):
+            setattr(other, name, getattr(self, name).copy())
+        other.rng, other.work = rng, 0
+        return other
 
     def restore(self, snap):
         """Go back to ``snap``; the coverage counts follow the changed visits."""
@@ -194,12 +207,11 @@ class Alns:
             else:
                 pick = on_r[self._pick_ranked(self._savings()[on_r], q)]
         else:  # related: the visits nearest (in travel time) to a random one
-            if self.sym is None:
-                t = np.where(np.isfinite(self.p.travel), self.p.travel, 1e12)
-                self.sym = np.minimum(t, t.T)
             ids = self.R[rs, idx]
             e0 = ids[int(self.rng.integers(len(ids)))]
-            pick = self._pick_ranked(-self.sym[e0, ids], q, power=4.0)
+            t = self.p.travel
+            near = np.minimum(t[e0, ids], t[ids, e0])  # either way
+            pick = self._pick_ranked(-np.where(np.isfinite(near), near, 1e12), q, power=4.0)
         pick = np.asarray(pick, np.int64)
         p = self.p
         k = remove_visits(self.R, self.L, rs[pick], idx[pick], self.cnt, self.dc,
@@ -238,13 +250,17 @@ class Alns:
         return bool(np.all(self.dc >= self.p.required))
 
 
-def search(prep, starts, params, units=None, progress=None, classes=True) -> Result:
+def search(prep, starts, params, units=None, progress=None, classes=True,
+           chains=CHAINS) -> Result:
     """ALNS from the best of ``starts`` (lists of routes, each covering), each
     polished first (redundant visits dropped, routes re-ordered), until the
     budget is spent: ``units`` of work, or by default `budget_s` seconds'
-    worth (`WORK_PER_S`).  With ``classes`` the search runs on target classes
-    (`classes.target_classes`: cells seen from the same viewpoints, weighted),
-    which decides coverage exactly as the cells do, at a fraction of the cost."""
+    worth (`WORK_PER_S`), in each of ``chains`` independent chains run at once
+    (the first with the seed's own stream, so it is the single search of
+    ``chains=1``; the best chain wins).  With ``classes`` the search runs on
+    target classes (`classes.target_classes`: cells seen from the same
+    viewpoints, weighted), which decides coverage exactly as the cells do, at a
+    fraction of the cost."""
     rng = np.random.default_rng(params.seed)
     weight = None
     if classes:
@@ -258,12 +274,28 @@ def search(prep, starts, params, units=None, progress=None, classes=True) -> Res
     start_time = float(s.times.max()) if len(s.times) else 0.0
     if units is None:
         units = int(budget_s(params, int(s.L.sum()), start_time) * WORK_PER_S)
+    if s.L.sum() == 0 or units <= 0 or s.objective() <= 0.0:  # nothing to search or gain
+        return Result(s.routes(), 0, s.work, start_time, start_time)
+    searches = [s] + [s.copy(np.random.default_rng([params.seed, c])) for c in range(1, chains)]
+    with ThreadPoolExecutor(chains) as pool:  # the kernels release the GIL
+        found = list(pool.map(lambda c: _chain(searches[c], units, progress if c == 0 else None),
+                              range(chains)))
+    c = min(range(chains), key=lambda c: found[c][1])  # ties: the lower chain
+    s = searches[c]
+    s.restore(found[c][0])
+    s.polish(range(len(s.L)), passes=100)
+    assert s.covered()
+    return Result(s.routes(), sum(f[2] for f in found), sum(x.work for x in searches),
+                  start_time, float(s.times.max()))
+
+
+def _chain(s, units, progress=None):
+    """One annealing chain of ``units`` work from ``s``'s state: (best state, its
+    key, iterations)."""
+    rng = s.rng
     best = s.snapshot()
     best_key = _key(s.times)
     f_cur = s.objective()
-    n_visits = int(s.L.sum())
-    if n_visits == 0 or units <= 0 or f_cur <= 0.0:  # nothing to search, or nothing to gain
-        return Result(s.routes(), 0, s.work, start_time, start_time)
     # temperature: geometric in the budget spent, from WORSE_START to WORSE_END
     t_start = WORSE_START * f_cur / math.log(2)
     t_end = WORSE_END * f_cur / math.log(2)
@@ -271,7 +303,7 @@ def search(prep, starts, params, units=None, progress=None, classes=True) -> Res
     wr = np.ones(len(REPAIRS))
     sd, ud = np.zeros(len(DESTROYS)), np.zeros(len(DESTROYS))
     sr, ur = np.zeros(len(REPAIRS)), np.zeros(len(REPAIRS))
-    q_hi = max(2, min(Q_MAX, int(round(Q_FRACTION * n_visits))))
+    q_hi = max(2, min(Q_MAX, int(round(Q_FRACTION * int(s.L.sum())))))
     it = 0
     begin = s.work
     while s.work - begin < units:
@@ -316,10 +348,7 @@ def search(prep, starts, params, units=None, progress=None, classes=True) -> Res
                 u[:] = 0
             if progress is not None:
                 progress(min(frac, 1.0))
-    s.restore(best)
-    s.polish(range(len(s.L)), passes=100)
-    assert s.covered()
-    return Result(s.routes(), it, s.work, start_time, float(s.times.max()))
+    return best, best_key, it
 
 
 def _key(times):

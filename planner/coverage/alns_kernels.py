@@ -21,7 +21,7 @@ END = -2  # a route's end: free (coverage time stops at the last snapshot)
 PTV_MODE, MAKESPAN_MODE, REGRET_MODE = 0, 1, 2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def leg(u, v, travel, lo, has_launch):
     """Time of the leg u -> v, with START / END sentinels."""
     if v == END:
@@ -31,7 +31,7 @@ def leg(u, v, travel, lo, has_launch):
     return travel[u, v]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def time_of(R, L, r, travel, lo, has_launch):
     m = L[r]
     if m == 0:
@@ -42,7 +42,7 @@ def time_of(R, L, r, travel, lo, has_launch):
     return t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def apply_visit(cnt, dc, r, e, delta, vis_indptr, vis_indices):
     """Add (delta = 1) or remove (delta = -1) UAV r's visit of e."""
     for j in range(vis_indptr[e], vis_indptr[e + 1]):
@@ -55,7 +55,7 @@ def apply_visit(cnt, dc, r, e, delta, vis_indptr, vis_indices):
             dc[t] -= 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
     if mode == PTV_MODE:
         return g ** alpha / max(t_r + dt, eps) ** (1.0 - alpha)
@@ -64,7 +64,7 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
     return g / (grow + eps)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tgt_indptr,
            tgt_indices, travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd):
     """Insert visits until no target in ``short`` (and no other) is short.
@@ -202,7 +202,7 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     return True, work
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
     for j in range(vis_indptr[e], vis_indptr[e + 1]):
         t = vis_indices[j]
@@ -211,7 +211,7 @@ def _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, launch_out,
                    has_launch):
     """Remove visits coverage does not need, largest saving first (the longest
@@ -246,14 +246,14 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, l
         times[br] = time_of(R, L, br, travel, launch_out[br], has_launch)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _prefix(a, m, travel, pf, pb):
     for i in range(1, m):
         pf[i] = pf[i - 1] + travel[a[i - 1], a[i]]
         pb[i] = pb[i - 1] + travel[a[i], a[i - 1]]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def improve_order(R, L, r, travel, lo, has_launch, max_passes):
     """2-opt and or-opt (segments of 1-3, either way round) on route r, O(1) per
     candidate (prefix sums of the legs both ways, so asymmetric travel is
@@ -340,7 +340,7 @@ def improve_order(R, L, r, travel, lo, has_launch, max_passes):
     return work
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
     """Coverage counts back to the routes (R0, L0): visits in R but not R0 are
     removed, visits in R0 but not R are added (per UAV; ``mark`` is scratch of
@@ -361,7 +361,7 @@ def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
             mark[e] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def savings_all(R, L, travel, launch_out, has_launch):
     """Removal saving of every visit, routes in order (the `visits` order)."""
     out = np.empty(L.sum())
@@ -374,7 +374,7 @@ def savings_all(R, L, travel, launch_out, has_launch):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
     """Remove visits (rs[k], idx[k]) (distinct), updating coverage; their
     viewpoints go to ``removed``; returns how many."""
@@ -406,7 +406,7 @@ def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
     return k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def short_targets(removed, dc, req, vis_indptr, vis_indices, mark):
     """Targets seen from ``removed`` viewpoints that are now short (``mark``:
     scratch of n_targets zeros, left zero)."""

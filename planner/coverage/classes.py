@@ -50,12 +50,25 @@ def _class_ids(order, t_indptr, t_indices, req, seen_key):
     return cls
 
 
-def _set_hash(values, indptr):
+@njit(cache=True)
+def _gather_lists(indptr, indices, rows, out_indptr):
+    """The lists of ``rows``, one after another (``out_indptr``: where each begins)."""
+    out = np.empty(out_indptr[-1], np.int64)
+    for i in range(len(rows)):
+        a = indptr[rows[i]]
+        for j in range(out_indptr[i + 1] - out_indptr[i]):
+            out[out_indptr[i] + j] = indices[a + j]
+    return out
+
+
+@njit(cache=True)
+def _set_hash(words, indptr, indices):
     """Sum (wrapping) of per-viewpoint random words over each target's list."""
-    cs = np.zeros(len(values) + 1, np.int64)
-    with np.errstate(over="ignore"):
-        np.cumsum(values, out=cs[1:])
-        return cs[indptr[1:]] - cs[indptr[:-1]]
+    out = np.zeros(len(indptr) - 1, np.int64)
+    for t in range(len(out)):
+        for j in range(indptr[t], indptr[t + 1]):
+            out[t] += words[indices[j]]
+    return out
 
 
 def target_classes(prep: Prepared):
@@ -72,7 +85,7 @@ def target_classes(prep: Prepared):
     rng = np.random.default_rng(12345)
     h = rng.integers(1, 2**62, size=(2, max(n_vp, 1)), dtype=np.int64)
     deg = np.diff(prep.tgt_indptr)
-    h1, h2 = (_set_hash(hv[prep.tgt_indices], prep.tgt_indptr) for hv in h)
+    h1, h2 = (_set_hash(hv, prep.tgt_indptr, prep.tgt_indices) for hv in h)
     n = prep.seen0.shape[0]
     # earlier sightings as a key: bits of the UAVs that saw the target (n < 63)
     seen_key = (prep.seen0.astype(np.int64) << np.arange(n, dtype=np.int64)[:, None]).sum(axis=0)
@@ -86,8 +99,7 @@ def target_classes(prep: Prepared):
     c_deg = deg[rep]
     c_indptr = np.zeros(n_c + 1, np.int64)
     np.cumsum(c_deg, out=c_indptr[1:])
-    c_indices = np.concatenate([prep.tgt_indices[prep.tgt_indptr[t]:prep.tgt_indptr[t + 1]]
-                                for t in rep]) if n_c else np.zeros(0, np.int64)
+    c_indices = _gather_lists(prep.tgt_indptr, prep.tgt_indices, rep, c_indptr)
     # class CSR (viewpoint -> classes): the transpose
     vis_indptr, vis_indices = csc_transpose(c_indptr, c_indices, n_vp)
     problem = replace(prep.problem, vis_indptr=vis_indptr, vis_indices=vis_indices,

@@ -18,7 +18,14 @@ import math
 import numpy as np
 
 from .gains import CoverState
-from .insertion import combine_ends, insert_cost, middle_costs_all, route_time, update_middle_costs
+from .insertion import (
+    combine_ends,
+    insert_cost,
+    middle_costs_all,
+    nearest_other,
+    route_time,
+    update_middle_costs,
+)
 from .methods import register
 from .objectives import PER_DISTANCE, PTV, PTV2, best_free_pair, best_pair, best_spread
 
@@ -28,9 +35,7 @@ def default_step_cap(travel: np.ndarray, factor: float) -> float:
     n = travel.shape[0]
     if n < 2:
         return math.inf
-    t = travel.copy()
-    np.fill_diagonal(t, np.inf)
-    nn = t.min(axis=1)
+    nn = nearest_other(travel)
     nn = nn[np.isfinite(nn)]
     return factor * float(np.median(nn)) if len(nn) else math.inf
 

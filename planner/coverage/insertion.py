@@ -10,7 +10,7 @@ whichever edge gives the least increase in time (the cheapest of them all).
 """
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 
 @njit(cache=True)
@@ -21,6 +21,22 @@ def route_time(route, travel, lo, has_launch):
     for i in range(len(route) - 1):
         t += travel[route[i], route[i + 1]]
     return t
+
+
+@njit(cache=True)
+def nearest_other(travel, axis=1):
+    """Per viewpoint, the least time to (axis=1) or from (axis=0) another one
+    (the matrix is too large to copy with its diagonal masked)."""
+    n = travel.shape[0]
+    out = np.full(n, np.inf)
+    for a in range(n):
+        for b in range(n):
+            if a != b:
+                t = travel[a, b]
+                i = a if axis == 1 else b
+                if t < out[i]:
+                    out[i] = t
+    return out
 
 
 @njit(cache=True)
@@ -96,11 +112,11 @@ def middle_costs_all(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos)
                 mid_pos[e] = s
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def combine_ends(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos, cost, pos):
     """Edge-breaking rule: the cheapest of front, best edge and back."""
     m = len(route)
-    for e in range(travel.shape[0]):
+    for e in prange(travel.shape[0]):
         c, p = slot_cost(route, 0, e, travel, travel_t, lo, has_launch), 0
         if mid_cost[e] < c:
             c, p = mid_cost[e], mid_pos[e]
@@ -112,13 +128,14 @@ def combine_ends(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos, cos
         pos[e] = p
 
 
-@njit(cache=True)
+@njit(cache=True, parallel=True)
 def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mid_pos):
     """Refresh edge insertions after route[s] was inserted (``route`` is the new route).
 
     Front or back insertions only add one edge; a middle insertion splits
     edge s into s and s+1 and shifts later ones, and only the viewpoints whose
-    best edge was s need a rescan.
+    best edge was s need a rescan. Each viewpoint's entry depends on it alone,
+    so the viewpoints are shared among the cores.
     """
     n_vp = travel.shape[0]
     m = len(route)
@@ -126,7 +143,7 @@ def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mi
         return
     if s == 0 or s == m - 1:
         new_edge = 1 if s == 0 else m - 1
-        for e in range(n_vp):
+        for e in prange(n_vp):
             if s == 0 and mid_pos[e] >= 1:
                 mid_pos[e] += 1
             c = slot_cost(route, new_edge, e, travel, travel_t, lo, has_launch)
@@ -134,33 +151,28 @@ def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mi
                 mid_cost[e] = c
                 mid_pos[e] = new_edge
         return
-    rescan = np.empty(n_vp, dtype=np.int64)
-    n_rescan = 0
-    for e in range(n_vp):
-        if mid_pos[e] == s:
-            rescan[n_rescan] = e
-            n_rescan += 1
-        elif mid_pos[e] > s:
+    edge = np.empty(m - 1)
+    for q in range(1, m):
+        edge[q - 1] = travel[route[q - 1], route[q]]
+    for e in prange(n_vp):
+        if mid_pos[e] == s:  # its edge was split: rescan (rows e stay in cache)
+            best, best_q = np.inf, -1
+            for q in range(1, m):
+                c = travel_t[e, route[q - 1]] + travel[e, route[q]] - edge[q - 1]
+                if c < best:
+                    best, best_q = c, q
+            mid_cost[e] = best
+            mid_pos[e] = best_q
+            continue
+        if mid_pos[e] > s:
             mid_pos[e] += 1
-    for q in (s, s + 1):
-        for e in range(n_vp):
+        # the two new edges, s then s+1 (once e's best is s, s+1 is not tried: as
+        # RT has always done, kept so that its plans stay the same)
+        for q in range(s, s + 2):
             c = slot_cost(route, q, e, travel, travel_t, lo, has_launch)
             if mid_pos[e] != s and c < mid_cost[e]:
                 mid_cost[e] = c
                 mid_pos[e] = q
-    # Rescan per viewpoint: row e of travel and of travel_t stays in cache.
-    edge = np.empty(m - 1)
-    for q in range(1, m):
-        edge[q - 1] = travel[route[q - 1], route[q]]
-    for i in range(n_rescan):
-        e = rescan[i]
-        best, best_q = np.inf, -1
-        for q in range(1, m):
-            c = travel_t[e, route[q - 1]] + travel[e, route[q]] - edge[q - 1]
-            if c < best:
-                best, best_q = c, q
-        mid_cost[e] = best
-        mid_pos[e] = best_q
 
 
 @njit(cache=True)

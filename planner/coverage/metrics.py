@@ -5,7 +5,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .insertion import arrival_times, route_time
+from .insertion import arrival_times, nearest_other, route_time
 from .problem import Allocation, CoverageProblem, prepare
 
 
@@ -68,11 +68,12 @@ def evaluate(prep, routes, method: str, steps=None, planning_s=0.0) -> Allocatio
 
 def coverage_counts(problem: CoverageProblem, allocation: Allocation) -> np.ndarray:
     """Per target, the number of distinct UAVs that see it (including earlier snapshots)."""
-    prep = prepare(problem)
-    seen = prep.seen0.astype(bool)
+    indptr, indices = problem.vis_indptr, problem.vis_indices
+    seen = (np.zeros((problem.n_uavs, problem.n_targets), bool) if problem.seen is None
+            else np.array(problem.seen, bool))
     for r, route in enumerate(allocation.routes):
-        for e in route:
-            seen[r, prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]]] = True
+        if len(route):
+            seen[r, np.concatenate([indices[indptr[e]:indptr[e + 1]] for e in route])] = True
     return seen.sum(axis=0)
 
 
@@ -126,7 +127,9 @@ def _reach_bound(prep) -> float:
     if not prep.has_launch:
         return 0.0
     n, n_t = prep.problem.n_uavs, prep.problem.n_targets
-    arrive = np.array([_earliest_arrival(prep.launch_out[r], prep.travel_t) for r in range(n)])
+    # UAVs sharing a launch point share their earliest arrivals
+    rows, uav_row = np.unique(prep.launch_out, axis=0, return_inverse=True)
+    arrive = np.array([_earliest_arrival(row, prep.travel_t) for row in rows])[uav_row.ravel()]
     reach = np.full((n, n_t), np.inf)
     for e in range(prep.problem.n_viewpoints):
         ts = prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]]
@@ -139,9 +142,7 @@ def _packing_bound(prep) -> float:
     n = prep.problem.n_uavs
     if prep.problem.n_viewpoints == 0:
         return 0.0
-    travel = prep.travel.copy()
-    np.fill_diagonal(travel, np.inf)
-    way_in = travel.min(axis=0)  # cheapest arrival at each viewpoint from another one
+    way_in = nearest_other(prep.travel, 0)  # cheapest arrival at each viewpoint from another
     if prep.has_launch:
         way_in = np.minimum(way_in, prep.launch_out.min(axis=0))
     degree = np.diff(prep.tgt_indptr)

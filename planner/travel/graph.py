@@ -439,12 +439,14 @@ class TravelGraph:
         `attach`; inf when unreachable (e.g. other regions)."""
         src_xyz = np.atleast_2d(src_xyz)
         dst_xyz = np.atleast_2d(dst_xyz)
-        src = self._attached_nodes(src_xyz)
-        dst = self._attached_nodes(dst_xyz)
+        # a fleet shares its launch points: one Dijkstra per distinct node, not per UAV
+        src, src_of = np.unique(self._attached_nodes(src_xyz), return_inverse=True)
+        dst, dst_of = np.unique(self._attached_nodes(dst_xyz), return_inverse=True)
         if len(src) <= len(dst):
             times = self._rows(self.csr, src, dst)
         else:
             times = self._rows(self._reverse(), dst, src).T
+        times = times[src_of.ravel()][:, dst_of.ravel()]
         return (times + self._attach_times(src_xyz)[:, None]
                 + self._attach_times(dst_xyz, inbound=True)[None, :])
 
@@ -518,7 +520,23 @@ class TravelGraph:
     # --- paths ------------------------------------------------------------------------
     def node_path(self, a_node, b_node) -> np.ndarray:
         """Node ids of a shortest path (empty if unreachable)."""
-        return K.node_path(self._indptr, self._nbr, self.csr.data, int(a_node), int(b_node))
+        return self.node_paths([(a_node, b_node)])[0]
+
+    def node_paths(self, pairs) -> list:
+        """`node_path` of each (a_node, b_node), the pairs shared among the cores."""
+        pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
+        if not len(pairs):
+            return []
+        chunks = _split(np.arange(len(pairs)), max(1, -(-len(pairs) // _n_threads())))
+
+        node_xy = np.ascontiguousarray(self.node_xyz[:, :2])
+
+        def run(idx):
+            flat, offsets = K.node_paths(self._indptr, self._nbr, self.csr.data, node_xy,
+                                         self.params.speed_mps, pairs[idx, 0], pairs[idx, 1])
+            return [flat[offsets[i]:offsets[i + 1]] for i in range(len(idx))]
+        with ThreadPoolExecutor(len(chunks)) as pool:  # the kernel releases the GIL
+            return [path for part in pool.map(run, chunks) for path in part]
 
     def _expand(self, nodes) -> np.ndarray:
         """Vertices of a node path, with the two corners of every dip edge."""
@@ -572,8 +590,7 @@ class TravelGraph:
         where there is none."""
         ends = [(self.attach(p), self.attach(q)) for p, q in pairs]
         jobs = [(a[0], b[0]) for a, b in ends if a is not None and b is not None]
-        with ThreadPoolExecutor(_n_threads()) as pool:  # the kernel releases the GIL
-            found = iter(list(pool.map(lambda ab: self.node_path(*ab), jobs)))
+        found = iter(self.node_paths(jobs))
         out = []
         for (p, q), (a, b) in zip(pairs, ends):
             nodes = next(found) if a is not None and b is not None else np.zeros(0, np.int64)

@@ -1,5 +1,7 @@
 """numba kernels for the hidden travel graph (see planner/travel.py)."""
 
+import math
+
 import numpy as np
 from numba import njit, prange
 
@@ -124,46 +126,85 @@ def bounded_times(indptr, nbr, w, sources, slot_of_node, n_slots, limit, n_chunk
 
 
 @njit(cache=True, nogil=True)
-def node_path(indptr, nbr, w, source, target):
-    """Nodes of a shortest path source -> target (Dijkstra stopped once the
-    target is settled); empty when unreachable."""
+def node_paths(indptr, nbr, w, node_xy, speed, sources, targets):
+    """Nodes of a shortest path for each (source, target) pair, all in one array,
+    and where each begins (``offsets``; an empty path: unreachable).
+
+    A* per pair, stopped once its target is settled, guided by the horizontal
+    distance to the target at full speed: no leg is faster (`leg_time`), so the
+    guide never overestimates and every path found is a shortest one. A route's
+    transit from and back to its launch crosses the whole area: plain Dijkstra
+    settled most of the graph for each. The work arrays are reused and only the
+    nodes a search touched are reset."""
     n_nodes = indptr.shape[0] - 1
     dist = np.full(n_nodes, np.inf)
     pred = np.full(n_nodes, -1, np.int64)
+    touched = np.empty(1024, np.int64)
     heap_d = np.empty(1024)
     heap_n = np.empty(1024, np.int64)
-    dist[source] = 0.0
-    size = _heap_push(heap_d, heap_n, 0, 0.0, source)
-    found = False
-    while size > 0:
-        d, u, size = _heap_pop(heap_d, heap_n, size)
-        if d > dist[u]:
-            continue
-        if u == target:
-            found = True
-            break
-        for p in range(indptr[u], indptr[u + 1]):
-            v = nbr[p]
-            nd = d + w[p]
-            if nd < dist[v]:
-                dist[v] = nd
-                pred[v] = u
-                if size == heap_d.shape[0]:
-                    heap_d, heap_n = _grow(heap_d, heap_n)
-                size = _heap_push(heap_d, heap_n, size, nd, v)
-    if not found:
-        return np.zeros(0, np.int64)
-    n = 1
-    u = target
-    while u != source:
-        u = pred[u]
-        n += 1
-    out = np.empty(n, np.int64)
-    u = target
-    for k in range(n - 1, -1, -1):
-        out[k] = u
-        u = pred[u]
-    return out
+    out = np.empty(1024, np.int64)
+    offsets = np.zeros(len(sources) + 1, np.int64)
+    for k in range(len(sources)):
+        source, target = sources[k], targets[k]
+        tx, ty = node_xy[target, 0], node_xy[target, 1]
+        dist[source] = 0.0
+        touched[0] = source
+        n_touched = 1
+        size = _heap_push(heap_d, heap_n, 0, 0.0, source)
+        found = False
+        while size > 0:
+            f, u, size = _heap_pop(heap_d, heap_n, size)
+            if f > dist[u] + _guide(node_xy, u, tx, ty, speed):
+                continue  # a stale entry
+            if u == target:
+                found = True
+                break
+            for p in range(indptr[u], indptr[u + 1]):
+                v = nbr[p]
+                nd = dist[u] + w[p]
+                if nd < dist[v]:
+                    if dist[v] == np.inf:
+                        if n_touched == touched.shape[0]:
+                            touched = _grown(touched)
+                        touched[n_touched] = v
+                        n_touched += 1
+                    dist[v] = nd
+                    pred[v] = u
+                    if size == heap_d.shape[0]:
+                        heap_d, heap_n = _grow(heap_d, heap_n)
+                    size = _heap_push(heap_d, heap_n, size, nd + _guide(node_xy, v, tx, ty,
+                                                                        speed), v)
+        n = offsets[k]
+        if found:
+            m = 1
+            u = target
+            while u != source:
+                u = pred[u]
+                m += 1
+            while n + m > out.shape[0]:
+                out = _grown(out)
+            u = target
+            for i in range(n + m - 1, n - 1, -1):
+                out[i] = u
+                u = pred[u]
+            n += m
+        offsets[k + 1] = n
+        for i in range(n_touched):
+            dist[touched[i]] = np.inf
+            pred[touched[i]] = -1
+    return out[:offsets[-1]].copy(), offsets
+
+
+@njit(cache=True, inline="always")
+def _guide(node_xy, u, tx, ty, speed):
+    return math.hypot(node_xy[u, 0] - tx, node_xy[u, 1] - ty) / speed
+
+
+@njit(cache=True)
+def _grown(a):
+    b = np.empty(2 * a.shape[0], a.dtype)
+    b[:a.shape[0]] = a
+    return b
 
 
 @njit(cache=True)
