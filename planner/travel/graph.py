@@ -497,9 +497,8 @@ class TravelGraph:
         local = np.vstack(run_chunks(_bounded_rows, _split(nodes, -(-n // 8)), (csr,), client,
                                      _part(progress, 0.0, 0.7)))
         indptr, nbr, w = K.dense_to_csr(local, K.undominated_edges(local))
-        overlay = csr_matrix((w, nbr, indptr), shape=(n, n))
-        times = self._rows(overlay, np.arange(n), np.arange(n), None, _part(progress, 0.7, 0.9))
-        return self._fill_missed(times, nodes)
+        del local
+        return self._fill_missed(_all_pairs(indptr, nbr, w, _part(progress, 0.7, 0.9)), nodes)
 
     def _fill_missed(self, times, nodes):
         """Exact times where the overlay found no path but the graph has one: a point
@@ -745,6 +744,19 @@ def _checked_edges(graph, node_horizons, pairs):
         ok[idx[fine]] = True
         dip[idx[fine]] = z_low[fine]
     return ok, dip
+
+
+def _all_pairs(indptr, nbr, w, progress=None) -> np.ndarray:
+    """[n, n] shortest times over a small graph (the overlay): a Dijkstra from
+    every node, on every core, in row chunks so that progress moves."""
+    n = len(indptr) - 1
+    times = np.empty((n, n))
+    slot = np.arange(n)
+
+    def rows(chunk):
+        times[chunk] = K.bounded_times(indptr, nbr, w, chunk, slot, n, np.inf, _n_threads())
+    run_chunks(rows, _split(slot, max(1, -(-n // 16))), progress=progress)
+    return times
 
 
 def _split(items, size) -> list:
