@@ -15,8 +15,11 @@ from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import Callable, Optional
 
-#: above this many grid cells `gcs plan` starts a local dask cluster by itself
-LOCAL_CLUSTER_CELLS = 3_000_000
+#: above this many grid cells `gcs plan` starts a local dask cluster by itself. Below
+#: it this process is faster and lighter, as measured on 2 cores: 2048² (4.2 M
+#: cells) planned in 238 s and 6.9 GiB here against 260 s and 7.5 GiB (summed over
+#: the processes) on a LocalCluster of 2 workers, the same plan
+LOCAL_CLUSTER_CELLS = 8_000_000
 
 def run_chunks(fn: Callable, chunks: list, shared: tuple = (), client=None,
                progress: Optional[Callable[[float], None]] = None, threads: int = 1) -> list:
