@@ -266,14 +266,15 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         except ValueError as exc:
             raise InputError("plan", str(exc)) from None
     with _stage("routes", timing, progress):
-        polylines, arrivals = _routes(ctx, allocation.routes, starts)
+        polylines, arrivals = _routes(ctx, allocation.routes, starts,
+                                      _fraction(progress, "routes"))
         counts = coverage.coverage_counts(problem, allocation)
     plan = _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts,
                       timing, strong_bound)
     return Outcome(plan, problem, allocation, polylines, counts)
 
 
-def _routes(ctx, routes, starts):
+def _routes(ctx, routes, starts, progress=None):
     """Hidden polylines through each route's viewpoints, and times at every vertex.
 
     Waypoints are rounded as MAVLink carries them (1e-7 degrees, float32
@@ -288,7 +289,8 @@ def _routes(ctx, routes, starts):
             if start.launch is not None:
                 p.append(above_launch(ctx, start.launch))
         points.append(np.array(p, float).reshape(-1, 3))
-    found = ctx.graph.route_polylines([p for p in points if len(p)])
+    found = ctx.graph.route_polylines([p for p in points if len(p)],
+                                      (lambda f: progress(0.8 * f)) if progress else None)
     found = iter(found)
     polylines, arrivals = [], []
     for r, (route, p) in enumerate(zip(routes, points)):
@@ -305,6 +307,8 @@ def _routes(ctx, routes, starts):
         poly, stops = got
         poly = _rounded_for_mavlink(ctx, poly)
         _prove(ctx, r, poly)
+        if progress is not None:
+            progress(0.8 + 0.2 * (r + 1) / len(routes))
         d = np.diff(poly, axis=0)
         legs = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], ctx.travel_params)
         t = np.r_[0.0, np.cumsum(legs)] + (start.climb_s if start is not None else 0.0)

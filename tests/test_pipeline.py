@@ -164,3 +164,21 @@ def test_cropped_sample_keeps_the_outposts_inside():
                                               np.array([0, terrain.shape[1] - 1])))
     assert lat[0] >= north - 0.01 and lat[1] <= south + 0.01
     assert lon[0] <= west + 0.01 and lon[1] >= east - 0.01
+
+
+def test_allocation_and_routes_report_progress_as_they_go(terrain):
+    """Bars move during the long stages, not only at their ends: fractions strictly
+    between 0 and 1, never going back."""
+    from planner.pipeline import allocate, launch_starts, prepare
+
+    reports = {}
+    lon, lat = terrain.to_lonlat(*terrain.xy(8, 8))
+    scenario = _scenario(terrain, launch=[(lat, lon)])
+    ctx = prepare(scenario, terrain=terrain, outposts=_outposts(terrain))
+    allocate(ctx, scenario.uavs, launch_starts(ctx),
+             progress=lambda stage, f: reports.setdefault(stage, []).append(f))
+    for stage in ("allocation", "routes"):
+        seen = reports[stage]
+        assert seen[0] == 0.0 and seen[-1] == 1.0
+        assert len([f for f in seen if 0.0 < f < 1.0]) >= 3, (stage, seen)
+        assert all(b >= a for a, b in zip(seen, seen[1:])), (stage, seen)

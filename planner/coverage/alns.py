@@ -346,8 +346,8 @@ def _chain(s, units, progress=None):
                 w[:] = np.maximum(w, 0.05 * w.max())
                 sc[:] = 0
                 u[:] = 0
-            if progress is not None:
-                progress(min(frac, 1.0))
+        if progress is not None:  # every iteration: one can take seconds on a large area
+            progress(min((s.work - begin) / units, 1.0))
     return best, best_key, it
 
 

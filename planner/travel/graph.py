@@ -32,7 +32,6 @@ checked exactly like the clearance), not only at its vertices: hidden alone, a
 straight leg could pass up to the sight lines where E dips under it.
 """
 
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
@@ -521,21 +520,19 @@ class TravelGraph:
         """Node ids of a shortest path (empty if unreachable)."""
         return self.node_paths([(a_node, b_node)])[0]
 
-    def node_paths(self, pairs) -> list:
+    def node_paths(self, pairs, progress=None) -> list:
         """`node_path` of each (a_node, b_node), the pairs shared among the cores."""
         pairs = np.asarray(pairs, np.int64).reshape(-1, 2)
-        if not len(pairs):
-            return []
-        chunks = _split(np.arange(len(pairs)), max(1, -(-len(pairs) // _n_threads())))
-
         node_xy = np.ascontiguousarray(self.node_xyz[:, :2])
 
         def run(idx):
             flat, offsets = K.node_paths(self._indptr, self._nbr, self.csr.data, node_xy,
                                          self.params.speed_mps, pairs[idx, 0], pairs[idx, 1])
             return [flat[offsets[i]:offsets[i + 1]] for i in range(len(idx))]
-        with ThreadPoolExecutor(len(chunks)) as pool:  # the kernel releases the GIL
-            return [path for part in pool.map(run, chunks) for path in part]
+        chunks = _split(np.arange(len(pairs)), max(1, -(-len(pairs) // 16)))
+        # on a thread pool: the kernel releases the GIL
+        found = run_chunks(run, chunks, progress=progress, threads=_n_threads())
+        return [path for part in found for path in part]
 
     def _expand(self, nodes) -> np.ndarray:
         """Vertices of a node path, with the two corners of every dip edge."""
@@ -558,7 +555,7 @@ class TravelGraph:
         """`route_polylines` of one route."""
         return self.route_polylines([xyz])[0]
 
-    def route_polylines(self, routes) -> list:
+    def route_polylines(self, routes, progress=None) -> list:
         """Per route (an (n, 3) array of points to visit in order): the hidden
         polyline through them and each point's vertex index, (poly, stops), or
         None if some pair is unreachable. The points stay vertices (snapshots are
@@ -566,8 +563,8 @@ class TravelGraph:
         smoothed all at once (`smooth_all`)."""
         routes = [np.atleast_2d(np.asarray(r, float)) for r in routes]
         pairs = [(p, q) for r in routes for p, q in zip(r[:-1], r[1:])]
-        raw = self._raw_paths(pairs)
-        smoothed = self.smooth_all([x for x in raw if x is not None])
+        raw = self._raw_paths(pairs, _part(progress, 0.0, 0.5))
+        smoothed = self.smooth_all([x for x in raw if x is not None], _part(progress, 0.5, 1.0))
         legs = iter(smoothed)
         out, k = [], 0
         for r in routes:
@@ -584,12 +581,12 @@ class TravelGraph:
             out.append(None if parts is None else (np.vstack(parts), np.array(stops, np.int64)))
         return out
 
-    def _raw_paths(self, pairs) -> list:
+    def _raw_paths(self, pairs, progress=None) -> list:
         """Unsmoothed polylines a -> b (attach legs, node path with its dips), None
         where there is none."""
         ends = [(self.attach(p), self.attach(q)) for p, q in pairs]
         jobs = [(a[0], b[0]) for a, b in ends if a is not None and b is not None]
-        found = iter(self.node_paths(jobs))
+        found = iter(self.node_paths(jobs, progress))
         out = []
         for (p, q), (a, b) in zip(pairs, ends):
             nodes = next(found) if a is not None and b is not None else np.zeros(0, np.int64)
@@ -603,7 +600,7 @@ class TravelGraph:
         """`smooth_all` of one polyline."""
         return self.smooth_all([poly])[0]
 
-    def smooth_all(self, polys) -> list:
+    def smooth_all(self, polys, progress=None) -> list:
         """String pulling: from each kept vertex, jump to a far vertex that the
         straight leg reaches flyable hidden. The jump is found by galloping
         (1, 2, 4, ... vertices ahead) and bisecting between the last leg that
@@ -616,6 +613,8 @@ class TravelGraph:
         legs = [self._step(walks, kept, polys, k, None) for k in range(len(polys))]
         while True:
             active = [k for k, leg in enumerate(legs) if leg is not None]
+            if progress is not None:
+                progress(1.0 - len(active) / len(polys))
             if not active:
                 return kept
             ok = self.legs_ok(np.array([polys[k][legs[k][0]] for k in active]),
