@@ -134,6 +134,10 @@ def test_two_chains_are_never_worse_than_one_and_run_at_once():
 def test_default_budget_grows_with_the_plan_within_bounds():
     assert default_budget_s(0) <= default_budget_s(100) <= default_budget_s(10_000)
     assert default_budget_s(10**6) == default_budget_s(10**7)
+    # a large area may search longer: its flights last hours
+    assert default_budget_s(10**4, 100_000) == pytest.approx(5.5)
+    assert default_budget_s(10**4, 4_000_000) == default_budget_s(10**6, 10**8) == 20.0
+    assert default_budget_s(200, 4_000_000) == default_budget_s(200)
 
 
 # -- lower bounds against exhaustive optima ------------------------------------------
