@@ -5,9 +5,11 @@ colour), whatever draws it. Red belongs to the outposts and their ranges, so
 no vehicle is red; the base (launch point) is a white square.
 """
 
-#: vehicle colours, by plan vehicle id (1 -> the first); no red, which marks outposts
+#: vehicle colours, by plan vehicle id (1 -> the first); no red, which marks outposts.
+#: Sixteen, so that fleets of operational size (12 UAVs on 2048²) repeat none
 VEHICLE_COLOURS = ("#1f77b4", "#ff7f0e", "#9467bd", "#17becf", "#e377c2", "#8c564b",
-                   "#bcbd22", "#000000")
+                   "#bcbd22", "#000000", "#2ca02c", "#393b79", "#8c6d31", "#7b4173",
+                   "#637939", "#aec7e8", "#ffbb78", "#c5b0d5")
 OUTPOST_COLOUR = "#d62728"
 BASE_COLOUR = "#ffffff"
 

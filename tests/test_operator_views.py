@@ -157,6 +157,7 @@ def test_one_palette_in_png_kml_and_geojson(planned):
     """UAV n has one colour everywhere; no vehicle is red, the outposts' colour."""
     ctx, plan = planned.ctx, planned.plan
     assert OUTPOST_COLOUR not in VEHICLE_COLOURS
+    assert len({vehicle_colour(i) for i in range(1, 17)}) == 16  # a 16-UAV fleet repeats none
     fig = overview_figure(ctx.terrain, ctx.surface, plan)
     png = {line.get_label(): to_hex(line.get_color()) for line in fig.axes[0].lines}
     doc = routes_geojson(plan)
