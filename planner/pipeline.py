@@ -260,16 +260,17 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
                                          time_budget_s=s.time_budget_s,
                                          budget_fraction=budget_fraction)
         try:
+            prep = coverage.prepare(problem)  # once: the bounds below share it
             allocation = coverage.solve(problem, method, params,
                                         progress=(lambda f: progress("allocation", f))
-                                        if progress else None)
+                                        if progress else None, prep=prep)
         except ValueError as exc:
             raise InputError("plan", str(exc)) from None
     with _stage("routes", timing, progress):
         polylines, arrivals = _routes(ctx, allocation.routes, starts,
                                       _fraction(progress, "routes"))
         counts = coverage.coverage_counts(problem, allocation)
-    plan = _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts,
+    plan = _make_plan(ctx, method, prep, allocation, starts, polylines, arrivals, counts,
                       timing, strong_bound)
     return Outcome(plan, problem, allocation, polylines, counts)
 
@@ -362,9 +363,10 @@ def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
     return float(first[need[cols] - 1, cols].max())
 
 
-def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing,
+def _make_plan(ctx, method, prep, allocation, starts, polylines, arrivals, counts, timing,
                strong_bound=True):
     s = ctx.scenario
+    problem = prep.problem
     required = (np.asarray(problem.required) if problem.required is not None
                 else np.full(problem.n_targets, coverage.required_uavs(s.k, problem.n_uavs)))
     vehicles = []
@@ -381,7 +383,8 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
     }
-    metrics["radius_bound_s"], metrics["lower_bound_s"] = coverage.bounds(problem, strong_bound)
+    metrics["radius_bound_s"], metrics["lower_bound_s"] = coverage.bounds(problem, strong_bound,
+                                                                           prep)
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)
     timing["total"] = float(sum(timing.values()))

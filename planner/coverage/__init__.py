@@ -17,8 +17,8 @@ of all), solve.
 
 from .bounds import bounds, lower_bound
 from .metrics import coverage_counts
-from .problem import Allocation, CoverageParams, CoverageProblem, required_uavs
+from .problem import Allocation, CoverageParams, CoverageProblem, prepare, required_uavs
 from .solve import METHODS, solve
 
 __all__ = ["Allocation", "CoverageParams", "CoverageProblem", "METHODS", "bounds",
-           "coverage_counts", "lower_bound", "required_uavs", "solve"]
+           "coverage_counts", "lower_bound", "prepare", "required_uavs", "solve"]

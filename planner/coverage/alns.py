@@ -49,7 +49,6 @@ from .alns_kernels import (
     short_targets,
     time_of,
 )
-from .classes import target_classes
 from .insertion import nearest_other
 from .methods import method, register
 
@@ -271,7 +270,7 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
     weight = None
     n_cells = prep.problem.n_targets
     if classes:
-        prep, weight, _ = target_classes(prep)
+        prep, weight, _ = prep.classes
     s = None
     for routes in starts:
         cand = Alns(prep, routes, params, rng, weight)

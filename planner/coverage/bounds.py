@@ -51,7 +51,6 @@ from scipy.optimize import linprog
 from scipy.sparse import coo_matrix, csr_matrix, vstack
 from scipy.sparse.csgraph import dijkstra
 
-from .classes import target_classes
 from .metrics import _packing_bound, _reach_bound
 from .problem import CoverageProblem, prepare
 
@@ -307,10 +306,11 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     return bounds(problem, strong)[1]
 
 
-def bounds(problem: CoverageProblem, strong: bool = True) -> tuple:
-    """(radius bound, best bound) in seconds: see `lower_bound`."""
-    prep = prepare(problem)
-    cprep = target_classes(prep)[0] if problem.n_targets else prep
+def bounds(problem: CoverageProblem, strong: bool = True, prep=None) -> tuple:
+    """(radius bound, best bound) in seconds: see `lower_bound`. ``prep``: the
+    problem already prepared (`problem.prepare`), to share its target classes."""
+    prep = prep if prep is not None else prepare(problem)
+    cprep = prep.classes[0] if problem.n_targets else prep
     radius = max(_reach_bound(cprep), _packing_bound(cprep))
     best = max(radius, flow_bound(cprep)) if strong else radius
     return float(radius), float(best)

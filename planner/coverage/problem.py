@@ -8,6 +8,7 @@ build a :class:`CoverageProblem`; the coverage methods turn it into an
 """
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Optional
 
 import numpy as np
@@ -137,6 +138,14 @@ class Prepared:
     uncoverable: int  # targets whose requirement cannot be met at all
     soft: bool
     soft_exp: float
+
+    @cached_property
+    def classes(self) -> tuple:
+        """`classes.target_classes` of this problem, built once: the search and the
+        bounds of a plan share it."""
+        from .classes import target_classes
+
+        return target_classes(self)
 
 
 def prepare(problem: CoverageProblem) -> Prepared:

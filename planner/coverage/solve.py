@@ -17,12 +17,13 @@ assert set(REGISTRY) == set(METHODS), "every listed method registers itself"
 
 
 def solve(problem: CoverageProblem, name: str = "rt", params: CoverageParams = None,
-          progress=None) -> Allocation:
+          progress=None, prep=None) -> Allocation:
     """Allocate viewpoints to UAVs by the method ``name``; ``progress(fraction)`` is
-    called as it goes. Raises ValueError for an unknown method or k >= n_uavs."""
+    called as it goes; ``prep``: the problem already prepared (`prepare`). Raises
+    ValueError for an unknown method or k >= n_uavs."""
     chosen = method(name)
     params = params or CoverageParams()
     start = time.perf_counter()
-    prep = prepare(problem)
+    prep = prep if prep is not None else prepare(problem)
     routes, steps = chosen.run(prep, params, progress)
     return evaluate(prep, routes, name, steps, time.perf_counter() - start)
