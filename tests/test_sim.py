@@ -3,6 +3,7 @@ station, pyproj for distances, the track files read back from disk."""
 
 import argparse
 import contextlib
+import gc
 import os
 import socket
 import time
@@ -266,9 +267,17 @@ def test_too_fast_for_the_machine_slows_mission_time_not_the_link():
     wall-clock rates (a ground station must not judge it lost), and mission
     time still runs faster than the wall clock, only slower than asked."""
     config = FleetConfig(base_port=free_base_port(10, 1), speedup=1e6, **FAST)
-    with fleet_and_clients(config) as (_, (c,)):
-        start = c.wait("GLOBAL_POSITION_INT").time_boot_ms
-        c.pump(3.5)
+    # the gaps are stamped on receipt in this process: a cyclic-GC pass over the heap
+    # the suite's planner tests left would pause the receipt, not the vehicle (the
+    # suspected cause of one failure in a clean-clone run; the bound stays as it is)
+    gc.collect()
+    gc.disable()
+    try:
+        with fleet_and_clients(config) as (_, (c,)):
+            start = c.wait("GLOBAL_POSITION_INT").time_boot_ms
+            c.pump(3.5)
+    finally:
+        gc.enable()
     beats = [m._timestamp for m in c.seen("HEARTBEAT")]
     assert len(beats) >= 3 and np.diff(beats).max() < 1.5     # 1 Hz of wall time
     ran_ms = c.seen("GLOBAL_POSITION_INT")[-1].time_boot_ms - start
