@@ -3,8 +3,11 @@ per stage for synthetic UTM DEMs of 256², 512², 1024² (and 2048² without
 --quick) cells at 30 m, 5 outposts, one launch point, k = 1, the default
 method; the fitted exponent per stage (time ~ cells^p); and the chunked stages
 (travel graph, travel times) on a dask LocalCluster of 1 and 2 workers.
+``--huge[=N]``: instead, N² (default 4096², 123 km square; 16 UAVs, planned in
+parts: ``--parts=P`` to choose how many) on a LocalCluster of 2 and then 1
+worker, every stage, and the ratio.
 
-    .venv/bin/python -m benchmarks scale [--quick]
+    .venv/bin/python -m benchmarks scale [--quick | --huge[=N] [--parts=P]]
 
 Each size runs in its own process, so its peak resident memory is its own. The
 goals (issue 22): 1024² with 8 UAVs under 60 s and 4 GiB on 2 cores, both
@@ -22,12 +25,12 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-UAVS = {256: 4, 512: 6, 1024: 8, 2048: 12}
+UAVS = {256: 4, 512: 6, 1024: 8, 2048: 12, 3072: 16, 4096: 16}
 STAGES = ("terrain", "exposure", "travel graph", "viewpoints", "visibility", "travel times",
           "allocation", "routes")
 
 
-def _one(n: int, scheduler: str) -> dict:
+def _one(n: int, scheduler: str, parts=None) -> dict:
     """Plan an n x n terrain in this process; per-stage wall/CPU seconds, peak RSS."""
     import resource
     import time
@@ -40,20 +43,43 @@ def _one(n: int, scheduler: str) -> dict:
     folder = Path(tempfile.mkdtemp(prefix="bench-scale-"))
     dem, posts, launch = _inputs(n, folder)
     scenario = Scenario(dem=[str(dem)], outposts=str(posts), uavs=UAVS[n], k=1,
-                        launch=[launch]).validate()
+                        launch=[launch], parts=parts).validate()
     marks = {}
 
     def progress(stage, fraction):
         now = (time.perf_counter(), time.process_time())
         marks.setdefault(stage, [now, now])[1] = now
 
-    ctx = prepare(scenario, progress,
-                  scheduler=None if scheduler == "none" else scheduler)
-    allocate(ctx, scenario.uavs, launch_starts(ctx), progress=progress)
+    where = None if scheduler == "none" else scheduler
+    ctx = prepare(scenario, progress, scheduler=where)
+    outcome = allocate(ctx, scenario.uavs, launch_starts(ctx), progress=progress,
+                       scheduler=where)
     stages = {s: [m[1][0] - m[0][0], m[1][1] - m[0][1]] for s, m in marks.items()}
+    if outcome.plan.metrics.get("parts", 1) > 1:
+        # in parts, travel times and allocation take turns: the plan's own split of the
+        # time; their CPU time is one figure, given to allocation
+        cpu = stages["travel times"][1]
+        stages["travel times"] = [outcome.plan.timing_s["travel times"], np.nan]
+        stages["allocation"] = [outcome.plan.timing_s["allocation"], cpu]
     return {"n": n, "stages": stages, "viewpoints": len(ctx.viewpoints),
             "targets": int(ctx.visibility.n_targets),
-            "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+            "coverage_min": outcome.plan.metrics["coverage_time_s"] / 60,
+            "parts": outcome.plan.metrics.get("parts", 1),
+            "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
+            "worker_peaks_gib": _worker_peaks(where)}
+
+
+def _worker_peaks(address) -> list:
+    """Peak resident memory of each worker of the cluster at ``address``, GiB."""
+    if address is None:
+        return []
+    import resource
+
+    from distributed import Client
+
+    with Client(address) as client:
+        peaks = client.run(lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)
+    return [v / 2**20 for v in peaks.values()]
 
 
 def _inputs(n, folder):
@@ -83,20 +109,28 @@ def _inputs(n, folder):
     return dem, posts, (float(lat), float(lon))
 
 
-def _run(n, scheduler="none") -> dict:
-    out = subprocess.run([sys.executable, __file__, "--one", str(n), "--scheduler", scheduler],
-                         capture_output=True, text=True, cwd=ROOT, check=True)
+def _run(n, scheduler="none", parts=None) -> dict:
+    more = ["--parts", str(parts)] if parts else []
+    out = subprocess.run([sys.executable, __file__, "--one", str(n), "--scheduler", scheduler]
+                         + more, capture_output=True, text=True, cwd=ROOT, check=True)
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="up to 1024² only")
+    ap.add_argument("--huge", type=int, nargs="?", const=4096, metavar="N",
+                    help="N² (default 4096²) on a LocalCluster of 2, then 1 worker")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--scheduler", default="none", help=argparse.SUPPRESS)
+    ap.add_argument("--parts", type=int, help="with --huge: plan in this many parts "
+                                              "(default: by the number of viewpoints)")
     args, _ = ap.parse_known_args(argv)
     if args.one:
-        print(json.dumps(_one(args.one, args.scheduler)))
+        print(json.dumps(_one(args.one, args.scheduler, args.parts)))
+        return
+    if args.huge:
+        _huge(args.huge, args.parts)
         return
     sizes = (256, 512, 1024) if args.quick else (256, 512, 1024, 2048)
     runs = [_run(n) for n in sizes]
@@ -123,13 +157,38 @@ def main(argv=None):
               f"travel times {r['stages']['travel times'][0]:.1f} s")
 
 
-def _cluster_run(n, workers) -> dict:
+def _huge(n, parts=None):
+    """Every stage of an n² plan on a LocalCluster of 1 and of 2 workers."""
+    found = {}
+    for workers in (2, 1):  # the faster first: its figures are out sooner
+        found[workers] = _cluster_run(n, workers, parts)
+        print(f"{workers} worker(s): {json.dumps(found[workers])}", flush=True)
+    runs = [found[1], found[2]]
+    r = runs[0]
+    print(f"{n}², {UAVS[n]} UAVs, {r['viewpoints']:,} viewpoints, {r['targets']:,} targets, "
+          f"{r['parts']} parts; wall / CPU s of this process (workers' CPU not in it)")
+    head = f"{'stage':<14}{'1 worker':>18}{'2 workers':>18}{'ratio':>8}"
+    print(head)
+    print("-" * len(head))
+    for stage in STAGES:
+        one, two = (run["stages"].get(stage, [np.nan, np.nan]) for run in runs)
+        print(f"{stage:<14}{one[0]:10.1f} /{one[1]:6.1f}{two[0]:10.1f} /{two[1]:6.1f}"
+              f"{two[0] / one[0] if one[0] > 0 else np.nan:8.2f}")
+    totals = [sum(w for w, _ in run["stages"].values()) for run in runs]
+    print(f"{'total':<14}{totals[0]:18.1f}{totals[1]:18.1f}{totals[1] / totals[0]:8.2f}")
+    for run, workers in zip(runs, (1, 2)):
+        print(f"{workers} worker(s): coverage {run['coverage_min']:.1f} min; peak memory "
+              f"{run['peak_gib']:.2f} GiB here, workers "
+              + ", ".join(f"{g:.2f}" for g in run["worker_peaks_gib"]) + " GiB")
+
+
+def _cluster_run(n, workers, parts=None) -> dict:
     """The plan with its chunked stages on a LocalCluster of ``workers`` processes."""
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster:
-        return _run(n, cluster.scheduler_address)
+        return _run(n, cluster.scheduler_address, parts)
 
 
 if __name__ == "__main__":

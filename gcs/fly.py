@@ -219,7 +219,8 @@ class Flight:
         """The travel times between viewpoints, which only re-planning needs: computed
         while the vehicles start, so that a loss finds them ready."""
         try:
-            self.ctx.travel  # noqa: B018 - computed once, kept by the context
+            if not self.ctx.in_parts:  # parts make their own times when re-planned
+                self.ctx.travel  # noqa: B018 - computed once, kept by the context
         except Exception as exc:  # reported when the context is needed
             self._ctx_error = exc
         self._ctx_ready.set()

@@ -64,6 +64,14 @@ class PlanningContext:
         return self.times
 
     @property
+    def in_parts(self) -> bool:
+        """Plans here are made in parts (`planner.split`), each with its own travel
+        times: `travel` over all the viewpoints is never needed (nor affordable)."""
+        from planner.split import n_parts
+
+        return n_parts(len(self.viewpoints), self.scenario) > 1
+
+    @property
     def travel_params(self) -> TravelParams:
         return self.scenario.travel_params()
 

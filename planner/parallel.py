@@ -21,30 +21,37 @@ from typing import Callable, Optional
 #: the processes) on a LocalCluster of 2 workers, the same plan
 LOCAL_CLUSTER_CELLS = 8_000_000
 
-def run_chunks(fn: Callable, chunks: list, shared: tuple = (), client=None,
-               progress: Optional[Callable[[float], None]] = None, threads: int = 1) -> list:
+def run_chunks(fn: Callable, chunks, shared: tuple = (), client=None,
+               progress: Optional[Callable[[float], None]] = None, threads: int = 1,
+               total: Optional[int] = None, scatter: bool = False) -> list:
     """[fn(*shared, chunk) for chunk in chunks], here or on ``client``'s workers.
     ``threads`` > 1: here, on that many threads (for work that releases the GIL
-    but has no threads of its own, such as scipy's Dijkstra)."""
-    if not chunks:
+    but has no threads of its own, such as scipy's Dijkstra). ``chunks`` may be
+    an iterator of ``total`` chunks, each made only when its turn comes (large
+    ones); ``scatter``: each chunk goes to a worker as soon as it is made, and
+    this process keeps no reference to it."""
+    total = len(chunks) if total is None else total
+    if not total:
         return []
     if client is None:
         out = []
         for i, result in enumerate(_here(fn, shared, chunks, threads)):
             out.append(result)
             if progress is not None:
-                progress((i + 1) / len(chunks))
+                progress((i + 1) / total)
         return out
     from distributed import as_completed
 
     # hash=False: a later stage scattering the same data must not share (and lose) its key
     scattered = client.scatter(list(shared), broadcast=True, hash=False) if shared else []
-    futures = [client.submit(_on_worker, fn, *scattered, chunk, pure=False) for chunk in chunks]
+    futures = [client.submit(_on_worker, fn, *scattered,
+                             client.scatter(chunk, hash=False) if scatter else chunk, pure=False)
+               for chunk in chunks]
     done = 0
     for _ in as_completed(futures):
         done += 1
         if progress is not None:
-            progress(done / len(chunks))
+            progress(done / total)
     return client.gather(futures)
 
 

@@ -32,8 +32,9 @@ from planner.visibility import (
     launch_cells,
 )
 
-from . import coverage
+from . import coverage, split
 from .context import PlanningContext, outposts_json
+from .coverage.metrics import last_needed_sighting
 from .parallel import dask_client
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
@@ -103,9 +104,11 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
                 if not visibility.n_targets:
                     raise InputError(s.area_file, "no target inside the polygon: no viewpoint "
                                                   "the fleet reaches sees any cell in it")
-        with _stage("travel times", timing, progress):
-            times = graph.time_matrix(viewpoints.xyz, client=client,
-                                      progress=_fraction(progress, "travel times"))
+        times = None
+        if split.n_parts(len(viewpoints), s) == 1:  # parts make their own (`allocate`)
+            with _stage("travel times", timing, progress):
+                times = graph.time_matrix(viewpoints.xyz, client=client,
+                                          progress=_fraction(progress, "travel times"))
     return PlanningContext(s, terrain, list(outposts), surface, regions, viewpoints,
                            visibility, graph, times, timing_s=timing)
 
@@ -221,8 +224,9 @@ class Outcome:
 
 
 def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibility="soft",
-                     seen=None, required=None) -> coverage.CoverageProblem:
-    """The combinatorial problem: visibility sets, viewpoint times, start/return times."""
+                     seen=None, required=None, travel=True) -> coverage.CoverageProblem:
+    """The combinatorial problem: visibility sets, viewpoint times, start/return times
+    (``travel`` False: without the viewpoint times, for a plan made in parts)."""
     vis = ctx.visibility
     out = back = None
     if starts:
@@ -234,8 +238,9 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
             ground = np.array([s.launch[2] for s in starts])
             land = leg_time(0.0, ground - tops[:, 2], ctx.travel_params)[:, None]
             back = ctx.graph.times_between(vp, tops).T + land
-    return coverage.CoverageProblem(vis.indptr, vis.indices, vis.n_targets, ctx.travel, out,
-                                    back, n_uavs, k, visibility, required, seen)
+    return coverage.CoverageProblem(vis.indptr, vis.indices, vis.n_targets,
+                                    ctx.travel if travel else None, out, back, n_uavs, k,
+                                    visibility, required, seen)
 
 
 def above_launch(ctx, ground_xyz) -> np.ndarray:
@@ -245,34 +250,77 @@ def above_launch(ctx, ground_xyz) -> np.ndarray:
 
 def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
              method=None, progress: Progress = None, budget_fraction=None,
-             strong_bound=True) -> Outcome:
+             strong_bound=True, scheduler=None, log=None) -> Outcome:
     """Run the scenario's coverage method from ``starts`` and build hidden routes.
 
     ``budget_fraction`` caps the search budget (`coverage.CoverageParams`);
-    ``strong_bound=False`` reports only the quick lower bounds (re-plans in flight)."""
+    ``strong_bound=False`` reports only the quick lower bounds (re-plans in flight).
+    A large area is planned in parts (`planner.split`), as dask tasks on
+    ``scheduler`` (see `prepare`) when it names one."""
     s = ctx.scenario
     method = method or s.method
     timing = dict(ctx.timing_s)
-    with _stage("allocation", timing, progress):
-        problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required)
-        params = coverage.CoverageParams(alpha=s.alpha, beta=s.beta,
-                                         step_time_cap=s.step_time_cap_s, seed=s.seed,
-                                         time_budget_s=s.time_budget_s,
-                                         budget_fraction=budget_fraction)
-        try:
-            prep = coverage.prepare(problem)  # once: the bounds below share it
-            allocation = coverage.solve(problem, method, params,
-                                        progress=(lambda f: progress("allocation", f))
-                                        if progress else None, prep=prep)
-        except ValueError as exc:
-            raise InputError("plan", str(exc)) from None
+    params = coverage.CoverageParams(alpha=s.alpha, beta=s.beta,
+                                     step_time_cap=s.step_time_cap_s, seed=s.seed,
+                                     time_budget_s=s.time_budget_s,
+                                     budget_fraction=budget_fraction)
+    parts = split.n_parts(len(ctx.viewpoints), s)
+    try:
+        if parts > 1:
+            problem, allocation = _in_parts(ctx, parts, n_uavs, starts, seen, required,
+                                            method, params, timing, progress, scheduler, log)
+        else:
+            with _stage("allocation", timing, progress):
+                problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen,
+                                           required)
+                prep = coverage.prepare(problem)  # once: the bounds below share it
+                allocation = coverage.solve(problem, method, params,
+                                            progress=(lambda f: progress("allocation", f))
+                                            if progress else None, prep=prep)
+    except ValueError as exc:
+        raise InputError("plan", str(exc)) from None
     with _stage("routes", timing, progress):
         polylines, arrivals = _routes(ctx, allocation.routes, starts,
                                       _fraction(progress, "routes"))
         counts = coverage.coverage_counts(problem, allocation)
-    plan = _make_plan(ctx, method, prep, allocation, starts, polylines, arrivals, counts,
-                      timing, strong_bound)
+    # only the reach bound holds for the whole of an area planned in parts
+    bounds = ((split.reach_bound(problem),) * 2 if parts > 1
+              else coverage.bounds(problem, strong_bound, prep))
+    plan = _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts,
+                      timing, bounds)
+    if parts > 1:
+        plan.metrics["parts"] = parts
     return Outcome(plan, problem, allocation, polylines, counts)
+
+
+def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
+              scheduler, log):
+    """`allocate`'s search for an area planned in ``parts`` parts (`planner.split`):
+    the problem of the whole area (without viewpoint times) and the joined allocation."""
+    s = ctx.scenario
+    for stage in ("travel times", "allocation"):
+        if progress:
+            progress(stage, 0.0)
+    start = time.perf_counter()
+    with dask_client(scheduler, ctx.terrain.height.size, log) as client:
+        problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
+                                   travel=False)
+        pieces = split.make_parts(problem, ctx.viewpoints.xyz[:, :2], parts)
+        # one sparse overlay of the whole area: the parts' times go through any viewpoint
+        overlay = ctx.graph.overlay(ctx.viewpoints.xyz, client=client,
+                                    progress=_fraction(progress, "travel times"))
+        overlay_s = time.perf_counter() - start
+        joined = split.solve_parts(problem, pieces, method, params, lambda ids, on: (
+            ctx.graph.overlay_times(overlay, ids, on)), s.speed_mps, client, progress)
+    timing["travel times"] = overlay_s + joined.travel_s
+    timing["allocation"] = time.perf_counter() - start - timing["travel times"]
+    for stage in ("travel times", "allocation"):
+        if progress:
+            progress(stage, 1.0)
+    if log is not None:
+        log(f"planned in {parts} parts of {', '.join(str(len(g)) for g in joined.groups)} "
+            f"UAVs; the join dropped {joined.dropped} visits it made redundant")
+    return problem, joined.allocation(problem, method)
 
 
 def _routes(ctx, routes, starts, progress=None):
@@ -347,26 +395,15 @@ def _prove(ctx, r, poly) -> None:
 
 def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
     """When the last target is first seen by as many distinct UAVs as it needs."""
-    first = np.full((problem.n_uavs, problem.n_targets), np.inf)
-    if problem.seen is not None:
-        first[np.asarray(problem.seen, bool)] = 0.0
-    for r, route in enumerate(routes):
-        t, snap = arrivals[r]
-        for e, when in zip(route, t[snap]):
-            seen = problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]
-            first[r, seen] = np.minimum(first[r, seen], when)
-    first.sort(axis=0)
-    need = np.clip(counts_needed, 0, problem.n_uavs)
-    cols = np.flatnonzero(need > 0)
-    if cols.size == 0:
-        return 0.0
-    return float(first[need[cols] - 1, cols].max())
+    when = [t[snap] for t, snap in arrivals]
+    return last_needed_sighting(problem, routes, when,
+                                np.clip(counts_needed, 0, problem.n_uavs))
 
 
-def _make_plan(ctx, method, prep, allocation, starts, polylines, arrivals, counts, timing,
-               strong_bound=True):
+def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing,
+               bounds):
+    """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time."""
     s = ctx.scenario
-    problem = prep.problem
     required = (np.asarray(problem.required) if problem.required is not None
                 else np.full(problem.n_targets, coverage.required_uavs(s.k, problem.n_uavs)))
     vehicles = []
@@ -383,8 +420,7 @@ def _make_plan(ctx, method, prep, allocation, starts, polylines, arrivals, count
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
     }
-    metrics["radius_bound_s"], metrics["lower_bound_s"] = coverage.bounds(problem, strong_bound,
-                                                                           prep)
+    metrics["radius_bound_s"], metrics["lower_bound_s"] = bounds
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)
     timing["total"] = float(sum(timing.values()))
@@ -420,4 +456,5 @@ def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, ou
     ``log``: see `prepare`)."""
     ctx = prepare(scenario, progress, terrain, outposts, scheduler, log)
     starts = launch_starts(ctx)
-    return ctx, allocate(ctx, scenario.uavs, starts, progress=progress)
+    return ctx, allocate(ctx, scenario.uavs, starts, progress=progress, scheduler=scheduler,
+                         log=log)

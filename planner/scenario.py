@@ -57,6 +57,7 @@ class Scenario:
     step_time_cap_s: Optional[float] = None  # th_ra; default chosen by the benchmark
     time_budget_s: Optional[float] = None  # alns search budget; default scales with the plan
     seed: int = 0
+    parts: Optional[int] = None  # planned in this many parts (planner.split); None: by size
 
     def validate(self, source="scenario") -> "Scenario":
         """Raise InputError for values no planner stage could use."""
@@ -74,6 +75,11 @@ class Scenario:
             (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
             (self.time_budget_s is None or _positive(self.time_budget_s),
              f"time_budget_s must be a positive number, got {self.time_budget_s}"),
+            (self.parts is None or (isinstance(self.parts, int) and self.parts >= 1),
+             f"parts must be a whole number of at least 1, got {self.parts}"),
+            (self.parts is None or self.parts * (self.k + 1) <= self.uavs,
+             f"{self.parts} parts need {self.k + 1} UAVs each (k + 1), "
+             f"{(self.k + 1) * (self.parts or 1)} in all; uavs = {self.uavs}"),
             (self.area_file or not self.area_flight,
              "area_flight restricts flight to the area_file polygon: give area_file too"),
             (len(self.launch) in (0, 1, self.uavs),
@@ -158,7 +164,7 @@ SECTIONS = {
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
               "firmware"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
-               "seed"),
+               "seed", "parts"),
 }
 _ALIASES = {("outposts", "file"): "outposts", ("method", "name"): "method",
             ("terrain", "files"): "dem"}

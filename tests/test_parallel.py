@@ -2,6 +2,7 @@
 in this process; and a plan's heaviest stage keeps more than one core busy."""
 
 import warnings
+from dataclasses import replace
 
 import numba
 import numpy as np
@@ -28,9 +29,11 @@ def _problem(n, seed):
 
 
 def test_local_cluster_gives_the_same_context_and_plan():
+    """The chunked stages, and an area planned in parts (the parts solved as tasks)."""
     distributed = pytest.importorskip("distributed")
     scenario, terrain, outposts = _problem(120, 5)
     here = prepare(scenario, terrain=terrain, outposts=outposts, scheduler=None)
+    in_parts = replace(scenario, parts=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
@@ -38,6 +41,11 @@ def test_local_cluster_gives_the_same_context_and_plan():
                 distributed.Client(cluster) as client:
             there = prepare(scenario, terrain=terrain, outposts=outposts, scheduler=client)
             assert len(client.scheduler_info()["workers"]) == 2
+            parts_there = allocate(replace(there, scenario=in_parts), 3, scheduler=client)
+    parts_here = allocate(replace(here, scenario=in_parts), 3)
+    assert parts_here.plan.metrics["parts"] == 2
+    assert [v.waypoints for v in parts_here.plan.vehicles] == \
+        [v.waypoints for v in parts_there.plan.vehicles]
     for name in ("src", "dst", "dip"):
         np.testing.assert_array_equal(here.graph.edges()[name], there.graph.edges()[name])
     np.testing.assert_array_equal(here.travel, there.travel)

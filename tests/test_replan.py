@@ -107,24 +107,38 @@ def test_snapshot_sets_match_viewpoints(planned):
 
 def test_one_loss_survivors_meet_requirement(planned):
     ctx, outcome = planned
-    survivors, snaps = zip(*[_midway(ctx, outcome, r) for r in (0, 2)])
+    _survivors_meet_requirement(ctx, outcome, (0, 2), k=1)
+
+
+def test_one_loss_in_an_area_planned_in_parts(terrain):
+    """Four UAVs in two parts (k = 0); three survivors are re-planned in two parts too."""
+    ctx, outcome = plan_mission(_scenario(terrain, uavs=4, parts=2), terrain=terrain,
+                                outposts=_outposts(terrain))
+    assert outcome.plan.metrics["parts"] == 2
+    new = _survivors_meet_requirement(ctx, outcome, (0, 1, 3), k=0)
+    assert new.plan.metrics["parts"] == 2
+
+
+def _survivors_meet_requirement(ctx, outcome, kept, k):
+    survivors, snaps = zip(*[_midway(ctx, outcome, r) for r in kept])
     seen = seen_matrix(ctx, snaps)
     new = replan(ctx, list(survivors), seen)
-    assert [v.id for v in new.plan.vehicles] == [1, 3]
+    assert [v.id for v in new.plan.vehicles] == [r + 1 for r in kept]
     # brute force: survivors' earlier snapshots plus the new snapshot points
     total = seen.copy()
     for r, (poly, vehicle) in enumerate(zip(new.polylines, new.plan.vehicles)):
         pts = poly[[i for i, w in enumerate(vehicle.waypoints) if w.snapshot]]
         total[r] |= seen_matrix(ctx, [pts])[0]
-    summary = coverage_summary(ctx, total, k=1)
+    summary = coverage_summary(ctx, total, k=k)
     coverable = np.diff(ctx.visibility.target_indptr) > 0
-    assert summary["required_uavs"] == 2
+    assert summary["required_uavs"] == k + 1
     assert summary["k_covered"] == coverable.sum()
     for poly, s in zip(new.polylines, survivors):
         assert np.allclose(poly[0], s.xyz)
         assert np.allclose(poly[-1, :2], s.launch[:2])
         assert segments_hidden(ctx.surface, poly[:-1], poly[1:]).all()
         assert segments_clear(ctx.surface, poly[:-1], poly[1:]).all()
+    return new
 
 
 def test_one_survivor_of_k1_needs_one_view(planned):

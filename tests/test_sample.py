@@ -3,8 +3,11 @@ UTM leaves a slanted nodata margin. Every method but C plans 4 UAVs with k = 1, 
 every mission it makes passes the mission check (the gate of every export and
 upload), with every target seen by two distinct UAVs."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from missions.build import plan_missions
 from missions.check import check_mission
@@ -49,3 +52,29 @@ def test_gcs_plan_on_the_whole_sample_from_the_demo_base(tmp_path, capsys):
     plan = Plan.load(out)
     assert plan.metrics["k_covered"] == plan.metrics["targets"]
     assert main(["export", str(out), "-o", str(tmp_path / "again")]) == 0  # re-checked
+
+
+def test_whole_sample_planned_in_parts(sample):
+    """Two parts of two UAVs each from a launch point under a viewpoint, joined:
+    still every target seen by two distinct UAVs (counted again from the plan's
+    snapshot points), every mission passes the check, and the coverage time is no
+    less than the reach bound of the whole area."""
+    lon, lat = sample.terrain.to_lonlat(*sample.viewpoints.xyz[len(sample.viewpoints) // 2, :2])
+    ctx = replace(sample, scenario=replace(sample.scenario, parts=2, time_budget_s=1.0,
+                                           launch=[(float(lat), float(lon))]))
+    outcome = allocate(ctx, 4, launch_starts(ctx))
+    metrics = outcome.plan.metrics
+    assert metrics["parts"] == 2 and metrics["k_covered"] == metrics["targets"]
+    vis = ctx.visibility
+    tree = cKDTree(ctx.viewpoints.xyz[:, :2])
+    seen = np.zeros((4, vis.n_targets), bool)
+    for r, poly in enumerate(outcome.polylines):
+        for w, p in zip(outcome.plan.vehicles[r].waypoints, poly):
+            if w.snapshot:
+                off, e = tree.query(p[:2])
+                assert off < 0.1  # a viewpoint, as rounded for MAVLink
+                seen[r, vis.indices[vis.indptr[e]:vis.indptr[e + 1]]] = True
+    assert (seen.sum(axis=0) >= 2).all()
+    for mission in plan_missions(outcome.plan):
+        check_mission(mission, ctx.surface)
+    assert metrics["coverage_time_s"] >= metrics["lower_bound_s"] > 0

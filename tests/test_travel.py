@@ -15,8 +15,15 @@ from planner.exposure import (
     segment_hidden,
 )
 from planner.exposure.los import gap_range
-from planner.terrain import Terrain, bilinear
-from planner.travel import TravelGraph, TravelParams, leg_time, polyline_time, raised_terrain
+from planner.terrain import Terrain, bilinear, synthetic_terrain
+from planner.travel import (
+    TravelGraph,
+    TravelParams,
+    build_travel_graph,
+    leg_time,
+    polyline_time,
+    raised_terrain,
+)
 from planner.visibility import candidate_viewpoints
 
 CELL = 30.0
@@ -211,3 +218,19 @@ def test_node_paths_are_shortest_as_dijkstra_finds_them(seed, family, n_posts):
             legs = np.array([graph.csr[u, v] for u, v in zip(path[:-1], path[1:])])
             assert (legs > 0).all()  # every step an edge of the graph
             assert math.isclose(legs.sum(), best, rel_tol=1e-9, abs_tol=1e-9)
+
+
+def test_parts_times_over_the_whole_overlay_are_its_matrix():
+    """The sparse overlay of all points and the times among any subset over it (what
+    an area planned in parts uses) are the dense overlay matrix, sliced."""
+    terrain = synthetic_terrain(90, 90, cell=30.0, seed=8, family="ridges")
+    x, y = terrain.xy(45, 45)
+    surface = compute_exposure(terrain, [Outpost(float(x), float(y), 5.0, 2000.0)])
+    graph = build_travel_graph(surface, TravelParams())
+    nodes = np.flatnonzero(graph.reachable())[::37]
+    xyz = graph.node_xyz[nodes]
+    whole = graph.time_matrix(xyz, method="overlay")
+    overlay = graph.overlay(xyz)
+    some = np.sort(np.random.default_rng(1).choice(len(nodes), len(nodes) // 3, replace=False))
+    np.testing.assert_allclose(graph.overlay_times(overlay, some), whole[np.ix_(some, some)],
+                               rtol=1e-12)

@@ -45,8 +45,11 @@ HELP = {
     "step_time_cap_s": "cap th_ra on one insertion's added time, seconds (default: automatic)",
     "time_budget_s": "search budget of --method alns, seconds on the reference machine, "
                      "counted in work units so a plan is the same on any machine "
-                     "(default: 0.01 s per snapshot of the start plan, 0.1 to 5 s)",
+                     "(default: 0.01 s per snapshot of the start plan, 0.1 s up to 5 s "
+                     "plus 5 s per million target cells, at most 20 s)",
     "seed": "random seed (ties and baselines)",
+    "parts": "plan the area in N parts, one UAV group each, joined across the seams "
+             "(default: one part per 12,000 viewpoints: large areas only)",
 }
 
 
@@ -98,14 +101,14 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m"),
-        "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed"),
+        "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }
     for title, names in fields_of.items():
         if title not in groups:
             continue
         group = parser.add_argument_group(title)
         for name in names:
-            kind = int if name in ("uavs", "k", "seed") else float
+            kind = int if name in ("uavs", "k", "seed", "parts") else float
             _add(group, name, kind)
         if title == "fleet":
             group.add_argument("--launch", nargs="+", metavar="LAT,LON",

@@ -33,6 +33,42 @@ def _kth_over_uavs(first, req):
     return worst
 
 
+def last_needed_sighting(problem: CoverageProblem, routes, arrivals, need) -> float:
+    """When the last target with ``need[t]`` > 0 is first seen by need[t] distinct
+    UAVs, from each route's snapshot times ``arrivals[r]`` (inf if never). One UAV
+    at a time, keeping only the need earliest per target: a [UAVs, targets] table
+    of times would take 2 GiB on a 4096² area."""
+    q = int(np.max(need, initial=0))
+    if q == 0:
+        return 0.0
+    best = np.full((q, problem.n_targets), np.inf)
+    first = np.empty(problem.n_targets)
+    for r, route in enumerate(routes):
+        first.fill(np.inf)
+        if problem.seen is not None:
+            first[np.asarray(problem.seen[r], bool)] = 0.0
+        _first_seen(np.asarray(route, np.int64), np.asarray(arrivals[r], float),
+                    problem.vis_indptr, problem.vis_indices, first)
+        _keep_earliest(best, first)
+    rows = np.clip(need, 1, q) - 1
+    return float(best[rows, np.arange(len(need))][need > 0].max(initial=0.0))
+
+
+@njit(cache=True)
+def _keep_earliest(best, first):
+    """Insert first[t] into the ascending column best[:, t]."""
+    q = best.shape[0]
+    for t in range(best.shape[1]):
+        v = first[t]
+        i = q
+        while i > 0 and best[i - 1, t] > v:
+            i -= 1
+        if i < q:
+            for j in range(q - 1, i, -1):
+                best[j, t] = best[j - 1, t]
+            best[i, t] = v
+
+
 def first_seen_times(prep, routes) -> np.ndarray:
     """[n_uavs, n_targets]: when UAV r first sees t (0 if seen before planning, inf never)."""
     n = prep.problem.n_uavs

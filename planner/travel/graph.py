@@ -149,16 +149,12 @@ class TravelGraph:
                                                  np.int64), client, progress)
         else:
             src, dst, dip = self._decoded(edges)
-        self._undirected = (src, dst, dip)
-        za, zb = self.node_xyz[src, 2], self.node_xyz[dst, 2]
-        low = np.where(np.isnan(dip), np.minimum(za, zb), dip)
-        horiz = np.hypot(*(self.node_xyz[dst, :2] - self.node_xyz[src, :2]).T)
         self._indptr, self._nbr, w, self._dip = K.directed_csr(
-            rows.shape[0], src, dst, _edge_time(horiz, za, low, zb, params),
-            _edge_time(horiz, zb, low, za, params), dip)
+            rows.shape[0], src, dst, dip, self.node_xyz, params.speed_mps, params.climb_mps,
+            params.descent_mps)
         n = rows.shape[0]
-        self.csr = csr_matrix((w, self._nbr.astype(np.int32), self._indptr), shape=(n, n))
-        self._csr_reverse = None
+        self.csr = csr_matrix((w, self._nbr, self._indptr), shape=(n, n))
+        self._nbr = self.csr.indices  # one copy of the neighbour lists (int32)
 
     def edges(self, compact=False) -> dict:
         """The checked undirected edges (node ids; ``dip``: the level altitude of a
@@ -167,7 +163,7 @@ class TravelGraph:
         ``compact``: the same edges in a few bytes each, for the plan folder
         (millions of them on large areas): source ids as steps, the neighbour
         as its offset's index, levels only of the dip edges."""
-        src, dst, dip = self._undirected
+        src, dst, dip = self._undirected()
         if not compact:
             return {"src": src, "dst": dst, "dip": dip}
         dr = self.node_rows[dst] - self.node_rows[src]
@@ -179,6 +175,15 @@ class TravelGraph:
                 "offset": offset.astype(np.uint8),
                 "dip_step": np.diff(dipped, prepend=0).astype(np.int32),
                 "dip_level": dip[dipped]}
+
+    def _undirected(self) -> tuple:
+        """(src, dst, dip) of the checked edges, each once, in the order they were
+        checked: the entries of each directed row to a later node (an edge is
+        checked from its earlier node, `_HALF_16`). Made when asked, not kept
+        (1.7 GB on a 4096² area)."""
+        src = np.repeat(np.arange(self.n_nodes, dtype=np.int32), np.diff(self._indptr))
+        later = self._nbr > src
+        return src[later], self._nbr[later], self._dip[later]
 
     def _decoded(self, edges) -> tuple:
         """(src, dst, dip) from `edges()`, compact or not."""
@@ -245,12 +250,14 @@ class TravelGraph:
         fine, horizons = self._check_nodes(client, progress)
         keep = fine[src] & fine[dst]
         pairs = np.stack([src[keep], dst[keep]], axis=1)
+        del src, dst, keep  # GBs on large areas (127 M candidate pairs on 4096²)
         checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self, horizons),
                              client, _part(progress, 0.15, 1.0))
         if not checked:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
         ok = np.concatenate([c[0] for c in checked])
         dip = np.concatenate([c[1] for c in checked])
+        del checked
         return pairs[ok, 0], pairs[ok, 1], dip[ok]
 
     def _check_nodes(self, client=None, progress=None) -> tuple:
@@ -429,9 +436,9 @@ class TravelGraph:
         return dijkstra(self._reverse(), directed=True, indices=self.nodes_of(xyz))
 
     def _reverse(self):
-        if self._csr_reverse is None:
-            self._csr_reverse = self.csr.T.tocsr()
-        return self._csr_reverse
+        """The graph with every edge reversed: made when needed, not kept (as large as
+        the graph itself, 2.6 GB on a 4096² area; a second or two to make)."""
+        return self.csr.T.tocsr()
 
     def times_between(self, src_xyz, dst_xyz) -> np.ndarray:
         """[n_src, n_dst] shortest times (s) between points joined to the graph by
@@ -484,20 +491,50 @@ class TravelGraph:
         n = len(nodes)
         if n < 2:
             return np.zeros((n, n))
-        # the typical spacing: median distance from a point to its nearest other point
-        xy = self.node_xyz[nodes, :2]
-        nearest, _ = cKDTree(xy).query(xy, k=2)
-        spacing = float(np.median(nearest[:, 1]))
-        spacing = max(spacing, self.surface.terrain.cell_size)
-        limit = radius_factor * spacing / self.params.speed_mps
-        slot = np.full(self.n_nodes, -1, np.int64)
-        slot[nodes] = np.arange(n)
-        csr = (self._indptr, self._nbr, self.csr.data, slot, n, limit)
+        csr = self._local_search(nodes, radius_factor)
         local = np.vstack(run_chunks(_bounded_rows, _split(nodes, -(-n // 8)), (csr,), client,
                                      _part(progress, 0.0, 0.7)))
         indptr, nbr, w = K.dense_to_csr(local, K.undominated_edges(local))
         del local
         return self._fill_missed(_all_pairs(indptr, nbr, w, _part(progress, 0.7, 0.9)), nodes)
+
+    def _local_search(self, nodes, radius_factor) -> tuple:
+        """What a bounded Dijkstra from each of ``nodes`` takes (`_bounded_rows`): the
+        graph, the slot of each of the nodes, and the radius in time, so many typical
+        spacings (median distance from a point to its nearest other one)."""
+        xy = self.node_xyz[nodes, :2]
+        nearest, _ = cKDTree(xy).query(xy, k=2)
+        spacing = max(float(np.median(nearest[:, 1])), self.surface.terrain.cell_size)
+        slot = np.full(self.n_nodes, -1, np.int64)
+        slot[nodes] = np.arange(len(nodes))
+        return (self._indptr, self._nbr, self.csr.data, slot, len(nodes),
+                radius_factor * spacing / self.params.speed_mps)
+
+    def overlay(self, xyz, radius_factor=3.0, client=None, progress=None) -> tuple:
+        """The sparse overlay graph of the points (``time_matrix``'s "overlay", kept
+        sparse for areas whose [n, n] times do not fit in memory): (nodes under the
+        points, then indptr, nbr, w over point ids): an edge to every point within
+        the radius, with its exact time."""
+        nodes = self.nodes_of(xyz)
+        csr = self._local_search(nodes, radius_factor)
+        size = max(1, int(3e7 // max(len(nodes), 1)))  # a dense chunk of rows stays small
+        rows = run_chunks(_bounded_sparse, _split(nodes, size), (csr,), client, progress)
+        counts = np.concatenate([r[0] for r in rows] + [np.zeros(0, np.int64)])
+        indptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
+        nbr = np.concatenate([r[1] for r in rows] + [np.zeros(0, np.int64)])
+        w = np.concatenate([r[2] for r in rows] + [np.zeros(0)])
+        return nodes, indptr, nbr, w
+
+    def overlay_times(self, overlay, ids, progress=None) -> np.ndarray:
+        """[len(ids), len(ids)] times between those points of `overlay`: shortest
+        paths over the whole overlay (through any of its points, as in
+        ``time_matrix``), exact where the graph has a path the overlay misses."""
+        nodes, indptr, nbr, w = overlay
+        ids = np.asarray(ids, np.int64)
+        slot = np.full(len(nodes), -1, np.int64)
+        slot[ids] = np.arange(len(ids))
+        times = _shortest_rows(indptr, nbr, w, ids, slot, len(ids), progress)
+        return self._fill_missed(times, nodes[ids])
 
     def _fill_missed(self, times, nodes):
         """Exact times where the overlay found no path but the graph has one: a point
@@ -675,16 +712,6 @@ def raised_terrain(h, cell, tolerance_m) -> np.ndarray:
     return np.where(near_void, np.nan, h + tolerance_m * spread)
 
 
-def _edge_time(horiz, z_from, z_low, z_to, params):
-    """Time of a vertical move z_from -> z_low, a level leg, and z_low -> z_to
-    (z_low = min(z_from, z_to) makes it one straight leg's time)."""
-    direct = np.minimum(z_from, z_to) == z_low
-    straight = leg_time(horiz, z_to - z_from, params)
-    dip = (leg_time(0.0, z_low - z_from, params) + horiz / params.speed_mps
-           + leg_time(0.0, z_to - z_low, params))
-    return np.where(direct, straight, dip)
-
-
 def _segments_hidden(surface, a, b, slack_m, horizons=None, rows=None) -> np.ndarray:
     """exposure.segments_hidden (proven hidden from every outpost, with every point
     within ``slack_m`` of the leg), for many legs; ``horizons[rows]`` its hints."""
@@ -706,6 +733,16 @@ def _bounded_rows(csr, sources) -> np.ndarray:
     """Exact times from each source up to the overlay's radius (inf beyond)."""
     indptr, nbr, w, slot, n, limit = csr
     return K.bounded_times(indptr, nbr, w, sources, slot, n, limit, _n_threads())
+
+
+def _bounded_sparse(csr, sources) -> tuple:
+    """`_bounded_rows` as sparse rows: (entries per row, columns, times), each
+    source's own zero left out."""
+    local = _bounded_rows(csr, sources)
+    local[np.arange(len(sources)), csr[3][sources]] = np.inf
+    found = np.isfinite(local)
+    rows, cols = np.nonzero(found)
+    return found.sum(axis=1), cols.astype(np.int64), local[rows, cols]
 
 
 def _fine_nodes(graph, chunk) -> tuple:
@@ -746,15 +783,22 @@ def _checked_edges(graph, node_horizons, pairs):
 
 
 def _all_pairs(indptr, nbr, w, progress=None) -> np.ndarray:
-    """[n, n] shortest times over a small graph (the overlay): a Dijkstra from
-    every node, on every core, in row chunks so that progress moves."""
-    n = len(indptr) - 1
-    times = np.empty((n, n))
-    slot = np.arange(n)
+    """[n, n] shortest times over a small graph (the overlay)."""
+    every = np.arange(len(indptr) - 1)
+    return _shortest_rows(indptr, nbr, w, every, every, len(every), progress)
+
+
+def _shortest_rows(indptr, nbr, w, sources, slot, n_slots, progress=None) -> np.ndarray:
+    """[len(sources), n_slots] shortest times over a small graph (an overlay) to the
+    nodes given a slot: a Dijkstra from each source, on every core, in row chunks
+    so that progress moves."""
+    times = np.empty((len(sources), n_slots))
 
     def rows(chunk):
-        times[chunk] = K.bounded_times(indptr, nbr, w, chunk, slot, n, np.inf, _n_threads())
-    run_chunks(rows, _split(slot, max(1, -(-n // 16))), progress=progress)
+        times[chunk] = K.bounded_times(indptr, nbr, w, sources[chunk], slot, n_slots, np.inf,
+                                       _n_threads())
+    run_chunks(rows, _split(np.arange(len(sources)), max(1, -(-len(sources) // 16))),
+               progress=progress)
     return times
 
 

@@ -214,9 +214,9 @@ def grid_neighbours(node_of_cell, node_region, half_offsets):
     n_off = half_offsets.shape[0]
     count = 0
     for pass_ in range(2):
-        if pass_ == 1:
-            src = np.empty(count, np.int64)
-            dst = np.empty(count, np.int64)
+        if pass_ == 1:  # node ids as int32: 127 M candidate pairs on a 4096² grid
+            src = np.empty(count, np.int32)
+            dst = np.empty(count, np.int32)
             count = 0
         for r in range(n_rows):
             for c in range(n_cols):
@@ -259,9 +259,11 @@ def grid_legs_within(h_clear, h, ceiling, node_rows, node_cols, node_z, src, dst
 
 
 @njit(cache=True)
-def directed_csr(n_nodes, src, dst, w_forward, w_backward, dip):
+def directed_csr(n_nodes, src, dst, dip, node_xyz, speed, climb, descent):
     """CSR (indptr, indices, data, dip) of the edges src->dst and dst->src (unsorted
-    rows); ``dip`` per edge is carried along to both directions."""
+    rows), data their times (`edge_time`); ``dip`` per edge is carried along to both
+    directions. Times are made here, edge by edge: as whole arrays they took
+    several GB of temporaries on a 4096² area."""
     indptr = np.zeros(n_nodes + 1, np.int64)
     for k in range(src.shape[0]):
         indptr[src[k] + 1] += 1
@@ -269,21 +271,40 @@ def directed_csr(n_nodes, src, dst, w_forward, w_backward, dip):
     for i in range(n_nodes):
         indptr[i + 1] += indptr[i]
     fill = indptr[:-1].copy()
-    indices = np.empty(indptr[-1], np.int64)
+    indices = np.empty(indptr[-1], np.int32)  # as scipy's csr_matrix keeps them
     data = np.empty(indptr[-1])
     dips = np.empty(indptr[-1])
     for k in range(src.shape[0]):
         a = src[k]
         b = dst[k]
+        za, zb = node_xyz[a, 2], node_xyz[b, 2]
+        low = min(za, zb) if np.isnan(dip[k]) else dip[k]
+        horiz = math.hypot(node_xyz[b, 0] - node_xyz[a, 0], node_xyz[b, 1] - node_xyz[a, 1])
         indices[fill[a]] = b
-        data[fill[a]] = w_forward[k]
+        data[fill[a]] = edge_time(horiz, za, low, zb, speed, climb, descent)
         dips[fill[a]] = dip[k]
         fill[a] += 1
         indices[fill[b]] = a
-        data[fill[b]] = w_backward[k]
+        data[fill[b]] = edge_time(horiz, zb, low, za, speed, climb, descent)
         dips[fill[b]] = dip[k]
         fill[b] += 1
     return indptr, indices, data, dips
+
+
+@njit(cache=True)
+def edge_time(horiz, z_from, z_low, z_to, speed, climb, descent):
+    """Time of a vertical move z_from -> z_low, a level leg, and z_low -> z_to
+    (z_low = min(z_from, z_to) makes it one straight leg's time); each straight
+    part takes the slower of its horizontal and vertical motion (`leg_time`)."""
+    if min(z_from, z_to) == z_low:
+        return max(horiz / speed, _vertical(z_to - z_from, climb, descent))
+    return (max(0.0, _vertical(z_low - z_from, climb, descent)) + horiz / speed
+            + max(0.0, _vertical(z_to - z_low, climb, descent)))
+
+
+@njit(cache=True)
+def _vertical(dz, climb, descent):
+    return dz / climb if dz > 0 else -dz / descent
 
 
 @njit(cache=True, parallel=True)

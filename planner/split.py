@@ -1,0 +1,405 @@
+"""A large area planned in parts, joined into one plan.
+
+Every coverage method works on a dense matrix of hidden travel times between the
+viewpoints: n² entries, 0.94 GB for the 10,837 viewpoints of a 2048² area and
+sixteen times that at 4096². Past `PART_VIEWPOINTS` viewpoints (or with
+``--parts N``) a plan is made in parts:
+
+- the viewpoints are split into parts of about equal count by recursive
+  bisection across the longer side, so that parts are compact and seams short;
+- each target belongs to the part with the most viewpoints that see it (so its
+  part can cover it);
+- the fleet is split into one group per part, sized so that the estimated part
+  makespans balance (transit from the launch plus the visits of a greedy cover);
+- each part is a coverage problem of its own: its viewpoints, the targets they
+  see and their travel times; its own targets need k + 1 distinct UAVs of its
+  group, the others nothing. The parts are solved by the scenario's method, as
+  dask tasks on the plan's cluster or here one after another;
+- the join, across the seams: a target near a seam is often seen by the next
+  group too, so every visit whose targets stay covered as required by the
+  plan's coverage time without it is dropped. A dropped visit only makes the rest
+  of its route earlier (hidden travel times obey the triangle inequality).
+
+Routes are then flown on the one travel graph of the whole area (a transit from
+a shared launch point crosses other parts) and proven like those of any plan.
+"""
+
+import time
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+from numba import njit
+from scipy.optimize import linear_sum_assignment
+from scipy.spatial import cKDTree
+
+from common.errors import InputError
+
+from . import coverage
+from .coverage.insertion import arrival_times
+from .coverage.problem import csc_transpose
+from .coverage.setcover import greedy_cover
+from .parallel import run_chunks
+
+#: viewpoints per part when the scenario leaves the number of parts open: about
+#: the largest problem planned whole within the 2048² goal (10,837 viewpoints,
+#: a 0.94 GB travel matrix)
+PART_VIEWPOINTS = 12_000
+
+
+def n_parts(n_viewpoints: int, scenario) -> int:
+    """How many parts a plan over ``n_viewpoints`` is made in: the scenario's
+    ``parts``, else enough for `PART_VIEWPOINTS` each; at most as many as leave
+    every part the k + 1 UAVs its targets need (fewer after losses in flight).
+    1: the whole area is one problem."""
+    wanted = (scenario.parts if scenario.parts is not None
+              else -(-int(n_viewpoints) // PART_VIEWPOINTS))
+    return max(1, min(int(wanted), scenario.uavs // (scenario.k + 1)))
+
+
+def split_viewpoints(xy: np.ndarray, parts: int) -> np.ndarray:
+    """Part label per viewpoint: recursive bisection at the (weighted) median
+    across the longer side of each part; counts differ by at most one per cut."""
+    labels = np.zeros(len(xy), np.int64)
+    _bisect(np.asarray(xy, float), np.arange(len(xy)), parts, 0, labels)
+    return labels
+
+
+def _bisect(xy, idx, parts, first, labels):
+    if parts == 1 or len(idx) == 0:
+        labels[idx] = first
+        return
+    pts = xy[idx]
+    axis = int(np.ptp(pts[:, 0]) < np.ptp(pts[:, 1]))
+    order = idx[np.lexsort((pts[:, 1 - axis], pts[:, axis]))]
+    left = parts // 2
+    cut = int(round(len(order) * left / parts))
+    _bisect(xy, order[:cut], left, first, labels)
+    _bisect(xy, order[cut:], parts - left, first + left, labels)
+
+
+@njit(cache=True)
+def _owners(vis_indptr, vis_indices, labels, n_targets, parts):
+    """Per target, the part with the most viewpoints that see it (-1: none)."""
+    votes = np.zeros((n_targets, parts), np.int32)
+    for e in range(len(vis_indptr) - 1):
+        for j in range(vis_indptr[e], vis_indptr[e + 1]):
+            votes[vis_indices[j], labels[e]] += 1
+    owner = np.full(n_targets, -1, np.int64)
+    for t in range(n_targets):
+        best = 0
+        for p in range(parts):
+            if votes[t, p] > best:
+                best = votes[t, p]
+                owner[t] = p
+    return owner
+
+
+@dataclass
+class Part:
+    """One part: global ids of its viewpoints and of the targets they see, and
+    what each of those targets needs from this part's group."""
+
+    viewpoints: np.ndarray
+    targets: np.ndarray
+    vis_indptr: np.ndarray  # CSR rows of its viewpoints over its own target ids
+    vis_indices: np.ndarray
+    required: np.ndarray  # per own target id: the plan's requirement, 0 if another part's
+    spacing_m: float  # median distance from a viewpoint to its nearest other one
+
+    @property
+    def need(self) -> int:
+        return int(self.required.max(initial=0))
+
+
+def make_parts(problem, xy: np.ndarray, parts: int) -> list:
+    """The parts of ``problem`` (a `coverage.CoverageProblem` of the whole area;
+    its travel matrix is not used) with viewpoints at ``xy``."""
+    labels = split_viewpoints(xy, parts)
+    indptr = np.asarray(problem.vis_indptr, np.int64)
+    indices = np.asarray(problem.vis_indices)
+    owner = _owners(indptr, indices, labels, int(problem.n_targets), parts)
+    required = _required(problem)
+    out = []
+    for p in range(parts):
+        vps = np.flatnonzero(labels == p)
+        rows = [indices[indptr[e]:indptr[e + 1]] for e in vps]
+        targets = np.unique(np.concatenate(rows)) if rows else np.zeros(0, indices.dtype)
+        sub_indptr = np.r_[0, np.cumsum([len(r) for r in rows])].astype(np.int64)
+        sub_indices = (np.searchsorted(targets, np.concatenate(rows)).astype(np.int32)
+                       if rows else np.zeros(0, np.int32))
+        need = np.where(owner[targets] == p, required[targets], 0).astype(np.int32)
+        out.append(Part(vps, targets, sub_indptr, sub_indices, need, _spacing(xy[vps])))
+    return out
+
+
+def _spacing(xy) -> float:
+    if len(xy) < 2:
+        return 0.0
+    nearest, _ = cKDTree(xy).query(xy, k=2)
+    return float(np.median(nearest[:, 1]))
+
+
+def _required(problem) -> np.ndarray:
+    if problem.required is not None:
+        return np.asarray(problem.required, np.int32)
+    return np.full(problem.n_targets, coverage.required_uavs(problem.k, problem.n_uavs),
+                   np.int32)
+
+
+def group_sizes(parts: list, n_uavs: int, transit: np.ndarray, speed_mps: float) -> np.ndarray:
+    """UAVs per part: each part first gets the k + 1 its targets need, then every
+    further UAV goes to the part with the longest estimated makespan, transit +
+    need x (greedy cover size) x (viewpoint spacing / speed) / UAVs."""
+    need = np.array([p.need for p in parts])
+    if need.sum() > n_uavs:
+        raise InputError("--parts", f"{len(parts)} parts need {int(need.sum())} UAVs (each part "
+                                    f"k + 1 of its own), only {n_uavs} given: use fewer parts "
+                                    "or more UAVs")
+    work = np.array([_visit_work(p) / speed_mps for p in parts])
+    sizes = need.copy()
+    for _ in range(n_uavs - int(need.sum())):
+        estimate = transit + work / np.maximum(sizes, 1)
+        estimate[need == 0] = -np.inf  # nothing to do there
+        if not np.isfinite(estimate).any():
+            estimate = -sizes.astype(float)  # spare UAVs: spread them
+        sizes[int(np.argmax(estimate))] += 1
+    return sizes
+
+
+def _visit_work(part: Part) -> float:
+    """need x greedy cover size x viewpoint spacing: the flying a part needs, in
+    UAV-metres (an estimate for sizing groups, nothing more)."""
+    if part.need == 0:
+        return 0.0
+    tgt_indptr, tgt_indices = csc_transpose(part.vis_indptr, part.vis_indices,
+                                            len(part.targets))
+    cover = greedy_cover(part.vis_indptr, part.vis_indices, tgt_indptr, tgt_indices,
+                         (part.required > 0).astype(np.int64),
+                         np.ones(len(part.viewpoints), np.bool_))
+    return part.need * len(cover) * part.spacing_m
+
+
+def assign_uavs(sizes: np.ndarray, parts: list, out: Optional[np.ndarray]) -> list:
+    """UAV ids per part: ``sizes[p]`` each, by least total transit (median time from
+    each UAV's start to the part's viewpoints); in order without launch points."""
+    slots = np.repeat(np.arange(len(parts)), sizes)
+    if out is None:
+        cost = np.zeros((len(slots), len(slots)))
+    else:
+        median = np.stack([_median_finite(out[:, p.viewpoints]) for p in parts], axis=1)
+        cost = median[:, slots]
+    uavs, slot = linear_sum_assignment(cost)
+    return [np.sort(uavs[slots[slot] == p]) for p in range(len(parts))]
+
+
+def _median_finite(times: np.ndarray) -> np.ndarray:
+    t = np.where(np.isfinite(times), times, np.nan)
+    with np.errstate(all="ignore"):
+        m = np.nanmedian(t, axis=1) if t.shape[1] else np.zeros(len(t))
+    return np.nan_to_num(m, nan=1e12)
+
+
+def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
+    """The coverage problem of one part for its group ``uavs``, with the travel
+    times between its viewpoints."""
+    def rows(a):
+        return None if a is None else np.asarray(a)[uavs][:, part.viewpoints]
+
+    seen = None if problem.seen is None else np.asarray(problem.seen)[uavs][:, part.targets]
+    return coverage.CoverageProblem(part.vis_indptr, part.vis_indices, len(part.targets),
+                                    travel, rows(problem.launch_out),
+                                    rows(problem.launch_back), len(uavs),
+                                    min(problem.k, len(uavs) - 1), problem.visibility,
+                                    part.required, seen)
+
+
+def _solve_part(method, params, report, n, chunk):
+    """One part solved (on a dask worker or here): its routes in its own viewpoint
+    ids, the arrival time at every snapshot, its coverage time. ``report(fraction)``
+    of all ``n`` parts, here."""
+    k, problem = chunk
+    on = (lambda f: report((k + f) / n)) if report is not None else None
+    allocation = coverage.solve(problem, method, params, progress=on)
+    lo = problem.launch_out
+    arrivals = [arrival_times(np.asarray(r, np.int64), problem.travel,
+                              lo[u] if lo is not None else np.zeros(0), lo is not None)
+                for u, r in enumerate(allocation.routes)]
+    return allocation.routes, arrivals, allocation.coverage_time
+
+
+@dataclass
+class Joined:
+    """The parts' routes over the whole area's viewpoints, joined."""
+
+    routes: list  # per UAV: global viewpoint ids
+    arrivals: list  # per UAV: estimated arrival time at each snapshot (an upper bound)
+    groups: list  # per part: its UAV ids
+    part_times: list  # per part: its coverage time as solved
+    dropped: int  # visits the join made redundant
+    travel_s: float = 0.0  # of the time, making the parts' travel times
+
+    def allocation(self, problem, method: str) -> coverage.Allocation:
+        """The joined routes as an `coverage.Allocation`; its times come from the
+        parts' travel matrices (upper bounds of the times flown)."""
+        times = np.array([a[-1] if len(a) else 0.0 for a in self.arrivals])
+        back = times.copy()
+        if problem.launch_back is not None:
+            for u, r in enumerate(self.routes):
+                back[u] += problem.launch_back[u, r[-1]] if r else 0.0
+        cover = max(self.part_times, default=0.0)
+        return coverage.Allocation(method, self.routes, times, back, float(cover),
+                                   float(back.max(initial=0.0)), float(times.sum()),
+                                   sum(len(r) for r in self.routes), bool(np.isfinite(cover)),
+                                   0)
+
+
+def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: float,
+                client=None, progress=None) -> Joined:
+    """Size and place the groups, then for each part in turn make its travel times
+    (``matrix(viewpoint ids, progress)``) and solve it: here, or as a dask task on
+    ``client`` (its problem sent to a worker as soon as made), so that this process
+    holds one part's travel times at a time; then join. ``parts`` is consumed:
+    each part is let go once its problem is made.
+    ``progress(stage, fraction)`` for "travel times" and "allocation"."""
+    out = None if problem.launch_out is None else np.asarray(problem.launch_out)
+    transit = (np.zeros(len(parts)) if out is None else
+               np.array([np.median(_median_finite(out[:, p.viewpoints])) for p in parts]))
+    groups = assign_uavs(group_sizes(parts, problem.n_uavs, transit, speed_mps), parts, out)
+    index = [i for i, g in enumerate(groups) if len(g)]
+    viewpoints = [p.viewpoints for p in parts]
+    spent = [0.0]
+
+    def problems():
+        for k, i in enumerate(index):
+            start = time.perf_counter()
+            travel = matrix(parts[i].viewpoints, _sub(progress, "travel times", k, len(index)))
+            spent[0] += time.perf_counter() - start
+            made = part_problem(problem, parts[i], groups[i], travel)
+            parts[i] = None  # let go: the problem holds what it needs
+            yield k, made
+
+    here = client is None
+    report = _sub(progress, "allocation", 0, 1) if here and progress else None
+    solved = run_chunks(_solve_part, problems(), (method, params, report, len(index)), client,
+                        None if here or not progress else _sub(progress, "allocation", 0, 1),
+                        total=len(index), scatter=True)
+    routes, arrivals = [[] for _ in range(problem.n_uavs)], [np.zeros(0)] * problem.n_uavs
+    for i, (part_routes, part_arrivals, _) in zip(index, solved):
+        for u, r, a in zip(groups[i], part_routes, part_arrivals):
+            routes[u] = [int(viewpoints[i][e]) for e in r]
+            arrivals[u] = a
+    times = [t for _, _, t in solved]
+    routes, arrivals, dropped = drop_redundant(problem, routes, arrivals, max(times, default=0))
+    return Joined(routes, arrivals, groups, times, dropped, spent[0])
+
+
+def _sub(progress, stage, k, n):
+    """``progress`` for item k of n of ``stage``, as a fraction of the item."""
+    if progress is None:
+        return None
+    return lambda f: progress(stage, (k + f) / n)
+
+
+def drop_redundant(problem, routes, arrivals, by: float):
+    """Drop every visit whose targets stay seen by their required number of
+    distinct UAVs by time ``by`` without it; long routes first, early visits
+    first (they delay the most). Returns (routes, arrivals, how many dropped);
+    the arrivals of kept visits are left as upper bounds."""
+    uav = np.concatenate([np.full(len(r), u, np.int64) for u, r in enumerate(routes)]
+                         + [np.zeros(0, np.int64)])
+    vp = np.concatenate([np.asarray(r, np.int64) for r in routes] + [np.zeros(0, np.int64)])
+    when = np.concatenate([np.asarray(a, float) for a in arrivals] + [np.zeros(0)])
+    seen = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
+            else np.asarray(problem.seen, np.bool_))
+    length = np.array([a[-1] if len(a) else 0.0 for a in arrivals])
+    pos = np.concatenate([np.arange(len(r)) for r in routes] + [np.zeros(0, np.int64)])
+    order = np.lexsort((pos, -length[uav])) if len(uav) else np.zeros(0, np.int64)
+    keep = _droppable(uav, vp, when, order, np.asarray(problem.vis_indptr, np.int64),
+                      np.asarray(problem.vis_indices), seen, _required(problem), float(by))
+    out_routes, out_arrivals, start = [], [], 0
+    for r, a in zip(routes, arrivals):
+        k = keep[start:start + len(r)]
+        out_routes.append([int(e) for e, kept in zip(r, k) if kept])
+        out_arrivals.append(np.asarray(a, float)[k])
+        start += len(r)
+    return out_routes, out_arrivals, int((~keep).sum())
+
+
+@njit(cache=True)
+def _droppable(uav, vp, when, order, indptr, indices, seen, required, by):
+    """Keep flag per visit (see `drop_redundant`): ``mult[u, t]`` counts u's
+    sightings of t by ``by``, ``count[t]`` the distinct UAVs with one."""
+    n_uavs, n_t = seen.shape
+    mult = np.zeros((n_uavs, n_t), np.int16)  # a UAV sees a target from few viewpoints
+    for u in range(n_uavs):
+        for t in range(n_t):
+            if seen[u, t]:
+                mult[u, t] = 1
+    for i in range(len(vp)):
+        if when[i] <= by:
+            for j in range(indptr[vp[i]], indptr[vp[i] + 1]):
+                mult[uav[i], indices[j]] += 1
+    count = np.zeros(n_t, np.int32)
+    for u in range(n_uavs):
+        for t in range(n_t):
+            if mult[u, t] > 0:
+                count[t] += 1
+    keep = np.ones(len(vp), np.bool_)
+    for i in order:
+        if when[i] > by:
+            continue
+        u, e = uav[i], vp[i]
+        ok = True
+        for j in range(indptr[e], indptr[e + 1]):
+            t = indices[j]
+            if mult[u, t] == 1 and count[t] <= required[t]:
+                ok = False
+                break
+        if ok:
+            keep[i] = False
+            for j in range(indptr[e], indptr[e + 1]):
+                t = indices[j]
+                mult[u, t] -= 1
+                if mult[u, t] == 0:
+                    count[t] -= 1
+    return keep
+
+
+def reach_bound(problem) -> float:
+    """A lower bound on the coverage time of the whole area: each target waits for
+    its required number of distinct UAVs, each no sooner than its least time from
+    its start to a viewpoint that sees the target (``launch_out`` holds exact
+    hidden times, so no detour through other viewpoints is shorter); 0 without
+    launch points. The parts' own bounds are not bounds of the whole area."""
+    if problem.launch_out is None:
+        return 0.0
+    rows, of = np.unique(np.asarray(problem.launch_out), axis=0, return_inverse=True)
+    seen = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
+            else np.asarray(problem.seen, np.bool_))
+    return float(_reach(rows, of.ravel(), np.asarray(problem.vis_indptr, np.int64),
+                        np.asarray(problem.vis_indices), seen, _required(problem)))
+
+
+@njit(cache=True)
+def _reach(rows, of, indptr, indices, seen, required):
+    n_rows, n_t = rows.shape[0], seen.shape[1]
+    first = np.full((n_rows, n_t), np.inf)
+    for k in range(n_rows):
+        for e in range(len(indptr) - 1):
+            for j in range(indptr[e], indptr[e + 1]):
+                t = indices[j]
+                if rows[k, e] < first[k, t]:
+                    first[k, t] = rows[k, e]
+    worst = 0.0
+    times = np.empty(len(of))
+    for t in range(n_t):
+        q = required[t]
+        if q <= 0:
+            continue
+        for u in range(len(of)):
+            times[u] = 0.0 if seen[u, t] else first[of[u], t]
+        v = np.sort(times)[min(q, len(of)) - 1]
+        if v > worst and v < np.inf:  # a target no viewpoint sees bounds nothing
+            worst = v
+    return worst
