@@ -1,8 +1,8 @@
 """A large area planned in parts, joined into one plan.
 
 Every coverage method works on a dense matrix of hidden travel times between the
-viewpoints: n² entries, 0.94 GB for the 10,837 viewpoints of a 2048² area and
-sixteen times that at 4096². Past `PART_VIEWPOINTS` viewpoints (or with
+viewpoints: n² entries, 0.94 GB for the 10,837 viewpoints of a 2048² area, 24 GB
+for the 54,908 of a 4096² one. Past `PART_VIEWPOINTS` viewpoints (or with
 ``--parts N``) a plan is made in parts:
 
 - the viewpoints are split into parts of about equal count by recursive
@@ -12,9 +12,11 @@ sixteen times that at 4096². Past `PART_VIEWPOINTS` viewpoints (or with
 - the fleet is split into one group per part, sized so that the estimated part
   makespans balance (transit from the launch plus the visits of a greedy cover);
 - each part is a coverage problem of its own: its viewpoints, the targets they
-  see and their travel times; its own targets need k + 1 distinct UAVs of its
-  group, the others nothing. The parts are solved by the scenario's method, as
-  dask tasks on the plan's cluster or here one after another;
+  see and their travel times (shortest paths over one sparse overlay of the
+  whole area, `TravelGraph.overlay_times`: a part's two viewpoints are often
+  joined only through another part); its own targets need k + 1 distinct UAVs
+  of its group, the others nothing. The parts are solved by the scenario's
+  method, as dask tasks on the plan's cluster or here one after another;
 - the join, across the seams: a target near a seam is often seen by the next
   group too, so every visit whose targets stay covered as required by the
   plan's coverage time without it is dropped. A dropped visit only makes the rest
