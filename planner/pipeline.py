@@ -404,8 +404,7 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
                bounds):
     """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time."""
     s = ctx.scenario
-    required = (np.asarray(problem.required) if problem.required is not None
-                else np.full(problem.n_targets, coverage.required_uavs(s.k, problem.n_uavs)))
+    required = problem.needs()
     vehicles = []
     for r, (poly, (t, snap)) in enumerate(zip(polylines, arrivals)):
         vehicles.append(_vehicle(ctx, r, poly, t, snap, starts[r] if starts else None))

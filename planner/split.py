@@ -39,6 +39,7 @@ from common.errors import InputError
 
 from . import coverage
 from .coverage.insertion import arrival_times
+from .coverage.metrics import reach_bound_of
 from .coverage.problem import csc_transpose
 from .coverage.setcover import greedy_cover
 from .parallel import run_chunks
@@ -121,7 +122,7 @@ def make_parts(problem, xy: np.ndarray, parts: int) -> list:
     indptr = np.asarray(problem.vis_indptr, np.int64)
     indices = np.asarray(problem.vis_indices)
     owner = _owners(indptr, indices, labels, int(problem.n_targets), parts)
-    required = _required(problem)
+    required = problem.needs()
     out = []
     for p in range(parts):
         vps = np.flatnonzero(labels == p)
@@ -140,13 +141,6 @@ def _spacing(xy) -> float:
         return 0.0
     nearest, _ = cKDTree(xy).query(xy, k=2)
     return float(np.median(nearest[:, 1]))
-
-
-def _required(problem) -> np.ndarray:
-    if problem.required is not None:
-        return np.asarray(problem.required, np.int32)
-    return np.full(problem.n_targets, coverage.required_uavs(problem.k, problem.n_uavs),
-                   np.int32)
 
 
 def group_sizes(parts: list, n_uavs: int, transit: np.ndarray, speed_mps: float) -> np.ndarray:
@@ -182,17 +176,13 @@ def _visit_work(part: Part) -> float:
     return part.need * len(cover) * part.spacing_m
 
 
-def assign_uavs(sizes: np.ndarray, parts: list, out: Optional[np.ndarray]) -> list:
-    """UAV ids per part: ``sizes[p]`` each, by least total transit (median time from
-    each UAV's start to the part's viewpoints); in order without launch points."""
-    slots = np.repeat(np.arange(len(parts)), sizes)
-    if out is None:
-        cost = np.zeros((len(slots), len(slots)))
-    else:
-        median = np.stack([_median_finite(out[:, p.viewpoints]) for p in parts], axis=1)
-        cost = median[:, slots]
+def assign_uavs(sizes: np.ndarray, transit: Optional[np.ndarray]) -> list:
+    """UAV ids per part: ``sizes[p]`` each, by least total transit (``transit[u, p]``:
+    median time from UAV u's start to part p's viewpoints); in order without it."""
+    slots = np.repeat(np.arange(len(sizes)), sizes)
+    cost = np.zeros((len(slots), len(slots))) if transit is None else transit[:, slots]
     uavs, slot = linear_sum_assignment(cost)
-    return [np.sort(uavs[slots[slot] == p]) for p in range(len(parts))]
+    return [np.sort(uavs[slots[slot] == p]) for p in range(len(sizes))]
 
 
 def _median_finite(times: np.ndarray) -> np.ndarray:
@@ -265,9 +255,10 @@ def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: fl
     each part is let go once its problem is made.
     ``progress(stage, fraction)`` for "travel times" and "allocation"."""
     out = None if problem.launch_out is None else np.asarray(problem.launch_out)
-    transit = (np.zeros(len(parts)) if out is None else
-               np.array([np.median(_median_finite(out[:, p.viewpoints])) for p in parts]))
-    groups = assign_uavs(group_sizes(parts, problem.n_uavs, transit, speed_mps), parts, out)
+    transit = (None if out is None else  # [UAVs, parts]
+               np.stack([_median_finite(out[:, p.viewpoints]) for p in parts], axis=1))
+    typical = np.zeros(len(parts)) if transit is None else np.median(transit, axis=0)
+    groups = assign_uavs(group_sizes(parts, problem.n_uavs, typical, speed_mps), transit)
     index = [i for i, g in enumerate(groups) if len(g)]
     viewpoints = [p.viewpoints for p in parts]
     spent = [0.0]
@@ -318,7 +309,7 @@ def drop_redundant(problem, routes, arrivals, by: float):
     pos = np.concatenate([np.arange(len(r)) for r in routes] + [np.zeros(0, np.int64)])
     order = np.lexsort((pos, -length[uav])) if len(uav) else np.zeros(0, np.int64)
     keep = _droppable(uav, vp, when, order, np.asarray(problem.vis_indptr, np.int64),
-                      np.asarray(problem.vis_indices), seen, _required(problem), float(by))
+                      np.asarray(problem.vis_indices), seen, problem.needs(), float(by))
     out_routes, out_arrivals, start = [], [], 0
     for r, a in zip(routes, arrivals):
         k = keep[start:start + len(r)]
@@ -369,39 +360,19 @@ def _droppable(uav, vp, when, order, indptr, indices, seen, required, by):
 
 
 def reach_bound(problem) -> float:
-    """A lower bound on the coverage time of the whole area: each target waits for
-    its required number of distinct UAVs, each no sooner than its least time from
-    its start to a viewpoint that sees the target (``launch_out`` holds exact
-    hidden times, so no detour through other viewpoints is shorter); 0 without
-    launch points. The parts' own bounds are not bounds of the whole area."""
+    """A lower bound on the coverage time of the whole area, `metrics.reach_bound_of`
+    with ``launch_out`` as the earliest arrivals (exact hidden times: no detour
+    through other viewpoints is shorter); 0 without launch points. The parts' own
+    bounds are not bounds of the whole area."""
     if problem.launch_out is None:
         return 0.0
     rows, of = np.unique(np.asarray(problem.launch_out), axis=0, return_inverse=True)
     seen = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
             else np.asarray(problem.seen, np.bool_))
-    return float(_reach(rows, of.ravel(), np.asarray(problem.vis_indptr, np.int64),
-                        np.asarray(problem.vis_indices), seen, _required(problem)))
-
-
-@njit(cache=True)
-def _reach(rows, of, indptr, indices, seen, required):
-    n_rows, n_t = rows.shape[0], seen.shape[1]
-    first = np.full((n_rows, n_t), np.inf)
-    for k in range(n_rows):
-        for e in range(len(indptr) - 1):
-            for j in range(indptr[e], indptr[e + 1]):
-                t = indices[j]
-                if rows[k, e] < first[k, t]:
-                    first[k, t] = rows[k, e]
-    worst = 0.0
-    times = np.empty(len(of))
-    for t in range(n_t):
-        q = required[t]
-        if q <= 0:
-            continue
-        for u in range(len(of)):
-            times[u] = 0.0 if seen[u, t] else first[of[u], t]
-        v = np.sort(times)[min(q, len(of)) - 1]
-        if v > worst and v < np.inf:  # a target no viewpoint sees bounds nothing
-            worst = v
-    return worst
+    indices = np.asarray(problem.vis_indices)
+    # what can be met at all, as `coverage.prepare` caps it
+    visible = np.bincount(indices, minlength=problem.n_targets) > 0
+    need = np.minimum(problem.needs(),
+                      np.maximum(np.where(visible, problem.n_uavs, 0), seen.sum(axis=0)))
+    return float(reach_bound_of(rows, of.ravel(), np.asarray(problem.vis_indptr, np.int64),
+                                indices, seen, need))

@@ -162,16 +162,40 @@ def _earliest_arrival(lo, travel_t):
 def _reach_bound(prep) -> float:
     if not prep.has_launch:
         return 0.0
-    n, n_t = prep.problem.n_uavs, prep.problem.n_targets
     # UAVs sharing a launch point share their earliest arrivals
     rows, uav_row = np.unique(prep.launch_out, axis=0, return_inverse=True)
-    arrive = np.array([_earliest_arrival(row, prep.travel_t) for row in rows])[uav_row.ravel()]
-    reach = np.full((n, n_t), np.inf)
-    for e in range(prep.problem.n_viewpoints):
-        ts = prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]]
-        reach[:, ts] = np.minimum(reach[:, ts], arrive[:, e:e + 1])
-    reach[prep.seen0.astype(bool)] = 0.0
-    return float(_kth_over_uavs(reach, prep.required))
+    arrive = np.array([_earliest_arrival(row, prep.travel_t) for row in rows])
+    return float(reach_bound_of(arrive, uav_row.ravel(), prep.vis_indptr, prep.vis_indices,
+                                prep.seen0, prep.required))
+
+
+@njit(cache=True)
+def reach_bound_of(arrive, row_of, indptr, indices, seen, required):
+    """The reach bound from each UAV u's earliest arrival at every viewpoint,
+    ``arrive[row_of[u]]`` (one row per distinct start, not per UAV: [UAVs,
+    targets] times would take 2 GiB on a 4096² area): per target, the
+    required-th earliest over UAVs of its first sighting (0 if ``seen`` before
+    planning); the latest of those over targets."""
+    n_rows, n_t = arrive.shape[0], seen.shape[1]
+    first = np.full((n_rows, n_t), np.inf)
+    for k in range(n_rows):
+        for e in range(len(indptr) - 1):
+            for j in range(indptr[e], indptr[e + 1]):
+                t = indices[j]
+                if arrive[k, e] < first[k, t]:
+                    first[k, t] = arrive[k, e]
+    worst = 0.0
+    times = np.empty(len(row_of))
+    for t in range(n_t):
+        q = required[t]
+        if q <= 0:
+            continue
+        for u in range(len(row_of)):
+            times[u] = 0.0 if seen[u, t] else first[row_of[u], t]
+        v = np.sort(times)[min(q, len(row_of)) - 1]
+        if v > worst:
+            worst = v
+    return worst
 
 
 def _packing_bound(prep) -> float:

@@ -51,6 +51,13 @@ class CoverageProblem:
     def has_launch(self) -> bool:
         return self.launch_out is not None
 
+    def needs(self) -> np.ndarray:
+        """int32 per target: how many distinct UAVs must see it, ``required`` or
+        k + 1 (`required_uavs`); a new array."""
+        if self.required is None:
+            return np.full(self.n_targets, required_uavs(self.k, self.n_uavs), np.int32)
+        return np.array(self.required, dtype=np.int32)
+
 
 @dataclass
 class CoverageParams:
@@ -187,8 +194,7 @@ def prepare(problem: CoverageProblem) -> Prepared:
         if s.shape != (n, n_t):
             raise ValueError(f"seen must be [{n}, {n_t}]")
         seen0[s] = 1
-    req = (np.full(n_t, required_uavs(k, n), dtype=np.int32) if problem.required is None
-           else np.asarray(problem.required, dtype=np.int32).copy())
+    req = problem.needs()
     if req.shape != (n_t,):
         raise ValueError(f"required must have one entry per target ({n_t})")
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
