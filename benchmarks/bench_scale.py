@@ -7,7 +7,7 @@ method; the fitted exponent per stage (time ~ cells^p); and the chunked stages
 parts: ``--parts=P`` to choose how many) on a LocalCluster of 2 and then 1
 worker, every stage, and the ratio.
 
-    .venv/bin/python -m benchmarks scale [--quick | --huge[=N] [--parts=P]]
+    .venv/bin/python -m benchmarks scale [--quick | --huge[=N] [--parts=P] [--workers=W]]
 
 Each size runs in its own process, so its peak resident memory is its own. The
 goals (issue 22): 1024² with 8 UAVs under 60 s and 4 GiB on 2 cores, both
@@ -125,12 +125,15 @@ def main(argv=None):
     ap.add_argument("--scheduler", default="none", help=argparse.SUPPRESS)
     ap.add_argument("--parts", type=int, help="with --huge: plan in this many parts "
                                               "(default: by the number of viewpoints)")
+    ap.add_argument("--workers", type=int, choices=(1, 2),
+                    help="with --huge: only this LocalCluster (a 4096² run takes most of "
+                         "an hour per cluster)")
     args, _ = ap.parse_known_args(argv)
     if args.one:
         print(json.dumps(_one(args.one, args.scheduler, args.parts)))
         return
     if args.huge:
-        _huge(args.huge, args.parts)
+        _huge(args.huge, args.parts, (args.workers,) if args.workers else (2, 1))
         return
     sizes = (256, 512, 1024) if args.quick else (256, 512, 1024, 2048)
     runs = [_run(n) for n in sizes]
@@ -157,12 +160,15 @@ def main(argv=None):
               f"travel times {r['stages']['travel times'][0]:.1f} s")
 
 
-def _huge(n, parts=None):
-    """Every stage of an n² plan on a LocalCluster of 1 and of 2 workers."""
+def _huge(n, parts=None, clusters=(2, 1)):
+    """Every stage of an n² plan on a LocalCluster of 1 and of 2 workers (the faster
+    first: its figures are out sooner)."""
     found = {}
-    for workers in (2, 1):  # the faster first: its figures are out sooner
+    for workers in clusters:
         found[workers] = _cluster_run(n, workers, parts)
         print(f"{workers} worker(s): {json.dumps(found[workers])}", flush=True)
+    if len(found) < 2:
+        return
     runs = [found[1], found[2]]
     r = runs[0]
     print(f"{n}², {UAVS[n]} UAVs, {r['viewpoints']:,} viewpoints, {r['targets']:,} targets, "

@@ -216,10 +216,13 @@ class Flight:
             self.monitor.event(None, "stopped while bringing the vehicles home")
 
     def _prepare_context(self) -> None:
-        """The travel times between viewpoints, which only re-planning needs: computed
-        while the vehicles start, so that a loss finds them ready."""
+        """The travel times between viewpoints (of an area planned in parts: the
+        overlay each part's times come from), which only re-planning needs:
+        computed while the vehicles start, so that a loss finds them ready."""
         try:
-            if not self.ctx.in_parts:  # parts make their own times when re-planned
+            if self.ctx.in_parts:
+                self.ctx.viewpoint_overlay()
+            else:
                 self.ctx.travel  # noqa: B018 - computed once, kept by the context
         except Exception as exc:  # reported when the context is needed
             self._ctx_error = exc

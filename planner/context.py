@@ -55,6 +55,7 @@ class PlanningContext:
     graph: TravelGraph
     times: Optional[np.ndarray] = None  # [n_vp, n_vp] hidden times, s; see `travel`
     timing_s: dict = field(default_factory=dict)
+    overlay: Optional[tuple] = None  # see `viewpoint_overlay`
 
     @property
     def travel(self) -> np.ndarray:
@@ -62,6 +63,15 @@ class PlanningContext:
         if self.times is None:
             self.times = self.graph.time_matrix(self.viewpoints.xyz)
         return self.times
+
+    def viewpoint_overlay(self, client=None, progress=None) -> tuple:
+        """The sparse overlay of the viewpoints (`TravelGraph.overlay`), which the
+        parts' travel times of plans in parts come from: made once and kept (a few
+        MB even on 4096²; re-plans in flight reuse it)."""
+        if self.overlay is None:
+            self.overlay = self.graph.overlay(self.viewpoints.xyz, client=client,
+                                              progress=progress)
+        return self.overlay
 
     @property
     def in_parts(self) -> bool:

@@ -11,6 +11,7 @@ a plan is the same wherever it was computed.
 Dask is the scheduler: nothing here decides where a task runs.
 """
 
+import itertools
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import Callable, Optional
@@ -28,8 +29,8 @@ def run_chunks(fn: Callable, chunks, shared: tuple = (), client=None,
     ``threads`` > 1: here, on that many threads (for work that releases the GIL
     but has no threads of its own, such as scipy's Dijkstra). ``chunks`` may be
     an iterator of ``total`` chunks, each made only when its turn comes (large
-    ones); ``scatter``: each chunk goes to a worker as soon as it is made, and
-    this process keeps no reference to it."""
+    ones); ``scatter``: each chunk goes straight to a worker when one is free for
+    it, and this process keeps no reference to it."""
     total = len(chunks) if total is None else total
     if not total:
         return []
@@ -42,17 +43,39 @@ def run_chunks(fn: Callable, chunks, shared: tuple = (), client=None,
         return out
     from distributed import as_completed
 
-    # hash=False: a later stage scattering the same data must not share (and lose) its key
-    scattered = client.scatter(list(shared), broadcast=True, hash=False) if shared else []
-    futures = [client.submit(_on_worker, fn, *scattered,
-                             client.scatter(chunk, hash=False) if scatter else chunk, pure=False)
-               for chunk in chunks]
-    done = 0
-    for _ in as_completed(futures):
-        done += 1
+    # hash=False: a later stage scattering the same data must not share (and lose) its
+    # key; direct: straight to the workers, not through the scheduler, which would
+    # keep a copy (the 4096² travel graph: 4 GiB more in the scheduler's process)
+    scattered = (client.scatter(list(shared), broadcast=True, hash=False, direct=True)
+                 if shared else [])
+    order = {}
+
+    def submit(i, chunk):
+        data = client.scatter(chunk, hash=False, direct=True) if scatter else chunk
+        future = client.submit(_on_worker, fn, *scattered, data, pure=False)
+        order[future.key] = i
+        return future
+
+    # a window of chunks in flight, the next one sent as one ends: the scheduler (which
+    # holds a task's arguments) and the workers hold a few chunks, not all of them (GBs
+    # on large areas); a large scattered chunk waits until a worker is free for it
+    threads = sum(client.nthreads().values()) or 1
+    pending = enumerate(chunks)
+    running = as_completed([submit(i, c) for i, c in itertools.islice(
+        pending, threads if scatter else 2 * threads)], with_results=True)
+
+    def submit_next():  # the chunk is let go with this frame once sent
+        for i, chunk in itertools.islice(pending, 1):
+            running.add(submit(i, chunk))
+
+    out = [None] * total
+    for done, (future, result) in enumerate(running, 1):
+        out[order.pop(future.key)] = result
+        future.release()  # its result leaves the worker now, not when all are done
+        submit_next()
         if progress is not None:
             progress(done / total)
-    return client.gather(futures)
+    return out
 
 
 def _here(fn, shared, chunks, threads):
@@ -60,7 +83,9 @@ def _here(fn, shared, chunks, threads):
     every chunk) or on a pool of ``threads``."""
     if threads <= 1:
         for chunk in chunks:
-            yield fn(*shared, chunk)
+            result = fn(*shared, chunk)
+            del chunk  # a large chunk (a part's problem) is let go before the next is made
+            yield result
         return
     with ThreadPoolExecutor(threads) as pool:
         yield from pool.map(lambda chunk: fn(*shared, chunk), chunks)

@@ -307,11 +307,12 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
                                    travel=False)
         pieces = split.make_parts(problem, ctx.viewpoints.xyz[:, :2], parts)
         # one sparse overlay of the whole area: the parts' times go through any viewpoint
-        overlay = ctx.graph.overlay(ctx.viewpoints.xyz, client=client,
-                                    progress=_fraction(progress, "travel times"))
+        overlay = ctx.viewpoint_overlay(client, _fraction(progress, "travel times"))
         overlay_s = time.perf_counter() - start
         joined = split.solve_parts(problem, pieces, method, params, lambda ids, on: (
-            ctx.graph.overlay_times(overlay, ids, on)), s.speed_mps, client, progress)
+            None if ctx.graph.overlay_exact(overlay, ids)  # made where the part is solved
+            else ctx.graph.overlay_times(overlay, ids, on)), s.speed_mps, client, progress,
+            overlay)
     timing["travel times"] = overlay_s + joined.travel_s
     timing["allocation"] = time.perf_counter() - start - timing["travel times"]
     for stage in ("travel times", "allocation"):

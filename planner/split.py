@@ -13,10 +13,12 @@ for the 54,908 of a 4096² one. Past `PART_VIEWPOINTS` viewpoints (or with
   makespans balance (transit from the launch plus the visits of a greedy cover);
 - each part is a coverage problem of its own: its viewpoints, the targets they
   see and their travel times (shortest paths over one sparse overlay of the
-  whole area, `TravelGraph.overlay_times`: a part's two viewpoints are often
-  joined only through another part); its own targets need k + 1 distinct UAVs
-  of its group, the others nothing. The parts are solved by the scenario's
-  method, as dask tasks on the plan's cluster or here one after another;
+  whole area, `planner.travel.overlay_rows`: a part's two viewpoints are often
+  joined only through another part; made in the part's own task, or here with
+  `TravelGraph.overlay_times` where the overlay misses a pair the graph has);
+  its own targets need k + 1 distinct UAVs of its group, the others nothing.
+  The parts are solved by the scenario's method, as dask tasks on the plan's
+  cluster or here one after another;
 - the join, across the seams: a target near a seam is often seen by the next
   group too, so every visit whose targets stay covered as required by the
   plan's coverage time without it is dropped. A dropped visit only makes the rest
@@ -27,7 +29,7 @@ a shared launch point crosses other parts) and proven like those of any plan.
 """
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Optional
 
 import numpy as np
@@ -43,6 +45,7 @@ from .coverage.metrics import reach_bound_of
 from .coverage.problem import csc_transpose
 from .coverage.setcover import greedy_cover
 from .parallel import run_chunks
+from .travel import overlay_rows
 
 #: viewpoints per part when the scenario leaves the number of parts open: about
 #: the largest problem planned whole within the 2048² goal (10,837 viewpoints,
@@ -206,18 +209,24 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
                                     part.required, seen)
 
 
-def _solve_part(method, params, report, n, chunk):
+def _solve_part(method, params, report, n, overlay, chunk):
     """One part solved (on a dask worker or here): its routes in its own viewpoint
     ids, the arrival time at every snapshot, its coverage time. ``report(fraction)``
-    of all ``n`` parts, here."""
-    k, problem = chunk
+    of all ``n`` parts, here; and the seconds taken by its travel times: a problem
+    without them gets them here, over ``overlay``, for its viewpoints ``ids``
+    (`planner.travel.overlay_rows`)."""
+    k, problem, ids = chunk
+    start = time.perf_counter()
+    if problem.travel is None:
+        problem = replace(problem, travel=overlay_rows(overlay, ids))
+    travel_s = time.perf_counter() - start
     on = (lambda f: report((k + f) / n)) if report is not None else None
     allocation = coverage.solve(problem, method, params, progress=on)
     lo = problem.launch_out
     arrivals = [arrival_times(np.asarray(r, np.int64), problem.travel,
                               lo[u] if lo is not None else np.zeros(0), lo is not None)
                 for u, r in enumerate(allocation.routes)]
-    return allocation.routes, arrivals, allocation.coverage_time
+    return allocation.routes, arrivals, allocation.coverage_time, travel_s
 
 
 @dataclass
@@ -247,13 +256,16 @@ class Joined:
 
 
 def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: float,
-                client=None, progress=None) -> Joined:
+                client=None, progress=None, overlay=None) -> Joined:
     """Size and place the groups, then for each part in turn make its travel times
-    (``matrix(viewpoint ids, progress)``) and solve it: here, or as a dask task on
-    ``client`` (its problem sent to a worker as soon as made), so that this process
-    holds one part's travel times at a time; then join. ``parts`` is consumed:
-    each part is let go once its problem is made.
-    ``progress(stage, fraction)`` for "travel times" and "allocation"."""
+    and solve it: here, or as a dask task on ``client`` (its problem sent to a
+    worker when one is free), so that this process holds one part's travel times
+    at a time; then join. ``matrix(viewpoint ids, progress)`` makes a part's times
+    here, or returns None: they are then made where the part is solved, over
+    ``overlay`` (`planner.travel.overlay_rows`), so that parts on a cluster make
+    their times side by side. ``parts`` is consumed: each part is let go once its
+    problem is made. ``progress(stage, fraction)`` for "travel times" and
+    "allocation"."""
     out = None if problem.launch_out is None else np.asarray(problem.launch_out)
     transit = (None if out is None else  # [UAVs, parts]
                np.stack([_median_finite(out[:, p.viewpoints]) for p in parts], axis=1))
@@ -263,28 +275,35 @@ def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: fl
     viewpoints = [p.viewpoints for p in parts]
     spent = [0.0]
 
-    def problems():
+    def made(k, i):
+        start = time.perf_counter()
+        travel = matrix(parts[i].viewpoints, _sub(progress, "travel times", k, len(index)))
+        spent[0] += time.perf_counter() - start
+        out = (k, part_problem(problem, parts[i], groups[i], travel),
+               parts[i].viewpoints if travel is None else None)
+        parts[i] = None  # let go: the problem holds what it needs
+        return out
+
+    def problems():  # no local keeps a part's problem while the next one is made
         for k, i in enumerate(index):
-            start = time.perf_counter()
-            travel = matrix(parts[i].viewpoints, _sub(progress, "travel times", k, len(index)))
-            spent[0] += time.perf_counter() - start
-            made = part_problem(problem, parts[i], groups[i], travel)
-            parts[i] = None  # let go: the problem holds what it needs
-            yield k, made
+            yield made(k, i)
 
     here = client is None
     report = _sub(progress, "allocation", 0, 1) if here and progress else None
-    solved = run_chunks(_solve_part, problems(), (method, params, report, len(index)), client,
-                        None if here or not progress else _sub(progress, "allocation", 0, 1),
-                        total=len(index), scatter=True)
+    solved = run_chunks(_solve_part, problems(), (method, params, report, len(index), overlay),
+                        client, None if here or not progress else
+                        _sub(progress, "allocation", 0, 1), total=len(index), scatter=True)
     routes, arrivals = [[] for _ in range(problem.n_uavs)], [np.zeros(0)] * problem.n_uavs
-    for i, (part_routes, part_arrivals, _) in zip(index, solved):
+    for i, (part_routes, part_arrivals, _, _) in zip(index, solved):
         for u, r, a in zip(groups[i], part_routes, part_arrivals):
             routes[u] = [int(viewpoints[i][e]) for e in r]
             arrivals[u] = a
-    times = [t for _, _, t in solved]
+    times = [t for _, _, t, _ in solved]
     routes, arrivals, dropped = drop_redundant(problem, routes, arrivals, max(times, default=0))
-    return Joined(routes, arrivals, groups, times, dropped, spent[0])
+    # times made in the parts' tasks count here only when those ran here, one by one
+    # (on a cluster they run side by side, inside the allocation's span)
+    travel_s = spent[0] + (sum(s for *_, s in solved) if here else 0.0)
+    return Joined(routes, arrivals, groups, times, dropped, travel_s)
 
 
 def _sub(progress, stage, k, n):

@@ -1,6 +1,7 @@
 """The heavy stages on a dask cluster (two worker processes) give the same plan as
 in this process; and a plan's heaviest stage keeps more than one core busy."""
 
+import operator
 import warnings
 from dataclasses import replace
 
@@ -10,6 +11,7 @@ import psutil
 import pytest
 
 from planner.exposure import Outpost, compute_exposure
+from planner.parallel import run_chunks
 from planner.pipeline import allocate, launch_starts, prepare
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain
@@ -42,6 +44,13 @@ def test_local_cluster_gives_the_same_context_and_plan():
             there = prepare(scenario, terrain=terrain, outposts=outposts, scheduler=client)
             assert len(client.scheduler_info()["workers"]) == 2
             parts_there = allocate(replace(there, scenario=in_parts), 3, scheduler=client)
+            # more chunks than run_chunks keeps in flight, from a list and from an
+            # iterator, sent along or scattered: every result, in chunk order
+            for scatter in (False, True):
+                assert run_chunks(operator.mul, list(range(25)), (3,), client,
+                                  scatter=scatter) == [3 * i for i in range(25)]
+                assert run_chunks(operator.mul, iter(range(25)), (3,), client, total=25,
+                                  scatter=scatter) == [3 * i for i in range(25)]
     parts_here = allocate(replace(here, scenario=in_parts), 3)
     assert parts_here.plan.metrics["parts"] == 2
     assert [v.waypoints for v in parts_here.plan.vehicles] == \

@@ -21,6 +21,7 @@ from planner.travel import (
     TravelParams,
     build_travel_graph,
     leg_time,
+    overlay_rows,
     polyline_time,
     raised_terrain,
 )
@@ -234,3 +235,30 @@ def test_parts_times_over_the_whole_overlay_are_its_matrix():
     some = np.sort(np.random.default_rng(1).choice(len(nodes), len(nodes) // 3, replace=False))
     np.testing.assert_allclose(graph.overlay_times(overlay, some), whole[np.ix_(some, some)],
                                rtol=1e-12)
+
+
+def test_overlay_rows_are_made_without_the_graph_only_where_nothing_is_missed():
+    """`overlay_exact` (a part's times made on a worker, without the graph) holds only
+    where the overlay's own rows already are `overlay_times` (nothing filled from
+    the graph); a sparse overlay (small radius) leaves pairs to fill and is told so."""
+    terrain = synthetic_terrain(90, 90, cell=30.0, seed=8, family="ridges")
+    x, y = terrain.xy(45, 45)
+    surface = compute_exposure(terrain, [Outpost(float(x), float(y), 5.0, 2000.0)])
+    graph = build_travel_graph(surface, TravelParams())
+    nodes = np.flatnonzero(graph.reachable())[::37]
+    xyz = graph.node_xyz[nodes]
+    rng = np.random.default_rng(2)
+    told = set()
+    for radius in (5.0, 3.0, 1.0):  # this subsample's overlay: whole at 5, in pieces at 3
+        overlay = graph.overlay(xyz, radius_factor=radius)
+        for size in (5, len(nodes) // 3, len(nodes)):
+            some = np.sort(rng.choice(len(nodes), size, replace=False))
+            rows = overlay_rows(overlay, some)
+            filled = graph.overlay_times(overlay, some)
+            exact = graph.overlay_exact(overlay, some)
+            told.add(exact)
+            if exact:
+                np.testing.assert_array_equal(rows, filled)
+            else:
+                assert not np.array_equal(rows, filled)
+    assert told == {True, False}

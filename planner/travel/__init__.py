@@ -10,9 +10,10 @@ from .graph import (
                     TravelParams,
                     build_travel_graph,
                     leg_time,
+                    overlay_rows,
                     polyline_time,
                     raised_terrain,
 )
 
 __all__ = ["ROUNDING_SLACK_M", "TravelGraph", "TravelParams", "build_travel_graph", "leg_time",
-           "polyline_time", "raised_terrain"]
+           "overlay_rows", "polyline_time", "raised_terrain"]

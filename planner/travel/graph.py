@@ -136,6 +136,7 @@ class TravelGraph:
         self._h_round = raised_terrain(ground, terrain.cell_size, ROUNDING_SLACK_M)
         self._ceiling = _ceiling_everywhere(surface, self._h)
         self._attached = {}
+        self._strong = None  # `_strong_parts`
         rows, cols = np.nonzero(surface.regions > 0)
         self.node_rows = rows.astype(np.int64)
         self.node_cols = cols.astype(np.int64)
@@ -145,13 +146,16 @@ class TravelGraph:
         self.node_xyz = np.stack([x, y, surface.ceiling[rows, cols]], axis=1)
         self.node_region = surface.regions[rows, cols]
         if edges is None:
-            src, dst, dip = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
-                                                 np.int64), client, progress)
+            src, dst, dipped = self._edges(np.array(_HALF_8 if neighbours == 8 else _HALF_16,
+                                                    np.int64), client, progress)
         else:
-            src, dst, dip = self._decoded(edges)
-        self._indptr, self._nbr, w, self._dip = K.directed_csr(
-            rows.shape[0], src, dst, dip, self.node_xyz, params.speed_mps, params.climb_mps,
-            params.descent_mps)
+            src, dst, dipped = self._decoded(edges)
+        # a dip edge's level is known from its nodes (`_dip_levels`): a flag per entry
+        # is all the graph keeps (1 byte per directed edge instead of an 8-byte level)
+        self._indptr, self._nbr, w, self._dipped = K.directed_csr(
+            rows.shape[0], src, dst, dipped, self.node_xyz, self._floor_at_nodes(),
+            params.speed_mps, params.climb_mps, params.descent_mps)
+        del src, dst, dipped
         n = rows.shape[0]
         self.csr = csr_matrix((w, self._nbr, self._indptr), shape=(n, n))
         self._nbr = self.csr.indices  # one copy of the neighbour lists (int32)
@@ -163,38 +167,46 @@ class TravelGraph:
         ``compact``: the same edges in a few bytes each, for the plan folder
         (millions of them on large areas): source ids as steps, the neighbour
         as its offset's index, levels only of the dip edges."""
-        src, dst, dip = self._undirected()
+        src, dst, dipped = self._undirected()
         if not compact:
+            dip = np.full(len(src), np.nan)
+            dip[dipped] = self._dip_levels(src[dipped], dst[dipped])
             return {"src": src, "dst": dst, "dip": dip}
         dr = self.node_rows[dst] - self.node_rows[src]
         dc = self.node_cols[dst] - self.node_cols[src]
         offset = np.argmax((_HALF_16_ARRAY[:, 0] == dr[:, None])
                            & (_HALF_16_ARRAY[:, 1] == dc[:, None]), axis=1)
-        dipped = np.flatnonzero(~np.isnan(dip))
+        which = np.flatnonzero(dipped)
         return {"src_step": np.diff(src, prepend=0).astype(np.int32),
                 "offset": offset.astype(np.uint8),
-                "dip_step": np.diff(dipped, prepend=0).astype(np.int32),
-                "dip_level": dip[dipped]}
+                "dip_step": np.diff(which, prepend=0).astype(np.int32),
+                "dip_level": self._dip_levels(src[which], dst[which])}
 
     def _undirected(self) -> tuple:
-        """(src, dst, dip) of the checked edges, each once, in the order they were
+        """(src, dst, dipped) of the checked edges, each once, in the order they were
         checked: the entries of each directed row to a later node (an edge is
         checked from its earlier node, `_HALF_16`). Made when asked, not kept
         (1.7 GB on a 4096² area)."""
         src = np.repeat(np.arange(self.n_nodes, dtype=np.int32), np.diff(self._indptr))
         later = self._nbr > src
-        return src[later], self._nbr[later], self._dip[later]
+        return src[later], self._nbr[later], self._dipped[later]
 
     def _decoded(self, edges) -> tuple:
-        """(src, dst, dip) from `edges()`, compact or not."""
+        """(src, dst, dipped) from `edges()`, compact or not (the levels are not
+        read: `_dip_levels` makes them again)."""
         if "src" in edges:
-            return tuple(np.asarray(edges[k]) for k in ("src", "dst", "dip"))
+            return (np.asarray(edges["src"]), np.asarray(edges["dst"]),
+                    ~np.isnan(np.asarray(edges["dip"], float)))
         src = np.cumsum(edges["src_step"], dtype=np.int64)
         dr, dc = _HALF_16_ARRAY[np.asarray(edges["offset"], np.int64)].T
         dst = self.node_of_cell[self.node_rows[src] + dr, self.node_cols[src] + dc]
-        dip = np.full(len(src), np.nan)
-        dip[np.cumsum(edges["dip_step"], dtype=np.int64)] = edges["dip_level"]
-        return src, dst, dip
+        dipped = np.zeros(len(src), bool)
+        dipped[np.cumsum(edges["dip_step"], dtype=np.int64)] = True
+        return src, dst, dipped
+
+    def _dip_levels(self, src, dst) -> np.ndarray:
+        """The level of dip edges src - dst: the higher of their nodes' floors."""
+        return np.maximum(self._floor_at_nodes(src), self._floor_at_nodes(dst))
 
     @property
     def n_nodes(self) -> int:
@@ -236,11 +248,12 @@ class TravelGraph:
         return ok
 
     def _edges(self, half_offsets, client=None, progress=None):
-        """Checked undirected edges (src, dst, dip) between nodes of the same region.
+        """Checked undirected edges (src, dst, dipped) between nodes of the same
+        region.
 
-        An edge is the straight leg between the two nodes (dip NaN) or, when
-        that leg fails, a "dip": descend vertically to ``dip`` = the higher
-        of the two floors, fly level, climb to the other node. The vertical
+        An edge is the straight leg between the two nodes or, when that leg
+        fails, a "dip" (``dipped``): descend vertically to the higher of the two
+        floors (`_dip_levels`), fly level, climb to the other node. The vertical
         parts need no check (lower is never less hidden, and they stay above
         the floor); the level part is checked like any leg. A node must pass the
         checks itself (its track-tolerance disc): a dip's vertical part does not
@@ -254,11 +267,11 @@ class TravelGraph:
         checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self, horizons),
                              client, _part(progress, 0.15, 1.0))
         if not checked:
-            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0)
+            return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)
         ok = np.concatenate([c[0] for c in checked])
-        dip = np.concatenate([c[1] for c in checked])
+        dipped = np.concatenate([c[1] for c in checked])
         del checked
-        return pairs[ok, 0], pairs[ok, 1], dip[ok]
+        return pairs[ok, 0], pairs[ok, 1], dipped[ok]
 
     def _check_nodes(self, client=None, progress=None) -> tuple:
         """(fine, horizons) of every node (`_fine_nodes`). The nodes of every
@@ -421,10 +434,17 @@ class TravelGraph:
         Flyable regions are connected as cells, but a hidden graph edge also needs
         its straight leg hidden, so a region can fall apart into several parts.
         """
-        _, labels = connected_components(self.csr, directed=True, connection="strong")
+        labels = self._strong_parts()
         keep = (np.unique(labels[self._attached_nodes(xyz)]) if xyz is not None
                 else [np.bincount(labels).argmax()])
         return np.isin(labels, keep)
+
+    def _strong_parts(self) -> np.ndarray:
+        """Label per node of its strongly connected part, computed once."""
+        if self._strong is None:
+            self._strong = connected_components(self.csr, directed=True,
+                                                connection="strong")[1].astype(np.int32)
+        return self._strong
 
     # --- times ------------------------------------------------------------------------
     def times_from(self, xyz) -> np.ndarray:
@@ -529,19 +549,27 @@ class TravelGraph:
         """[len(ids), len(ids)] times between those points of `overlay`: shortest
         paths over the whole overlay (through any of its points, as in
         ``time_matrix``), exact where the graph has a path the overlay misses."""
+        ids = np.asarray(ids, np.int64)
+        return self._fill_missed(overlay_rows(overlay, ids, progress), overlay[0][ids])
+
+    def overlay_exact(self, overlay, ids) -> bool:
+        """Whether `overlay_rows` of these points of `overlay` is already what
+        `overlay_times` makes: every two of them that the graph joins lie in one
+        strongly connected part of the overlay, so the overlay joins them too and
+        nothing is left to fill from the graph. Then the rows can be made where
+        the graph is not (a dask worker)."""
         nodes, indptr, nbr, w = overlay
         ids = np.asarray(ids, np.int64)
-        slot = np.full(len(nodes), -1, np.int64)
-        slot[ids] = np.arange(len(ids))
-        times = _shortest_rows(indptr, nbr, w, ids, slot, len(ids), progress)
-        return self._fill_missed(times, nodes[ids])
+        mine = connected_components(csr_matrix((w, nbr, indptr), shape=(len(nodes),) * 2),
+                                    directed=True, connection="strong")[1][ids]
+        theirs = self._strong_parts()[nodes[ids]]
+        return len(np.unique(np.stack([theirs, mine]), axis=1)[0]) == len(np.unique(theirs))
 
     def _fill_missed(self, times, nodes):
         """Exact times where the overlay found no path but the graph has one: a point
         whose only ways in (or out) are longer than the radius is joined to no other.
         Whole columns (reverse Dijkstra) first, then whole rows."""
-        _, labels = connected_components(self.csr, directed=True, connection="strong")
-        part = labels[nodes]
+        part = self._strong_parts()[nodes]
         missed = ~np.isfinite(times) & (part[:, None] == part[None, :])
         cols = np.flatnonzero(missed.sum(axis=0) > 1)
         if cols.size:
@@ -576,8 +604,8 @@ class TravelGraph:
         out = [self.node_xyz[nodes[:1]]]
         for u, v in zip(nodes[:-1], nodes[1:]):
             row = slice(self._indptr[u], self._indptr[u + 1])
-            z = self._dip[row][np.flatnonzero(self._nbr[row] == v)[0]]
-            if not np.isnan(z):
+            if self._dipped[row][np.flatnonzero(self._nbr[row] == v)[0]]:
+                z = self._dip_levels(u, v)
                 out.append([[*self.node_xyz[u, :2], z], [*self.node_xyz[v, :2], z]])
             out.append(self.node_xyz[[v]])
         return np.vstack(out)
@@ -756,7 +784,7 @@ def _fine_nodes(graph, chunk) -> tuple:
 
 
 def _checked_edges(graph, node_horizons, pairs):
-    """(ok, dip) of node pairs: the straight leg, else the dip (see `_edges`); the
+    """(ok, dipped) of node pairs: the straight leg, else the dip (see `_edges`); the
     source node's horizons hint the legs' proofs."""
     p = graph.surface.params
     src, dst = np.ascontiguousarray(pairs[:, 0]), np.ascontiguousarray(pairs[:, 1])
@@ -768,9 +796,8 @@ def _checked_edges(graph, node_horizons, pairs):
     hints = node_horizons[src]
     ok[idx] = _segments_hidden(graph.surface, graph.node_xyz[src[idx]],
                                graph.node_xyz[dst[idx]], graph.params.slack_m, hints, idx)
-    floor = graph._floor_at_nodes()
-    low = np.maximum(floor[src], floor[dst])
-    dip = np.full(src.shape[0], np.nan)
+    low = graph._dip_levels(src, dst)
+    dipped = np.zeros(src.shape[0], bool)
     idx = np.flatnonzero(~ok & (low < np.minimum(z[src], z[dst])))
     if idx.size:
         z_low = np.ascontiguousarray(low[idx])
@@ -778,8 +805,18 @@ def _checked_edges(graph, node_horizons, pairs):
         b = np.column_stack([graph.node_xyz[dst[idx], :2], z_low])
         fine = graph.legs_ok(a, b, horizons=node_horizons[src[idx]])
         ok[idx[fine]] = True
-        dip[idx[fine]] = z_low[fine]
-    return ok, dip
+        dipped[idx[fine]] = True
+    return ok, dipped
+
+
+def overlay_rows(overlay, ids, progress=None) -> np.ndarray:
+    """[len(ids), len(ids)] shortest times between those points of `TravelGraph.overlay`
+    over the whole overlay (through any of its points); inf where it has no path.
+    Needs only the overlay, not the graph."""
+    nodes, indptr, nbr, w = overlay
+    slot = np.full(len(nodes), -1, np.int64)
+    slot[ids] = np.arange(len(ids))
+    return _shortest_rows(indptr, nbr, w, np.asarray(ids, np.int64), slot, len(ids), progress)
 
 
 def _all_pairs(indptr, nbr, w, progress=None) -> np.ndarray:

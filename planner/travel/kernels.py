@@ -69,14 +69,17 @@ def _heap_pop(heap_d, heap_n, size):
 
 
 @njit(cache=True)
-def _bounded_one(indptr, nbr, w, source, slot_of_node, limit, dist, touched, heap_d, heap_n,
-                 out_row):
+def _bounded_one(indptr, nbr, w, source, slot_of_node, n_slots, limit, dist, touched, heap_d,
+                 heap_n, out_row):
     """Dijkstra from ``source`` up to time ``limit``; out_row[slot] = time to each slotted node.
+    It stops once every slotted node is settled (a part's viewpoints among the
+    whole area's: the rest of the graph is never searched).
 
     ``dist`` must be all +inf on entry and is restored before returning; the
     heap arrays are returned (they may have grown).
     """
     n_touched = 0
+    settled = 0
     dist[source] = 0.0
     touched[n_touched] = source
     n_touched += 1
@@ -88,6 +91,9 @@ def _bounded_one(indptr, nbr, w, source, slot_of_node, limit, dist, touched, hea
         s = slot_of_node[u]
         if s >= 0:
             out_row[s] = d
+            settled += 1  # a node is settled once: equal times are never pushed twice
+            if settled == n_slots:
+                break
         for p in range(indptr[u], indptr[u + 1]):
             v = nbr[p]
             nd = d + w[p]
@@ -120,8 +126,8 @@ def bounded_times(indptr, nbr, w, sources, slot_of_node, n_slots, limit, n_chunk
         heap_d = np.empty(1024)
         heap_n = np.empty(1024, np.int64)
         for k in range(ch, n_src, n_chunks):
-            heap_d, heap_n = _bounded_one(indptr, nbr, w, sources[k], slot_of_node, limit,
-                                          dist, touched, heap_d, heap_n, out[k])
+            heap_d, heap_n = _bounded_one(indptr, nbr, w, sources[k], slot_of_node, n_slots,
+                                          limit, dist, touched, heap_d, heap_n, out[k])
     return out
 
 
@@ -259,9 +265,10 @@ def grid_legs_within(h_clear, h, ceiling, node_rows, node_cols, node_z, src, dst
 
 
 @njit(cache=True)
-def directed_csr(n_nodes, src, dst, dip, node_xyz, speed, climb, descent):
-    """CSR (indptr, indices, data, dip) of the edges src->dst and dst->src (unsorted
-    rows), data their times (`edge_time`); ``dip`` per edge is carried along to both
+def directed_csr(n_nodes, src, dst, dipped, node_xyz, floor, speed, climb, descent):
+    """CSR (indptr, indices, data, dipped) of the edges src->dst and dst->src
+    (unsorted rows), data their times (`edge_time`; a dip edge flies level at the
+    higher of its nodes' ``floor``); ``dipped`` per edge is carried along to both
     directions. Times are made here, edge by edge: as whole arrays they took
     several GB of temporaries on a 4096² area."""
     indptr = np.zeros(n_nodes + 1, np.int64)
@@ -273,20 +280,20 @@ def directed_csr(n_nodes, src, dst, dip, node_xyz, speed, climb, descent):
     fill = indptr[:-1].copy()
     indices = np.empty(indptr[-1], np.int32)  # as scipy's csr_matrix keeps them
     data = np.empty(indptr[-1])
-    dips = np.empty(indptr[-1])
+    dips = np.empty(indptr[-1], np.bool_)
     for k in range(src.shape[0]):
         a = src[k]
         b = dst[k]
         za, zb = node_xyz[a, 2], node_xyz[b, 2]
-        low = min(za, zb) if np.isnan(dip[k]) else dip[k]
+        low = max(floor[a], floor[b]) if dipped[k] else min(za, zb)
         horiz = math.hypot(node_xyz[b, 0] - node_xyz[a, 0], node_xyz[b, 1] - node_xyz[a, 1])
         indices[fill[a]] = b
         data[fill[a]] = edge_time(horiz, za, low, zb, speed, climb, descent)
-        dips[fill[a]] = dip[k]
+        dips[fill[a]] = dipped[k]
         fill[a] += 1
         indices[fill[b]] = a
         data[fill[b]] = edge_time(horiz, zb, low, za, speed, climb, descent)
-        dips[fill[b]] = dip[k]
+        dips[fill[b]] = dipped[k]
         fill[b] += 1
     return indptr, indices, data, dips
 
