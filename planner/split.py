@@ -212,21 +212,18 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
 def _solve_part(method, params, report, n, overlay, chunk):
     """One part solved (on a dask worker or here): its routes in its own viewpoint
     ids, the arrival time at every snapshot, its coverage time. ``report(fraction)``
-    of all ``n`` parts, here; and the seconds taken by its travel times: a problem
-    without them gets them here, over ``overlay``, for its viewpoints ``ids``
-    (`planner.travel.overlay_rows`)."""
+    of all ``n`` parts, here. A problem without travel times gets them here, over
+    ``overlay``, for its viewpoints ``ids`` (`planner.travel.overlay_rows`)."""
     k, problem, ids = chunk
-    start = time.perf_counter()
     if problem.travel is None:
         problem = replace(problem, travel=overlay_rows(overlay, ids))
-    travel_s = time.perf_counter() - start
     on = (lambda f: report((k + f) / n)) if report is not None else None
     allocation = coverage.solve(problem, method, params, progress=on)
     lo = problem.launch_out
     arrivals = [arrival_times(np.asarray(r, np.int64), problem.travel,
                               lo[u] if lo is not None else np.zeros(0), lo is not None)
                 for u, r in enumerate(allocation.routes)]
-    return allocation.routes, arrivals, allocation.coverage_time, travel_s
+    return allocation.routes, arrivals, allocation.coverage_time
 
 
 @dataclass
@@ -261,11 +258,11 @@ def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: fl
     and solve it: here, or as a dask task on ``client`` (its problem sent to a
     worker when one is free), so that this process holds one part's travel times
     at a time; then join. ``matrix(viewpoint ids, progress)`` makes a part's times
-    here, or returns None: they are then made where the part is solved, over
-    ``overlay`` (`planner.travel.overlay_rows`), so that parts on a cluster make
-    their times side by side. ``parts`` is consumed: each part is let go once its
-    problem is made. ``progress(stage, fraction)`` for "travel times" and
-    "allocation"."""
+    here, or returns None: they are then made in the part's task, over ``overlay``
+    (`planner.travel.overlay_rows`), so that parts on a cluster make their times
+    side by side (their time then counts in the allocation's). ``parts`` is
+    consumed: each part is let go once its problem is made.
+    ``progress(stage, fraction)`` for "travel times" and "allocation"."""
     out = None if problem.launch_out is None else np.asarray(problem.launch_out)
     transit = (None if out is None else  # [UAVs, parts]
                np.stack([_median_finite(out[:, p.viewpoints]) for p in parts], axis=1))
@@ -294,16 +291,13 @@ def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: fl
                         client, None if here or not progress else
                         _sub(progress, "allocation", 0, 1), total=len(index), scatter=True)
     routes, arrivals = [[] for _ in range(problem.n_uavs)], [np.zeros(0)] * problem.n_uavs
-    for i, (part_routes, part_arrivals, _, _) in zip(index, solved):
+    for i, (part_routes, part_arrivals, _) in zip(index, solved):
         for u, r, a in zip(groups[i], part_routes, part_arrivals):
             routes[u] = [int(viewpoints[i][e]) for e in r]
             arrivals[u] = a
-    times = [t for _, _, t, _ in solved]
+    times = [t for _, _, t in solved]
     routes, arrivals, dropped = drop_redundant(problem, routes, arrivals, max(times, default=0))
-    # times made in the parts' tasks count here only when those ran here, one by one
-    # (on a cluster they run side by side, inside the allocation's span)
-    travel_s = spent[0] + (sum(s for *_, s in solved) if here else 0.0)
-    return Joined(routes, arrivals, groups, times, dropped, travel_s)
+    return Joined(routes, arrivals, groups, times, dropped, spent[0])
 
 
 def _sub(progress, stage, k, n):

@@ -221,15 +221,20 @@ def test_node_paths_are_shortest_as_dijkstra_finds_them(seed, family, n_posts):
             assert math.isclose(legs.sum(), best, rel_tol=1e-9, abs_tol=1e-9)
 
 
-def test_parts_times_over_the_whole_overlay_are_its_matrix():
-    """The sparse overlay of all points and the times among any subset over it (what
-    an area planned in parts uses) are the dense overlay matrix, sliced."""
+def _overlay_points():
+    """A travel graph on ridges and every 37th node of its largest part, as points."""
     terrain = synthetic_terrain(90, 90, cell=30.0, seed=8, family="ridges")
     x, y = terrain.xy(45, 45)
     surface = compute_exposure(terrain, [Outpost(float(x), float(y), 5.0, 2000.0)])
     graph = build_travel_graph(surface, TravelParams())
     nodes = np.flatnonzero(graph.reachable())[::37]
-    xyz = graph.node_xyz[nodes]
+    return graph, nodes, graph.node_xyz[nodes]
+
+
+def test_parts_times_over_the_whole_overlay_are_its_matrix():
+    """The sparse overlay of all points and the times among any subset over it (what
+    an area planned in parts uses) are the dense overlay matrix, sliced."""
+    graph, nodes, xyz = _overlay_points()
     whole = graph.time_matrix(xyz, method="overlay")
     overlay = graph.overlay(xyz)
     some = np.sort(np.random.default_rng(1).choice(len(nodes), len(nodes) // 3, replace=False))
@@ -241,12 +246,7 @@ def test_overlay_rows_are_made_without_the_graph_only_where_nothing_is_missed():
     """`overlay_exact` (a part's times made on a worker, without the graph) holds only
     where the overlay's own rows already are `overlay_times` (nothing filled from
     the graph); a sparse overlay (small radius) leaves pairs to fill and is told so."""
-    terrain = synthetic_terrain(90, 90, cell=30.0, seed=8, family="ridges")
-    x, y = terrain.xy(45, 45)
-    surface = compute_exposure(terrain, [Outpost(float(x), float(y), 5.0, 2000.0)])
-    graph = build_travel_graph(surface, TravelParams())
-    nodes = np.flatnonzero(graph.reachable())[::37]
-    xyz = graph.node_xyz[nodes]
+    graph, nodes, xyz = _overlay_points()
     rng = np.random.default_rng(2)
     told = set()
     for radius in (5.0, 3.0, 1.0):  # this subsample's overlay: whole at 5, in pieces at 3
