@@ -112,7 +112,9 @@ def _inputs(n, folder):
 def _run(n, scheduler="none", parts=None) -> dict:
     more = ["--parts", str(parts)] if parts else []
     out = subprocess.run([sys.executable, __file__, "--one", str(n), "--scheduler", scheduler]
-                         + more, capture_output=True, text=True, cwd=ROOT, check=True)
+                         + more, stdout=subprocess.PIPE, text=True, cwd=ROOT)  # stderr shown
+    if out.returncode:
+        raise SystemExit(f"bench_scale: the {n}² run failed (exit {out.returncode})")
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
