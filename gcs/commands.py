@@ -301,14 +301,21 @@ class _StartRun:
         if climb < 1.0:
             raise CommandError(link, f"takeoff altitude {self.takeoff_alt_amsl:.1f} m AMSL is "
                                      f"not above home ({home_alt:.1f} m AMSL)")
-        try:
-            command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,
-                         retries=self.retries)
-        except CommandError as exc:
-            # on a lossy link the first ACK may be lost; the retry is then refused
-            # because the takeoff is already under way
-            if exc.result is None or not _climbing(link):
-                raise
+        for attempt in range(2):
+            try:
+                command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,
+                             retries=self.retries)
+                break
+            except CommandError as exc:
+                # on a lossy link the first ACK may be lost; the retry is then refused
+                # because the takeoff is already under way
+                if exc.result is not None and _climbing(link):
+                    break
+                # ArduPilot disarms itself idle on the ground (DISARM_DELAY, 10 s: at a
+                # high --speedup a fraction of a wall second before the takeoff came)
+                if attempt or exc.result is None or not _disarmed_since(link, self.armed_at):
+                    raise
+                self.arm()
         target = climb - max(1.0, 0.05 * climb)
         _wait_airborne(link, self.armed_at, lambda s: (s.relative_alt or 0.0) >= target,
                        self.climb_timeout_s, f"climbing to {climb:.1f} m above home")
@@ -328,16 +335,19 @@ def _climbing(link, wait_s: float = 3.0) -> bool:
     return False
 
 
+def _disarmed_since(link, armed_at) -> bool:
+    """Whether a HEARTBEAT sent after arming shows the vehicle disarmed."""
+    s = link.state
+    return not s.armed and (s.last_heartbeat or 0.0) > (armed_at or 0.0) + HEARTBEAT_LAG_S
+
+
 def _wait_airborne(link, armed_at, climbed, timeout_s, doing) -> None:
     """Wait for `climbed(state)`; a HEARTBEAT sent after arming that shows the vehicle
     disarmed (it gave up, or disarmed itself idle on the ground) is an error."""
-    def disarmed(s):
-        return not s.armed and (s.last_heartbeat or 0.0) > armed_at + HEARTBEAT_LAG_S
-
-    _wait_for(link, lambda s: climbed(s) or disarmed(s), timeout_s,
+    _wait_for(link, lambda s: climbed(s) or _disarmed_since(link, armed_at), timeout_s,
               lambda s: f"still at {s.relative_alt or 0.0:.1f} m above home "
                         f"{timeout_s:g} s after {doing} started (mode {s.mode})")
-    if disarmed(link.state):
+    if _disarmed_since(link, armed_at):
         raise CommandError(link, f"disarmed while {doing}{_explanation(link)}")
 
 
