@@ -374,3 +374,26 @@ def test_cli_upload_and_download(firmware, tmp_path, capsys):
 
 def mission_for_route(r, firmware):
     return vehicle_mission(r, firmware, MissionOptions(speed_mps=8.0)).items
+
+
+def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened, monkeypatch):
+    """ArduPilot disarms itself idle on the ground (DISARM_DELAY, 10 s of its time: a
+    fraction of a wall second at a high --speedup, as CI once met). A takeoff that
+    comes after that is refused; the start arms again and retries, once."""
+    fleet, link = opened(fleet_config("ardupilot", 1, speedup=20.0))
+    vehicle = link.vehicles[1]
+    mp.upload_verified(vehicle, sendable(mission_for("ardupilot", 1)))
+    arm, armed = commands._StartRun.arm, []
+
+    def arm_then_idle(run, _=None):
+        arm(run, _)
+        armed.append(run.armed_at)
+        deadline = time.monotonic() + 10
+        while len(armed) == 1 and not commands._disarmed_since(vehicle, run.armed_at):
+            assert time.monotonic() < deadline, "the vehicle did not disarm itself"
+            time.sleep(0.05)
+
+    monkeypatch.setattr(commands._StartRun, "arm", arm_then_idle)
+    commands.start_mission(vehicle, ALT)
+    assert len(armed) == 2
+    assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0
