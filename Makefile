@@ -22,8 +22,10 @@ install: $(STAMP)
 browser:
 	bash .ci/install-browser.sh
 
+# one test process per core (-n): most of the suite's wall time is simulated flights
+# waiting on the clock, and a file's tests stay together (their module fixtures)
 test: $(STAMP) browser
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n logical --dist loadfile
 
 demo: $(STAMP)
 	$(BIN)/gcs demo -o $(OUT)
