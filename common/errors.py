@@ -1,4 +1,5 @@
-"""Errors that reach the user as one clear line and exit status 2."""
+"""Errors that reach the user as one clear line: bad input (exit status 2) and a
+dask cluster that failed a plan (exit status 1)."""
 
 
 class InputError(Exception):
@@ -12,3 +13,8 @@ class InputError(Exception):
         self.source = str(source) if source is not None else None
         self.problem = problem
         super().__init__(f"{self.source}: {problem}" if self.source else problem)
+
+
+class ClusterError(Exception):
+    """The dask cluster a plan ran on failed it (a worker died, the data it held with
+    it): not the input's fault. ``str(err)`` is the one-line message."""

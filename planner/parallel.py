@@ -12,9 +12,11 @@ Dask is the scheduler: nothing here decides where a task runs.
 """
 
 import itertools
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import CancelledError, ThreadPoolExecutor
 from contextlib import contextmanager
 from typing import Callable, Optional
+
+from common.errors import ClusterError, InputError
 
 #: above this many grid cells `gcs plan` starts a local dask cluster by itself. Below
 #: it this process is faster and lighter, as measured on 2 cores: 2048² (4.2 M
@@ -106,27 +108,43 @@ def dask_client(scheduler, cells: int, log=None):
     ``scheduler`` a ``distributed.Client`` (used as it is), the address of a dask
     scheduler, "auto" (a LocalCluster with a worker per core for a grid over
     `LOCAL_CLUSTER_CELLS` cells, else none), or None (none: this process).
-    ``log`` is told which cluster, when there is one."""
+    ``log`` is told which cluster, when there is one. An address no scheduler
+    answers at is an `InputError`; a cluster that loses a worker's work mid-plan
+    raises `ClusterError`."""
     if scheduler is None or (scheduler == "auto" and cells <= LOCAL_CLUSTER_CELLS):
         yield None
         return
-    if not isinstance(scheduler, str):
-        yield scheduler
-        return
-    client = _start(None if scheduler == "auto" else scheduler, cells, log)
+    from distributed.comm import CommClosedError
+    from distributed.scheduler import KilledWorker
+
+    mine = isinstance(scheduler, str)
+    client = _start(None if scheduler == "auto" else scheduler, cells, log) if mine \
+        else scheduler
     try:
         yield client
+    except (KilledWorker, CancelledError, CommClosedError) as exc:
+        # most often a worker killed for memory (by its nanny or the system), with the
+        # chunks it held: the plan cannot be finished from here
+        raise ClusterError(f"dask cluster: a worker died or lost its data while planning "
+                           f"({type(exc).__name__}); the workers may be short of memory: "
+                           "give them more, or plan in more parts (--parts)") from None
     finally:
-        client.close()
-        if client.cluster is not None:
-            client.cluster.close()
+        if mine:
+            client.close()
+            if client.cluster is not None:
+                client.cluster.close()
 
 
 def _start(address: Optional[str], cells: int, log=None):
     from distributed import Client, LocalCluster
 
     if address is not None:
-        client = Client(address)
+        try:
+            client = Client(address)
+        except (OSError, ValueError, TypeError) as exc:
+            reason = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise InputError("--scheduler", f"no dask scheduler answers at {address}: "
+                                            f"{reason}") from None
         what = f"dask cluster at {address} ({len(client.scheduler_info()['workers'])} workers)"
     else:
         import os

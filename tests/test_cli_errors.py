@@ -97,6 +97,18 @@ def test_negative_track_tolerance(tmp_path, capsys):
     _assert_clean_failure(status, err, out, "track_tolerance_m must not be negative")
 
 
+def test_a_scheduler_address_nobody_answers_at(tmp_path, capsys):
+    import dask
+
+    out = tmp_path / "out"
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        status, err = _run(capsys, "plan", "--sample", "--uavs", "2", "--scheduler",
+                           "tcp://127.0.0.1:1", "-o", str(out))
+    _assert_clean_failure(status, err, out, "--scheduler", "no dask scheduler answers at "
+                                                           "tcp://127.0.0.1:1")
+    assert "Traceback" not in err
+
+
 def test_refused_plan_leaves_an_existing_directory_as_it_was(tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()

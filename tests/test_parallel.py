@@ -2,16 +2,19 @@
 in this process; and a plan's heaviest stage keeps more than one core busy."""
 
 import operator
+import os
 import warnings
 from dataclasses import replace
 
+import dask
 import numba
 import numpy as np
 import psutil
 import pytest
 
+from common.errors import ClusterError
 from planner.exposure import Outpost, compute_exposure
-from planner.parallel import run_chunks
+from planner.parallel import dask_client, run_chunks
 from planner.pipeline import allocate, launch_starts, prepare
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain
@@ -38,8 +41,10 @@ def test_local_cluster_gives_the_same_context_and_plan():
     in_parts = replace(scenario, parts=2)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                                      dashboard_address=None) as cluster, \
+        # a task whose worker dies fails at once, not after retries on 3 more workers
+        with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+                distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                         dashboard_address=None) as cluster, \
                 distributed.Client(cluster) as client:
             there = prepare(scenario, terrain=terrain, outposts=outposts, scheduler=client)
             assert len(client.scheduler_info()["workers"]) == 2
@@ -51,6 +56,9 @@ def test_local_cluster_gives_the_same_context_and_plan():
                                   scatter=scatter) == [3 * i for i in range(25)]
                 assert run_chunks(operator.mul, iter(range(25)), (3,), client, total=25,
                                   scatter=scatter) == [3 * i for i in range(25)]
+            # last (it costs a worker): a worker that dies mid-plan is one clear error
+            with pytest.raises(ClusterError, match="a worker died"), dask_client(client, 0):
+                run_chunks(lambda chunk: os._exit(1), [0], client=client)
     parts_here = allocate(replace(here, scenario=in_parts), 3)
     assert parts_here.plan.metrics["parts"] == 2
     assert [v.waypoints for v in parts_here.plan.vehicles] == \

@@ -11,7 +11,7 @@ import re
 import sys
 import warnings
 
-from common.errors import InputError
+from common.errors import ClusterError, InputError
 from gcs import __version__
 
 COMMANDS = ("exposure", "plan", "export", "upload", "download", "fly", "sim", "demo")
@@ -83,6 +83,9 @@ def _run(args) -> int:
     except InputError as exc:
         print(f"gcs {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except ClusterError as exc:
+        print(f"gcs {args.command}: error: {exc}", file=sys.stderr)
+        return 1
     except KeyboardInterrupt:
         print(f"gcs {args.command}: interrupted", file=sys.stderr)
         return 130
