@@ -99,7 +99,10 @@ def test_negative_track_tolerance(tmp_path, capsys):
 
 def test_a_scheduler_address_nobody_answers_at(tmp_path, capsys):
     import dask
+    import distributed  # noqa: F401
 
+    # distributed adds its config defaults when first imported: imported inside
+    # dask.config.set, they would be dropped on leaving it (later clusters fail)
     out = tmp_path / "out"
     with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
         status, err = _run(capsys, "plan", "--sample", "--uavs", "2", "--scheduler",
