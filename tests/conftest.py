@@ -1,12 +1,15 @@
 """Shared fixtures: one small saved plan (synthetic hills, one outpost, 3 UAVs from
-one launch point), planned once per session for the tests that fly or upload it."""
+one launch point), planned once per session for the tests that fly or upload it;
+and the numba kernels compiled before the first test (`pytest_sessionstart`)."""
 
+import tempfile
 from types import SimpleNamespace
 
 import pytest
 
+from gcs.plan_folder import write_plan_folder
 from planner.exposure import Outpost
-from planner.pipeline import plan_mission
+from planner.pipeline import allocate, launch_starts, plan_mission
 from planner.plan import TERRAIN_FILE
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain, write_terrain
@@ -14,10 +17,8 @@ from planner.terrain import synthetic_terrain, write_terrain
 N = 60
 
 
-@pytest.fixture(scope="session")
-def planned(tmp_path_factory):
-    """The plan, saved with its terrain.tif: ``dir``, ``plan``, ``ctx`` (its planning
-    context), ``terrain``, ``launch`` (lat, lon, ground m AMSL)."""
+def _small_plan():
+    """(scenario, terrain, outposts) of the shared plan."""
     terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
     x, y = terrain.xy(N // 2, N // 2)
     lon, lat = terrain.to_lonlat(x, y)
@@ -28,6 +29,28 @@ def planned(tmp_path_factory):
     scenario = Scenario(sample=True, uavs=3, sensor_range_m=500.0, ceiling_agl_m=150.0,
                         clearance_m=20.0, hide_margin_m=5.0, launch=[(llat, llon)],
                         method="rt").validate()
+    return scenario, terrain, outposts
+
+
+def pytest_sessionstart(session):
+    """Compile the numba kernels into their cache once, before any test runs and
+    before pytest-xdist starts its test processes (which then load them): from a
+    fresh checkout, whichever test planned first in each process compiled them, a
+    minute of a busy core counted against that test's timeout."""
+    if hasattr(session.config, "workerinput"):
+        return  # a test process of pytest-xdist: its controller has done it
+    scenario, terrain, outposts = _small_plan()
+    ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
+    allocate(ctx, 3, launch_starts(ctx), method="alns")  # the default method's kernels
+    with tempfile.TemporaryDirectory() as folder:
+        write_plan_folder(folder, ctx, outcome)  # the mission files and their proofs
+
+
+@pytest.fixture(scope="session")
+def planned(tmp_path_factory):
+    """The plan, saved with its terrain.tif: ``dir``, ``plan``, ``ctx`` (its planning
+    context), ``terrain``, ``launch`` (lat, lon, ground m AMSL)."""
+    scenario, terrain, outposts = _small_plan()
     ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
     d = tmp_path_factory.mktemp("plan")
     outcome.plan.save(d)
