@@ -5,7 +5,7 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 OUT     ?= demo-out
 
-.PHONY: install browser test demo bench clean
+.PHONY: install browser test test-under-load demo bench clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -26,6 +26,10 @@ browser:
 # waiting on the clock, and a file's tests stay together (their module fixtures)
 test: $(STAMP) browser
 	$(BIN)/python -m pytest -q -n logical --dist loadfile
+
+# the suite beside a CPU hog on every core, three runs in a row (tests/under_load.py)
+test-under-load: $(STAMP) browser
+	$(BIN)/python tests/under_load.py --runs 3
 
 demo: $(STAMP)
 	$(BIN)/gcs demo -o $(OUT)

@@ -90,6 +90,11 @@ class FleetConfig:
         return configs
 
 
+#: wall seconds `SimFleet.kill` waits for the vehicle's own loop to go silent (at once
+#: on an idle machine; generous for a loaded one)
+KILL_WAIT_S = 30.0
+
+
 class SimFleet:
     def __init__(self, config: FleetConfig):
         self.config = config
@@ -144,9 +149,8 @@ class SimFleet:
         """Shoot vehicle `sysid` down now: no more output, its sockets closed."""
         v = self.vehicle(sysid)
         v.request_kill()
-        thread = self._threads[sysid - 1] if self._threads else None
-        if thread is not None:
-            thread.join(timeout=5)
+        if self._threads and not v.dead:
+            self.wait_removed(sysid, KILL_WAIT_S)
 
     def cut_link(self, sysid: int, seconds: float) -> None:
         """Nothing in or out for `seconds` of wall time; the vehicle flies on."""
@@ -163,6 +167,28 @@ class SimFleet:
     def alive(self) -> list:
         """System ids of the vehicles still running."""
         return [v.sysid for v in self.vehicles if not v.dead]
+
+    def wait_removed(self, sysid: int, timeout_s: float = 60.0) -> float:
+        """Wait until vehicle ``sysid`` has been shot down (by a fault plan or
+        `kill`); its mission time (s) then. TimeoutError after ``timeout_s`` wall
+        seconds: each vehicle runs on its own mission clock, which a busy machine
+        slows, so a caller waits on this event, not on a wall-clock guess."""
+        v = self.vehicle(sysid)
+        if not v.removed.wait(timeout_s):
+            raise TimeoutError(f"simulated vehicle {sysid} was not removed within "
+                               f"{timeout_s:g} s (mission time {v.t:.1f} s)")
+        return v.track.killed_at
+
+    def wait_mission_time(self, sysid: int, t_s: float, timeout_s: float = 60.0) -> None:
+        """Wait until vehicle ``sysid``'s mission clock reaches ``t_s`` (or it is
+        removed); TimeoutError after ``timeout_s`` wall seconds."""
+        v = self.vehicle(sysid)
+        end = time.monotonic() + timeout_s
+        while v.t < t_s and not v.dead:
+            if time.monotonic() > end:
+                raise TimeoutError(f"simulated vehicle {sysid}: mission time {v.t:.1f} s, "
+                                   f"not {t_s:g} s, after {timeout_s:g} s")
+            time.sleep(0.01)
 
 
 def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:

@@ -115,6 +115,7 @@ class SimVehicle:
         self.task = None               # what the vehicle is doing, see _update_task
         self.t = 0.0                   # mission time since boot, s
         self.dead = False
+        self.removed = threading.Event()   # set once it is shot down (`killed_at`: when)
         self.boot_wall = None
         self._ready_announced = False
         self._idle_since = None
@@ -216,6 +217,7 @@ class SimVehicle:
         self.dead = True
         self.link.close()
         self.track.flush(complete=True)
+        self.removed.set()
 
     # -- state seen from outside ------------------------------------------------------
     def position(self) -> tuple:
