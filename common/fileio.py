@@ -48,3 +48,16 @@ def _umask() -> int:
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def check_output_dir(directory) -> None:
+    """Refuse an output folder that cannot be one before any work is done (an
+    InputError naming -o)."""
+    from common.errors import InputError
+
+    path = Path(directory)
+    if path.exists() and not path.is_dir():
+        raise InputError("-o", f"{path} is a file, not a folder")
+    parent = next((p for p in [path, *path.parents] if p.exists()), Path("."))
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise InputError("-o", f"{path}: cannot write in {parent}")

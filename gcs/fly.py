@@ -35,7 +35,16 @@ from common.fileio import write_text_atomic
 from gcs import commands
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
-from gcs.monitor import FLYING, LANDED, LOST, STARTING, STRANDED, Monitor
+from gcs.monitor import (
+    FLYING,
+    LANDED,
+    LOST,
+    MIN_LAUNCH_TOLERANCE_M,
+    STARTING,
+    STRANDED,
+    Monitor,
+    distance_m,
+)
 from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
 from gcs.segments import Segments, upload_route
 from missions.build import MissionOptions, vehicle_mission
@@ -52,6 +61,9 @@ TLOG_PATTERN = "vehicle_{sysid}.tlog"
 LOOP_S = 0.1
 #: after a timeout brought the vehicles home, wait at least this long (wall s) for them
 HOME_WAIT_S = 60.0
+#: how far (m) a vehicle may stand from its launch point when the plan names no track
+#: tolerance (plans older than it)
+LAUNCH_TOLERANCE_M = 5.0
 
 
 @dataclass
@@ -293,6 +305,10 @@ class Flight:
 
     def start(self) -> None:
         m = self.monitor
+        self._all(lambda sysid: commands.wait_ready(m.links[sysid],
+                                                    self.options.ready_timeout_s),
+                  "start", commands.CommandError)
+        self.check_positions()
 
         def one(sysid):
             v = m.vehicles[sysid]
@@ -303,6 +319,31 @@ class Flight:
             m.set_state(sysid, FLYING)
 
         self._all(one, "start", commands.CommandError)
+
+    def check_positions(self) -> None:
+        """Before anything is armed: every vehicle stands at its route's launch point
+        (its reported position), within the plan's track tolerance, the room its
+        takeoff column is proven with (at least `MIN_LAUNCH_TOLERANCE_M`: GNSS on
+        the ground). A vehicle elsewhere would climb and fly a first leg nobody
+        proved hidden: FlightError naming each one and how far off it stands.
+        (Its home is not compared: ArduPilot and PX4 both set home where they arm.)"""
+        tolerance = max(float(self.plan.params.get("track_tolerance_m", LAUNCH_TOLERANCE_M)),
+                        MIN_LAUNCH_TOLERANCE_M)
+        off = []
+        for sysid, v in sorted(self.monitor.vehicles.items()):
+            launch, s = v.route.launch, self.monitor.links[sysid].state
+            if launch is None or v.state == LOST or s.lat is None:
+                continue
+            d = distance_m(launch.lat, launch.lon, s.lat, s.lon)
+            if d > tolerance:
+                off.append(f"vehicle {sysid} stands {d:.1f} m from the launch point of route "
+                           f"{v.route.id} ({s.lat:.7f},{s.lon:.7f}, not "
+                           f"{launch.lat:.7f},{launch.lon:.7f})")
+        if off:
+            for line in off:
+                self.monitor.event(None, f"refused: {line}")
+            raise FlightError("; ".join(off) + f": each must stand within {tolerance:g} m of "
+                              "its launch point (the plan's track tolerance) before it is armed")
 
     def _all(self, fn, what, expected) -> None:
         """fn on every vehicle at once. A vehicle that fails and then falls silent

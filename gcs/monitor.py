@@ -44,8 +44,11 @@ LANDED_AGL_M = 3.0
 TRACK_PERIOD_S = 0.2
 #: position reports above LANDED_AGL_M after a disarm that make it a fall
 DISARM_REPORTS = 3
-#: within this distance (m, horizontally) of its launch point a vehicle takes off and lands
+#: within this distance (m, horizontally) of its launch point a touchdown is a landing
 LAUNCH_RADIUS_M = 10.0
+#: a vehicle is started (or re-launched) only within the plan's track tolerance of its
+#: launch point, and at least this (m: a GNSS fix on the ground)
+MIN_LAUNCH_TOLERANCE_M = 1.0
 #: below the terrain + this (m) away from its launch point, a vehicle has hit the ground
 CRASH_MARGIN_M = 2.0
 

@@ -14,7 +14,6 @@ from pathlib import Path
 
 import numpy as np
 
-from common.errors import InputError
 from planner import plan as plan_files
 from planner.terrain import write_grid, write_terrain
 
@@ -24,16 +23,6 @@ def coverage_grid(ctx, counts) -> np.ndarray:
     grid = np.full(ctx.terrain.shape, -1, np.int16)
     grid.flat[ctx.visibility.target_cells] = np.minimum(counts, np.iinfo(np.int16).max)
     return grid
-
-
-def check_output_dir(directory) -> None:
-    """Refuse an output folder that cannot be one before any work is done."""
-    path = Path(directory)
-    if path.exists() and not path.is_dir():
-        raise InputError("-o", f"{path} is a file, not a folder")
-    parent = next((p for p in [path, *path.parents] if p.exists()), Path("."))
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise InputError("-o", f"{path}: cannot write in {parent}")
 
 
 def write_plan_folder(directory, ctx, outcome) -> list:
@@ -64,7 +53,8 @@ def write_plan_folder(directory, ctx, outcome) -> list:
             write_grid(staging / name, grid, ctx.terrain, nodata=nodata)
             written.append((staging / name, what))
         written += ctx.save(staging)
-        overview_png(staging / "overview.png", ctx.terrain, ctx.surface, outcome.plan)
+        overview_png(staging / "overview.png", ctx.terrain, ctx.surface, outcome.plan,
+                     ctx.unseen)
         written.append((staging / "overview.png", "map of the hidden ceiling, outposts and routes"))
         view3d_png(staging / "view3d.png", ctx.terrain, ctx.surface, outcome.plan)
         written.append((staging / "view3d.png", "3-D view: terrain, hidden ceiling, routes"))

@@ -293,24 +293,62 @@ def draw_bases(ax, terrain, plan) -> None:
                     markersize=8, zorder=12)
 
 
-def overview_png(path, terrain, surface, plan) -> None:
-    """overview.png: where one can hide, who watches, and every route."""
-    _save(overview_figure(terrain, surface, plan), path)
+#: hatching of ground in the area of operations that no snapshot will see, by reason
+#: (`planner.visibility.unseen`)
+UNSEEN_HATCHES = {1: "....", 2: "////", 3: "xxxx", 4: "\\\\"}
 
 
-def overview_figure(terrain, surface, plan):
-    fig, ax = plt.subplots(figsize=(10, 9.5), dpi=110)
+def draw_unseen(ax, terrain, unseen) -> list:
+    """Hatch the ground of the area of operations that is not a target, one pattern
+    per reason; the legend handles of the reasons present."""
+    from planner.visibility.unseen import REASONS
+
+    if unseen is None:
+        return []
+    handles = []
+    extent = _extent_km(terrain)
+    rows, cols = terrain.shape
+    d = terrain.cell_size / 1000.0
+    x = extent[0] + (np.arange(cols) + 0.5) * d
+    y = extent[3] - (np.arange(rows) + 0.5) * d
+    for code, hatch in UNSEEN_HATCHES.items():
+        mask = unseen == code
+        if not mask.any():
+            continue
+        ax.contourf(x, y, mask.astype(float), levels=[0.5, 1.5], colors="none",
+                    hatches=[hatch], zorder=3)
+        handles.append(Patch(facecolor="white", edgecolor="black", hatch=hatch,
+                             linewidth=0.4, label=f"not seen: {REASONS[code]}"))
+    return handles
+
+
+def overview_png(path, terrain, surface, plan, unseen=None) -> None:
+    """overview.png: where one can hide, who watches, every route, and the ground no
+    snapshot sees (``unseen``: `planner.visibility.unseen_reasons`)."""
+    _save(overview_figure(terrain, surface, plan, unseen), path)
+
+
+def overview_figure(terrain, surface, plan, unseen=None):
+    fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)
     im = draw_background(ax, terrain, surface)
     draw_area(ax, terrain, plan)
+    unseen_handles = draw_unseen(ax, terrain, unseen)
     draw_routes(ax, terrain, plan)
     m = plan.metrics
-    ax.set_title(f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "
-                 f"coverage time {m.get('coverage_time_s', float('nan')) / 60:.1f} min "
-                 f"(lower bound {m.get('lower_bound_s', float('nan')) / 60:.1f} min)")
+    title = (f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "
+             f"coverage time {m.get('coverage_time_s', float('nan')) / 60:.1f} min "
+             f"(lower bound {m.get('lower_bound_s', float('nan')) / 60:.1f} min)")
+    a = m.get("area")
+    if a:
+        title += (f"\narea {a['area_km2']:.1f} km²: {a['visible']['pct']:.0f} % seen from "
+                  f"reachable hidden viewpoints, {a['planned']['pct']:.0f} % planned")
+    if not plan.outposts:
+        title += "\nno observers: planned with no outposts"
+    ax.set_title(title)
     fig.colorbar(im, ax=ax, shrink=0.7, label="hidden ceiling above ground (m): "
                                               "room to fly unseen")
     handles, _ = ax.get_legend_handles_labels()
-    ax.legend(handles=handles + symbol_legend(surface), loc="upper center",
+    ax.legend(handles=handles + symbol_legend(surface) + unseen_handles, loc="upper center",
               bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8, framealpha=0.9)
     return fig
 

@@ -27,7 +27,15 @@ import numpy as np
 
 from common.errors import InputError
 from gcs import commands
-from gcs.monitor import FLYING, HOLDING, LANDED, LAUNCH_RADIUS_M, LOST, STRANDED, distance_m
+from gcs.monitor import (
+    FLYING,
+    HOLDING,
+    LANDED,
+    LOST,
+    MIN_LAUNCH_TOLERANCE_M,
+    STRANDED,
+    distance_m,
+)
 from gcs.segments import upload_route
 from missions.build import MissionOptions
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
@@ -184,7 +192,9 @@ class Retasker:
             state, launch = m.links[s].state, v.route.launch
             if v.state != LANDED or launch is None or state.lat is None:
                 continue
-            if distance_m(launch.lat, launch.lon, state.lat, state.lon) > LAUNCH_RADIUS_M \
+            # within the room its takeoff column is proven with, as before the first start
+            if distance_m(launch.lat, launch.lon, state.lat, state.lon) > \
+                    max(self.ctx.scenario.track_tolerance_m, MIN_LAUNCH_TOLERANCE_M) \
                     or m.links[s].heartbeat_age() > m.lost_after_s:
                 continue
             out.append(s)

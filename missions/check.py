@@ -4,8 +4,11 @@ Checks, in order: sequence numbers are 0..n-1; no command whose flight is not
 a straight leg (RETURN_TO_LAUNCH, loiter turns, splines, DO_JUMP); every
 position is a valid latitude / longitude / finite altitude in MAV_FRAME_GLOBAL
 (absolute, like the exposure surface); and every straight 3-D leg between
-consecutive position items is hidden (`planner.exposure.segments_hidden`) and
-at least ``clearance_m`` above the terrain (`segments_clear`).
+consecutive position items is hidden (`planner.exposure.segments_hidden`), at
+least ``clearance_m`` above the terrain (`segments_clear`) and at most the
+plan's ``ceiling_agl_m`` above it (`segments_under_ceiling`): the ceiling is the
+legal limit the plan was made under, and a mission over it is refused like one
+in view.
 
 How legs are flown: a home item (seq 0, where the firmware's `autopilots`
 profile has one: ArduPilot) is not flown to. A takeoff
@@ -21,7 +24,7 @@ import numpy as np
 
 from autopilots import profile
 from common.errors import InputError
-from planner.exposure import is_hidden, segments_clear, segments_hidden
+from planner.exposure import is_hidden, segments_clear, segments_hidden, segments_under_ceiling
 
 from .items import (
     FRAME_GLOBAL,
@@ -57,19 +60,30 @@ def check_items(items, surface, clearance_m=None, name="mission", has_home=False
         return
     xyz = _projected(surface, flown)
     a, b, labels = _legs(flown, xyz)
-    if flown[0].command == NAV_TAKEOFF and not is_hidden(surface, xyz[:1])[0]:
-        raise InputError(name, f"takeoff (item {flown[0].seq}) climbs to "
-                               f"{_where(flown[0])}, which an outpost sees")
+    if flown[0].command == NAV_TAKEOFF:
+        if not is_hidden(surface, xyz[:1])[0]:
+            raise InputError(name, f"takeoff (item {flown[0].seq}) climbs to "
+                                   f"{_where(flown[0])}, which an outpost sees")
+        if not segments_under_ceiling(surface, xyz[:1], xyz[:1])[0]:
+            raise InputError(name, f"takeoff (item {flown[0].seq}) climbs to "
+                                   f"{_where(flown[0])}, more than "
+                                   f"{surface.params.ceiling_agl_m:g} m above the terrain "
+                                   "(the plan's ceiling_agl_m)")
     if not len(a):
         return
     hidden = segments_hidden(surface, a, b)
     clear = segments_clear(_with_clearance(surface, clearance_m), a, b)
+    under = segments_under_ceiling(surface, a, b)
     for n in range(len(a)):
         if not hidden[n]:
             raise InputError(name, f"{labels[n]} is not hidden from the outposts")
         if not clear[n]:
             floor = surface.params.clearance_m if clearance_m is None else clearance_m
             raise InputError(name, f"{labels[n]} passes closer than {floor:g} m to the terrain")
+        if not under[n]:
+            raise InputError(name, f"{labels[n]} rises more than "
+                                   f"{surface.params.ceiling_agl_m:g} m above the terrain "
+                                   "(the plan's ceiling_agl_m)")
 
 
 def check_structure(items, name="mission") -> None:

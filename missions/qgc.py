@@ -45,6 +45,7 @@ class QgcPlan:
     hover_speed_mps: Optional[float] = None
     fence_circles: list = field(default_factory=list)  # [(lat, lon, radius_m, inclusion)]
     rally_points: list = field(default_factory=list)  # [(lat, lon, alt)]
+    declared: Optional[str] = None  # the firmware its firmwareType names (None: neither)
 
 
 # --- writer ---------------------------------------------------------------------------------
@@ -154,8 +155,8 @@ def parse_plan(doc, source=".plan", firmware: Optional[str] = None) -> QgcPlan:
     if not isinstance(mission, dict):
         raise InputError(source, 'no "mission" in the plan')
     _version(mission, 2, source, "mission")
-    autopilot = firmware_profile(firmware) if firmware else \
-        (profile_of_heartbeat(_int_or(mission.get("firmwareType"))) or profile(PX4))
+    declared = profile_of_heartbeat(_int_or(mission.get("firmwareType")))
+    autopilot = firmware_profile(firmware) if firmware else (declared or profile(PX4))
     firmware = autopilot.name
     home = _home(mission.get("plannedHomePosition"), source)
     try:
@@ -170,7 +171,8 @@ def parse_plan(doc, source=".plan", firmware: Optional[str] = None) -> QgcPlan:
                                     *home))
     return QgcPlan(renumber(items), firmware, home, mission.get("cruiseSpeed"),
                    mission.get("hoverSpeed"), _read_fence(doc.get("geoFence"), source),
-                   _read_rally(doc.get("rallyPoints"), source))
+                   _read_rally(doc.get("rallyPoints"), source),
+                   declared.name if declared is not None else None)
 
 
 def _int_or(value, default=-1) -> int:

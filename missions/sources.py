@@ -64,11 +64,15 @@ class MissionSource:
     missions: dict              # firmware -> VehicleMission, or the InputError building it
     proof: Proof
     expected: str | None        # the firmware it is meant for (None: any)
+    bound: str | None = None    # a file's own firmware: it is for vehicles of that one only
     _checked: dict = field(default_factory=dict)
 
-    def checked(self, firmware: str):
+    def checked(self, firmware: str, vehicle=None):
         """The `CheckedMission` for ``firmware``; InputError naming the source if the
-        mission cannot be built or fails the check."""
+        mission cannot be built or fails the check, or if it is a file written for
+        another firmware (``vehicle``: the system id named in that message)."""
+        if self.bound is not None and firmware != self.bound:
+            raise InputError(self.source, firmware_mismatch(self.bound, firmware, vehicle))
         if firmware not in self._checked:
             try:
                 built = self.missions[firmware]
@@ -192,8 +196,23 @@ def _file_source(path: Path, number: int, count: int, plan_dir, plans: _Plans,
         (path.parent if (path.parent / PLAN_FILE).is_file() else None)
     plan, proof = plans.proof(directory, str(path))
     missions, own = _file_missions(path, route_id)
+    if own is not None and firmware is not None and firmware != own:
+        raise InputError(path, firmware_mismatch(own, firmware))
     expected = firmware or own or (plan.params.get("firmware") if plan is not None else None)
-    return MissionSource(route_id, str(path), missions, proof, expected)
+    return MissionSource(route_id, str(path), missions, proof, expected, bound=own)
+
+
+def firmware_mismatch(own: str, wanted: str, vehicle=None) -> str:
+    """Why a mission file of firmware ``own`` is not given to a ``wanted`` vehicle:
+    its items are that firmware's (camera commands, home item), and reading them
+    as another's would fly something nobody planned."""
+    from autopilots import profile
+
+    a, b = profile(own), profile(wanted)
+    who = f"vehicle {vehicle} runs {b.title}" if vehicle is not None else \
+        f"--firmware is {b.name}"
+    return (f"a {a.title} mission, and {who}: write a {b.title} one from its plan with "
+            f"`gcs export PLAN_DIR --firmware {b.name}`")
 
 
 def _file_missions(path: Path, route_id: int) -> tuple:
@@ -201,7 +220,7 @@ def _file_missions(path: Path, route_id: int) -> tuple:
     if path.suffix.lower() == ".plan":
         from .qgc import load_plan_file
 
-        own = load_plan_file(path).firmware          # InputError for a bad file
+        own = load_plan_file(path).declared          # InputError for a bad file
         missions = {}
         for fw in NAMES:
             try:
@@ -220,4 +239,14 @@ def _file_missions(path: Path, route_id: int) -> tuple:
             missions[fw] = VehicleMission(route_id, fw, items, [None] * len(items))
         except InputError as exc:
             missions[fw] = exc
-    return missions, None
+    return missions, _camera_firmware(lines)
+
+
+def _camera_firmware(items) -> str | None:
+    """The firmware whose camera command a ``.waypoints`` file uses (the one mark of
+    its firmware such a file carries), None without camera commands."""
+    from autopilots import profile
+
+    commands = {int(it.command) for it in items}
+    found = [fw for fw in NAMES if profile(fw).camera_command in commands]
+    return found[0] if len(found) == 1 else None

@@ -33,11 +33,15 @@ from common.fileio import save_npz
 from planner.exposure import ExposureParams, ExposureSurface, Outpost, surface_from_lowest
 from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
 from planner.scenario import Scenario
-from planner.terrain import Terrain, read_terrain, write_grid
+from planner.terrain import Terrain, read_grid, read_terrain, write_grid
 from planner.travel import TravelGraph, TravelParams
 from planner.visibility import Viewpoints, VisibilityMatrix
+from planner.visibility.unseen import OUTSIDE, REASONS
 
 LOWEST_SEEN_FILE = "lowest_seen.tif"
+UNSEEN_FILE = "unseen.tif"
+UNSEEN_LEGEND = ("0 target, " + ", ".join(f"{code} {why}" for code, why in REASONS.items())
+                 + f", {OUTSIDE} outside the area of operations")
 VIEWPOINTS_FILE = "viewpoints.csv"
 VISIBILITY_FILE = "visibility.npz"
 TRAVEL_FILE = "travel.npz"
@@ -56,6 +60,7 @@ class PlanningContext:
     times: Optional[np.ndarray] = None  # [n_vp, n_vp] hidden times, s; see `travel`
     timing_s: dict = field(default_factory=dict)
     overlay: Optional[tuple] = None  # see `viewpoint_overlay`
+    unseen: Optional[np.ndarray] = None  # uint8 grid, `planner.visibility.unseen_reasons`
 
     @property
     def travel(self) -> np.ndarray:
@@ -93,13 +98,18 @@ class PlanningContext:
         write_grid(d / LOWEST_SEEN_FILE, self.surface.lowest_seen, self.terrain,
                    descriptions=("lowest altitude an outpost sees, m AMSL (inf: none)",))
         _write_viewpoints(d / VIEWPOINTS_FILE, self.terrain, self.viewpoints)
+        written = []
+        if self.unseen is not None:
+            write_grid(d / UNSEEN_FILE, self.unseen, self.terrain, nodata=OUTSIDE,
+                       descriptions=(UNSEEN_LEGEND,))
+            written.append((d / UNSEEN_FILE, f"why ground is not a target: {UNSEEN_LEGEND}"))
         v = self.visibility
         save_npz(d / VISIBILITY_FILE, indptr=v.indptr, indices=v.indices,
                  target_indptr=v.target_indptr, target_viewpoints=v.target_viewpoints,
                  target_cells=v.target_cells, grid_shape=np.array(v.grid_shape))
         save_npz(d / TRAVEL_FILE, **self.graph.edges(compact=True),
                  regions=np.array(self.regions))
-        return [(d / LOWEST_SEEN_FILE, "lowest altitude any outpost sees, float64"),
+        return written + [(d / LOWEST_SEEN_FILE, "lowest altitude any outpost sees, float64"),
                 (d / VIEWPOINTS_FILE, "candidate viewpoints (for re-planning)"),
                 (d / VISIBILITY_FILE, "visibility sets of the viewpoints (numpy npz)"),
                 (d / TRAVEL_FILE, "hidden travel graph (numpy npz)")]
@@ -111,10 +121,11 @@ class PlanningContext:
         plan = plan or Plan.load(d)
         surface = load_surface(d, plan)
         scenario = Scenario.from_params(plan.params, source=d / PLAN_FILE)
-        if scenario.area_flight:  # re-planned routes stay inside the polygon too
-            from planner.pipeline import area_of, restrict_surface
+        from planner.pipeline import areas, restrict_surface
 
-            surface = restrict_surface(surface, area_of(scenario, surface.terrain))
+        flight = areas(scenario, surface.terrain)[1]
+        if flight is not None:  # re-planned routes stay inside the area too
+            surface = restrict_surface(surface, flight)
         if not all((d / name).is_file() for name in (VIEWPOINTS_FILE, VISIBILITY_FILE,
                                                       TRAVEL_FILE)):
             # a folder written before the context was saved: its stages run again
@@ -130,8 +141,11 @@ class PlanningContext:
                                           saved["target_indptr"], saved["target_viewpoints"],
                                           saved["target_cells"], tuple(saved["grid_shape"]))
         viewpoints = _read_viewpoints(d / VIEWPOINTS_FILE, surface)
+        unseen = None
+        if (d / UNSEEN_FILE).is_file():
+            unseen = read_grid(d / UNSEEN_FILE, surface.terrain.shape)
         return cls(scenario, surface.terrain, surface.outposts, surface, regions, viewpoints,
-                   visibility, graph)
+                   visibility, graph, unseen=unseen)
 
 
 def load_surface(directory, plan: Plan) -> ExposureSurface:

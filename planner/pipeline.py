@@ -8,6 +8,7 @@ positions and what they have already seen.
 """
 
 import time
+import warnings
 from contextlib import contextmanager
 from dataclasses import dataclass
 from typing import Callable, Optional
@@ -17,10 +18,15 @@ import numpy as np
 from common.errors import InputError
 from planner.exposure import (
     compute_exposure,
-    load_outposts,
-    sample_outposts,
     segments_clear,
     segments_hidden,
+)
+from planner.exposure.outposts import (
+    crop_around,
+    place_outposts,
+    reaching,
+    read_outpost_features,
+    sample_outpost_features,
 )
 from planner.terrain import load_dem, sample_terrain
 from planner.terrain.area import area_mask, read_area
@@ -28,9 +34,11 @@ from planner.travel import build_travel_graph, leg_time
 from planner.visibility import (
     candidate_viewpoints,
     compute_visibility,
+    default_spacing,
     fleet_region,
     launch_cells,
 )
+from planner.visibility.unseen import area_summary, unseen_reasons
 
 from . import coverage, split
 from .context import PlanningContext, outposts_json
@@ -77,9 +85,9 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
     polygons = read_area(s.area_file) if s.area_file else None   # a bad file fails first
     surface = exposure_stages(s, progress, timing, terrain, outposts)
     terrain, outposts = surface.terrain, surface.outposts
-    area = area_of(s, terrain, polygons)
-    if area is not None and s.area_flight:
-        surface = restrict_surface(surface, area)
+    area, flight = areas(s, terrain, polygons)
+    if flight is not None:
+        surface = restrict_surface(surface, flight)
     launch_xy = _launch_xy(terrain, s)
     regions = fleet_region(surface, launch_xy)  # every launch point must be flyable
     with dask_client(scheduler, terrain.height.size, log) as client:
@@ -102,15 +110,20 @@ def prepare(scenario: Scenario, progress: Progress = None, terrain=None,
             if area is not None:
                 visibility = visibility.restricted(area)
                 if not visibility.n_targets:
-                    raise InputError(s.area_file, "no target inside the polygon: no viewpoint "
-                                                  "the fleet reaches sees any cell in it")
+                    raise InputError(s.area_file or "--area",
+                                     "no target inside the area: no viewpoint the fleet "
+                                     "reaches sees any cell in it")
+            spacing = s.viewpoint_spacing_m or default_spacing(surface, regions,
+                                                                s.sensor_range_m)
+            unseen = unseen_reasons(surface, viewpoints, visibility, s.sensor_params(),
+                                    spacing, area)
         times = None
         if split.n_parts(len(viewpoints), s) == 1:  # parts make their own (`allocate`)
             with _stage("travel times", timing, progress):
                 times = graph.time_matrix(viewpoints.xyz, client=client,
                                           progress=_fraction(progress, "travel times"))
     return PlanningContext(s, terrain, list(outposts), surface, regions, viewpoints,
-                           visibility, graph, times, timing_s=timing)
+                           visibility, graph, times, timing_s=timing, unseen=unseen)
 
 
 def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, terrain=None,
@@ -120,16 +133,39 @@ def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, 
     s = scenario
     timing = {} if timing is None else timing
     with _stage("terrain", timing, progress):
+        features = None if outposts is not None else outpost_features(s)
         if terrain is None:
-            terrain = (sample_terrain(resolution=s.resolution_m, area=s.area) if s.sample else
-                       load_dem(s.dem, area=s.area, resolution=s.resolution_m,
+            crop = s.area if s.area is None or not features else crop_around(s.area, features)
+            terrain = (sample_terrain(resolution=s.resolution_m, area=crop) if s.sample else
+                       load_dem(s.dem, area=crop, resolution=s.resolution_m,
                                 geoid_offset=s.geoid_offset_m))
+            if crop != s.area and not (area_mask(terrain, [box_ring(s.area)])
+                                       & terrain.valid).any():
+                raise InputError("--area", f"{','.join(f'{v:g}' for v in s.area)} does not "
+                                           "overlap the DEM (or holds only nodata there)")
         if outposts is None:
-            outposts = (load_outposts(s.outposts, terrain) if s.outposts
-                        else sample_outposts(terrain) if s.sample else [])
+            outposts = place_outposts(features, terrain)
     with _stage("exposure", timing, progress):
         return compute_exposure(terrain, outposts, s.exposure_params(),
                                 progress=_fraction(progress, "exposure"))
+
+
+def outpost_features(s: Scenario) -> list:
+    """The scenario's outposts as their file says (`PostFeature`): none with
+    ``no_outposts``, the file's, or the built-in ones. With an area of operations,
+    those whose range ends short of it are left out, with a warning naming them;
+    the others are kept wherever they stand (the DEM is read around them too,
+    `crop_around`), since a post outside the area still sees into it."""
+    if s.no_outposts:
+        return []
+    features = read_outpost_features(s.outposts) if s.outposts else sample_outpost_features()
+    if s.area is None:
+        return features
+    kept, dropped = reaching(features, s.area)
+    for f, d in dropped:
+        warnings.warn(f"{f.source}: {f.label} left out: {d / 1000:.1f} km from the area, "
+                      f"beyond its {f.range_m / 1000:g} km range", stacklevel=3)
+    return kept
 
 
 def area_of(s: Scenario, terrain, polygons=None):
@@ -141,6 +177,27 @@ def area_of(s: Scenario, terrain, polygons=None):
         raise InputError(s.area_file, "the polygon covers no cell of the terrain (outside the "
                                       "DEM or the --area crop?)")
     return inside
+
+
+def areas(s: Scenario, terrain, polygons=None) -> tuple:
+    """(where targets are, where the fleet may fly): bool [rows, cols] masks, None
+    where nothing restricts it. Targets lie inside the ``area`` box (the DEM may be
+    read wider, around outposts outside it) and the ``area_file`` polygon; flight
+    stays inside the box, and inside the polygon with ``area_flight``."""
+    box = area_mask(terrain, [box_ring(s.area)]) if s.area is not None else None
+    shape = area_of(s, terrain, polygons)
+    return _both(box, shape), _both(box, shape if s.area_flight else None)
+
+
+def box_ring(area) -> list:
+    """The (south, west, north, east) box as an `area_mask` polygon (lon, lat ring)."""
+    s, w, n, e = area
+    return [np.array([[w, s], [e, s], [e, n], [w, n]], float)]
+
+
+def _both(a, b):
+    """The intersection of two optional masks (None: no restriction)."""
+    return b if a is None else a if b is None else a & b
 
 
 def restrict_surface(surface, inside):
@@ -422,6 +479,9 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
     }
+    if ctx.unseen is not None:
+        metrics["area"] = area_summary(ctx.terrain.cell_size, ctx.unseen,
+                                       ctx.visibility.target_cells, counts, required)
     metrics["radius_bound_s"], metrics["lower_bound_s"] = bounds
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)

@@ -31,6 +31,7 @@ class Scenario:
     geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
     # [outposts]
     outposts: Optional[str] = None  # GeoJSON file
+    no_outposts: bool = False  # an explicit choice: plan with no observer posts at all
     # [exposure]
     ceiling_agl_m: float = 120.0
     clearance_m: float = 30.0
@@ -64,6 +65,11 @@ class Scenario:
         checks = [
             (self.sample or self.dem, "no DEM given (use --dem FILE or --sample)"),
             (not (self.sample and self.dem), "give either --dem or --sample, not both"),
+            (not (self.outposts and self.no_outposts),
+             "give either --outposts or --no-outposts, not both"),
+            (self.outposts or self.sample or self.no_outposts,
+             "no outposts given: name the observer posts with --outposts FILE.geojson, or "
+             "say there are none with --no-outposts"),
             (self.uavs >= 1, f"uavs must be at least 1, got {self.uavs}"),
             (0 <= self.k < self.uavs,
              f"k must satisfy 0 <= k < uavs (k = {self.k}, uavs = {self.uavs}): "
@@ -158,7 +164,7 @@ def _positive(x) -> bool:
 SECTIONS = {
     "terrain": ("dem", "sample", "area", "area_file", "area_flight", "resolution_m",
                 "geoid_offset_m"),
-    "outposts": ("outposts",),
+    "outposts": ("outposts", "no_outposts"),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",

@@ -43,21 +43,22 @@ def _assert_clean_failure(status, err, out_dir, *phrases):
 
 def test_missing_dem(tmp_path, capsys):
     out = tmp_path / "out"
-    status, err = _run(capsys, "plan", "--dem", str(tmp_path / "nope.tif"), "-o", str(out))
+    status, err = _run(capsys, "plan", "--dem", str(tmp_path / "nope.tif"), "--no-outposts",
+                       "-o", str(out))
     _assert_clean_failure(status, err, out, "nope.tif", "no such file")
 
 
 def test_dem_without_crs(tmp_path, capsys):
     dem = _geotiff(tmp_path / "nocrs.tif", np.ones((20, 20)), crs=None)
     out = tmp_path / "out"
-    status, err = _run(capsys, "plan", "--dem", str(dem), "-o", str(out))
+    status, err = _run(capsys, "plan", "--dem", str(dem), "--no-outposts", "-o", str(out))
     _assert_clean_failure(status, err, out, "nocrs.tif", "no CRS")
 
 
 def test_all_nodata_dem(tmp_path, capsys):
     dem = _geotiff(tmp_path / "void.tif", np.full((20, 20), -9999.0), nodata=-9999.0)
     out = tmp_path / "out"
-    status, err = _run(capsys, "plan", "--dem", str(dem), "-o", str(out))
+    status, err = _run(capsys, "plan", "--dem", str(dem), "--no-outposts", "-o", str(out))
     _assert_clean_failure(status, err, out, "void.tif", "nodata")
 
 
@@ -141,7 +142,8 @@ def test_help_exits_zero(argv, capsys):
 def test_output_that_is_a_file_is_refused_before_any_work(tmp_path, capsys):
     out = tmp_path / "out.tif"
     out.write_bytes(b"mine")
-    status, err = _run(capsys, "plan", "--dem", str(tmp_path / "nope.tif"), "-o", str(out))
+    status, err = _run(capsys, "plan", "--dem", str(tmp_path / "nope.tif"), "--no-outposts",
+                       "-o", str(out))
     assert status == 2 and err.strip().splitlines()[-1] == \
         f"gcs plan: error: -o: {out} is a file, not a folder"  # not the DEM: checked first
     assert out.read_bytes() == b"mine"
@@ -159,8 +161,8 @@ def test_southern_and_western_coordinates_are_taken_as_typed():
 
 
 def test_warnings_are_one_line_in_the_users_words(tmp_path, capsys):
-    """A cropped sample leaves out the outposts outside it: one warning line, no
-    Python warning with its source line."""
+    """A cropped sample leaves out the outposts whose range ends short of it: one
+    warning line each, no Python warning with its source line."""
     out = tmp_path / "out"
     out.mkdir()
     (out / "vehicle-7.plan").write_text("{}")  # a former plan's vehicle: removed
@@ -168,7 +170,10 @@ def test_warnings_are_one_line_in_the_users_words(tmp_path, capsys):
                        "--uavs", "2", "--viewpoint-spacing", "600", "-o", str(out))
     assert status == 0, err
     warnings = [line for line in err.splitlines() if "warning:" in line.lower()]
-    assert warnings == ["gcs plan: warning: built-in sample_outposts.geojson: 2 outpost(s) "
-                        "outside the area were left out"]
+    assert warnings == [
+        "gcs plan: warning: built-in sample_outposts.geojson: feature 1 (Pine Mountain) left "
+        "out: 15.2 km from the area, beyond its 10 km range",
+        "gcs plan: warning: built-in sample_outposts.geojson: feature 2 (West knob) left out: "
+        "11.7 km from the area, beyond its 7 km range"]
     assert "UserWarning" not in err
     assert not (out / "vehicle-7.plan").exists() and (out / "vehicle-2.plan").exists()

@@ -6,6 +6,7 @@ printed as one line with exit status 2.
 """
 
 import argparse
+import difflib
 import importlib
 import re
 import sys
@@ -36,20 +37,51 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse without abbreviations (a flight tool does not guess which option was
+    meant: ``--uav`` is not ``--uavs``), and an unknown option reported by its own
+    command's parser, with the options it could have meant."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, allow_abbrev=False, **kwargs)
+        self.commands = {}
+
+    def parse_args(self, args=None, namespace=None):
+        parsed, extra = self.parse_known_args(args, namespace)
+        if extra:
+            command = self.commands.get(getattr(parsed, "command", None), self)
+            command.error(_unrecognized(command, extra))
+        return parsed
+
+
+def _unrecognized(parser, extra) -> str:
+    """'unrecognized arguments: ...', with "did you mean" for a misspelt option."""
+    text = f"unrecognized arguments: {' '.join(extra)}"
+    flags = [s for a in parser._actions for s in a.option_strings if s.startswith("--")]
+    for word in extra:
+        if word.startswith("--"):
+            close = difflib.get_close_matches(word.split("=")[0], flags, n=1, cutoff=0.6)
+            if close:
+                return f"{text} (did you mean {' or '.join(close)}?)"
+    return text
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="gcs",
         description="Plan hidden, reduced-time coverage missions for UAV fleets and fly them "
                     "on PX4 / ArduPilot vehicles.",
     )
     parser.add_argument("--version", action="version", version=f"gcs {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                                parser_class=argparse.ArgumentParser)
     for name, module in _available_commands():
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP,
-                             formatter_class=_HelpFormatter)
+                             formatter_class=_HelpFormatter, allow_abbrev=False)
         module.add_arguments(cmd)
         cmd.set_defaults(_run=module.run)
         cmd._negative_number_matcher = NEGATIVE_VALUE
+        parser.commands[name] = cmd
     return parser
 
 

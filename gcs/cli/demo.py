@@ -34,16 +34,18 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
-    from gcs.cli.views import plan_summary
-    from gcs.plan_folder import check_output_dir, write_plan_folder
-    from gcs.progress import console, stage_progress
-    from planner.pipeline import plan_mission
-    from planner.scenario import make_scenario, read_scenario
+    from common.fileio import check_output_dir
 
     if not 0 < args.kill_at < 1:
         raise InputError("--kill-at", f"must be between 0 and 1, got {args.kill_at}")
     out = Path(args.output)
     check_output_dir(out)  # files in it are replaced, never the folder wiped
+    from gcs.cli.views import plan_summary
+    from gcs.plan_folder import write_plan_folder
+    from gcs.progress import console, stage_progress
+    from planner.pipeline import plan_mission
+    from planner.scenario import make_scenario, read_scenario
+
     plan_dir, flight_dir = out / "plan", out / "flight"
     scenario_file = resources.files("gcs.data").joinpath(SCENARIO)
     with resources.as_file(scenario_file) as path:

@@ -53,9 +53,15 @@ def run(args) -> int:
     options = MissionOptions(camera=not flag("no_camera"), hold_s=args.hold,
                              speed_mps=None if flag("no_speed") else plan.params.get("speed_mps"))
     surface = None if flag("no_check") else _surface(plan_dir, plan)
-    written = export_plan_dir(getattr(args, "output", plan_dir), plan,
-                              getattr(args, "firmware", None), surface, options=options,
+    output = Path(getattr(args, "output", plan_dir))
+    firmware = getattr(args, "firmware", None)
+    written = export_plan_dir(output, plan, firmware, surface, options=options,
                               formats=formats, fences=not flag("no_fences"))
+    if firmware and firmware != plan.params.get("firmware") and \
+            output.resolve() == plan_dir.resolve():
+        # the plan folder's files are now for this firmware: plan.json says so too
+        plan.params["firmware"] = firmware
+        written.append((plan.save(plan_dir), f"its firmware is now {firmware}"))
     for path, what in written:
         console.print(f"  {path}  [dim]{what}[/dim]", highlight=False)
     return 0

@@ -95,6 +95,9 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                          help="with --area-file: fly only inside the polygon too")
     terrain.add_argument("--outposts", metavar="GEOJSON",
                          help="outposts: GeoJSON Points with height_m and optional range_m")
+    terrain.add_argument("--no-outposts", action="store_true", default=None,
+                         help="plan with no observer posts at all (an explicit choice: without "
+                              "it, --outposts is required, except with --sample)")
     for name in ("resolution_m", "geoid_offset_m"):
         _add(terrain, name, float)
     fields_of = {

@@ -1,5 +1,6 @@
 """`gcs plan`: DEM and outposts in, hidden reduced-time coverage routes and mission files out."""
 
+from common.fileio import check_output_dir
 from gcs.cli.options import add_scenario_arguments, scenario_from_args
 
 HELP = "plan hidden coverage routes for a UAV fleet and write the mission files"
@@ -15,13 +16,13 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    scenario = scenario_from_args(args)   # option errors before any heavy import
+    check_output_dir(args.output)
     from gcs.cli.views import plan_summary
-    from gcs.plan_folder import check_output_dir, write_plan_folder
+    from gcs.plan_folder import write_plan_folder
     from gcs.progress import console, stage_progress
     from planner.pipeline import plan_mission
 
-    scenario = scenario_from_args(args)
-    check_output_dir(args.output)
     with stage_progress() as progress:
         ctx, outcome = plan_mission(scenario, progress, scheduler=args.scheduler or "auto",
                                     log=lambda text: console.print(text, markup=False))

@@ -98,6 +98,8 @@ def run(args) -> int:
     link = open_link(args, expect)
     try:
         pairs = match(list(link.vehicles), routes, assign)
+        for sysid, route in pairs:      # every pair, before anything is sent to any
+            route.checked(_firmware(link.vehicles[sysid], args.firmware), sysid)
         results = _upload_all(link, pairs, args.firmware, protocol)
     finally:
         link.close()
@@ -125,17 +127,30 @@ def _upload_all(link, pairs, firmware_choice, protocol) -> list:
         return [job.result() for job in jobs]
 
 
-def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
+def _firmware(vehicle, choice) -> str:
+    """The firmware whose mission ``vehicle`` is given: ``--firmware``, or its own
+    (a generic autopilot is given PX4's)."""
     from autopilots import PX4
+
+    own = vehicle.profile.name if vehicle.profile is not None else None
+    if choice == "auto":
+        return own or PX4
+    if own is not None and own != choice:
+        raise InputError("--firmware", f"vehicle {vehicle.sysid} runs {vehicle.profile.title}, "
+                                       f"not {choice}: leave --firmware out to give each "
+                                       "vehicle its own firmware's mission")
+    return choice
+
+
+def _upload_one(vehicle, route, firmware_choice, bars, protocol) -> dict:
     from gcs import mission_protocol as mp
 
-    firmware = firmware_choice if firmware_choice != "auto" else \
-        (vehicle.profile.name if vehicle.profile is not None else PX4)
+    firmware = _firmware(vehicle, firmware_choice)
     result = {"sysid": vehicle.sysid, "flavour": vehicle.flavour, "route": route.id,
               "firmware": firmware, "items": 0, "error": None, "seconds": 0.0}
     t0 = time.monotonic()
     try:
-        mission = route.checked(firmware)     # checked before connecting; cached
+        mission = route.checked(firmware, vehicle.sysid)   # checked before; cached
         result["items"] = len(mission)
         task = bars.add_task(f"vehicle {vehicle.sysid} <- route {route.id}",
                              total=2 * len(mission))

@@ -33,9 +33,34 @@ def plan_summary(plan) -> Group:
              f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f}{beside})" if ratio else
              f"coverage time {_minutes(m['coverage_time_s'])}")
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
-               f"UAVs ({100 * m['k_covered'] / max(m['targets'], 1):.1f} %); "
+               f"UAVs ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of the targets); "
                f"planned in {plan.timing_s.get('total', 0):.1f} s")
-    return Group(table, Text(cover), Text(targets))
+    lines = [table, Text(cover), Text(targets)] + [Text(t) for t in area_lines(plan)]
+    return Group(*lines)
+
+
+def area_lines(plan) -> list:
+    """What of the area of operations the plan sees, in km² and %, and why the rest
+    is not seen; and a line when the plan has no observers at all."""
+    out = []
+    if not plan.outposts:
+        out.append("no observers: planned with no outposts, nothing is hidden from anyone "
+                   "(the routes keep only the clearance and the ceiling)")
+    a = plan.metrics.get("area")
+    if not a:
+        return out
+    k = plan.metrics.get("k", 0)
+    out.append(f"area of operations {a['area_km2']:.2f} km²: {_part(a['visible'])} seen from "
+               f"some reachable hidden viewpoint, {_part(a['planned'])} planned (seen by "
+               f"k+1 = {k + 1} UAVs)")
+    unseen = [f"{_part(p)} {why}" for why, p in a["unseen"].items() if p["km2"] > 0]
+    if unseen:
+        out.append("not seen: " + "; ".join(unseen))
+    return out
+
+
+def _part(p) -> str:
+    return f"{p['km2']:.2f} km² ({p['pct']:.1f} %)"
 
 
 def _minutes(seconds) -> str:

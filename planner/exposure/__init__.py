@@ -17,10 +17,11 @@ from .surface import (
                       segment_hidden,
                       segments_clear,
                       segments_hidden,
+                      segments_under_ceiling,
                       surface_from_lowest,
 )
 
 __all__ = ["ExposureParams", "ExposureSurface", "Outpost", "compute_exposure", "is_hidden",
            "load_outposts", "lowest_seen", "outposts_to_geojson", "sample_outposts",
            "segment_clear", "segment_hidden", "segments_clear", "segments_hidden",
-           "surface_from_lowest"]
+           "segments_under_ceiling", "surface_from_lowest"]

@@ -791,10 +791,12 @@ def legs_hidden(h, cell, grad, eyes, a, b, curv, slack_m, horizons):
 # --- clearance above the terrain ---------------------------------------------------------------
 
 @njit(cache=True, parallel=True)
-def legs_min_height(h, a, b):
-    """Min over each leg a[k] -> b[k] ((u, v, z)) of altitude minus the bilinear
-    terrain (planner.exposure.los.gap_range); NaN next to a void."""
-    out = np.empty(a.shape[0])
+def legs_height_range(h, a, b):
+    """(min, max) over each leg a[k] -> b[k] ((u, v, z)) of altitude minus the
+    bilinear terrain (planner.exposure.los.gap_range), as [n, 2]; NaN next to a void."""
+    out = np.empty((a.shape[0], 2))
     for k in prange(a.shape[0]):
-        out[k] = gap_range(h, a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2], False)[0]
+        lo, hi = gap_range(h, a[k, 0], a[k, 1], a[k, 2], b[k, 0], b[k, 1], b[k, 2], False)
+        out[k, 0] = lo
+        out[k, 1] = hi
     return out

@@ -37,16 +37,46 @@ class Outpost:
 # --- GeoJSON -------------------------------------------------------------------------------
 
 SAMPLE_FILE = "sample_outposts.geojson"
+#: around an outpost outside the area of operations, the DEM is read this far too
+CROP_MARGIN_M = 500.0
+#: what an outpost Feature's properties may hold
+KNOWN_PROPERTIES = frozenset({"name", "height_m", "range_m"})
+#: styling that map tools add (simplestyle-spec, as geojson.io and our routes.geojson write)
+STYLE_PROPERTIES = frozenset({"title", "description", "marker-size", "marker-symbol",
+                              "marker-color", "stroke", "stroke-opacity", "stroke-width",
+                              "fill", "fill-opacity"})
+
+
+@dataclass(frozen=True)
+class PostFeature:
+    """An outpost as its GeoJSON Feature says, before it is placed on a terrain."""
+
+    index: int
+    lon: float
+    lat: float
+    height_m: float
+    range_m: float
+    name: str  # as given ("" when none)
+    source: str
+
+    @property
+    def label(self) -> str:
+        return f"feature {self.index}" + (f" ({self.name})" if self.name else "")
 
 
 def load_outposts(path, terrain) -> list:
     """Outposts from a GeoJSON FeatureCollection of Points (lon, lat, WGS 84).
 
     Feature properties: ``height_m`` eye height above ground (default 2),
-    ``range_m`` detection range (absent or null: unlimited), ``name`` (optional).
-    Positions are converted to the terrain's CRS; a post must stand on the
-    terrain, not outside it or on a void.
+    ``range_m`` detection range (absent or null: unlimited), ``name`` (optional);
+    anything else but map styling is an error. Positions are converted to the
+    terrain's CRS; a post must stand on the terrain, not outside it or on a void.
     """
+    return place_outposts(read_outpost_features(path), terrain)
+
+
+def read_outpost_features(path) -> list:
+    """`PostFeature` per Feature of a GeoJSON file, checked (no terrain needed)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -54,26 +84,66 @@ def load_outposts(path, terrain) -> list:
         raise InputError(path, "no such file") from None
     except (OSError, UnicodeDecodeError) as exc:
         raise InputError(path, f"cannot read it ({exc})") from None
-    return _parse_outposts(text, terrain, path)
+    return _parse_features(text, path)
+
+
+def sample_outpost_features() -> list:
+    """The built-in outposts that go with `planner.terrain.sample_terrain`."""
+    text = resources.files("planner.data").joinpath(SAMPLE_FILE).read_text(encoding="utf-8")
+    return _parse_features(text, f"built-in {SAMPLE_FILE}")
 
 
 def sample_outposts(terrain) -> list:
-    """The built-in outposts that go with `planner.terrain.sample_terrain`.
-
-    On a sample cropped with ``area``, posts outside the crop are left out:
-    their lines of sight would cross terrain the crop no longer holds.
-    """
-    text = resources.files("planner.data").joinpath(SAMPLE_FILE).read_text(encoding="utf-8")
-    data = json.loads(text)
-    inside = [f for f in data["features"]
-              if terrain.contains_xy(*terrain.from_lonlat(*f["geometry"]["coordinates"]))]
+    """The built-in outposts on a window of the sample terrain: those standing on it
+    (a warning names how many do not; `planner.pipeline` instead widens the crop
+    to keep every post that can see into the area)."""
+    features = sample_outpost_features()
+    inside = [f for f in features if terrain.contains_xy(*terrain.from_lonlat(f.lon, f.lat))]
     if not inside:
         raise InputError(f"built-in {SAMPLE_FILE}", "no built-in outpost lies inside the area")
-    if len(inside) < len(data["features"]):
-        warnings.warn(f"built-in {SAMPLE_FILE}: {len(data['features']) - len(inside)} "
+    if len(inside) < len(features):
+        warnings.warn(f"built-in {SAMPLE_FILE}: {len(features) - len(inside)} "
                       "outpost(s) outside the area were left out", stacklevel=2)
-    return _parse_outposts(json.dumps(dict(data, features=inside)), terrain,
-                           f"built-in {SAMPLE_FILE}")
+    return place_outposts(inside, terrain)
+
+
+def place_outposts(features, terrain) -> list:
+    """Each `PostFeature` as an `Outpost` on ``terrain``; InputError naming a post
+    outside the DEM or on a void."""
+    return [_placed(f, terrain) for f in features]
+
+
+def reaching(features, area) -> tuple:
+    """(posts whose detection range reaches the area (south, west, north, east),
+    [(post, distance m)] of the others). A post outside the area still sees into
+    it: only one whose range ends short of it can be left out."""
+    kept, dropped = [], []
+    for f in features:
+        d = _distance_to_box(f.lon, f.lat, area)
+        (kept if d <= f.range_m else dropped).append(f if d <= f.range_m else (f, d))
+    return kept, dropped
+
+
+def crop_around(area, features, margin_m=CROP_MARGIN_M) -> tuple:
+    """The smallest (south, west, north, east) holding ``area`` and every post of
+    ``features``, ``margin_m`` around the posts: terrain their sight lines cross
+    on the way into the area must be in the grid."""
+    s, w, n, e = area
+    for f in features:
+        dlat = margin_m / 111_320.0
+        dlon = dlat / max(math.cos(math.radians(f.lat)), 1e-6)
+        s, w = min(s, f.lat - dlat), min(w, f.lon - dlon)
+        n, e = max(n, f.lat + dlat), max(e, f.lon + dlon)
+    return s, w, n, e
+
+
+def _distance_to_box(lon, lat, area) -> float:
+    """Metres from (lon, lat) to the nearest point of the box (0 inside), on a local
+    equirectangular projection (within a few metres over tens of km)."""
+    s, w, n, e = area
+    qlat, qlon = min(max(lat, s), n), min(max(lon, w), e)
+    k = math.cos(math.radians((lat + qlat) / 2))
+    return 6371008.8 * math.hypot(math.radians(lat - qlat), math.radians(lon - qlon) * k)
 
 
 def outposts_to_geojson(outposts) -> dict:
@@ -89,7 +159,7 @@ def outposts_to_geojson(outposts) -> dict:
     return {"type": "FeatureCollection", "features": features}
 
 
-def _parse_outposts(text: str, terrain, source) -> list:
+def _parse_features(text: str, source) -> list:
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
@@ -99,10 +169,10 @@ def _parse_outposts(text: str, terrain, source) -> list:
         raise InputError(source, "not a GeoJSON FeatureCollection")
     if not data["features"]:
         raise InputError(source, "no outposts (the FeatureCollection is empty)")
-    return [_outpost(i, f, terrain, source) for i, f in enumerate(data["features"])]
+    return [_feature(i, f, source) for i, f in enumerate(data["features"])]
 
 
-def _outpost(index: int, feature, terrain, source) -> Outpost:
+def _feature(index: int, feature, source) -> PostFeature:
     props = (feature.get("properties") if isinstance(feature, dict) else None) or {}
     name = props.get("name") if isinstance(props, dict) else None
     label = f"feature {index}" + (f" ({name})" if name else "")
@@ -114,6 +184,13 @@ def _outpost(index: int, feature, terrain, source) -> Outpost:
         fail("not a GeoJSON Feature")
     if not isinstance(props, dict):
         fail("properties must be an object")
+    unknown = sorted(set(props) - KNOWN_PROPERTIES - STYLE_PROPERTIES)
+    if unknown:
+        # a misspelt height_m would leave the eye at the default 2 m, lower than the
+        # real one: it sees less than it does, which is the unsafe side
+        fail(f"unknown propert{'y' if len(unknown) == 1 else 'ies'} "
+             f"{', '.join(map(repr, unknown))}; an outpost has "
+             f"{', '.join(sorted(KNOWN_PROPERTIES))} (and map styling such as marker-color)")
     geometry = feature.get("geometry") or {}
     if not isinstance(geometry, dict) or geometry.get("type") != "Point":
         kind = geometry.get("type") if isinstance(geometry, dict) else None
@@ -126,14 +203,21 @@ def _outpost(index: int, feature, terrain, source) -> Outpost:
         fail(f"coordinates {coords[:2]} are not lon, lat degrees")
     height = _number(props, "height_m", DEFAULT_HEIGHT_M, fail, minimum=0.0)
     range_m = _number(props, "range_m", math.inf, fail, minimum=0.0, strict=True)
-    x, y = terrain.from_lonlat(lon, lat)
+    return PostFeature(index, lon, lat, height, range_m, str(name) if name else "", str(source))
+
+
+def _placed(f: PostFeature, terrain) -> Outpost:
+    def fail(problem):
+        raise InputError(f.source, f"{f.label}: {problem}")
+
+    x, y = terrain.from_lonlat(f.lon, f.lat)
     if not terrain.contains_xy(x, y):
-        fail(f"lon {lon:.6f}, lat {lat:.6f} is outside the DEM")
+        fail(f"lon {f.lon:.6f}, lat {f.lat:.6f} is outside the DEM")
     ground = float(terrain.exact_ground(x, y)[0])
     if not (np.isfinite(terrain.ground(x, y)[0]) and np.isfinite(ground)):
-        fail(f"lon {lon:.6f}, lat {lat:.6f} is on a void of the DEM (no ground height)")
-    return Outpost(x=float(x), y=float(y), height_m=height, range_m=range_m, lon=lon, lat=lat,
-                   name=str(name) if name else f"O{index + 1}", ground_m=ground)
+        fail(f"lon {f.lon:.6f}, lat {f.lat:.6f} is on a void of the DEM (no ground height)")
+    return Outpost(x=float(x), y=float(y), height_m=f.height_m, range_m=f.range_m, lon=f.lon,
+                   lat=f.lat, name=f.name or f"O{f.index + 1}", ground_m=ground)
 
 
 def _number(props, key, default, fail, minimum, strict=False) -> float:

@@ -172,9 +172,21 @@ def segment_clear(surface, a_xyz, b_xyz) -> bool:
 def segments_clear(surface, a_xyz, b_xyz) -> np.ndarray:
     terrain = surface.terrain
     a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
-    lowest = k.legs_min_height(np.ascontiguousarray(terrain.upper, np.float64), a, b)
+    lowest = k.legs_height_range(np.ascontiguousarray(terrain.upper, np.float64), a, b)[:, 0]
     with np.errstate(invalid="ignore"):
         return inside & (lowest >= surface.params.clearance_m - 1e-6)
+
+
+def segments_under_ceiling(surface, a_xyz, b_xyz) -> np.ndarray:
+    """Exact, per leg a[k] -> b[k]: every point at most ceiling_agl_m above the
+    terrain, measured from its lower surface (the highest the height above the
+    real ground can be); False over a void. The ceiling is the legal limit the
+    plan was made under (120 m by default), part of what every mission satisfies."""
+    terrain = surface.terrain
+    a, b, inside = _legs_grid(terrain, a_xyz, b_xyz)
+    highest = k.legs_height_range(_heights(terrain), a, b)[:, 1]
+    with np.errstate(invalid="ignore"):
+        return inside & (highest <= surface.params.ceiling_agl_m + 1e-6)
 
 
 # --- helpers ----------------------------------------------------------------------------------

@@ -7,9 +7,10 @@ synthetic (seeded test terrains).
 """
 
 from .dem import load_dem, sample_terrain, utm_crs
-from .geotiff import read_terrain, write_grid, write_terrain
+from .geotiff import read_grid, read_terrain, write_grid, write_terrain
 from .grid import Terrain, bilinear
 from .synthetic import FAMILIES, synthetic_terrain
 
-__all__ = ["FAMILIES", "Terrain", "bilinear", "load_dem", "read_terrain", "sample_terrain",
+__all__ = ["FAMILIES", "Terrain", "bilinear", "load_dem", "read_grid", "read_terrain",
+           "sample_terrain",
            "synthetic_terrain", "utm_crs", "write_grid", "write_terrain"]

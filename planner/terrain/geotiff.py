@@ -51,6 +51,19 @@ def write_terrain(path, terrain: Terrain) -> None:
                descriptions=TERRAIN_BANDS)
 
 
+def read_grid(path, shape) -> np.ndarray:
+    """Band 1 of a grid `write_grid` wrote, in its own dtype; InputError unless it
+    has ``shape`` (the working grid's)."""
+    try:
+        with rasterio.open(path) as ds:
+            band = ds.read(1)
+    except RasterioIOError:
+        raise InputError(path, "not a raster GDAL can read") from None
+    if band.shape != tuple(shape):
+        raise InputError(path, f"not on the working grid ({band.shape}, not {tuple(shape)})")
+    return band
+
+
 def read_terrain(path) -> Terrain:
     """A working-grid terrain GeoTIFF (as written by `write_grid`) as a `Terrain`."""
     path = Path(path)
