@@ -98,6 +98,14 @@ class Autopilot:
         return int(found.group(1)) if found else None
 
     # -- modes --------------------------------------------------------------------
+    @property
+    def commanded_modes(self) -> frozenset:
+        """The modes a ground station puts a flying vehicle in (or the autopilot
+        itself at a mission's end): in any other (RTL, LAND, a pilot's mode) it
+        flies what nobody proved hidden."""
+        return frozenset({self.hold_mode, self.mission_mode, self.guided_mode,
+                          self.mission_end_mode})
+
     def modes(self, mav_type: int = 2) -> dict:
         """Mode name -> HEARTBEAT custom_mode for this vehicle type."""
         raise NotImplementedError

@@ -202,6 +202,12 @@ def wait_ready(link, timeout_s: float = 60.0) -> None:
               lambda s: f"not ready to arm after {timeout_s:g} s: {_readiness(s)}")
 
 
+def wait_position(link, timeout_s: float = 60.0) -> None:
+    """Wait until the vehicle reports where it is; CommandError after ``timeout_s``."""
+    _wait_for(link, lambda s: s.lat is not None, timeout_s,
+              lambda s: f"no position reported after {timeout_s:g} s: {_readiness(s)}")
+
+
 def _readiness(s) -> str:
     missing = []
     if s.gps_fix < M.GPS_FIX_TYPE_3D_FIX:
@@ -251,6 +257,8 @@ def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
 
 #: wall seconds between arming attempts refused while the vehicle gets ready
 ARM_RETRY_S = 1.0
+#: takeoffs tried when the vehicle disarmed itself on the ground before climbing
+TAKEOFF_ATTEMPTS = 3
 
 
 class _StartRun:
@@ -301,24 +309,34 @@ class _StartRun:
         if climb < 1.0:
             raise CommandError(link, f"takeoff altitude {self.takeoff_alt_amsl:.1f} m AMSL is "
                                      f"not above home ({home_alt:.1f} m AMSL)")
-        for attempt in range(2):
+        target = climb - max(1.0, 0.05 * climb)
+        for attempt in range(TAKEOFF_ATTEMPTS):
             try:
-                command_long(link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,
-                             retries=self.retries)
-                break
-            except CommandError as exc:
-                # on a lossy link the first ACK may be lost; the retry is then refused
-                # because the takeoff is already under way
-                if exc.result is not None and _climbing(link):
-                    break
+                self._send_takeoff(climb)
+                _wait_airborne(link, self.armed_at, lambda s: (s.relative_alt or 0.0) >= target,
+                               self.climb_timeout_s, f"climbing to {climb:.1f} m above home")
+                return
+            except CommandError:
                 # ArduPilot disarms itself idle on the ground (DISARM_DELAY, 10 s: at a
-                # high --speedup a fraction of a wall second before the takeoff came)
-                if attempt or exc.result is None or not _disarmed_since(link, self.armed_at):
+                # high --speedup a fraction of a wall second, which a busy ground
+                # station may take between the arming and the takeoff): arm again
+                if attempt + 1 == TAKEOFF_ATTEMPTS or not self._disarmed_on_the_ground():
                     raise
                 self.arm()
-        target = climb - max(1.0, 0.05 * climb)
-        _wait_airborne(link, self.armed_at, lambda s: (s.relative_alt or 0.0) >= target,
-                       self.climb_timeout_s, f"climbing to {climb:.1f} m above home")
+
+    def _send_takeoff(self, climb) -> None:
+        try:
+            command_long(self.link, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, climb,
+                         retries=self.retries)
+        except CommandError as exc:
+            # on a lossy link the first ACK may be lost; the retry is then refused
+            # because the takeoff is already under way
+            if exc.result is None or not _climbing(self.link):
+                raise
+
+    def _disarmed_on_the_ground(self) -> bool:
+        return _disarmed_since(self.link, self.armed_at) and \
+            abs(self.link.state.relative_alt or 0.0) < 1.0
 
     def airborne(self, _=None) -> None:
         _wait_airborne(self.link, self.armed_at, lambda s: (s.relative_alt or 0.0) > 1.0,
@@ -361,4 +379,4 @@ def _home_alt(link) -> float:
 
 
 __all__ = ["CommandError", "arm", "autopilot", "command_int", "command_long", "disarm",
-           "set_current", "set_mode", "start_mission", "wait_ready"]
+           "set_current", "set_mode", "start_mission", "wait_position", "wait_ready"]

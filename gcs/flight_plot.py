@@ -243,7 +243,8 @@ def draw_timeline(ax, report, clock) -> None:
 
 
 def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
-    """A vehicle's altitude (AMSL) over mission time, the terrain under it and the
+    """A vehicle's altitude (AMSL) over mission time, the ground under it (the plan's
+    ground for clearance, so the gap shown is the clearance it is guaranteed) and the
     hidden ceiling above it (NaN where the point is not in the flyable region)."""
     c = vehicle_colour(v["vehicle"])
     ax.set_title(f"sysid {v['sysid']} (UAV {v['vehicle']}): altitude, metres AMSL",
@@ -255,11 +256,11 @@ def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
     tt = clock.track_time(v)
     x, y = terrain.from_lonlat(t[:, 1], t[:, 2])
     row, col = terrain.rowcol(x, y)
-    ground = bilinear(terrain.height, row, col)
+    ground = bilinear(terrain.upper, row, col)   # the ground its clearance is kept from
     ceiling = bilinear(surface.ceiling, row, col)
     bottom = np.nanmin(ground) - 30 if np.isfinite(ground).any() else np.nanmin(t[:, 3]) - 30
     ax.fill_between(tt, bottom, ground, color=TERRAIN_FILL, alpha=0.6, linewidth=0,
-                    label="terrain under it")
+                    label="ground under it (for clearance: nowhere below the DEM)")
     ax.plot(tt, ceiling, "--", color=CEILING_LINE, linewidth=1.0,
             label="hidden ceiling there (fly below)")
     ax.plot(tt, t[:, 3], "-", color=c, linewidth=1.6, label="flown altitude")

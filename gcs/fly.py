@@ -186,6 +186,7 @@ class Flight:
                          name="replan-context").start()
         try:
             self.connect()
+            self.locate()
             self.upload()
             self.start()
             self._watch_and_answer(status, on_interrupt, on_timeout or (lambda: "home"))
@@ -305,10 +306,6 @@ class Flight:
 
     def start(self) -> None:
         m = self.monitor
-        self._all(lambda sysid: commands.wait_ready(m.links[sysid],
-                                                    self.options.ready_timeout_s),
-                  "start", commands.CommandError)
-        self.check_positions()
 
         def one(sysid):
             v = m.vehicles[sysid]
@@ -319,6 +316,15 @@ class Flight:
             m.set_state(sysid, FLYING)
 
         self._all(one, "start", commands.CommandError)
+
+    def locate(self) -> None:
+        """Wait for every vehicle's position (ArduPilot reports none before its EKF
+        has an origin), then `check_positions`: before anything is uploaded or armed."""
+        m = self.monitor
+        self._all(lambda sysid: commands.wait_position(m.links[sysid],
+                                                       self.options.ready_timeout_s),
+                  "locating", commands.CommandError)
+        self.check_positions()
 
     def check_positions(self) -> None:
         """Before anything is armed: every vehicle stands at its route's launch point
@@ -459,6 +465,11 @@ class Flight:
         if stranded:
             problems.append(f"vehicle(s) {', '.join(map(str, stranded))} stranded: held in "
                             "the air where no hidden leg joins them, left to the operator")
+        for sysid, v in sorted(m.vehicles.items()):
+            if v.uncommanded:
+                modes = ", ".join(f"{mode} at {t:.1f} s" for t, mode in v.uncommanded)
+                problems.append(f"vehicle {sysid} flew in modes gcs did not command ({modes}): "
+                                "what it flew there was not proven hidden")
         if flying:
             why = "timed out" if self.timed_out else (self.stopped or "stopped")
             problems.append(f"{why} with vehicle(s) {', '.join(map(str, flying))} in the air")

@@ -23,6 +23,7 @@ whose altitude goes below the terrain (the plan's DEM) + ``CRASH_MARGIN_M``
 away from its launch point, whether or not it disarms.
 """
 
+import collections
 import math
 import threading
 import time
@@ -103,6 +104,7 @@ class VehicleProgress:
     disarmed_reports: int = 0  # position reports since
     relaunched: int = 0  # times sent up again after landing
     segments: int = 0  # segments sent in flight (a route longer than the vehicle holds)
+    uncommanded: list = field(default_factory=list)  # [(t_s, mode)] flown in, not commanded
 
     @property
     def snapshot_total(self) -> int:
@@ -138,6 +140,38 @@ class VehicleProgress:
         return positions[-1]
 
 
+class StallClock:
+    """How long this ground station itself stood still: a thread that wakes every
+    `PERIOD_S` records each gap longer than that (the process starved of CPU by a
+    busy machine, or held by a long computation). Silence heard while the ground
+    station was not listening is no evidence that a vehicle is gone."""
+
+    PERIOD_S = 0.05
+    KEPT = 4096          # gaps remembered (the oldest are dropped)
+
+    def __init__(self):
+        self._gaps = collections.deque(maxlen=self.KEPT)    # (start, end), monotonic
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="stall-clock", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        last = time.monotonic()
+        while not self._stop.wait(self.PERIOD_S):
+            now = time.monotonic()
+            if now - last > 2 * self.PERIOD_S:
+                self._gaps.append((last + self.PERIOD_S, now))
+            last = now
+
+    def stalled(self, since: float) -> float:
+        """Seconds since monotonic time ``since`` this process did not run."""
+        return sum(max(0.0, end - max(start, since)) for start, end in list(self._gaps)
+                   if end > since)
+
+    def stop(self) -> None:
+        self._stop.set()
+
+
 class Monitor:
     """Telemetry of every vehicle of a flight, on one clock (seconds since `t0`)."""
 
@@ -146,6 +180,7 @@ class Monitor:
         DEM, to tell a vehicle that went below it; None: not judged."""
         self.lost_after_s = float(lost_after_s)
         self.ground = ground
+        self.stalls = StallClock()
         self.t0 = time.monotonic()
         self.vehicles = {}  # sysid -> VehicleProgress
         self.links = {}  # sysid -> VehicleLink
@@ -172,6 +207,7 @@ class Monitor:
         for unsubscribe in self._unsubscribe:
             unsubscribe()
         self._unsubscribe = []
+        self.stalls.stop()
 
     def event(self, sysid, text: str, **extra) -> dict:
         entry = {"t_s": round(self.now(), 3), "sysid": sysid, "event": text, **extra}
@@ -239,11 +275,27 @@ class Monitor:
         armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
         agl = self.links[v.sysid].state.relative_alt
         _note_airborne(v, armed, agl)
+        if v.airborne and armed:
+            self._judge_mode(v)
         if v.airborne and not armed and v.state != LANDED and v.disarmed_at_s is None:
             # position reports lag the touchdown: judge by the next ones
             v.disarmed_at_s = self.now()
             v.disarmed_reports = 0
             self._judge_disarm(v, agl)
+
+    def _judge_mode(self, v) -> None:
+        """In the air in a mode the ground station did not command (a pilot took
+        over, a failsafe fired: RTL, LAND): what it flies now is not proven hidden.
+        Each such mode is an event and a problem of the flight (`uncommanded`)."""
+        link = self.links[v.sysid]
+        profile = getattr(link, "profile", None)
+        mode = link.state.mode
+        if profile is None or mode is None or mode in profile.commanded_modes:
+            return
+        if not v.uncommanded or v.uncommanded[-1][1] != mode:
+            v.uncommanded.append((round(self.now(), 3), mode))
+            self.event(v.sysid, f"flying in {mode}, a mode gcs did not command (a pilot's or "
+                                "a failsafe's): what it flies there is not proven hidden")
 
     def _judge_disarm(self, v, agl) -> None:
         """Disarmed after flying: on the ground or still falling? On the ground it
@@ -376,13 +428,22 @@ class Monitor:
                         v._reported = True
                         lost.append(sysid)
                     continue
-                age = self.links[sysid].heartbeat_age()
-                if age > self.lost_after_s:
+                if self.silent(sysid):
+                    age = self.links[sysid].heartbeat_age()
                     self._lose(v, f"no HEARTBEAT for {age:.1f} s")
                     v._reported = True
                     lost.append(sysid)
             self._untaken.extend(lost)
         return lost
+
+    def silent(self, sysid) -> bool:
+        """No HEARTBEAT from ``sysid`` for ``lost_after_s`` of the time this ground
+        station was running (`StallClock`: a starved ground station hears nothing
+        from anyone, and would otherwise lose its whole fleet at once)."""
+        age = self.links[sysid].heartbeat_age()
+        if age <= self.lost_after_s:
+            return False
+        return age - self.stalls.stalled(time.monotonic() - age) > self.lost_after_s
 
     def take_losses(self) -> list:
         """Vehicles found lost since the last call, by any `check_losses` (a loss

@@ -18,6 +18,23 @@ from planner import plan as plan_files
 from planner.terrain import write_grid, write_terrain
 
 
+VOIDS_FILE = "voids.tif"
+
+
+def void_grid(terrain):
+    """uint8 grid of the DEM's voids (1 filled by interpolation, 2 no data), None
+    when it has none."""
+    filled = terrain.meta.get("filled_mask")
+    missing = ~terrain.valid
+    if filled is None and not missing.any():
+        return None
+    grid = np.zeros(terrain.shape, np.uint8)
+    if filled is not None:
+        grid[filled] = 1
+    grid[missing] = 2
+    return grid
+
+
 def coverage_grid(ctx, counts) -> np.ndarray:
     """int16 grid: distinct UAVs seeing each target cell, -1 outside S_c."""
     grid = np.full(ctx.terrain.shape, -1, np.int16)
@@ -49,6 +66,10 @@ def write_plan_folder(directory, ctx, outcome) -> list:
         written = [(staging / plan_files.PLAN_FILE, "the plan: routes, times, metrics"),
                    (staging / plan_files.TERRAIN_FILE, "working-grid DEM, metres AMSL: "
                     "band 1 for line of sight, band 2 for clearance")]
+        voids = void_grid(ctx.terrain)
+        if voids is not None:
+            grids.append((VOIDS_FILE, voids, None, "DEM voids: 1 = filled by interpolation "
+                          "(terrain lowered and clearance raised there), 2 = no data"))
         for name, grid, nodata, what in grids:
             write_grid(staging / name, grid, ctx.terrain, nodata=nodata)
             written.append((staging / name, what))

@@ -195,7 +195,7 @@ class Retasker:
             # within the room its takeoff column is proven with, as before the first start
             if distance_m(launch.lat, launch.lon, state.lat, state.lon) > \
                     max(self.ctx.scenario.track_tolerance_m, MIN_LAUNCH_TOLERANCE_M) \
-                    or m.links[s].heartbeat_age() > m.lost_after_s:
+                    or m.silent(s):
                 continue
             out.append(s)
         return out

@@ -30,6 +30,7 @@ from planner.exposure.outposts import (
 )
 from planner.terrain import load_dem, sample_terrain
 from planner.terrain.area import area_mask, read_area
+from planner.terrain.dem import VOID_FILL_MARGIN_M
 from planner.travel import build_travel_graph, leg_time
 from planner.visibility import (
     candidate_viewpoints,
@@ -479,6 +480,9 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
     }
+    if ctx.terrain.meta.get("filled_at"):
+        metrics["filled_voids"] = {"at": ctx.terrain.meta["filled_at"],
+                                   "margin_m": VOID_FILL_MARGIN_M}
     if ctx.unseen is not None:
         metrics["area"] = area_summary(ctx.terrain.cell_size, ctx.unseen,
                                        ctx.visibility.target_cells, counts, required)

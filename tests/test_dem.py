@@ -13,7 +13,13 @@ from pyproj import Transformer
 
 from common.errors import InputError
 from planner.terrain import FAMILIES, read_terrain, synthetic_terrain, write_grid
-from planner.terrain.dem import MAX_FILLED_VOID_CELLS, load_dem, sample_terrain, utm_crs
+from planner.terrain.dem import (
+    MAX_FILLED_VOID_CELLS,
+    VOID_FILL_MARGIN_M,
+    load_dem,
+    sample_terrain,
+    utm_crs,
+)
 
 N = 1201  # samples per side of a 3" SRTM tile
 D = 1.0 / (N - 1)
@@ -151,13 +157,29 @@ def test_small_voids_filled_with_warning_large_voids_stay_nan(tmp_path):
     large = (slice(700, 720), slice(300, 320))  # 400 cells > MAX_FILLED_VOID_CELLS
     assert 12 <= MAX_FILLED_VOID_CELLS < 400
     path = write_hgt(tmp_path, "N36W085.hgt", 36, -85, voids=[small, large])
-    with pytest.warns(UserWarning, match=r"filled 1 small void\(s\) \(12 cells\).*1 larger"):
+    with pytest.warns(UserWarning, match=r"filled 1 small void\(s\) \(12 source cells\) by "
+                                         r"interpolation at 36\.58\d+,-84\.49\d+ \(12 cells\)"
+                                         r".*raised by 20 m; 1 larger"):
         terrain = load_dem([path])
     assert terrain.meta["filled_voids"] == 1 and terrain.meta["unfilled_voids"] == 1
-    # Harmonic filling reproduces a plane exactly.
+    # Harmonic filling reproduces a plane exactly; the surfaces stand the void margin off it
     lon_s, lat_s = -85 + 601.5 * D, 37 - 501 * D
     assert_bracketed(terrain, np.array([lon_s]), np.array([lat_s]),
-                     plane(lon_s, lat_s), band=0.01)
+                     plane(lon_s, lat_s), band=2 * VOID_FILL_MARGIN_M + 0.01)
+    x, y = terrain.from_lonlat(lon_s, lat_s)
+    assert terrain.ground(x, y)[0] <= plane(lon_s, lat_s) - VOID_FILL_MARGIN_M + 0.01
+    assert terrain.ground(x, y, upper=True)[0] >= plane(lon_s, lat_s) + VOID_FILL_MARGIN_M - 0.01
+    place = terrain.meta["filled_at"][0]
+    assert place["cells"] == 12
+    assert abs(place["lat"] - (37 - 502 * D)) < D and abs(place["lon"] - (-85 + 602 * D)) < D
+    # the margin reaches the working cells around the void and no further
+    mask = terrain.meta["filled_mask"]
+    rows, cols = np.nonzero(mask)
+    assert mask.sum() < 200
+    far = terrain.xy(rows.max() + 3, cols.max() + 3)
+    lon_f, lat_f = terrain.to_lonlat(*far)
+    assert_bracketed(terrain, np.array([lon_f]), np.array([lat_f]), plane(lon_f, lat_f),
+                     band=0.01)
     lon_l, lat_l = -85 + 310 * D, 37 - 710 * D
     assert np.isnan(heights_at(terrain, lon_l, lat_l)[0])
 
@@ -206,7 +228,11 @@ def test_geotiff_nodata_is_void(tmp_path):
     with pytest.warns(UserWarning, match="filled 1 small void"):
         terrain = load_dem([path])
     assert terrain.cell_size == pytest.approx(30)
-    assert np.nanmax(np.abs(terrain.height - 500)) < 1e-9
+    filled = terrain.meta["filled_mask"]
+    assert filled.any() and not filled.all()
+    assert np.nanmax(np.abs(terrain.height[~filled] - 500)) < 1e-9
+    np.testing.assert_allclose(terrain.height[filled], 500 - VOID_FILL_MARGIN_M)
+    np.testing.assert_allclose(terrain.upper[filled], 500 + VOID_FILL_MARGIN_M)
     assert np.isnan(terrain.ground(700000 + 130 * 30, 4050000 - 130 * 30)[0])
 
 

@@ -175,7 +175,8 @@ def test_upload_over_a_serial_line(planned, plan_copy, capsys):
     try:
         url = fleet.urls()[0]
         assert url.startswith("/dev/") and url.endswith(",57600")
-        path = plan_copy / "vehicle-1.plan"            # written for ArduPilot: home dropped
+        export_plan_dir(plan_copy, planned.plan, "px4", formats=("plan",))
+        path = plan_copy / "vehicle-1.plan"            # the file is PX4's, as the vehicle
         assert main(["upload", str(path), "--connect", url]) == 0
         assert mp.compare(qgc.read_plan_file(path, "px4"), stored(fleet), "px4") == []
     finally:

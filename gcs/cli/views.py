@@ -46,6 +46,11 @@ def area_lines(plan) -> list:
     if not plan.outposts:
         out.append("no observers: planned with no outposts, nothing is hidden from anyone "
                    "(the routes keep only the clearance and the ceiling)")
+    voids = plan.metrics.get("filled_voids")
+    if voids:
+        at = ", ".join(f"{v['lat']:.5f},{v['lon']:.5f} ({v['cells']} cells)" for v in voids["at"])
+        out.append(f"DEM voids filled by interpolation at {at}: there the terrain is lowered "
+                   f"and the clearance raised by {voids['margin_m']:g} m (voids.tif)")
     a = plan.metrics.get("area")
     if not a:
         return out

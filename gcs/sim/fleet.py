@@ -209,10 +209,12 @@ def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
 
 def terrain_ground(terrain):
     """(lat, lon) -> ground m AMSL on a `planner.terrain.Terrain`, for FleetConfig.terrain:
-    simulated vehicles then touch down (or crash) on the real relief."""
+    simulated vehicles then touch down (or crash) on the real relief. The ground is
+    the plan's ground for clearance (its upper surface, nowhere below the DEM), the
+    one its bases stand on: a vehicle lands where it took off."""
     def ground(lat: float, lon: float) -> float:
         x, y = terrain.from_lonlat(lon, lat)
-        return float(terrain.ground(x, y)[0])
+        return float(terrain.ground(x, y, upper=True)[0])
     return ground
 
 

@@ -20,7 +20,7 @@ The pipeline, the same for every input:
 
 import re
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +40,11 @@ from . import dem_kernels
 from .grid import Terrain, bilinear
 
 MAX_FILLED_VOID_CELLS = 64  # a void component up to this many source cells is interpolated
+#: over a filled void the terrain that hides is lowered, and the ground for clearance
+#: raised, by this much (m): Laplace interpolation over up to 64 cells of steep
+#: ground (where radar DEMs have their voids) misses the relief by metres to tens of
+#: metres, and neither a ridge that hides nor a knoll that rises may be taken on trust
+VOID_FILL_MARGIN_M = 20.0
 AREA_MARGIN_CELLS = 8  # source cells read beyond --area, for interpolation at its edge
 MAX_GRID_CELLS = 64_000_000  # refuse working grids larger than this (8000 x 8000)
 WARP_CHUNK_CELLS = 1 << 20  # working-grid cells transformed at once (bounds memory)
@@ -135,13 +140,14 @@ def fill_small_voids(height: np.ndarray, covered=None, max_cells=MAX_FILLED_VOID
     array border or uncovered cells (its true extent is unknown there). All
     filled voids are solved together as one sparse linear system: each filled
     cell is the mean of its 4 neighbours, known cells being fixed.
-    Returns (number of filled voids, filled cells, number of voids left).
+    Returns (number of filled voids, filled cells, number of voids left, bool mask
+    of the filled cells).
     """
     covered = np.ones(height.shape, bool) if covered is None else covered
     void = np.isnan(height) & covered
     labels, n = ndimage.label(void, structure=np.ones((3, 3), int))
     if n == 0:
-        return 0, 0, 0
+        return 0, 0, 0, np.zeros(height.shape, bool)
     sizes = np.bincount(labels.ravel(), minlength=n + 1)
     open_edge = ~covered
     open_edge[[0, -1], :] = True
@@ -154,7 +160,7 @@ def fill_small_voids(height: np.ndarray, covered=None, max_cells=MAX_FILLED_VOID
     if fill.any():
         height[fill] = _laplace_solve(height, fill)
     n_filled = int(fillable.sum())
-    return n_filled, int(fill.sum()), n - n_filled
+    return n_filled, int(fill.sum()), n - n_filled, fill
 
 
 # --- reading files -------------------------------------------------------------------------
@@ -303,14 +309,68 @@ def _area_window(crs, transform, shape, area):
 def _to_terrain(grids, area, resolution, source: str) -> Terrain:
     groups = [_merge(g) for g in _group_by_grid(grids)]
     filled = [fill_small_voids(g.height, g.covered) for g in groups]
-    n_filled = sum(f[0] for f in filled)
-    if n_filled:
-        warnings.warn(f"{source}: filled {n_filled} small void(s) ({sum(f[1] for f in filled)} "
-                      f"cells) by interpolation; {sum(f[2] for f in filled)} larger void(s) "
-                      "left as no data (not flyable, not targets)", stacklevel=3)
-    meta = {"filled_voids": n_filled, "filled_cells": sum(f[1] for f in filled),
+    meta = {"filled_voids": sum(f[0] for f in filled),
+            "filled_cells": sum(f[1] for f in filled),
             "unfilled_voids": sum(f[2] for f in filled),
             "sources": [g.source for g in grids]}
+    terrain = _working_terrain(groups, area, resolution, source, meta)
+    if meta["filled_voids"]:
+        terrain = _mark_filled(terrain, groups, [f[3] for f in filled])
+        warnings.warn(f"{source}: {filled_voids_text(terrain)}", stacklevel=3)
+    return terrain
+
+
+def filled_voids_text(terrain) -> str:
+    """What was filled and where, in one line (`Terrain.meta`'s ``filled_at``)."""
+    m = terrain.meta
+    at = m.get("filled_at", [])
+    where = ", ".join(f"{v['lat']:.5f},{v['lon']:.5f} ({v['cells']} cells)" for v in at[:5])
+    more = f" and {len(at) - 5} more" if len(at) > 5 else ""
+    return (f"filled {m['filled_voids']} small void(s) ({m['filled_cells']} source cells) by "
+            f"interpolation at {where}{more}: there the terrain that hides is lowered and the "
+            f"ground for clearance raised by {VOID_FILL_MARGIN_M:g} m; "
+            f"{m['unfilled_voids']} larger void(s) left as no data (not flyable, not targets)")
+
+
+def _mark_filled(terrain, groups, fills) -> Terrain:
+    """``terrain`` with the working cells whose surface depends on a filled source
+    cell (the patches around it) in ``meta["filled_mask"]``, with the voids'
+    places (``filled_at``), and `VOID_FILL_MARGIN_M` taken off the terrain that
+    hides and added to the ground for clearance there: the interpolation guesses
+    at ground nobody measured."""
+    mask = np.zeros(terrain.shape, bool)
+    places = []
+    for g, fill in zip(groups, fills):
+        if not fill.any():
+            continue
+        to_work = Transformer.from_crs(CRS.from_wkt(g.crs.to_wkt()), terrain.crs, always_xy=True)
+        rows, cols = np.nonzero(fill)
+        x, y = to_work.transform(*(g.transform * (cols + 0.5, rows + 0.5)))
+        wr, wc = terrain.rowcol(np.asarray(x), np.asarray(y))
+        # a source cell reaches as far as its own size into the working surface
+        x1, y1 = to_work.transform(*(g.transform * (cols[:1] + 1.5, rows[:1] + 1.5)))
+        reach = int(np.ceil(np.hypot(x1[0] - x[0], y1[0] - y[0]) / terrain.cell_size)) + 1
+        r, c = np.rint(wr).astype(int), np.rint(wc).astype(int)
+        ok = (r >= 0) & (c >= 0) & (r < terrain.shape[0]) & (c < terrain.shape[1])
+        here = np.zeros(terrain.shape, bool)
+        here[r[ok], c[ok]] = True
+        mask |= ndimage.binary_dilation(here, np.ones((3, 3), bool), iterations=reach)
+        labels, n = ndimage.label(fill, structure=np.ones((3, 3), int))
+        for k, where in enumerate(ndimage.find_objects(labels), start=1):
+            rr, cc = np.nonzero(labels[where] == k)
+            cx, cy = g.transform * (cc.mean() + where[1].start + 0.5,
+                                    rr.mean() + where[0].start + 0.5)
+            lon, lat = Transformer.from_crs(CRS.from_wkt(g.crs.to_wkt()), WGS84,
+                                            always_xy=True).transform(cx, cy)
+            places.append({"lat": float(lat), "lon": float(lon), "cells": int(len(rr))})
+    lower, upper = terrain.height.copy(), terrain.upper.copy()
+    lower[mask] -= VOID_FILL_MARGIN_M
+    upper[mask] += VOID_FILL_MARGIN_M
+    return replace(terrain, height=lower, height_upper=upper,
+                   meta={**terrain.meta, "filled_mask": mask, "filled_at": places})
+
+
+def _working_terrain(groups, area, resolution, source, meta) -> Terrain:
     own = _own_lattice(groups, area, resolution)
     if own is not None:
         height, transform, crs = own

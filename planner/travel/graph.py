@@ -679,7 +679,7 @@ class TravelGraph:
         while True:
             active = [k for k, leg in enumerate(legs) if leg is not None]
             if progress is not None:
-                progress(1.0 - len(active) / len(polys))
+                progress(1.0 - len(active) / max(len(polys), 1))
             if not active:
                 return kept
             ok = self.legs_ok(np.array([polys[k][legs[k][0]] for k in active]),
