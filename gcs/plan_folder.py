@@ -17,7 +17,6 @@ import numpy as np
 from planner import plan as plan_files
 from planner.terrain import write_grid, write_terrain
 
-
 VOIDS_FILE = "voids.tif"
 
 
