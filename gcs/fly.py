@@ -51,6 +51,7 @@ from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
 from missions.segments import RouteMissions, fewer_waypoints, leg_prover
 from planner.context import PlanningContext
+from planner.fleet import prove_separated
 from planner.plan import PLAN_FILE, Plan
 from planner.replan import coverable_targets, coverage_summary, seen_matrix
 
@@ -165,6 +166,10 @@ class Flight:
                     name=f"{self.plan_dir / PLAN_FILE}: vehicle {route.id}")
         self.missions = missions
         terrain = self.surface.terrain
+        # the fleet keeps apart as planned: proven again from what the missions fly
+        self.min_separation_m = prove_separated(self.plan, terrain,
+                                                self.ctx.scenario.travel_params(),
+                                                source=str(self.plan_dir / PLAN_FILE))
 
         def ground(lat, lon):
             x, y = terrain.from_lonlat(lon, lat)

@@ -281,14 +281,15 @@ class Retasker:
         for s in everyone:
             survivor, positions[s] = self._survivor(s, landed=s in landed)
             survivors.append(survivor)
-        seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone])
+        shots = [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone]
+        seen = seen_matrix(ctx, shots)
         record.survivors, record.starts = sorted(everyone), positions
         record.required_uavs = int(requirement(ctx, len(everyone))[1][0])
         record.seen_before = coverage_summary(ctx, seen, ctx.scenario.k)
         record.original = original_outlook(ctx, m, everyone, len(record.lost))
         try:
             required = np.zeros(ctx.visibility.n_targets, np.int32) if self.home else None
-            outcome = replan(ctx, survivors, seen, required=required)
+            outcome = replan(ctx, survivors, seen, required=required, snapshots=shots)
         except InputError as exc:
             raise RetaskError(f"re-plan failed: {exc}") from None
         record.planning_s = round(time.perf_counter() - t0, 3)

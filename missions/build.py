@@ -8,8 +8,9 @@ profile):
 - ``NAV_TAKEOFF`` straight up to the first waypoint's altitude, when the route
   starts above its launch point;
 - ``DO_CHANGE_SPEED`` to the speed the plan assumed (optional);
-- one ``NAV_WAYPOINT`` per vertex of the hidden polyline (``param1`` = hold at a
-  snapshot), followed at each snapshot by the firmware's camera command:
+- one ``NAV_WAYPOINT`` per vertex of the hidden polyline (``param1`` = the hold
+  the fleet's schedule puts there, plus a hover at a snapshot if asked), followed
+  at each snapshot by the firmware's camera command:
   ``DO_DIGICAM_CONTROL`` (ArduPilot) or ``IMAGE_START_CAPTURE`` (PX4);
 - ``NAV_LAND`` at the launch point, when the route ends above it. Never
   ``RETURN_TO_LAUNCH``: the autopilot would fly straight at its RTL altitude.
@@ -109,7 +110,8 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
     shots = shots_before
     for index in fly:
         w = waypoints[index]
-        hold = float(options.hold_s) if w.snapshot else 0.0
+        # the plan's own wait there (the fleet's schedule), and a hover before the shot
+        hold = float(getattr(w, "hold_s", 0.0)) + (float(options.hold_s) if w.snapshot else 0.0)
         out.add(_position(NAV_WAYPOINT, w.lat, w.lon, w.alt_amsl, p1=hold,
                           p2=float(options.acceptance_m), p4=yaw), waypoint=index)
         if w.snapshot and options.camera:

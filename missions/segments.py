@@ -41,7 +41,7 @@ def fewer_waypoints(route, prove=None) -> list:
     w = route.waypoints
     keep = []
     for i, p in enumerate(w):
-        if keep and _same_place(w[keep[-1]], p):
+        if keep and _same_place(w[keep[-1]], p) and not getattr(p, "hold_s", 0.0):
             if p.snapshot and not w[keep[-1]].snapshot:
                 keep[-1] = i                    # the snapshot is the one flown
             continue
@@ -51,7 +51,9 @@ def fewer_waypoints(route, prove=None) -> list:
     out = [keep[0]]
     for j in range(1, len(keep) - 1):
         i = keep[j]
-        if w[i].snapshot or not prove(w[out[-1]], w[keep[j + 1]]):
+        # a snapshot is flown, and so is a wait of the fleet's schedule
+        if w[i].snapshot or getattr(w[i], "hold_s", 0.0) > 0 or \
+                not prove(w[out[-1]], w[keep[j + 1]]):
             out.append(i)
     out.append(keep[-1])
     return out

@@ -44,6 +44,8 @@ from planner.visibility.unseen import area_summary, unseen_reasons
 from . import coverage, split
 from .context import PlanningContext, outposts_json
 from .coverage.metrics import last_needed_sighting
+from .coverage.problem import achievable
+from .fleet import FleetSchedule, Profile, schedule
 from .parallel import dask_client
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
@@ -59,6 +61,7 @@ class Start:
     xyz: np.ndarray  # projected x, y and altitude AMSL of the first route vertex
     launch: Optional[np.ndarray] = None  # ground point (x, y, ground AMSL) it returns to
     climb_s: float = 0.0  # vertical takeoff time before xyz, counted in the route's time
+    held: Optional[np.ndarray] = None  # in flight: where it stands now (it flies to xyz)
 
 
 @contextmanager
@@ -282,7 +285,8 @@ class Outcome:
 
 
 def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibility="soft",
-                     seen=None, required=None, travel=True) -> coverage.CoverageProblem:
+                     seen=None, required=None, travel=True,
+                     owner=None) -> coverage.CoverageProblem:
     """The combinatorial problem: visibility sets, viewpoint times, start/return times
     (``travel`` False: without the viewpoint times, for a plan made in parts)."""
     vis = ctx.visibility
@@ -298,7 +302,7 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
             back = ctx.graph.times_between(vp, tops).T + land
     return coverage.CoverageProblem(vis.indptr, vis.indices, vis.n_targets,
                                     ctx.travel if travel else None, out, back, n_uavs, k,
-                                    visibility, required, seen)
+                                    visibility, required, seen, owner)
 
 
 def above_launch(ctx, ground_xyz) -> np.ndarray:
@@ -308,7 +312,7 @@ def above_launch(ctx, ground_xyz) -> np.ndarray:
 
 def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
              method=None, progress: Progress = None, budget_fraction=None,
-             strong_bound=True, scheduler=None, log=None) -> Outcome:
+             strong_bound=True, scheduler=None, log=None, owner=None) -> Outcome:
     """Run the scenario's coverage method from ``starts`` and build hidden routes.
 
     ``budget_fraction`` caps the search budget (`coverage.CoverageParams`);
@@ -326,11 +330,12 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
     try:
         if parts > 1:
             problem, allocation = _in_parts(ctx, parts, n_uavs, starts, seen, required,
-                                            method, params, timing, progress, scheduler, log)
+                                            method, params, timing, progress, scheduler, log,
+                                            owner)
         else:
             with _stage("allocation", timing, progress):
                 problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen,
-                                           required)
+                                           required, owner=owner)
                 prep = coverage.prepare(problem)  # once: the bounds below share it
                 allocation = coverage.solve(problem, method, params,
                                             progress=(lambda f: progress("allocation", f))
@@ -341,10 +346,12 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         polylines, arrivals = _routes(ctx, allocation.routes, starts,
                                       _fraction(progress, "routes"))
         counts = coverage.coverage_counts(problem, allocation)
+    with _stage("separation", timing, progress):
+        fleet = fleet_clock(ctx, polylines, arrivals, starts, problem, allocation.routes)
     # only the reach bound holds for the whole of an area planned in parts
     bounds = ((split.reach_bound(problem),) * 2 if parts > 1
               else coverage.bounds(problem, strong_bound, prep))
-    plan = _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts,
+    plan = _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, counts,
                       timing, bounds)
     if parts > 1:
         plan.metrics["parts"] = parts
@@ -352,7 +359,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
 
 
 def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
-              scheduler, log):
+              scheduler, log, owner=None):
     """`allocate`'s search for an area planned in ``parts`` parts (`planner.split`):
     the problem of the whole area (without viewpoint times) and the joined allocation."""
     s = ctx.scenario
@@ -362,7 +369,7 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
     start = time.perf_counter()
     with dask_client(scheduler, ctx.terrain.height.size, log) as client:
         problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
-                                   travel=False)
+                                   travel=False, owner=owner)
         pieces = split.make_parts(problem, ctx.viewpoints.xyz[:, :2], parts)
         # one sparse overlay of the whole area: the parts' times go through any viewpoint
         overlay = ctx.viewpoint_overlay(client, _fraction(progress, "travel times"))
@@ -454,24 +461,72 @@ def _prove(ctx, r, poly) -> None:
                                  "please report it with the scenario)")
 
 
-def _coverage_time(problem, routes, arrivals, counts_needed) -> float:
-    """When the last target is first seen by as many distinct UAVs as it needs."""
-    when = [t[snap] for t, snap in arrivals]
-    return last_needed_sighting(problem, routes, when,
-                                np.clip(counts_needed, 0, problem.n_uavs))
+@dataclass
+class Fleet:
+    """The routes as one fleet on the fleet clock (`planner.fleet`)."""
+
+    schedule: FleetSchedule
+    profiles: list      # `Profile` per UAV (None: no route)
+    snapshots: list     # per UAV: profile vertex of each snapshot, in route order
+    coverage_time_s: float
+
+    def snapshot_times(self, r) -> np.ndarray:
+        """Fleet-clock time of UAV r's snapshots: when it leaves them (a camera
+        fires once its waypoint, hold included, is done)."""
+        if self.profiles[r] is None:
+            return np.zeros(0)
+        t = self.schedule.timings[r]
+        return self.profiles[r].arrivals(t.start_s, t.holds)[1][self.snapshots[r]]
 
 
-def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, counts, timing,
+def fleet_clock(ctx, polylines, arrivals, starts, problem, routes) -> Fleet:
+    """Every route on the fleet clock with the waits that keep the fleet separated
+    (`planner.fleet.schedule`, ``separation_m`` of the scenario), the waits chosen
+    for the earliest coverage time."""
+    profiles, snaps = [], []
+    for r, (poly, (_, snap)) in enumerate(zip(polylines, arrivals)):
+        start = starts[r] if starts else None
+        if not len(poly):
+            profiles.append(None)
+            snaps.append(np.zeros(0, np.int64))
+            continue
+        profile = Profile.of_route(poly, ctx.travel_params,
+                                   launch=None if start is None else start.launch,
+                                   start=None if start is None else start.held)
+        profiles.append(profile)
+        snaps.append(np.asarray(snap, np.int64) + profile.route[0])
+    flying = [r for r, p in enumerate(profiles) if p is not None]
+    need = np.minimum(problem.needs(), achievable(problem))   # as the methods aim at
+
+    def coverage_time(timings) -> float:
+        when = [np.zeros(0)] * len(profiles)
+        for r, t in zip(flying, timings):
+            when[r] = profiles[r].arrivals(t.start_s, t.holds)[1][snaps[r]]
+        return last_needed_sighting(problem, routes, when, need)
+
+    fleet = schedule([profiles[r] for r in flying], ctx.scenario.separation_m, coverage_time)
+    timings = [None] * len(profiles)
+    for r, t in zip(flying, fleet.timings):
+        timings[r] = t
+    order = [flying[i] for i in fleet.order]
+    closest = None if fleet.closest is None else \
+        (flying[fleet.closest[0]], flying[fleet.closest[1]], fleet.closest[2])
+    fleet = FleetSchedule(timings, order, fleet.min_separation_m, closest, fleet.wait_s)
+    return Fleet(fleet, profiles, snaps, coverage_time(fleet.timings[r] for r in flying)
+                 if flying else 0.0)
+
+
+def _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, counts, timing,
                bounds):
     """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time."""
     s = ctx.scenario
     required = problem.needs()
-    vehicles = []
-    for r, (poly, (t, snap)) in enumerate(zip(polylines, arrivals)):
-        vehicles.append(_vehicle(ctx, r, poly, t, snap, starts[r] if starts else None))
+    vehicles = [_vehicle(ctx, r, poly, fleet, starts[r] if starts else None)
+                for r, poly in enumerate(polylines)]
     lengths = [v.path_length_m for v in vehicles]
+    sched = fleet.schedule
     metrics = {
-        "coverage_time_s": _coverage_time(problem, allocation.routes, arrivals, required),
+        "coverage_time_s": fleet.coverage_time_s,
         "mission_time_s": max((v.mission_time_s for v in vehicles), default=0.0),
         "sum_length_m": float(sum(lengths)),
         "targets": int(problem.n_targets),
@@ -479,6 +534,11 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
         "k": int(s.k),
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
+        "k_impossible": int(allocation.uncoverable),
+        "min_separation_m": sched.min_separation_m,
+        "closest_approach": None if sched.closest is None else
+        {"vehicles": [sched.closest[0] + 1, sched.closest[1] + 1], "t_s": sched.closest[2]},
+        "wait_s": sched.wait_s,
     }
     if ctx.terrain.meta.get("filled_at"):
         metrics["filled_voids"] = {"at": ctx.terrain.meta["filled_at"],
@@ -495,25 +555,45 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, arrivals, co
                 vehicles=vehicles, metrics=metrics, timing_s=timing)
 
 
-def _vehicle(ctx, r, poly, t, snap, start) -> VehicleRoute:
-    snapshot = np.zeros(len(poly), bool)
-    snapshot[snap] = True
-    lon, lat = ctx.terrain.to_lonlat(poly[:, 0], poly[:, 1]) if len(poly) else ([], [])
-    lon, lat = np.round(np.asarray(lon) * 1e7) / 1e7, np.round(np.asarray(lat) * 1e7) / 1e7
-    waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f))
-                 for a, b, z, ts, f in zip(lon, lat, poly[:, 2], t, snapshot)]
+def _vehicle(ctx, r, poly, fleet, start) -> VehicleRoute:
+    """UAV r's route: its waypoints with their fleet-clock times and holds, and
+    its trajectory ground to ground."""
     launch = None
     if start is not None and start.launch is not None:
         llon, llat = ctx.terrain.to_lonlat(start.launch[0], start.launch[1])
         launch = GeoPoint(float(llon), float(llat), float(start.launch[2]))
+    profile, timing = fleet.profiles[r], fleet.schedule.timings[r]
+    if profile is None:
+        return VehicleRoute(id=r + 1, launch=launch, waypoints=[], coverage_time_s=0.0,
+                            mission_time_s=0.0, path_length_m=0.0)
+    first = profile.route[0]
+    arrive, _ = profile.arrivals(timing.start_s, timing.holds)
+    snapshot = np.zeros(profile.n, bool)
+    snapshot[fleet.snapshots[r]] = True
+    lon, lat = _lonlat(ctx, poly)
+    waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f), float(h))
+                 for a, b, z, ts, f, h in zip(lon, lat, poly[:, 2], arrive[first:],
+                                              snapshot[first:], timing.holds[first:])]
     d = np.diff(poly, axis=0)
     length = float(np.sqrt((d ** 2).sum(axis=1)).sum()) if len(poly) > 1 else 0.0
-    coverage_t = float(t[snap].max()) if len(snap) else 0.0
-    mission_t = float(t[-1]) if len(t) else 0.0
-    if launch is not None and len(poly):
-        mission_t += float(leg_time(0.0, -(poly[-1, 2] - launch.alt_amsl), ctx.travel_params))
-    return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints, coverage_time_s=coverage_t,
-                        mission_time_s=mission_t, path_length_m=length)
+    shots = fleet.snapshot_times(r)
+    trajectory = timing.trajectory
+    tlon, tlat = _lonlat(ctx, trajectory.xyz)
+    rows = [[round(float(t), 3), float(a), float(b), float(z)]
+            for t, a, b, z in zip(trajectory.t, tlon, tlat, trajectory.xyz[:, 2])]
+    return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints,
+                        coverage_time_s=float(shots.max()) if len(shots) else 0.0,
+                        mission_time_s=trajectory.end, path_length_m=length,
+                        takeoff_s=timing.start_s, trajectory=rows,
+                        priority=fleet.schedule.order.index(r) + 1)
+
+
+def _lonlat(ctx, xyz):
+    """Longitudes and latitudes of projected points, as MAVLink carries them (1e-7°)."""
+    if not len(xyz):
+        return np.zeros(0), np.zeros(0)
+    lon, lat = ctx.terrain.to_lonlat(xyz[:, 0], xyz[:, 1])
+    return np.round(np.asarray(lon) * 1e7) / 1e7, np.round(np.asarray(lat) * 1e7) / 1e7
 
 
 def plan_mission(scenario: Scenario, progress: Progress = None, terrain=None, outposts=None,

@@ -1,9 +1,16 @@
 """The `Plan` data model: routes of hidden 3-D waypoints per vehicle, and plan.json.
 
-A plan directory holds ``plan.json`` (this model, schema ``gcs-plan/1``) beside
+A plan directory holds ``plan.json`` (this model, schema ``gcs-plan/2``) beside
 ``terrain.tif`` (the working-grid DEM, float32, metres AMSL), ``exposure.tif``
 and ``coverage.tif``; later stages (missions, gcs) reload the terrain and the
 outposts from it to re-check that every leg is hidden.
+
+Times are on the fleet clock: t = 0 when the first takeoff starts. A vehicle's
+``trajectory`` is its flight on that clock, from the ground at its launch point to
+the ground after landing, as rows [t_s, lon, lat, alt_amsl], linear between rows
+(a hold is two rows at one place); the plan proves that no two airborne vehicles
+come closer than ``params.separation_m`` on them (``metrics.min_separation_m``).
+Schema 2 added the fleet clock (``gcs-plan/1`` times were each vehicle's own).
 """
 
 import json
@@ -15,7 +22,7 @@ from typing import Optional
 from common.errors import InputError
 from common.fileio import write_text_atomic
 
-SCHEMA = "gcs-plan/1"
+SCHEMA = "gcs-plan/2"
 PLAN_FILE = "plan.json"
 TERRAIN_FILE = "terrain.tif"
 EXPOSURE_FILE = "exposure.tif"
@@ -34,8 +41,9 @@ class Waypoint:
     lon: float
     lat: float
     alt_amsl: float
-    t_s: float  # planned time since the vehicle left the ground (takeoff climb included)
+    t_s: float  # planned arrival, fleet clock
     snapshot: bool = False
+    hold_s: float = 0.0  # waits here this long before flying on (whole seconds)
 
 
 @dataclass
@@ -45,9 +53,12 @@ class VehicleRoute:
     id: int
     launch: Optional[GeoPoint]
     waypoints: list
-    coverage_time_s: float
-    mission_time_s: float
+    coverage_time_s: float  # its last snapshot, fleet clock
+    mission_time_s: float  # its touchdown, fleet clock
     path_length_m: float
+    takeoff_s: float = 0.0  # leaves the ground, fleet clock
+    trajectory: list = field(default_factory=list)  # [[t_s, lon, lat, alt_amsl], ...]
+    priority: int = 1  # right of way in flight: 1 first (the separation guard holds others)
 
     @property
     def snapshots(self) -> list:
@@ -71,6 +82,9 @@ class Plan:
     @classmethod
     def from_dict(cls, data: dict, source="plan.json") -> "Plan":
         if not isinstance(data, dict) or data.get("schema") != SCHEMA:
+            if isinstance(data, dict) and data.get("schema") == "gcs-plan/1":
+                raise InputError(source, "a gcs-plan/1 plan has no fleet clock, so nothing "
+                                         "proves its vehicles kept apart: plan it again")
             raise InputError(source, f"not a {SCHEMA} plan (schema is {data.get('schema')!r})"
                              if isinstance(data, dict) else "not a JSON object")
         try:
@@ -82,6 +96,9 @@ class Plan:
                     coverage_time_s=float(v["coverage_time_s"]),
                     mission_time_s=float(v["mission_time_s"]),
                     path_length_m=float(v["path_length_m"]),
+                    takeoff_s=float(v.get("takeoff_s", 0.0)),
+                    trajectory=[list(map(float, row)) for row in v.get("trajectory", [])],
+                    priority=int(v.get("priority", v["id"])),
                 )
                 for v in data["vehicles"]
             ]

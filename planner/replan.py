@@ -28,6 +28,7 @@ from planner.visibility import Viewpoints, compute_visibility
 
 from .context import PlanningContext
 from .coverage import required_uavs
+from .coverage.problem import FREE
 from .pipeline import Start, above_launch, allocate
 
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
@@ -152,13 +153,14 @@ def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
         return climb
     node = _node_under(graph, xyz)
     if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node])[0]:
-        return Start(xyz, launch, 0.0)
+        return Start(xyz, launch, 0.0, held=xyz)
     for strict in (True, False):
         target = _nearest_reachable_node(graph, xyz, strict)
         if target is not None:
             d = target - xyz
             return Start(target, launch,
-                         float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)))
+                         float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)),
+                         held=xyz)
     raise InputError(f"vehicle {survivor.vehicle_id}",
                      "its position is not joined to the hidden volume by a hidden leg")
 
@@ -172,7 +174,8 @@ def _climb_at_launch(ctx, xyz, launch):
         return None
     if not segments_hidden(ctx.surface, xyz[None], top[None])[0]:
         return None
-    return Start(top, launch, float(leg_time(0.0, top[2] - xyz[2], ctx.travel_params)))
+    return Start(top, launch, float(leg_time(0.0, top[2] - xyz[2], ctx.travel_params)),
+                 held=xyz)
 
 
 def _node_under(graph, xyz) -> int:
@@ -200,15 +203,37 @@ def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
     return min(k, n_survivors - 1), np.full(ctx.visibility.n_targets, need, np.int32)
 
 
+def taken_viewpoints(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
+    """int64 per candidate viewpoint: the survivor (index) that photographed from it
+    (a snapshot within `SNAP_TO_VIEWPOINT_M`), `FREE` for none. Those places are its
+    own: another survivor's sighting there would share its fate."""
+    owner = np.full(len(ctx.viewpoints), FREE, np.int64)
+    if not len(ctx.viewpoints):
+        return owner
+    tree = cKDTree(ctx.viewpoints.xyz)
+    for r, xyz in enumerate(snapshots_per_uav):
+        xyz = np.asarray(xyz, float).reshape(-1, 3)
+        if not len(xyz):
+            continue
+        d, j = tree.query(np.nan_to_num(xyz, nan=np.inf))
+        for e in j[d <= SNAP_TO_VIEWPOINT_M]:
+            if owner[e] == FREE:
+                owner[e] = r
+    return owner
+
+
 def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
-           progress=None, required=None):
+           progress=None, required=None, snapshots=None):
     """Routes for ``survivors`` (list of `Survivor`) from where they are.
 
     ``seen``: bool [n_survivors, n_targets], what each has photographed so far
-    (`seen_matrix`), None for nothing. ``required`` overrides the per-target
-    requirement (all zeros: straight home along hidden paths). Returns the `planner.pipeline.Outcome`
-    with vehicle ids renumbered to the survivors' plan ids; each route starts
-    at the survivor's (possibly snapped) position and ends above its launch.
+    (`seen_matrix`), None for nothing; ``snapshots``: where (xyz arrays per
+    survivor), so that no other survivor counts a sighting from those places
+    (`taken_viewpoints`). ``required`` overrides the per-target requirement (all
+    zeros: straight home along hidden paths). Returns the
+    `planner.pipeline.Outcome` with vehicle ids renumbered to the survivors' plan
+    ids; each route starts at the survivor's (possibly snapped) position and ends
+    above its launch.
     """
     if not survivors:
         raise InputError("replan", "no surviving vehicle to re-plan")
@@ -216,9 +241,11 @@ def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
     required = need if required is None else np.asarray(required, np.int32)
     sub = replace(ctx, scenario=replace(ctx.scenario, k=k, uavs=len(survivors)))
     starts = [survivor_start(ctx, s) for s in survivors]
+    owner = None if snapshots is None else taken_viewpoints(ctx, snapshots)
     outcome = allocate(sub, len(survivors), starts, seen=seen, required=required,
                        method=method, progress=progress,
-                       budget_fraction=REPLAN_BUDGET_FRACTION, strong_bound=False)
+                       budget_fraction=REPLAN_BUDGET_FRACTION, strong_bound=False,
+                       owner=owner)
     for r, (vehicle, s) in enumerate(zip(outcome.plan.vehicles, survivors)):
         vehicle.id = int(s.vehicle_id)
     return outcome

@@ -17,6 +17,13 @@ FIRMWARES = ("ardupilot", "px4")
 #: the coverage methods, in the order users see them; each registers itself in
 #: planner.coverage (`methods.register` refuses a name not listed here)
 METHODS = ("rt", "rt+ls", "alns", "rd", "b", "c")
+#: the default separation between airborne vehicles (m, 3-D). Each of two vehicles
+#: may be off its planned point by its track tolerance (5 m: what its legs are
+#: proven with) plus its GNSS error (about 3 m at 95 %): 16 m together; the
+#: in-flight guard needs room to act on a drift from the schedule, about 1 s of
+#: telemetry and command latency at 12 m/s (12 m); and a multicopter spans about
+#: a metre: 30 m in all
+SEPARATION_M = 30.0
 
 
 @dataclass
@@ -48,6 +55,7 @@ class Scenario:
     climb_mps: float = 3.0
     descent_mps: float = 2.0
     track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
+    separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
     firmware: str = "ardupilot"
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
@@ -97,7 +105,7 @@ class Scenario:
                    for n in positive]
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
                     for n in ("clearance_m", "hide_margin_m", "curvature_coeff",
-                              "track_tolerance_m")]
+                              "track_tolerance_m", "separation_m")]
         for ok, problem in checks:
             if not ok:
                 raise InputError(source, problem)
@@ -168,7 +176,7 @@ SECTIONS = {
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
-              "firmware"),
+              "separation_m", "firmware"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
                "seed", "parts"),
 }

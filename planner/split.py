@@ -42,7 +42,7 @@ from common.errors import InputError
 from . import coverage
 from .coverage.insertion import arrival_times
 from .coverage.metrics import reach_bound_of
-from .coverage.problem import csc_transpose
+from .coverage.problem import CLOSED, achievable, csc_transpose
 from .coverage.setcover import greedy_cover
 from .parallel import run_chunks
 from .travel import overlay_rows
@@ -202,11 +202,17 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
         return None if a is None else np.asarray(a)[uavs][:, part.viewpoints]
 
     seen = None if problem.seen is None else np.asarray(problem.seen)[uavs][:, part.targets]
+    owner = None
+    if problem.owner is not None:       # another group's viewpoint is closed to this one
+        local = np.full(problem.n_uavs, CLOSED, np.int64)
+        local[uavs] = np.arange(len(uavs))
+        given = np.asarray(problem.owner, np.int64)[part.viewpoints]
+        owner = np.where(given >= 0, local[np.maximum(given, 0)], given)
     return coverage.CoverageProblem(part.vis_indptr, part.vis_indices, len(part.targets),
                                     travel, rows(problem.launch_out),
                                     rows(problem.launch_back), len(uavs),
                                     min(problem.k, len(uavs) - 1), problem.visibility,
-                                    part.required, seen)
+                                    part.required, seen, owner)
 
 
 def _solve_part(method, params, report, n, overlay, chunk):
@@ -383,9 +389,6 @@ def reach_bound(problem) -> float:
     seen = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
             else np.asarray(problem.seen, np.bool_))
     indices = np.asarray(problem.vis_indices)
-    # what can be met at all, as `coverage.prepare` caps it
-    visible = np.bincount(indices, minlength=problem.n_targets) > 0
-    need = np.minimum(problem.needs(),
-                      np.maximum(np.where(visible, problem.n_uavs, 0), seen.sum(axis=0)))
+    need = np.minimum(problem.needs(), achievable(problem))  # as `coverage.prepare` caps it
     return float(reach_bound_of(rows, of.ravel(), np.asarray(problem.vis_indptr, np.int64),
                                 indices, seen, need))

@@ -3,6 +3,7 @@
 import math
 
 import numpy as np
+import places_reference as ref
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -38,31 +39,18 @@ def ref_route_time(problem, r, route):
     return t + sum(problem.travel[a, b] for a, b in zip(route, route[1:]))
 
 
-def ref_seen_by(problem, allocation):
-    """target -> {uav: first time seen}, by walking the routes."""
-    out = [dict() for _ in range(problem.n_targets)]
-    if problem.seen is not None:
-        for r, t in zip(*np.nonzero(problem.seen)):
-            out[t][r] = 0.0
-    for r, route in enumerate(allocation.routes):
-        for i, e in enumerate(route):
-            now = ref_route_time(problem, r, route[:i + 1])
-            for t in problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]:
-                out[t][r] = min(out[t].get(r, math.inf), now)
-    return out
-
-
 def required(problem):
-    return (np.full(problem.n_targets, problem.k + 1) if problem.required is None
-            else problem.required)
+    return ref.requirement(problem)
 
 
 def assert_covers(problem, allocation):
-    seen = ref_seen_by(problem, allocation)
+    """Every target has its requirement of sightings from distinct UAVs at distinct
+    places, and the planner counts them as the brute force does."""
+    found = ref.sightings(problem, allocation.routes)
     need = required(problem)
-    assert all(len(seen[t]) >= need[t] for t in range(problem.n_targets))
-    np.testing.assert_array_equal(coverage_counts(problem, allocation),
-                                  [len(s) for s in seen])
+    counts = [ref.matched(f) for f in found]
+    assert all(c >= q for c, q in zip(counts, need))
+    np.testing.assert_array_equal(coverage_counts(problem, allocation), counts)
 
 
 def assert_times(problem, allocation):
@@ -72,10 +60,9 @@ def assert_times(problem, allocation):
         back = t + (problem.launch_back[r, route[-1]]
                     if problem.launch_back is not None and route else 0.0)
         assert allocation.return_times[r] == pytest.approx(back, abs=1e-6)
-    seen = ref_seen_by(problem, allocation)
     need = required(problem)
-    cov = max((sorted(s.values())[need[t] - 1] for t, s in enumerate(seen) if need[t] > 0),
-              default=0.0)
+    cov = max((ref.needed_time(f, q) for f, q in zip(ref.sightings(problem, allocation.routes),
+                                                      need)), default=0.0)
     assert allocation.coverage_time == pytest.approx(cov, abs=1e-6)
     assert allocation.mission_time == pytest.approx(max(allocation.return_times), abs=1e-6)
 
@@ -226,11 +213,12 @@ def test_incremental_gains_match_recomputation(visibility):
         for r in range(4):
             want = 0.0
             for t in problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]:
-                if state.seen[r, t] or count[t] >= 3:
+                need = min(3, ref.achievable(problem)[t])   # k + 1, or what it can get
+                if state.seen[r, t] or count[t] >= need:
                     continue
-                want += (3 - count[t]) ** expo if visibility == "soft" else 1.0
+                want += (need - count[t]) ** expo if visibility == "soft" else 1.0
             assert state.gains[e, r] == pytest.approx(want)
-    assert state.remaining == np.count_nonzero(count < 3)
+    assert state.remaining == np.count_nonzero(count < np.minimum(3, ref.achievable(problem)))
 
 
 @given(st.integers(0, 2 ** 16), st.integers(0, 1), st.booleans())
@@ -282,10 +270,17 @@ def test_replanning_counts_earlier_snapshots():
 
 
 def test_lower_bound_reach_term_with_launch_points():
-    """One target, seen only from viewpoint 1: the bound is the (k+1)-th fastest UAV to reach it."""
+    """One target: the bound is the (k+1)-th fastest UAV to reach a place seeing it.
+    Seen only from viewpoint 1 it has one place, so one sighting counts, k or not;
+    seen from both, its two sightings come from two UAVs at the two places."""
     travel = np.array([[0.0, 60.0], [60.0, 0.0]])
-    lo = np.array([[1.0, 30.0], [1.0, 20.0], [1.0, 50.0]])
-    problem = CoverageProblem(np.array([0, 0, 1]), np.array([0]), 1, travel, lo, lo, 3, k=1)
-    assert lower_bound(problem) == pytest.approx(30.0)
-    a = solve(problem, "rt")
-    assert a.coverage_time == pytest.approx(30.0)
+    lo = np.array([[10.0, 30.0], [15.0, 20.0], [50.0, 40.0]])
+    one = CoverageProblem(np.array([0, 0, 1]), np.array([0]), 1, travel, lo, lo, 3, k=1)
+    assert lower_bound(one) == pytest.approx(20.0)
+    assert solve(one, "rt").coverage_time == pytest.approx(20.0)
+    both = CoverageProblem(np.array([0, 1, 2]), np.array([0, 0]), 1, travel, lo, lo, 3, k=1)
+    assert lower_bound(both) == pytest.approx(20.0)    # matched over places: the optimum
+    for method in METHODS:   # the optimum: UAV 1 at viewpoint 0 (10 s), UAV 2 at 1 (20 s)
+        a = solve(both, method, FAST)
+        assert a.coverage_time == pytest.approx(20.0), method
+        assert sorted(map(tuple, a.routes)) == [(), (0,), (1,)]

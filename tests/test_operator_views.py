@@ -147,7 +147,8 @@ def test_flight_figure_on_mission_time_with_timeline_and_profiles(planned):
     profiles = [t for t in texts if t.endswith("altitude, metres AMSL")]
     assert len(profiles) == len(planned.plan.vehicles)
     legend = _legend(fig)
-    for needed in ("terrain under it", "hidden ceiling there (fly below)", "flown altitude",
+    for needed in ("ground under it (for clearance: nowhere below the DEM)",
+                   "hidden ceiling there (fly below)", "flown altitude",
                    "snapshot taken", "re-planning (survivors held)", "re-planned route (dashed)",
                    "planned route (faint)", "base: launch and landing point"):
         assert needed in legend, needed

@@ -19,6 +19,7 @@ from planner.replan import (
     seen_matrix,
     snapshot_sets,
     survivor_start,
+    taken_viewpoints,
 )
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain, write_terrain
@@ -122,7 +123,7 @@ def test_one_loss_in_an_area_planned_in_parts(terrain):
 def _survivors_meet_requirement(ctx, outcome, kept, k):
     survivors, snaps = zip(*[_midway(ctx, outcome, r) for r in kept])
     seen = seen_matrix(ctx, snaps)
-    new = replan(ctx, list(survivors), seen)
+    new = replan(ctx, list(survivors), seen, snapshots=snaps)
     assert [v.id for v in new.plan.vehicles] == [r + 1 for r in kept]
     # brute force: survivors' earlier snapshots plus the new snapshot points
     total = seen.copy()
@@ -130,9 +131,18 @@ def _survivors_meet_requirement(ctx, outcome, kept, k):
         pts = poly[[i for i, w in enumerate(vehicle.waypoints) if w.snapshot]]
         total[r] |= seen_matrix(ctx, [pts])[0]
     summary = coverage_summary(ctx, total, k=k)
-    coverable = np.diff(ctx.visibility.target_indptr) > 0
+    # k + 1 survivors see every target that k + 1 of them can see from places of
+    # their own: one that saw it before (or shot from a viewpoint seeing it: that
+    # place is its own), and one more per viewpoint nobody shot from
+    owned = taken_viewpoints(ctx, snaps)
+    vis = ctx.visibility
+    can = np.zeros(vis.n_targets, int)
+    for t in range(vis.n_targets):
+        seers = vis.target_viewpoints[vis.target_indptr[t]:vis.target_indptr[t + 1]]
+        mine = set(np.flatnonzero(seen[:, t])) | {int(o) for o in owned[seers] if o >= 0}
+        can[t] = min(len(survivors), len(mine) + int((owned[seers] < 0).sum()))
     assert summary["required_uavs"] == k + 1
-    assert summary["k_covered"] == coverable.sum()
+    assert summary["k_covered"] == (can >= k + 1).sum()
     for poly, s in zip(new.polylines, survivors):
         assert np.allclose(poly[0], s.xyz)
         assert np.allclose(poly[-1, :2], s.launch[:2])

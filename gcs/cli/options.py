@@ -35,6 +35,8 @@ HELP = {
     "descent_mps": "descent rate, m/s",
     "track_tolerance_m": "how far a vehicle may stray from its planned legs, metres: "
                          "every point that close to a leg is proven hidden too",
+    "separation_m": "least distance between two airborne vehicles, metres, proven on their "
+                    "trajectories and kept by waits (0: vehicles are not kept apart)",
     "firmware": "mission flavour of the exported files",
     "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
               "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",
@@ -103,7 +105,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
     fields_of = {
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
-        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m"),
+        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
+                  "separation_m"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }
     for title, names in fields_of.items():

@@ -20,11 +20,14 @@ def plan_summary(plan) -> Group:
     """The per-UAV table and the coverage lines `gcs plan` ends with."""
     m = plan.metrics
     table = Table(title=f"{plan.method.upper()} plan, k = {m['k']}")
-    for col in ("UAV", "snapshots", "coverage time", "mission time", "path"):
+    for col in ("UAV", "takeoff", "snapshots", "coverage time", "mission time", "waits",
+                "path"):
         table.add_column(col, justify="right")
     for v in plan.vehicles:
-        table.add_row(str(v.id), str(len(v.snapshots)), _minutes(v.coverage_time_s),
-                      _minutes(v.mission_time_s), f"{v.path_length_m / 1000:.1f} km")
+        waits = v.takeoff_s + sum(w.hold_s for w in v.waypoints)
+        table.add_row(str(v.id), f"{v.takeoff_s:.0f} s", str(len(v.snapshots)),
+                      _minutes(v.coverage_time_s), _minutes(v.mission_time_s),
+                      f"{waits:.0f} s", f"{v.path_length_m / 1000:.1f} km")
     ratio = m.get("ratio_to_lower_bound")
     radius = m.get("radius_bound_s")
     beside = (f"; radius bound {_minutes(radius)}" if radius is not None
@@ -35,8 +38,26 @@ def plan_summary(plan) -> Group:
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
                f"UAVs ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of the targets); "
                f"planned in {plan.timing_s.get('total', 0):.1f} s")
-    lines = [table, Text(cover), Text(targets)] + [Text(t) for t in area_lines(plan)]
+    impossible = m.get("k_impossible", 0)
+    if impossible:
+        targets += (f"; {impossible} seen from fewer than k+1 = {m['k'] + 1} places (each "
+                    "place serves one UAV): seen by as many UAVs as they have places")
+    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan))] + \
+        [Text(t) for t in area_lines(plan)]
     return Group(*lines)
+
+
+def fleet_line(plan) -> str:
+    """When each vehicle takes off, what the fleet waits, and the proven separation."""
+    m = plan.metrics
+    takeoffs = ", ".join(f"{v.id} at {v.takeoff_s:.0f} s" for v in
+                         sorted(plan.vehicles, key=lambda v: (v.takeoff_s, v.id)) if v.waypoints)
+    sep = plan.params.get("separation_m", 0)
+    closest = m.get("min_separation_m")
+    proven = "never two airborne at once" if closest is None or closest == float("inf") \
+        else f"closest approach {closest:.1f} m"
+    return (f"takeoffs: {takeoffs}; waits {m.get('wait_s', 0):.0f} s in all; {proven} "
+            f"(separation {sep:g} m)")
 
 
 def area_lines(plan) -> list:

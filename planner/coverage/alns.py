@@ -236,7 +236,7 @@ class Alns:
                           self.weight, short,
                           p.vis_indptr, p.vis_indices, p.tgt_indptr, p.tgt_indices, p.travel,
                           p.launch_out, p.has_launch, mode, self.params.alpha, lam, self.eps,
-                          noise, rnd)
+                          noise, rnd, p.owner0)
         self.work += work + len(short)
         return ok
 
@@ -274,9 +274,13 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
     s = None
     for routes in starts:
         cand = Alns(prep, routes, params, rng, weight)
+        if not cand.covered():
+            continue       # left short by the one-UAV-a-viewpoint rule: `places.share`'s
         cand.polish(range(len(cand.L)), passes=100)
         if s is None or _key(cand.times) < _key(s.times):
             s = cand
+    if s is None:
+        return Result(starts[0], 0, 0, np.inf, np.inf)
     start_time = float(s.times.max()) if len(s.times) else 0.0
     if units is None:
         units = int(budget_s(params, int(s.L.sum()), start_time, n_cells) * WORK_PER_S)

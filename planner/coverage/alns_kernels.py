@@ -14,6 +14,7 @@ import numpy as np
 from numba import njit
 
 from .insertion import insert_cost, removal_saving
+from .problem import FREE
 
 START = -1  # a route's start: its launch point, or nowhere (free start) without one
 END = -2  # a route's end: free (coverage time stops at the last snapshot)
@@ -66,11 +67,14 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
 
 @njit(cache=True, nogil=True)
 def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tgt_indptr,
-           tgt_indices, travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd):
+           tgt_indices, travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd,
+           owner0):
     """Insert visits until no target in ``short`` (and no other) is short.
 
     Candidates are the (viewpoint, UAV) pairs that give a short target a new
-    *distinct* viewer; each is inserted at its cheapest edge-breaking slot.
+    *distinct* viewer, from a viewpoint no other UAV visits (nor photographed
+    from before: ``owner0``, `problem.FREE` where nobody did); each is inserted
+    at its cheapest edge-breaking slot.
     ``mode``: PTV (the paper's M_PTV on the short targets gained), MAKESPAN
     (targets gained per growth of the makespan plus ``lam`` x the added
     time), REGRET (the short target whose best option is most ahead of its
@@ -82,6 +86,10 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     """
     n = R.shape[0]
     n_vp = travel.shape[0]
+    owner = owner0.copy()
+    for r in range(n):
+        for i in range(L[r]):
+            owner[R[r, i]] = r
     cand_of = np.full(n_vp, -1, np.int64)
     cands = np.empty(n_vp, np.int64)
     nc = 0
@@ -111,7 +119,7 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     for r in range(n):
         route = R[r, :L[r]]
         for c in range(nc):
-            if gain[c, r] > 0:
+            if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
                 dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, launch_out[r],
                                                   has_launch)
                 work += L[r] + 1
@@ -171,6 +179,10 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
             R[r, i] = R[r, i - 1]
         R[r, p] = x
         L[r] += 1
+        owner[x] = r
+        for q in range(n):          # closed to the other UAVs from now on
+            if q != r:
+                dt[bc, q] = np.inf
         times[r] = time_of(R, L, r, travel, launch_out[r], has_launch)
         # coverage and gains
         for j in range(vis_indptr[x], vis_indptr[x + 1]):
@@ -193,7 +205,7 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
         work += vis_indptr[x + 1] - vis_indptr[x] + nc
         route = R[r, :L[r]]
         for c in range(nc):
-            if gain[c, r] > 0:
+            if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
                 dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, launch_out[r],
                                                   has_launch)
                 work += L[r] + 1

@@ -16,6 +16,7 @@ step (the paper leaves this case open; stopping would leave targets uncovered).
 import math
 
 import numpy as np
+from numba import njit
 
 from .gains import CoverState
 from .insertion import (
@@ -28,6 +29,7 @@ from .insertion import (
 )
 from .methods import register
 from .objectives import PER_DISTANCE, PTV, PTV2, best_free_pair, best_pair, best_spread
+from .problem import FREE, owners
 
 
 def default_step_cap(travel: np.ndarray, factor: float) -> float:
@@ -51,13 +53,18 @@ class RouteSet:
 
     ``cost[r, e]``/``pos[r, e]``: Δt and slot of the edge-breaking insertion
     of e into r; the best edge is cached separately (``mid_*``) so that
-    growing a route at either end never needs a rescan.
+    growing a route at either end never needs a rescan. A viewpoint in one
+    UAV's route is closed to the others (``cost`` inf: `problem.owners`), so no
+    two UAVs photograph from one place.
     """
 
     def __init__(self, prep, routes):
         self.prep = prep
         n, n_vp = prep.problem.n_uavs, prep.problem.n_viewpoints
         self.routes = [list(r) for r in routes]
+        self.owner = owners(prep, self.routes)
+        # per target, the free viewpoints seeing it: what other UAVs can still use
+        self.free = free_counts(prep.tgt_indptr, prep.tgt_indices, self.owner)
         self.times = np.zeros(n)
         self.cost = np.empty((n, n_vp))
         self.pos = np.empty((n, n_vp), dtype=np.int64)
@@ -80,10 +87,15 @@ class RouteSet:
         self.times[r] = route_time(arr, p.travel, p.launch_out[r], p.has_launch)
         combine_ends(arr, *self._model(r), self.mid_cost[r], self.mid_pos[r], self.cost[r],
                      self.pos[r])
+        self.cost[r, (self.owner != FREE) & (self.owner != r)] = np.inf
 
     def insert(self, e, r):
         s = int(self.pos[r, e])
         self.routes[r].insert(s, int(e))
+        self.owner[e] = r
+        self.cost[:, e] = np.inf
+        p = self.prep
+        self.free[p.vis_indices[p.vis_indptr[e]:p.vis_indptr[e + 1]]] -= 1
         arr = self._array(r)
         update_middle_costs(arr, s, *self._model(r), self.mid_cost[r], self.mid_pos[r])
         self._finish(r, arr)
@@ -96,10 +108,13 @@ def spread_out(prep, params, state, steps):
     if prep.has_launch:
         return routes
     chain = np.zeros(0, dtype=np.int64)
+    closed = prep.owner0 != FREE            # and, as they are chosen, the other starts
     for r in range(n):
         if state.done:
             break
-        e = best_spread(np.ascontiguousarray(state.gains[:, r]), chain, prep.travel, params.beta)
+        gains = np.where(closed, 0.0, state.gains[:, r])
+        gains[chain] = 0.0
+        e = best_spread(gains, chain, prep.travel, params.beta)
         if e < 0:
             break
         _, p = insert_cost(chain, e, prep.travel, prep.launch_out[0], False)
@@ -126,14 +141,7 @@ def allocate(prep, params, objective="ptv", routes=None, state=None, progress=No
     adapt = params.threshold_adaptation and objective == "ptv"
     total = max(state.remaining, 1)
     while not state.done:
-        e, r = best_free_pair(state.gains, rs.cost)
-        phase = 0
-        if e < 0:
-            phase = 2
-            e, r = best_pair(state.gains, rs.cost, rs.times, metric, params.alpha, cap, -1, np.inf)
-            if e < 0:
-                e, r = best_pair(state.gains, rs.cost, rs.times, metric, params.alpha,
-                                 np.inf, -1, np.inf)
+        e, r, phase = _next_pair(rs, state, metric, params.alpha, cap)
         if e < 0:
             break  # what is left is unreachable
         _give(rs, state, steps, phase, e, r)
@@ -154,6 +162,31 @@ def _rd(prep, params, progress):
     return allocate(prep, params, "per_distance", progress=progress)
 
 
+def _next_pair(rs, state, metric, alpha, cap):
+    """(viewpoint, UAV, phase) of phase 2: a free insertion (Δt <= 0) first, then
+    the best by ``metric`` under the cap, then without it. A pair that would leave
+    some target fewer free viewpoints than the distinct UAVs it still needs
+    (`blocks`) is closed for that UAV and the next best taken."""
+    while True:
+        e, r = best_free_pair(state.gains, rs.cost)
+        phase = 0
+        if e < 0:
+            phase = 2
+            e, r = best_pair(state.gains, rs.cost, rs.times, metric, alpha, cap, -1, np.inf)
+            if e < 0:
+                e, r = best_pair(state.gains, rs.cost, rs.times, metric, alpha,
+                                 np.inf, -1, np.inf)
+        if e < 0 or not _blocks(rs, state, e, r):
+            return e, r, phase
+        rs.cost[r, e] = np.inf
+
+
+def _blocks(rs, state, e, r) -> bool:
+    p = rs.prep
+    return blocks(e, r, p.vis_indptr, p.vis_indices, state.seen, state.count, p.required,
+                  rs.free)
+
+
 def _give(rs, state, steps, phase, e, r):
     rs.insert(e, r)
     state.take(e, r)
@@ -168,4 +201,32 @@ def _threshold_adaptation(rs, state, steps, params):
         e, r = best_pair(state.gains, rs.cost, rs.times, PTV2, params.alpha, np.inf, ru, t_ru)
         if e < 0:
             return
+        if _blocks(rs, state, e, r):
+            rs.cost[r, e] = np.inf
+            continue
         _give(rs, state, steps, 3, e, r)
+
+
+@njit(cache=True)
+def free_counts(tgt_indptr, tgt_indices, owner):
+    """Per target, how many viewpoints seeing it nobody has taken."""
+    n_t = len(tgt_indptr) - 1
+    out = np.zeros(n_t, np.int64)
+    for t in range(n_t):
+        for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+            if owner[tgt_indices[i]] == FREE:
+                out[t] += 1
+    return out
+
+
+@njit(cache=True)
+def blocks(e, r, vis_indptr, vis_indices, seen, count, req, free):
+    """Whether UAV r taking viewpoint e leaves a short target of e fewer free
+    viewpoints than the distinct UAVs it still needs (each viewpoint serves one
+    UAV: taken for nothing, it is lost to the others)."""
+    for j in range(vis_indptr[e], vis_indptr[e + 1]):
+        t = vis_indices[j]
+        still = req[t] - count[t] - (0 if seen[r, t] else 1)
+        if still > 0 and free[t] - 1 < still:
+            return True
+    return False

@@ -29,6 +29,7 @@ from .greedy import allocate
 from .insertion import improve_route, insert_cost, removal_saving, route_time
 from .methods import register
 from .metrics import evaluate
+from .problem import FREE
 
 _EPS = 1e-6
 
@@ -231,6 +232,9 @@ class Search:
         cands = cands[(cands != e) & _covers_all(cands, mask, len(short), p.vis_indptr,
                                                  p.vis_indices)]
         best = None
+        # a viewpoint in another route, or photographed from before, is not free
+        taken = set(np.concatenate([rest1] + [q for k, q in enumerate(self.routes) if k != r1]
+                                   ).tolist()) | set(np.flatnonzero(p.owner0 != FREE).tolist())
         for r2 in range(len(self.routes)):
             if np.any(self.cnt[r2, short] > 0):
                 continue  # r2 would not add a distinct viewer
@@ -238,7 +242,7 @@ class Search:
             base2 = t1 if r2 == r1 else self.times[r2]
             old = self.times[r1] if r2 == r1 else max(self.times[r1], self.times[r2])
             for e2 in cands:
-                if e2 in route2:
+                if e2 in taken:
                     continue
                 dt, pos = self._insertion(r2, route2, e2)
                 new = base2 + dt if r2 == r1 else max(t1, base2 + dt)
@@ -274,12 +278,14 @@ def _rt_ls(prep, params, progress):
     factors = [params.step_cap_factor]
     if params.step_time_cap is None:
         factors += [params.step_cap_factor * f for f in (0.5, 2.0)][:max(params.ls_starts - 1, 0)]
-    best = None
+    best = first = None
     for i, factor in enumerate(factors):
         p = replace(params, step_cap_factor=factor)
         routes, steps = allocate(prep, p, "ptv", progress=progress if i == 0 else None)
+        first = first or (routes, steps)
         for r in (routes, local_search(prep, routes, params.ls_rounds)):
             a = evaluate(prep, r, "rt+ls")
             if a.covered and (best is None or a.coverage_time < best[0] - 1e-9):
                 best = (a.coverage_time, r, steps)
-    return best[1], best[2]
+    # none covering: RT's, left short by the one-UAV-a-viewpoint rule (`places.share`)
+    return (best[1], best[2]) if best is not None else first

@@ -6,7 +6,8 @@ import numpy as np
 from numba import njit
 
 from .insertion import arrival_times, nearest_other, route_time
-from .problem import Allocation, CoverageProblem, prepare
+from .places import Places, _max_matching, matched_counts, matched_times
+from .problem import Allocation, CoverageProblem, csc_transpose, prepare
 
 
 @njit(cache=True)
@@ -19,28 +20,25 @@ def _first_seen(route, arrivals, vis_indptr, vis_indices, first_r):
                 first_r[t] = arrivals[i]
 
 
-@njit(cache=True)
-def _kth_over_uavs(first, req):
-    """Per target, the req-th smallest time over UAVs; max over targets."""
-    worst = 0.0
-    for t in range(first.shape[1]):
-        q = req[t]
-        if q <= 0:
-            continue
-        v = np.sort(first[:, t])[q - 1]
-        if v > worst:
-            worst = v
-    return worst
-
-
 def last_needed_sighting(problem: CoverageProblem, routes, arrivals, need) -> float:
-    """When the last target with ``need[t]`` > 0 is first seen by need[t] distinct
-    UAVs, from each route's snapshot times ``arrivals[r]`` (inf if never). One UAV
-    at a time, keeping only the need earliest per target: a [UAVs, targets] table
-    of times would take 2 GiB on a 4096² area."""
+    """When the last target with ``need[t]`` > 0 first has need[t] sightings from
+    distinct UAVs at distinct places (`places`), from each route's snapshot times
+    ``arrivals[r]`` (inf if never)."""
+    times = needed_times(problem, routes, arrivals, need)
+    return float(times[np.asarray(need) > 0].max(initial=0.0))
+
+
+def needed_times(problem: CoverageProblem, routes, arrivals, need) -> np.ndarray:
+    """Per target, when it first has ``need[t]`` sightings from distinct UAVs at
+    distinct places (inf: never; 0 when it needs none). The distinct-UAV count,
+    one UAV at a time keeping the need earliest per target (a [UAVs, targets]
+    table of times would take 2 GiB on a 4096² area), is exact except for
+    targets seen from a viewpoint two UAVs fly: those are matched (`places`)."""
+    need = np.asarray(need)
     q = int(np.max(need, initial=0))
+    out = np.zeros(problem.n_targets)
     if q == 0:
-        return 0.0
+        return out
     best = np.full((q, problem.n_targets), np.inf)
     first = np.empty(problem.n_targets)
     for r, route in enumerate(routes):
@@ -51,7 +49,22 @@ def last_needed_sighting(problem: CoverageProblem, routes, arrivals, need) -> fl
                     problem.vis_indptr, problem.vis_indices, first)
         _keep_earliest(best, first)
     rows = np.clip(need, 1, q) - 1
-    return float(best[rows, np.arange(len(need))][need > 0].max(initial=0.0))
+    out = np.where(need > 0, best[rows, np.arange(len(need))], 0.0)
+    places = Places(problem.n_uavs, problem.n_viewpoints, routes, arrivals)
+    if places.shared.any():
+        t_indptr, t_indices, seen0 = _columns(problem)
+        hit = places.affected(problem.vis_indptr, problem.vis_indices, problem.n_targets)
+        out[hit] = matched_times(hit, places.at, t_indptr, t_indices, seen0, need)
+    return out
+
+
+def _columns(problem):
+    """(target -> viewpoints CSC, seen before planning as uint8 [UAVs, targets])."""
+    t_indptr, t_indices = csc_transpose(np.asarray(problem.vis_indptr, np.int64),
+                                        np.asarray(problem.vis_indices), problem.n_targets)
+    seen0 = (np.zeros((problem.n_uavs, problem.n_targets), np.uint8) if problem.seen is None
+             else np.asarray(problem.seen, np.uint8))
+    return t_indptr, t_indices.astype(np.int64), seen0
 
 
 @njit(cache=True)
@@ -69,31 +82,22 @@ def _keep_earliest(best, first):
             best[i, t] = v
 
 
-def first_seen_times(prep, routes) -> np.ndarray:
-    """[n_uavs, n_targets]: when UAV r first sees t (0 if seen before planning, inf never)."""
-    n = prep.problem.n_uavs
-    first = np.full((n, prep.problem.n_targets), np.inf)
-    first[prep.seen0.astype(bool)] = 0.0
-    for r, route in enumerate(routes):
-        arr = np.asarray(route, dtype=np.int64)
-        arrivals = arrival_times(arr, prep.travel, prep.launch_out[r], prep.has_launch)
-        _first_seen(arr, arrivals, prep.vis_indptr, prep.vis_indices, first[r])
-    return first
-
-
 def evaluate(prep, routes, method: str, steps=None, planning_s=0.0) -> Allocation:
-    """Times and coverage of ``routes`` recomputed from the travel model."""
+    """Times and coverage of ``routes`` recomputed from the travel model, sightings
+    counted by the places rule (`places`)."""
     n = prep.problem.n_uavs
     times = np.zeros(n)
     back = np.zeros(n)
+    arrivals = []
     for r, route in enumerate(routes):
         arr = np.asarray(route, dtype=np.int64)
+        arrivals.append(arrival_times(arr, prep.travel, prep.launch_out[r], prep.has_launch))
         times[r] = route_time(arr, prep.travel, prep.launch_out[r], prep.has_launch)
         back[r] = times[r] + (prep.launch_back[r, arr[-1]] if prep.has_launch and len(arr) else 0.0)
-    first = first_seen_times(prep, routes)
-    counts = np.isfinite(first).sum(axis=0)
+    counts = sighting_counts(prep.problem, routes)
     covered = bool(np.all(counts >= prep.required))
-    cov_t = _kth_over_uavs(first, prep.required) if covered else math.inf
+    cov_t = (needed_times(prep.problem, routes, arrivals, prep.required).max(initial=0.0)
+             if covered else math.inf)
     return Allocation(method=method, routes=[list(map(int, r)) for r in routes], times=times,
                       return_times=back, coverage_time=float(cov_t),
                       mission_time=float(back.max()) if n else 0.0, sum_time=float(times.sum()),
@@ -103,14 +107,29 @@ def evaluate(prep, routes, method: str, steps=None, planning_s=0.0) -> Allocatio
 
 
 def coverage_counts(problem: CoverageProblem, allocation: Allocation) -> np.ndarray:
-    """Per target, the number of distinct UAVs that see it (including earlier snapshots)."""
+    """Per target, its sightings from distinct UAVs at distinct places (including
+    earlier snapshots)."""
+    return sighting_counts(problem, allocation.routes)
+
+
+def sighting_counts(problem: CoverageProblem, routes) -> np.ndarray:
+    """Per target, its sightings from distinct UAVs at distinct places: the number
+    of distinct UAVs, matched where a viewpoint is flown by two (`places`)."""
     indptr, indices = problem.vis_indptr, problem.vis_indices
     seen = (np.zeros((problem.n_uavs, problem.n_targets), bool) if problem.seen is None
             else np.array(problem.seen, bool))
-    for r, route in enumerate(allocation.routes):
+    for r, route in enumerate(routes):
         if len(route):
             seen[r, np.concatenate([indices[indptr[e]:indptr[e + 1]] for e in route])] = True
-    return seen.sum(axis=0)
+    counts = seen.sum(axis=0)
+    places = Places(problem.n_uavs, problem.n_viewpoints, routes,
+                    [np.zeros(len(r)) for r in routes])
+    if places.shared.any():
+        t_indptr, t_indices, seen0 = _columns(problem)
+        hit = places.affected(indptr, indices, problem.n_targets)
+        counts[hit] = matched_counts(hit, places.at, t_indptr, t_indices, seen0,
+                                     np.full(problem.n_targets, problem.n_uavs, np.int64))
+    return counts
 
 
 def lower_bound(problem: CoverageProblem) -> float:
@@ -159,14 +178,62 @@ def _earliest_arrival(lo, travel_t):
     return out
 
 
+#: the reach bound is matched over places (`place_reach_bound`) up to this many
+#: (UAV, viewpoint, target) triples; beyond, the distinct-UAV form (a weaker bound)
+PLACE_REACH_WORK = 50_000_000
+
+
 def _reach_bound(prep) -> float:
     if not prep.has_launch:
         return 0.0
     # UAVs sharing a launch point share their earliest arrivals
     rows, uav_row = np.unique(prep.launch_out, axis=0, return_inverse=True)
     arrive = np.array([_earliest_arrival(row, prep.travel_t) for row in rows])
-    return float(reach_bound_of(arrive, uav_row.ravel(), prep.vis_indptr, prep.vis_indices,
-                                prep.seen0, prep.required))
+    bound = float(reach_bound_of(arrive, uav_row.ravel(), prep.vis_indptr, prep.vis_indices,
+                                 prep.seen0, prep.required))
+    if len(prep.tgt_indices) * prep.problem.n_uavs <= PLACE_REACH_WORK:
+        bound = max(bound, place_reach_bound(arrive, uav_row.ravel(), prep.tgt_indptr,
+                                             prep.tgt_indices, prep.seen0, prep.required))
+    return bound
+
+
+@njit(cache=True)
+def place_reach_bound(arrive, row_of, tgt_indptr, tgt_indices, seen, required):
+    """The reach bound with the places rule: per target, the earliest time by which
+    ``required[t]`` UAVs can each be at a different place seeing it (a bottleneck
+    matching of UAVs to its viewpoints, each at its earliest arrival; a sighting
+    before planning is a place of its own, at 0); the latest over targets."""
+    n = len(row_of)
+    worst = 0.0
+    for t in range(len(tgt_indptr) - 1):
+        q = required[t]
+        if q <= 0:
+            continue
+        deg = tgt_indptr[t + 1] - tgt_indptr[t]
+        m = n * deg + n
+        er = np.empty(m, np.int64)
+        ep = np.empty(m, np.int64)
+        et = np.empty(m)
+        k = 0
+        for u in range(n):
+            if seen[u, t]:
+                er[k], ep[k], et[k] = u, -1 - u, 0.0
+                k += 1
+            for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+                e = tgt_indices[i]
+                if arrive[row_of[u], e] < np.inf:
+                    er[k], ep[k], et[k] = u, e, arrive[row_of[u], e]
+                    k += 1
+        order = np.argsort(et[:k], kind="mergesort")
+        er, ep, et = er[order], ep[order], et[order]
+        done = np.inf
+        for a in range(q - 1, k):
+            if _max_matching(er, ep, a + 1, n, q) >= q:
+                done = et[a]
+                break
+        if done > worst:
+            worst = done
+    return worst
 
 
 @njit(cache=True)

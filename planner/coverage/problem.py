@@ -14,6 +14,9 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
+#: `CoverageProblem.owner` values besides a UAV: nobody photographed there; closed to all
+FREE, CLOSED = -1, -2
+
 
 def required_uavs(k: int, n_uavs: int) -> int:
     """How many distinct UAVs must see each target: k + 1, or every UAV when fewer
@@ -29,6 +32,13 @@ class CoverageProblem:
     target counts for r's distinct-UAV tally at time zero.  ``required[t]`` is
     how many distinct UAVs must see t in total (including ``seen``); it
     defaults to k+1.
+
+    No two UAVs photograph from one viewpoint (a UAV's sightings then come from
+    places of its own: the k+1 sightings of a target are independent fates,
+    never two vehicles on one path). ``owner[e]`` is the UAV that already
+    photographed from viewpoint e (re-planning; `FREE` or None: nobody), closed
+    to the others; `CLOSED`: to every UAV of this problem (a UAV outside it, e.g.
+    of another part of a large area).
     """
 
     vis_indptr: np.ndarray
@@ -42,6 +52,7 @@ class CoverageProblem:
     visibility: str = "soft"
     required: Optional[np.ndarray] = None
     seen: Optional[np.ndarray] = None
+    owner: Optional[np.ndarray] = None
 
     @property
     def n_viewpoints(self) -> int:
@@ -145,6 +156,7 @@ class Prepared:
     uncoverable: int  # targets whose requirement cannot be met at all
     soft: bool
     soft_exp: float
+    owner0: np.ndarray  # int64 [n_viewpoints]: UAV that photographed there before, FREE, CLOSED
 
     @cached_property
     def classes(self) -> tuple:
@@ -197,17 +209,70 @@ def prepare(problem: CoverageProblem) -> Prepared:
     req = problem.needs()
     if req.shape != (n_t,):
         raise ValueError(f"required must have one entry per target ({n_t})")
+    owner0 = np.full(n_vp, FREE, np.int64) if problem.owner is None else \
+        np.asarray(problem.owner, np.int64)
+    if owner0.shape != (n_vp,) or owner0.max(initial=FREE) >= n or owner0.min(initial=0) < CLOSED:
+        raise ValueError(f"owner must hold one UAV, FREE or CLOSED per viewpoint ({n_vp})")
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
-    # A target nobody can see, or needing more UAVs than exist, is capped at
-    # what is achievable and reported as uncoverable.
-    achievable = np.where(np.diff(tgt_indptr) > 0, n, 0)
-    achievable = np.maximum(achievable, seen0.sum(axis=0))
+    # A target seen from fewer places than it needs distinct UAVs (each viewpoint
+    # serves one UAV), or needing more UAVs than exist, is capped at what is
+    # achievable and reported as uncoverable.
+    achievable = _achievable(tgt_indptr, tgt_indices, owner0, seen0.astype(np.bool_), n)
     uncoverable = int(np.count_nonzero(req > achievable))
     req = np.minimum(req, achievable).astype(np.int32)
     return Prepared(problem, indptr, indices, tgt_indptr, tgt_indices, travel,
                     np.ascontiguousarray(travel.T), lo, lb,
                     has_launch, seen0, req, uncoverable, problem.visibility == "soft",
-                    float(n) / k if k > 0 else 1.0)
+                    float(n) / k if k > 0 else 1.0, owner0)
+
+
+def achievable(problem: CoverageProblem) -> np.ndarray:
+    """int32 per target: the most distinct UAVs that can see it (what `prepare`
+    caps the requirement at), without the travel times `prepare` checks."""
+    n, n_t = int(problem.n_uavs), int(problem.n_targets)
+    indptr, indices = np.asarray(problem.vis_indptr, np.int64), np.asarray(problem.vis_indices)
+    tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
+    seen = (np.zeros((n, n_t), np.bool_) if problem.seen is None
+            else np.asarray(problem.seen, np.bool_))
+    owner = (np.full(len(indptr) - 1, FREE, np.int64) if problem.owner is None
+             else np.asarray(problem.owner, np.int64))
+    return _achievable(tgt_indptr, tgt_indices, owner, seen, n)
+
+
+@njit(cache=True)
+def _achievable(tgt_indptr, tgt_indices, owner0, seen0, n):
+    """Per target, the most distinct UAVs that can see it: those that saw it before
+    or own a viewpoint seeing it, plus one per free viewpoint seeing it, at most n."""
+    n_t = len(tgt_indptr) - 1
+    out = np.empty(n_t, np.int32)
+    mark = np.zeros(n, np.bool_)
+    for t in range(n_t):
+        for r in range(n):
+            mark[r] = seen0[r, t]
+        free = 0
+        for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+            o = owner0[tgt_indices[i]]
+            if o == FREE:
+                free += 1
+            elif o >= 0:
+                mark[o] = True
+        out[t] = min(n, mark.sum() + free)
+    return out
+
+
+def owners(prep: "Prepared", routes) -> np.ndarray:
+    """int64 per viewpoint: the UAV whose route visits it (or that photographed
+    there before, `Prepared.owner0`), -1 for none. ValueError when two UAVs
+    share one (a defect of the method that made ``routes``)."""
+    owner = prep.owner0.copy()
+    for r, route in enumerate(routes):
+        for e in route:
+            if owner[e] != FREE and owner[e] != r:
+                raise ValueError(f"viewpoint {int(e)} is visited by UAV {int(owner[e]) + 1} "
+                                 f"and UAV {r + 1}: no two UAVs may photograph from one "
+                                 "place (a coverage method defect)")
+            owner[e] = r
+    return owner
 
 
 def csc_transpose(indptr: np.ndarray, indices: np.ndarray, n_targets: int):

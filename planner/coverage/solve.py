@@ -10,7 +10,8 @@ import time
 
 from . import alns, baselines, greedy, local_search  # noqa: F401 - they register the methods
 from .methods import METHODS, REGISTRY, method
-from .metrics import evaluate
+from .metrics import evaluate, sighting_counts
+from .places import share
 from .problem import Allocation, CoverageParams, CoverageProblem, prepare
 
 assert set(REGISTRY) == set(METHODS), "every listed method registers itself"
@@ -26,4 +27,9 @@ def solve(problem: CoverageProblem, name: str = "rt", params: CoverageParams = N
     start = time.perf_counter()
     prep = prep if prep is not None else prepare(problem)
     routes, steps = chosen.run(prep, params, progress)
-    return evaluate(prep, routes, name, steps, time.perf_counter() - start)
+    allocation = evaluate(prep, routes, name, steps)
+    if not allocation.covered:     # a viewpoint a second UAV must fly (`places.share`)
+        routes = share(prep, routes, sighting_counts(prep.problem, routes))
+        allocation = evaluate(prep, routes, name, steps)
+    allocation.planning_s = time.perf_counter() - start
+    return allocation

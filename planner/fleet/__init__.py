@@ -1,0 +1,37 @@
+"""Stage 6, fleet: the routes of one allocation as one fleet on one clock.
+
+The other stages plan each UAV's hidden route; this one makes them a fleet that
+can share the sky. Every vehicle's flight, ground to ground, is a trajectory on
+the fleet clock (t = 0 when the first takeoff starts), and the fleet is
+*separated* when no two airborne vehicles ever come closer than the separation,
+proven exactly on those piecewise-linear trajectories, as legs are proven hidden.
+Waits keep it so (start delays on the ground, holds at hidden waypoints): they
+never touch a proven leg.
+
+Modules: trajectory (`Profile`, a route's path with its times; `Trajectory`, on
+the clock), kernels (closest approach of two trajectories, numba), schedule (the
+waits: `schedule`, `separation`).
+"""
+
+from .schedule import FleetSchedule, Timing, schedule, separation
+from .trajectory import Profile, Trajectory, doing_at, route_profile, route_trajectory
+
+__all__ = ["FleetSchedule", "Profile", "Timing", "Trajectory", "doing_at", "prove_separated",
+           "route_profile", "route_trajectory", "schedule", "separation"]
+
+
+def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:
+    """The closest approach of two airborne vehicles of a saved plan, from what its
+    missions fly (waypoints, holds, takeoff times); InputError naming the two
+    vehicles when it is less than the plan's ``separation_m``."""
+    from common.errors import InputError
+
+    routes = [v for v in plan.vehicles if v.waypoints]
+    d, where = separation([route_trajectory(v, terrain, travel_params) for v in routes])
+    need = float(plan.params.get("separation_m", 0.0))
+    if where is not None and d < need - 1e-6:
+        a, b, t = routes[where[0]].id, routes[where[1]].id, where[2]
+        raise InputError(source, f"vehicles {a} and {b} come {d:.1f} m apart at t = {t:.0f} s "
+                                 f"on the fleet clock, closer than the plan's separation "
+                                 f"({need:g} m)")
+    return d

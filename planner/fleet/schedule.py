@@ -1,0 +1,159 @@
+"""Deconfliction: waits that keep every pair of airborne vehicles apart.
+
+Vehicles are placed on the fleet clock one at a time, in priority order. Each
+keeps its path (every leg stays as it was proven hidden and clear) and only
+waits: on the ground before it takes off, or hovering at a vertex of its hidden
+polyline (a hidden point) before flying on. A vehicle is timed by walking its
+first conflict with those already placed (two airborne vehicles closer than the
+separation, found exactly: `kernels.first_conflict`) and waiting where it was
+before it: at the vertex whose leg meets the other vehicle, or at the one before
+when the conflict comes while it holds, or on the ground when it comes in its
+takeoff column. Waits are whole seconds (what an ArduPilot waypoint hold keeps),
+1, 2, 4, ... at one place but never more than the conflict lasts, and the walk
+starts again until none is left.
+
+Vehicles sharing a base therefore take off one at a time, each as soon as the one
+before has climbed the separation above it, and land one at a time, the later
+ones holding at a hidden waypoint while another is in the column. A vehicle
+that finds no room after `MAX_WAITS` waits takes off once all the others have
+landed. Several priority orders are tried and the best plan kept (`schedule`).
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .trajectory import Profile, Trajectory, doing_at
+
+#: metres kept beyond the separation while timing (rounding of saved waypoints)
+SLACK_M = 0.05
+#: waits tried per vehicle before it is sent after every other one has landed
+MAX_WAITS = 1000
+
+
+@dataclass
+class Timing:
+    """When one vehicle leaves and where it waits."""
+
+    start_s: float           # leaves the ground (or, in flight, its held point) then
+    holds: np.ndarray        # s waited at each profile vertex
+    trajectory: Trajectory
+
+    @property
+    def wait_s(self) -> float:
+        return float(self.start_s + self.holds.sum())
+
+
+@dataclass
+class FleetSchedule:
+    timings: list            # `Timing` per vehicle, in the order of the profiles given
+    order: list              # priority order (the first placed has right of way)
+    min_separation_m: float  # closest approach of two airborne vehicles (inf: never two)
+    closest: tuple           # (i, j, t_s) of it, None when never two at once
+    wait_s: float            # every start delay and hold, summed
+
+    @property
+    def trajectories(self) -> list:
+        return [t.trajectory for t in self.timings]
+
+
+def schedule(profiles, separation_m: float, score=None) -> FleetSchedule:
+    """Time ``profiles`` (`Profile` per vehicle) so that no two airborne vehicles
+    come closer than ``separation_m``. ``score(timings)``: what a schedule costs
+    (default: when the last vehicle is done); the best of a few priority orders
+    is kept, a separated one before any other."""
+    score = score or (lambda timings: max((t.trajectory.end for t in timings), default=0.0))
+    # kept with a little room: the waypoints are stored to 1e-7 degrees, and a
+    # saved plan's trajectories are proven again from them (`prove_separated`)
+    room = separation_m + SLACK_M if separation_m > 0 else 0.0
+    best = None
+    for order in _orders(profiles):
+        timings = [None] * len(profiles)
+        placed = []
+        for i in order:
+            timings[i] = _fit(profiles[i], placed, room)
+            placed.append(timings[i].trajectory)
+        d, closest = separation(placed)
+        closest = None if closest is None else (order[closest[0]], order[closest[1]],
+                                                closest[2])
+        key = (d < separation_m - 1e-6, score(timings))
+        if best is None or key < best[0]:
+            best = (key, FleetSchedule(timings, list(order), d, closest,
+                                       float(sum(t.wait_s for t in timings))))
+    return best[1]
+
+
+def separation(trajectories) -> tuple:
+    """(least distance of two airborne vehicles, (i, j, t) of it or None)."""
+    best, where = math.inf, None
+    for i in range(len(trajectories)):
+        for j in range(i + 1, len(trajectories)):
+            d, t = trajectories[i].closest_approach(trajectories[j])
+            if d < best:
+                best, where = float(d), (i, j, float(t))
+    return best, where
+
+
+def _orders(profiles) -> list:
+    """Priority orders worth trying: the longest flights first (they set the
+    makespan; a wait there costs most), the shortest first, and as given."""
+    total = [float(p.duration.sum()) for p in profiles]
+    n = len(profiles)
+    out = []
+    for order in (sorted(range(n), key=lambda i: (-total[i], i)),
+                  sorted(range(n), key=lambda i: (total[i], i)), list(range(n))):
+        if order not in out:
+            out.append(order)
+    return out
+
+
+def _fit(profile: Profile, placed, separation_m) -> Timing:
+    """`Timing` of one vehicle among those ``placed`` (see the module doc)."""
+    holds = np.zeros(profile.n)
+    start = 0.0
+    where, step = None, 1.0
+    for _ in range(MAX_WAITS):
+        trajectory = profile.timed(start, holds)
+        begin, end = _first_conflict(trajectory, placed, separation_m)
+        if not math.isfinite(begin):
+            return Timing(start, holds, trajectory)
+        vertex, holding = doing_at(trajectory, begin)
+        if holding:
+            vertex -= 1                  # arrive later where it held
+        if profile.on_ground[0] and vertex <= profile.route[0]:
+            vertex = -1                  # on the ground: its takeoff column is in use
+        elif vertex < 0:
+            break                        # in flight, met where it already stands
+        # waits of 1, 2, 4, ... s at one place, never more than the conflict lasts:
+        # the least wait that clears it, within a factor of two
+        step = step * 2 if vertex == where else 1.0
+        step = min(step, float(max(1.0, math.ceil(end - begin))))
+        where = vertex
+        if vertex < 0:
+            start += step
+        else:
+            holds[vertex] += step
+    return _after_everyone(profile, placed)
+
+
+def _after_everyone(profile, placed) -> Timing:
+    """Leave once every placed vehicle has landed (in flight: hold until then)."""
+    last = max((t.end for t in placed), default=0.0)
+    holds = np.zeros(profile.n)
+    start = 0.0
+    if profile.on_ground[0]:
+        start = float(math.ceil(last))
+    else:
+        holds[0] = float(math.ceil(last))
+    return Timing(start, holds, profile.timed(start, holds))
+
+
+def _first_conflict(trajectory, placed, separation_m) -> tuple:
+    """The earliest (start, end) of a conflict with any placed trajectory."""
+    best = (math.inf, math.inf)
+    for other in placed:
+        found = trajectory.first_conflict(other, separation_m)
+        if found[0] < best[0]:
+            best = found
+    return best
