@@ -17,6 +17,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 
 from common.colours import vehicle_colour  # noqa: E402
 from gcs.plots import (  # noqa: E402
@@ -30,6 +31,7 @@ from planner.terrain.grid import bilinear  # noqa: E402
 
 TERRAIN_FILL = "#a0785a"
 CEILING_LINE = "#08306b"
+GUARD_COLOUR = "#ffd700"       # gold, hatched: no vehicle has it
 REPLAN_SHADE = "#bdbdbd"
 
 
@@ -187,9 +189,19 @@ def _draw_track(ax, terrain, v, c, clock):
 
 
 def draw_timeline(ax, report, clock) -> None:
-    """One row per vehicle: flown (line), snapshots (ticks), loss (X), landing
+    """One row per vehicle: waiting for its takeoff time (dotted), flown (line),
+    held by the separation guard (orange), snapshots (ticks), loss (X), landing
     (square); re-plans as shaded spans across every row."""
     vehicles = report["vehicles"]
+    rows = {v["sysid"]: len(vehicles) - 1 - row for row, v in enumerate(vehicles)}
+    for sysid, (t0, t1) in _ground_waits(report):
+        a, b = (float(clock.vehicle(sysid, t)) for t in (t0, t1))
+        ax.plot([a, b], [rows[sysid]] * 2, ":", color="black", linewidth=1.4, zorder=3)
+    for sysid, (t0, t1) in _guard_holds(report):
+        a, b = (float(clock.vehicle(sysid, t)) for t in (t0, t1))
+        ax.broken_barh([(a, max(b - a, 1e-3))], (rows[sysid] - 0.18, 0.36),
+                       facecolors=GUARD_COLOUR, edgecolors="black", hatch="////",
+                       linewidth=0.6, zorder=4)
     for n, r in enumerate(report["replans"], start=1):
         t0 = float(clock.fleet(r["t_s"]))
         t1 = float(clock.fleet(r["done_t_s"])) if r.get("done_t_s") is not None else t0
@@ -237,9 +249,39 @@ def draw_timeline(ax, report, clock) -> None:
                Line2D([], [], linestyle="none", marker="s", color="white",
                       markeredgecolor="black", markersize=7, label="landed"),
                plt.Rectangle((0, 0), 1, 1, color=REPLAN_SHADE, alpha=0.6,
-                             label="re-planning (survivors held)")]
-    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 1.32), ncol=5,
+                             label="re-planning (survivors held)"),
+               Line2D([], [], linestyle=":", color="black", linewidth=1.4,
+                      label="on the ground, waiting for its takeoff time"),
+               Patch(facecolor=GUARD_COLOUR, edgecolor="black", hatch="////",
+                     label="held by the separation guard")]
+    ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 1.42), ncol=4,
               fontsize=7.5, framealpha=0.9)
+
+
+def _ground_waits(report) -> list:
+    """[(sysid, (from, to))] wall s each vehicle stood waiting for its takeoff: from
+    the first takeoff of the fleet to its own."""
+    starts = {}
+    for e in report.get("events", []):
+        if e["event"] == "starting" and e.get("sysid") is not None:
+            starts.setdefault(e["sysid"], e["t_s"])
+    if not starts:
+        return []
+    first = min(starts.values())
+    return [(s, (first, t)) for s, t in starts.items() if t > first]
+
+
+def _guard_holds(report) -> list:
+    """[(sysid, (from, to))] wall s of each hold by the separation guard."""
+    out, since = [], {}
+    for a in report.get("separation", {}).get("actions", []):
+        if a["action"] == "hold":
+            since[a["sysid"]] = a["t_s"]
+        elif a["sysid"] in since:
+            out.append((a["sysid"], (since.pop(a["sysid"]), a["t_s"])))
+    end = report.get("duration_s", 0.0)
+    out += [(s, (t, end)) for s, t in since.items()]
+    return out
 
 
 def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:

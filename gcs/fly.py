@@ -23,6 +23,7 @@ coverage reached, no vehicle lost, none left in the air.
 """
 
 import json
+import math
 import threading
 import time
 from dataclasses import asdict, dataclass, field
@@ -33,10 +34,13 @@ from autopilots import NAMES
 from common.errors import InputError
 from common.fileio import write_text_atomic
 from gcs import commands
+from gcs.clock import FleetClock
+from gcs.guard import SeparationGuard
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
 from gcs.monitor import (
     FLYING,
+    HOLDING,
     LANDED,
     LOST,
     MIN_LAUNCH_TOLERANCE_M,
@@ -90,6 +94,20 @@ class FlyOptions:
         return {"timeout_s": self.protocol_timeout_s, "retries": self.protocol_retries}
 
 
+@dataclass
+class Departure:
+    """A vehicle to send on its way at fleet time ``due``: "launch" (its takeoff) or
+    "resume" (flying on after a re-plan held it)."""
+
+    due: float
+    kind: str
+    route: object
+
+
+def _finite_or_none(x):
+    return None if x is None or not math.isfinite(x) else round(float(x), 2)
+
+
 class FlightError(Exception):
     """The flight could not go on (a vehicle refused its start, re-tasking failed)."""
 
@@ -130,6 +148,12 @@ class Flight:
         self.output = Path(options.output)
         self.log = log or (lambda text: None)
         self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
+        self.clock = FleetClock(self.monitor)
+        self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
+        self._departing = {}      # sysid -> [thread, error] of departures under way
+        self._waiting_for = {}    # sysid -> the vehicle its base column waits for
+        self.guard = None
+        self.min_separation_m = None  # the plan's, proven again in `prepare`
         self.segments = Segments(self.monitor, options.protocol, options.max_items)
         self.start_unix = time.time()
         self.link = None
@@ -310,17 +334,105 @@ class Flight:
         self._all(one, "upload", (MissionError, InputError))
 
     def start(self) -> None:
+        """The fleet clock starts; every vehicle takes off at its planned time
+        (`Departure`): those due now here, the others from `watch`."""
         m = self.monitor
+        self.guard = SeparationGuard(
+            m, float(self.plan.params.get("separation_m", 0.0)),
+            {s: v.route.priority for s, v in m.vehicles.items()}, self.clock,
+            airborne=lambda: [s for s, v in m.vehicles.items()
+                              if v.state in (FLYING, HOLDING) and v.airborne],
+            hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
+            resume=lambda s: self._set_mode(s, "mission_mode", FLYING),
+            speed_mps=float(self.plan.params.get("speed_mps", 12.0)))
+        self.clock.start()
+        for sysid, v in m.vehicles.items():
+            if v.state != LOST:
+                self.departures[sysid] = Departure(v.route.takeoff_s, "launch", v.route)
+        first = min((d.due for d in self.departures.values()), default=0.0)
+        now = [s for s, d in self.departures.items() if d.due <= first]
+        for sysid in now:
+            del self.departures[sysid]
+        self._all(lambda s: self._launch(s, m.vehicles[s].route), "start",
+                  commands.CommandError)
 
-        def one(sysid):
-            v = m.vehicles[sysid]
-            m.set_state(sysid, STARTING)
-            commands.start_mission(m.links[sysid], v.route.waypoints[0].alt_amsl,
-                                   ready_timeout_s=self.options.ready_timeout_s,
-                                   retries=self.options.protocol_retries)
-            m.set_state(sysid, FLYING)
+    def _launch(self, sysid, route) -> None:
+        m = self.monitor
+        m.set_state(sysid, STARTING)
+        commands.start_mission(m.links[sysid], route.waypoints[0].alt_amsl,
+                               ready_timeout_s=self.options.ready_timeout_s,
+                               retries=self.options.protocol_retries)
+        m.set_state(sysid, FLYING)
 
-        self._all(one, "start", commands.CommandError)
+    def _resume(self, sysid, route=None) -> None:
+        Retasker.resume(self.monitor, sysid, self.options.protocol_retries)
+        self.monitor.set_state(sysid, FLYING)
+
+    def _set_mode(self, sysid, which, state) -> None:
+        link = self.monitor.links[sysid]
+        commands.set_mode(link, getattr(commands.autopilot(link), which),
+                          retries=self.options.protocol_retries)
+        self.monitor.set_state(sysid, state)
+
+    def depart(self, sysid, after_s, kind, route) -> None:
+        """``sysid`` takes off (``kind`` "launch") or flies on ("resume") ``after_s``
+        fleet seconds from now (a re-plan's schedule)."""
+        self.departures[sysid] = Departure((self.clock.now() or 0.0) + after_s, kind, route)
+
+    def _depart_due(self) -> None:
+        """Send the vehicles whose time has come, each in its own thread; a takeoff
+        waits while another airborne vehicle is in its base column. A failure of a
+        vehicle still heard from stops the flight."""
+        m, now = self.monitor, self.clock.now()
+        for sysid, (thread, error) in list(self._departing.items()):
+            if thread.is_alive():
+                continue
+            del self._departing[sysid]
+            if error and m.vehicles[sysid].state != LOST:
+                raise FlightError(f"start failed: {error[0]}")
+        for sysid, d in list(self.departures.items()):
+            if m.vehicles[sysid].state == LOST:
+                del self.departures[sysid]
+                continue
+            if now is None or d.due > now or sysid in self._departing:
+                continue
+            if d.kind == "launch" and not self._column_clear(sysid, d.route):
+                continue
+            del self.departures[sysid]
+            error = []
+            run = self._launch if d.kind == "launch" else self._resume
+
+            def go(s=sysid, route=d.route, run=run, error=error):
+                try:
+                    run(s, route)
+                except commands.CommandError as exc:
+                    error.append(exc)
+            thread = threading.Thread(target=go, daemon=True, name=f"depart-{sysid}")
+            self._departing[sysid] = (thread, error)
+            thread.start()
+
+    def _column_clear(self, sysid, route) -> bool:
+        """No other airborne vehicle within the separation of the column above its
+        base (from the ground to the separation above its takeoff top)."""
+        m = self.monitor
+        sep = float(self.plan.params.get("separation_m", 0.0))
+        launch = route.launch
+        if sep <= 0 or launch is None:
+            return True
+        top = route.waypoints[0].alt_amsl + sep
+        for other, v in m.vehicles.items():
+            s = m.links[other].state
+            if other == sysid or not v.airborne or v.state in (LOST, LANDED) or s.lat is None:
+                continue
+            h = distance_m(launch.lat, launch.lon, s.lat, s.lon)
+            below = max(launch.alt_amsl - s.alt_amsl, 0.0, s.alt_amsl - top)
+            if math.hypot(h, below) < sep:
+                if self._waiting_for.get(sysid) != other:
+                    self._waiting_for[sysid] = other
+                    m.event(sysid, f"takeoff waits: vehicle {other} is in its base column")
+                return False
+        self._waiting_for.pop(sysid, None)
+        return True
 
     def locate(self) -> None:
         """Wait for every vehicle's position (ArduPilot reports none before its EKF
@@ -389,8 +501,11 @@ class Flight:
             m.check_losses()
             if m.take_losses():
                 self.retask()
-            if m.all_finished():
+            if m.all_finished() and not self.departures:
                 break
+            self._depart_due()
+            if self.guard is not None:
+                self.guard.step()
             due = self.segments.due()
             if due:
                 self.next_segments(due)
@@ -420,11 +535,17 @@ class Flight:
         except InputError as exc:
             raise FlightError(f"cannot re-plan: {exc}") from None
         m.event(None, "re-planning", survivors=m.survivors())
+        if self.guard is not None:
+            self.guard.forget()
+        for sysid in list(self.departures):     # the re-plan decides who goes up
+            del self.departures[sysid]
         try:
             record = Retasker(ctx, m, self.mission_options, self.options.protocol,
-                              segments=self.segments).retask(home)
+                              segments=self.segments, depart=self.depart).retask(home)
         except RetaskError as exc:
             raise FlightError(str(exc)) from None
+        if self.guard is not None:
+            self.guard.priority.update(record.priority)
         self.retasks.append(record)
 
     # -- results ------------------------------------------------------------------------
@@ -444,6 +565,8 @@ class Flight:
             "vehicles": vehicles, "losses": losses,
             "replans": [asdict(r) for r in self.retasks],
             "segments": self.segments.report(),
+            "separation": dict(self.guard.report() if self.guard is not None else {},
+                               planned_closest_m=_finite_or_none(self.min_separation_m)),
             "coverage": coverage, "events": list(m.events),
         }
 
@@ -470,6 +593,11 @@ class Flight:
         if stranded:
             problems.append(f"vehicle(s) {', '.join(map(str, stranded))} stranded: held in "
                             "the air where no hidden leg joins them, left to the operator")
+        held = sorted({a["sysid"] for a in (self.guard.actions if self.guard else [])
+                       if a["action"] == "hold"})
+        if held:
+            problems.append(f"vehicle(s) {', '.join(map(str, held))} held by the separation "
+                            "guard: flown off the proven schedule")
         for sysid, v in sorted(m.vehicles.items()):
             if v.uncommanded:
                 modes = ", ".join(f"{mode} at {t:.1f} s" for t, mode in v.uncommanded)

@@ -69,6 +69,8 @@ class VehicleState:
     relative_alt: float | None = None        # m above home
     heading: float | None = None             # deg
     groundspeed: float | None = None         # m/s
+    velocity: tuple | None = None            # (north, east, up) m/s, GLOBAL_POSITION_INT
+    position_at: float | None = None         # time.monotonic() of the last position
     armed: bool = False
     mode: str | None = None
     custom_mode: int | None = None
@@ -103,6 +105,8 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         if msg.hdg != 65535:
             s.heading = msg.hdg * 0.01
         s.groundspeed = (msg.vx ** 2 + msg.vy ** 2) ** 0.5 * 0.01
+        s.velocity = (msg.vx * 0.01, msg.vy * 0.01, -msg.vz * 0.01)
+        s.position_at = time.monotonic()
     elif kind == "MISSION_CURRENT":
         s.mission_seq, s.mission_total = msg.seq, getattr(msg, "total", None)
     elif kind == "MISSION_ITEM_REACHED":

@@ -250,10 +250,11 @@ class Monitor:
             self.links[sysid].state.mission_seq = None
 
     def relaunch(self, sysid: int) -> None:
-        """A landed survivor goes up again (after a loss left coverage short)."""
+        """A landed survivor (or one still waiting for its takeoff) goes up on a
+        re-plan's route."""
         with self._lock:
             v = self.vehicles[sysid]
-            if v.state != LANDED:
+            if v.state not in (LANDED, WAITING):
                 return
             v.state, v.airborne = STARTING, False
             v.disarmed_at_s, v.disarmed_reports = None, 0

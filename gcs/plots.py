@@ -255,9 +255,11 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
         if not lon:
             continue
         x, y = _lonlat_km(terrain, lon, lat)
+        waits = vehicle.takeoff_s + sum(w.hold_s for w in vehicle.waypoints)
         ax.plot(x, y, linestyle, color=colour, linewidth=1.6, alpha=alpha, zorder=5,
-                label=f"{label_prefix} {vehicle.id} route: {vehicle.coverage_time_s / 60:.1f} "
-                      f"min, {sum(1 for w in vehicle.waypoints if w.snapshot)} snapshots")
+                label=f"{label_prefix} {vehicle.id}: takeoff at {vehicle.takeoff_s:.0f} s, "
+                      f"{sum(1 for w in vehicle.waypoints if w.snapshot)} snapshots by "
+                      f"{vehicle.coverage_time_s / 60:.1f} min, waits {waits:.0f} s")
         snaps = np.array([w.snapshot for w in vehicle.waypoints])
         ax.plot(x[snaps], y[snaps], "o", color=colour, markersize=3.5, zorder=6,
                 markeredgecolor="black", markeredgewidth=0.4, alpha=alpha)

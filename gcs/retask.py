@@ -34,6 +34,7 @@ from gcs.monitor import (
     LOST,
     MIN_LAUNCH_TOLERANCE_M,
     STRANDED,
+    WAITING,
     distance_m,
 )
 from gcs.segments import upload_route
@@ -78,6 +79,8 @@ class Retask:
     planned: dict = field(default_factory=dict)  # the re-plan's own metrics
     routes: dict = field(default_factory=dict)  # sysid -> [[lon, lat, alt AMSL], ...]
     starts: dict = field(default_factory=dict)  # sysid -> held position [lon, lat, alt]
+    departs: dict = field(default_factory=dict)  # sysid -> s after the re-plan it flies on
+    priority: dict = field(default_factory=dict)  # sysid -> right of way (1 first)
 
 
 def geo_to_xyz(ctx, lon, lat, alt) -> np.ndarray:
@@ -127,7 +130,8 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
     seen = seen_matrix(ctx, snaps)
     summary = coverage_summary(ctx, seen, ctx.scenario.k)
     summary["meets_requirement"] = summary["k_covered"] >= coverable_targets(ctx)
-    need = max(1, ctx.scenario.k + 1 - n_lost)
+    need = np.minimum(max(1, ctx.scenario.k + 1 - n_lost),   # or one per place
+                      np.diff(ctx.visibility.target_indptr))
     summary["tolerated"] = bool((seen.sum(axis=0) >= need).sum() >= coverable_targets(ctx))
     summary["remaining_time_s"] = left
     return summary
@@ -164,11 +168,14 @@ class Retasker:
     """Re-plans and re-uploads the survivors of a flight (see module doc)."""
 
     def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions(),
-                 protocol=None, segments=None):
+                 protocol=None, segments=None, depart=None):
         """``segments``: the flight's `gcs.segments.Segments`, told what each re-tasked
-        vehicle flies from now on."""
+        vehicle flies from now on; ``depart(sysid, after_s, kind, route)``: the flight
+        sends each on its way at the re-plan's time (the fleet stays separated on it;
+        None: all at once, now)."""
         self.ctx = ctx
         self.segments = segments
+        self.depart = depart
         self.monitor = monitor
         self.mission_options = mission_options
         self.protocol = protocol or {}  # timeout_s / retries of the mission protocol
@@ -176,11 +183,12 @@ class Retasker:
         self.home = False
 
     def flying(self) -> list:
-        """Vehicles to re-task: not lost, not landed, and not disarmed after flying
-        (touched down at the end of a mission: it stays down unless re-launched)."""
+        """Vehicles to re-task: not lost, not landed, not still waiting for their
+        takeoff, and not disarmed after flying (touched down at the end of a
+        mission: it stays down unless re-launched)."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
-                if v.state not in (LOST, LANDED, STRANDED)
+                if v.state not in (LOST, LANDED, STRANDED, WAITING)
                 and not (v.airborne and not m.links[s].state.armed)]
 
     def landed_at_launch(self) -> list:
@@ -190,7 +198,7 @@ class Retasker:
         out = []
         for s, v in sorted(m.vehicles.items()):
             state, launch = m.links[s].state, v.route.launch
-            if v.state != LANDED or launch is None or state.lat is None:
+            if v.state not in (LANDED, WAITING) or launch is None or state.lat is None:
                 continue
             # within the room its takeoff column is proven with, as before the first start
             if distance_m(launch.lat, launch.lon, state.lat, state.lon) > \
@@ -321,9 +329,16 @@ class Retasker:
             m.new_mission(s, routes[s], uploaded[s])
             if self.segments is not None:
                 self.segments.fly(s, missions[s])
-        self._step(sysids, lambda s: self._resume(s, uploaded[s]))
+        record.departs = {s: routes[s].takeoff_s for s in tasked}
+        record.priority = {s: routes[s].priority for s in tasked}
         for s in up:
             m.relaunch(s)
+        if self.depart is not None:     # each at its time on the re-plan's clock
+            for s in tasked:
+                self.depart(s, routes[s].takeoff_s, "launch" if s in up else "resume",
+                            routes[s])
+            return
+        self._step(sysids, lambda s: self.resume(m, s, self._retries))
         self._step(up, lambda s: self._launch(s, routes[s]))
         for s in tasked:
             m.set_state(s, FLYING)
@@ -390,13 +405,14 @@ class Retasker:
         commands.start_mission(self.monitor.links[sysid], route.waypoints[0].alt_amsl,
                                retries=self._retries)
 
-    def _resume(self, sysid, mission) -> None:
+    @staticmethod
+    def resume(monitor, sysid, retries=commands.RETRIES) -> None:
         """Current item = the first item flown (after home, where there is one), then
         the firmware's mission mode."""
-        link = self.monitor.links[sysid]
+        link = monitor.links[sysid]
         profile = commands.autopilot(link)
-        commands.set_current(link, profile.first_item, retries=self._retries)
-        commands.set_mode(link, profile.mission_mode, retries=self._retries)
+        commands.set_current(link, profile.first_item, retries=retries)
+        commands.set_mode(link, profile.mission_mode, retries=retries)
 
 
 class _LostDuring(Exception):

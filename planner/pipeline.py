@@ -45,7 +45,7 @@ from . import coverage, split
 from .context import PlanningContext, outposts_json
 from .coverage.metrics import last_needed_sighting
 from .coverage.problem import achievable
-from .fleet import FleetSchedule, Profile, schedule
+from .fleet import FleetSchedule, Profile, schedule, stop_time
 from .parallel import dask_client
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .scenario import Scenario
@@ -492,7 +492,8 @@ def fleet_clock(ctx, polylines, arrivals, starts, problem, routes) -> Fleet:
             continue
         profile = Profile.of_route(poly, ctx.travel_params,
                                    launch=None if start is None else start.launch,
-                                   start=None if start is None else start.held)
+                                   start=None if start is None else start.held,
+                                   stop_s=stop_time(vars(ctx.scenario)))
         profiles.append(profile)
         snaps.append(np.asarray(snap, np.int64) + profile.route[0])
     flying = [r for r, p in enumerate(profiles) if p is not None]
@@ -520,7 +521,8 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, count
                bounds):
     """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time."""
     s = ctx.scenario
-    required = problem.needs()
+    # k + 1 (or the re-plan's need), or one per place where fewer places see it
+    required = np.minimum(problem.needs(), achievable(problem))
     vehicles = [_vehicle(ctx, r, poly, fleet, starts[r] if starts else None)
                 for r, poly in enumerate(polylines)]
     lengths = [v.path_length_m for v in vehicles]
@@ -584,8 +586,13 @@ def _vehicle(ctx, r, poly, fleet, start) -> VehicleRoute:
     return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints,
                         coverage_time_s=float(shots.max()) if len(shots) else 0.0,
                         mission_time_s=trajectory.end, path_length_m=length,
-                        takeoff_s=timing.start_s, trajectory=rows,
+                        takeoff_s=_leaves(profile, timing), trajectory=rows,
                         priority=fleet.schedule.order.index(r) + 1)
+
+
+def _leaves(profile, timing) -> float:
+    """When a vehicle leaves its start: the ground, or (in flight) where it holds."""
+    return float(timing.start_s + (0.0 if profile.on_ground[0] else timing.holds[0]))
 
 
 def _lonlat(ctx, xyz):

@@ -124,13 +124,21 @@ def coverable_targets(ctx: PlanningContext) -> int:
 
 
 def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
-    """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per target)."""
+    """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per
+    target): ``k_covered`` counts the targets seen by min(k + 1, UAVs) of them, or
+    by one per place where fewer places see them (sightings count from distinct
+    places: `planner.coverage.places`); ``k_impossible``: how many have fewer
+    places than that."""
     counts = seen.sum(axis=0) if len(seen) else np.zeros(ctx.visibility.n_targets, int)
     n = int(ctx.visibility.n_targets)
     need = required_uavs(k, len(seen))
+    places = np.diff(ctx.visibility.target_indptr)
+    wanted = np.minimum(need, places)
     return {"targets": n, "covered": int((counts >= 1).sum()),
-            "k": int(k), "required_uavs": int(need), "k_covered": int((counts >= need).sum()),
-            "fraction_k_covered": float((counts >= need).sum() / n) if n else 1.0}
+            "k": int(k), "required_uavs": int(need),
+            "k_covered": int((counts >= wanted).sum()),
+            "k_impossible": int(((places > 0) & (places < need)).sum()),
+            "fraction_k_covered": float((counts >= wanted).sum() / n) if n else 1.0}
 
 
 # --- re-planning ------------------------------------------------------------------------

@@ -56,6 +56,7 @@ class Scenario:
     descent_mps: float = 2.0
     track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
     separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
+    accel_mps2: float = 3.0  # horizontal acceleration: each waypoint stop costs speed / it
     firmware: str = "ardupilot"
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
@@ -100,7 +101,8 @@ class Scenario:
              f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
              f"got {len(self.launch)}"),
         ]
-        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "climb_mps", "descent_mps")
+        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "climb_mps", "descent_mps",
+                    "accel_mps2")
         checks += [(_positive(getattr(self, n)), f"{n} must be a positive number")
                    for n in positive]
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
@@ -176,7 +178,7 @@ SECTIONS = {
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
-              "separation_m", "firmware"),
+              "separation_m", "accel_mps2", "firmware"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
                "seed", "parts"),
 }

@@ -39,11 +39,14 @@ def sightings(problem, routes, when=None) -> list:
 
 
 def matched(found, cap=math.inf) -> int:
-    """The largest set of sightings with distinct UAVs and distinct places (at most cap)."""
+    """The largest set of sightings with distinct UAVs and distinct places (at most
+    cap), by trying every subset of the (UAV, place) pairs."""
+    pairs = sorted({(u, p) for _, u, p in found}, key=repr)
+    cap = min(cap, len({u for u, _ in pairs}), len({p for _, p in pairs}))
     best = 0
-    for size in range(1, min(len(found), cap) + 1):
-        if any(len({u for _, u, _ in c}) == size == len({p for _, _, p in c})
-               for c in itertools.combinations(found, size)):
+    for size in range(1, cap + 1):
+        if any(len({u for u, _ in c}) == size == len({p for _, p in c})
+               for c in itertools.combinations(pairs, size)):
             best = size
         else:
             break

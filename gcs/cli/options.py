@@ -37,6 +37,8 @@ HELP = {
                          "every point that close to a leg is proven hidden too",
     "separation_m": "least distance between two airborne vehicles, metres, proven on their "
                     "trajectories and kept by waits (0: vehicles are not kept apart)",
+    "accel_mps2": "horizontal acceleration, m/s²: a vehicle stops at each waypoint, which "
+                  "costs speed / acceleration in the schedule",
     "firmware": "mission flavour of the exported files",
     "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
               "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",
@@ -106,7 +108,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
-                  "separation_m"),
+                  "separation_m", "accel_mps2"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }
     for title, names in fields_of.items():
@@ -126,7 +128,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
             group.add_argument("--visibility", choices=("hard", "soft"), help=_help("visibility"))
 
 
-_UNITS = {"_mps": "M/S", "_deg": "DEG", "_m": "M", "_s": "S"}
+_UNITS = {"_mps2": "M/S2", "_mps": "M/S", "_deg": "DEG", "_m": "M", "_s": "S"}
 
 
 def _flag(name: str) -> dict:

@@ -36,12 +36,12 @@ def plan_summary(plan) -> Group:
              f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f}{beside})" if ratio else
              f"coverage time {_minutes(m['coverage_time_s'])}")
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
-               f"UAVs ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of the targets); "
-               f"planned in {plan.timing_s.get('total', 0):.1f} s")
+               f"UAVs at k+1 places ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of "
+               f"the targets); planned in {plan.timing_s.get('total', 0):.1f} s")
     impossible = m.get("k_impossible", 0)
     if impossible:
-        targets += (f"; {impossible} seen from fewer than k+1 = {m['k'] + 1} places (each "
-                    "place serves one UAV): seen by as many UAVs as they have places")
+        targets += (f"; of them {impossible} have fewer places than k+1 (two UAVs at one "
+                    "place share one fate): seen once from each of their places")
     lines = [table, Text(cover), Text(targets), Text(fleet_line(plan))] + \
         [Text(t) for t in area_lines(plan)]
     return Group(*lines)

@@ -17,7 +17,14 @@ from .schedule import FleetSchedule, Timing, schedule, separation
 from .trajectory import Profile, Trajectory, doing_at, route_profile, route_trajectory
 
 __all__ = ["FleetSchedule", "Profile", "Timing", "Trajectory", "doing_at", "prove_separated",
-           "route_profile", "route_trajectory", "schedule", "separation"]
+           "route_profile", "route_trajectory", "schedule", "separation", "stop_time"]
+
+
+def stop_time(params: dict) -> float:
+    """What a stop at a waypoint costs, s: the cruise speed over the acceleration
+    (`Profile.of_route`), from a scenario's or a plan's parameters."""
+    accel = params.get("accel_mps2") or 0.0
+    return float(params["speed_mps"]) / accel if accel > 0 else 0.0
 
 
 def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:
@@ -27,7 +34,8 @@ def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:
     from common.errors import InputError
 
     routes = [v for v in plan.vehicles if v.waypoints]
-    d, where = separation([route_trajectory(v, terrain, travel_params) for v in routes])
+    stop = stop_time(plan.params)
+    d, where = separation([route_trajectory(v, terrain, travel_params, stop) for v in routes])
     need = float(plan.params.get("separation_m", 0.0))
     if where is not None and d < need - 1e-6:
         a, b, t = routes[where[0]].id, routes[where[1]].id, where[2]

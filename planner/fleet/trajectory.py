@@ -60,12 +60,16 @@ class Profile:
     route: tuple
 
     @classmethod
-    def of_route(cls, polyline, travel_params, launch=None, start=None) -> "Profile":
+    def of_route(cls, polyline, travel_params, launch=None, start=None,
+                 stop_s=0.0) -> "Profile":
         """The profile of a hidden polyline (its first vertex the top of the takeoff,
         its last the point above launch where the landing starts): with ``launch``
         (x, y, ground AMSL), from and to the ground there; with ``start`` (x, y,
         alt) instead of a takeoff, from that point in the air (a vehicle held in
-        flight), flown straight to the polyline's first vertex."""
+        flight), flown straight to the polyline's first vertex. ``stop_s``: what
+        slowing to a stop at a vertex and speeding up again costs (speed / the
+        acceleration: a multicopter flying a mission stops at each waypoint),
+        added to each leg that leaves a polyline vertex but the first."""
         poly = np.asarray(polyline, float).reshape(-1, 3)
         parts, first = [poly], 0
         up = launch is not None and start is None
@@ -81,7 +85,9 @@ class Profile:
         xyz = np.vstack(parts)
         d = np.diff(xyz, axis=0)
         duration = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], travel_params).astype(float)
-        return cls(xyz, duration, (up, down), (first, first + len(poly) - 1))
+        last = first + len(poly) - 1
+        duration[first + 1:last] += stop_s       # the legs out of inner polyline vertices
+        return cls(xyz, duration, (up, down), (first, last))
 
     @property
     def n(self) -> int:
@@ -127,7 +133,7 @@ def doing_at(trajectory: Trajectory, when: float) -> tuple:
     return int(v[row]), bool(v[row] == v[row + 1])
 
 
-def route_profile(route, terrain, travel_params) -> Profile:
+def route_profile(route, terrain, travel_params, stop_s=0.0) -> Profile:
     """The `Profile` a saved route (`planner.plan.VehicleRoute`) flies: its waypoints
     on ``terrain``'s grid, from and to the ground at its launch point."""
     w = route.waypoints
@@ -138,13 +144,13 @@ def route_profile(route, terrain, travel_params) -> Profile:
     if route.launch is not None:
         lx, ly = terrain.from_lonlat(route.launch.lon, route.launch.lat)
         launch = np.array([float(lx), float(ly), route.launch.alt_amsl])
-    return Profile.of_route(poly, travel_params, launch=launch)
+    return Profile.of_route(poly, travel_params, launch=launch, stop_s=stop_s)
 
 
-def route_trajectory(route, terrain, travel_params) -> Trajectory:
+def route_trajectory(route, terrain, travel_params, stop_s=0.0) -> Trajectory:
     """The trajectory a saved route flies: leaving at its ``takeoff_s``, waiting its
     waypoints' ``hold_s`` (what its missions carry)."""
-    profile = route_profile(route, terrain, travel_params)
+    profile = route_profile(route, terrain, travel_params, stop_s)
     holds = np.zeros(profile.n)
     holds[profile.route[0]:profile.route[1] + 1] = [p.hold_s for p in route.waypoints]
     return profile.timed(route.takeoff_s, holds)
