@@ -142,6 +142,12 @@ def set_mode(link, name: str, confirm=True, timeout_s=TIMEOUT_S, retries=RETRIES
         raise CommandError(link, exc.args[0]) from None
     for _ in range(retries + 1):
         _request_mode(link, custom, params, timeout_s, retries)
+        if confirm and link.state.custom_mode != custom:
+            # the HEARTBEAT that shows it comes once a second: ask for one now (a
+            # second's wait is many seconds of a sped-up simulation, or a start late)
+            link.send("COMMAND_LONG", command=M.MAV_CMD_REQUEST_MESSAGE, confirmation=0,
+                      param1=float(M.MAVLINK_MSG_ID_HEARTBEAT), param2=0.0, param3=0.0,
+                      param4=0.0, param5=0.0, param6=0.0, param7=0.0)
         if not confirm or _until(link, lambda s: s.custom_mode == custom, CONFIRM_S):
             return
     raise CommandError(link, f"mode is still {link.state.mode} after asking for "
@@ -239,18 +245,22 @@ def _until(link, predicate, timeout_s) -> bool:
 
 # -- the start sequence ----------------------------------------------------------------
 def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
-                  climb_timeout_s: float = 120.0, retries: int = RETRIES) -> None:
+                  climb_timeout_s: float = 120.0, retries: int = RETRIES,
+                  on_liftoff=None) -> None:
     """Take off and start the uploaded mission, as the vehicle's firmware expects
     (the steps of its profile's ``start_sequence``).
 
     takeoff_alt_amsl: where ArduPilot climbs in GUIDED before AUTO (m AMSL; the
     mission's own takeoff item then completes at once). PX4 flies its mission's
     takeoff item itself. Returns once the vehicle is airborne in its mission mode.
-    retries: resends of each command (more on a lossy link)."""
+    retries: resends of each command (more on a lossy link); ``on_liftoff()``:
+    called when the command that lifts it off is acknowledged (the moment a
+    fleet's schedule is kept to)."""
     profile = autopilot(link)
     ready_by = time.monotonic() + ready_timeout_s
     wait_ready(link, ready_timeout_s)
-    run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries, ready_by)
+    run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries, ready_by,
+                    on_liftoff or (lambda: None))
     for step in profile.start_sequence:
         getattr(run, step.action)(step.argument)
 
@@ -265,8 +275,9 @@ class _StartRun:
     """The steps a start sequence is made of (`autopilots.base.Step`)."""
 
     def __init__(self, link, profile, takeoff_alt_amsl, climb_timeout_s, retries,
-                 ready_by=None):
+                 ready_by=None, on_liftoff=lambda: None):
         self.link, self.profile = link, profile
+        self.on_liftoff = on_liftoff
         self.takeoff_alt_amsl = takeoff_alt_amsl
         self.climb_timeout_s, self.retries = climb_timeout_s, retries
         self.ready_by = ready_by            # until then a refused arming is tried again
@@ -313,6 +324,7 @@ class _StartRun:
         for attempt in range(TAKEOFF_ATTEMPTS):
             try:
                 self._send_takeoff(climb)
+                self.on_liftoff()
                 _wait_airborne(link, self.armed_at, lambda s: (s.relative_alt or 0.0) >= target,
                                self.climb_timeout_s, f"climbing to {climb:.1f} m above home")
                 return
@@ -339,6 +351,7 @@ class _StartRun:
             abs(self.link.state.relative_alt or 0.0) < 1.0
 
     def airborne(self, _=None) -> None:
+        self.on_liftoff()                    # armed in its mission mode: it climbs
         _wait_airborne(self.link, self.armed_at, lambda s: (s.relative_alt or 0.0) > 1.0,
                        self.climb_timeout_s, "taking off")
 

@@ -53,9 +53,9 @@ from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
 from gcs.segments import Segments, upload_route
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
-from missions.segments import RouteMissions, fewer_waypoints, leg_prover
+from missions.segments import RouteMissions, fewer_waypoints
 from planner.context import PlanningContext
-from planner.fleet import prove_separated
+from planner.fleet import prove_separated, stop_time
 from planner.plan import PLAN_FILE, Plan
 from planner.replan import coverable_targets, coverage_summary, seen_matrix
 
@@ -152,6 +152,8 @@ class Flight:
         self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
         self._departing = {}      # sysid -> [thread, error] of departures under way
         self._waiting_for = {}    # sysid -> the vehicle its base column waits for
+        self._lifted = []         # (sysid, launch begun, lifted off): monitor times
+        self.latency_s = 0.0      # fleet s from a launch's first command to its liftoff
         self.guard = None
         self.min_separation_m = None  # the plan's, proven again in `prepare`
         self.segments = Segments(self.monitor, options.protocol, options.max_items)
@@ -298,17 +300,14 @@ class Flight:
                                items=len(mission.items))
 
     def route_missions(self, route, firmware) -> RouteMissions:
-        """The missions that fly ``route`` with ``firmware``: as few waypoints as the
-        leg proofs allow, each mission proven by the gate (`checked`)."""
-        try:
-            prove = leg_prover(self.context())
-        except Exception:       # no planning context: repeated places only
-            prove = None
+        """The missions that fly ``route`` with ``firmware``, each proven by the gate
+        (`checked`). The plan's waypoints are already the fewest the leg proofs allow
+        (its schedule counts a stop at each): only repeated places are left out."""
         clearance = self.plan.params.get("clearance_m")
         name = f"{self.plan_dir / PLAN_FILE}: vehicle {route.id}"
         return RouteMissions(route, firmware, self.mission_options,
                              lambda mission: checked(mission, self.surface, clearance, name=name),
-                             fly=fewer_waypoints(route, prove))
+                             fly=fewer_waypoints(route))
 
     def upload(self) -> None:
         m = self.monitor
@@ -344,24 +343,24 @@ class Flight:
                               if v.state in (FLYING, HOLDING) and v.airborne],
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
             resume=lambda s: self._set_mode(s, "mission_mode", FLYING),
-            speed_mps=float(self.plan.params.get("speed_mps", 12.0)))
-        self.clock.start()
+            travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params))
+        # every vehicle ready to arm first: then each start takes about as long, and the
+        # takeoffs keep the plan's spacing
+        self._all(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
+                  "start", commands.CommandError)
         for sysid, v in m.vehicles.items():
             if v.state != LOST:
                 self.departures[sysid] = Departure(v.route.takeoff_s, "launch", v.route)
-        first = min((d.due for d in self.departures.values()), default=0.0)
-        now = [s for s, d in self.departures.items() if d.due <= first]
-        for sysid in now:
-            del self.departures[sysid]
-        self._all(lambda s: self._launch(s, m.vehicles[s].route), "start",
-                  commands.CommandError)
+        self._depart_due()
 
     def _launch(self, sysid, route) -> None:
         m = self.monitor
+        begun = m.now()
         m.set_state(sysid, STARTING)
         commands.start_mission(m.links[sysid], route.waypoints[0].alt_amsl,
                                ready_timeout_s=self.options.ready_timeout_s,
-                               retries=self.options.protocol_retries)
+                               retries=self.options.protocol_retries,
+                               on_liftoff=lambda: self._lifted.append((sysid, begun, m.now())))
         m.set_state(sysid, FLYING)
 
     def _resume(self, sysid, route=None) -> None:
@@ -383,7 +382,12 @@ class Flight:
         """Send the vehicles whose time has come, each in its own thread; a takeoff
         waits while another airborne vehicle is in its base column. A failure of a
         vehicle still heard from stops the flight."""
-        m, now = self.monitor, self.clock.now()
+        m = self.monitor
+        self._anchor_clock()
+        now = self.clock.now()
+        if now is None:     # the clock starts at the first takeoff: those go now, alone
+            now = -math.inf if self._departing else \
+                min((d.due for d in self.departures.values()), default=0.0)
         for sysid, (thread, error) in list(self._departing.items()):
             if thread.is_alive():
                 continue
@@ -394,7 +398,8 @@ class Flight:
             if m.vehicles[sysid].state == LOST:
                 del self.departures[sysid]
                 continue
-            if now is None or d.due > now or sysid in self._departing:
+            early = self.latency_s if d.kind == "launch" else 0.0
+            if d.due - early > now or sysid in self._departing:
                 continue
             if d.kind == "launch" and not self._column_clear(sysid, d.route):
                 continue
@@ -410,6 +415,19 @@ class Flight:
             thread = threading.Thread(target=go, daemon=True, name=f"depart-{sysid}")
             self._departing[sysid] = (thread, error)
             thread.start()
+
+    def _anchor_clock(self) -> None:
+        """The fleet clock reads a vehicle's planned takeoff time when it is seen
+        leaving the ground (t = 0: the first takeoff), and each launch is begun as
+        much earlier as the last one took from its first command to that moment
+        (arming, the takeoff command: `latency_s`), so takeoffs keep the plan's
+        spacing whatever the ground station's and the vehicles' own delays."""
+        m = self.monitor
+        while self._lifted:
+            sysid, begun, lifted = self._lifted.pop(0)
+            if not self.clock.started:
+                self.clock.start(m.vehicles[sysid].route.takeoff_s + (m.now() - lifted))
+            self.latency_s = (lifted - begun) * self.clock.rate()
 
     def _column_clear(self, sysid, route) -> bool:
         """No other airborne vehicle within the separation of the column above its

@@ -1,16 +1,19 @@
 """The separation guard: keeps airborne vehicles apart when they drift from the plan.
 
 A plan proves its vehicles separated on its own schedule; real ones drift from it
-(wind, speed, a late takeoff). Each flight-loop step the guard predicts every
-airborne pair's closest approach over the next `horizon` seconds of fleet time
-from telemetry (each position carried forward to now, then both moving straight
-on at their reported velocities: the closed form of two linear motions) and,
-before it would fall below the separation, holds the vehicle of lower priority
-(the plan's: the later one placed on the fleet clock) where it is, in its
-firmware's hold mode: on its proven leg, so hidden. If the pair still closes
-(the one held sits in the other's way), the other is held too. A held vehicle
-flies on once no other airborne vehicle is predicted within the separation of
-it, moving toward its next waypoint at cruise speed, nor stands within it now.
+(wind, speed, a late takeoff). Each flight-loop step the guard predicts where
+every airborne vehicle will be over the next `horizon` seconds of fleet time: from
+its reported position (carried forward to now at its reported velocity) along the
+rest of its route, at the planned speeds, stops and holds, down to its landing
+(`planner.fleet.Profile`: what it flies, not a straight line that ignores its
+turns); a held vehicle stays where it is. Where two predictions come closer than
+the separation within the horizon (`Trajectory.first_conflict`, exact), the guard
+holds one of them where it is, in its firmware's hold mode, on its proven leg, so
+hidden: the one of lower priority (the plan's: the later placed on the fleet
+clock), unless standing there would still be in the other's way, then the other;
+both only when neither alone clears it. A held vehicle flies on, highest priority
+first, once its route from where it stands keeps clear of every other's
+prediction (with `RESUME_FACTOR` of room) and no other stands that close now.
 
 Every hold and resume is an event, and `report` gives them with the closest
 approach seen between each pair (from telemetry).
@@ -23,6 +26,8 @@ import time
 import numpy as np
 
 from gcs import commands
+from planner.fleet import Profile, Trajectory
+from planner.travel import TravelParams
 
 #: fleet seconds of look-ahead, beyond the ground station's own reaction time
 HORIZON_S = 8.0
@@ -46,15 +51,16 @@ class SeparationGuard:
 
     ``airborne()``: the system ids flying now; ``priority[sysid]``: 1 has right of
     way; ``clock``: the flight's `gcs.clock.FleetClock`; ``hold(sysid)`` /
-    ``resume(sysid)``: what holding means for the flight (mode and state)."""
+    ``resume(sysid)``: what holding means for the flight (mode and state);
+    ``travel``: the plan's speeds (`TravelParams`) and ``stop_s`` per waypoint."""
 
     def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
-                 speed_mps=12.0):
+                 travel=TravelParams(), stop_s=0.0):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.airborne = clock, airborne
         self._hold, self._resume = hold, resume
-        self.speed_mps = float(speed_mps)
+        self.travel, self.stop_s = travel, float(stop_s)
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
@@ -76,101 +82,106 @@ class SeparationGuard:
     def step(self) -> None:
         if not self.active:
             return
-        now = self.monitor.now()
-        states = self._states()
-        self._note_closest(states, now)
+        frame = _Frame(self.monitor, self.airborne(), self.clock.rate())
+        if not frame.here:
+            return
+        self._note_closest(frame)
         horizon = self.horizon()
-        for (a, b), (d, when) in self._predictions(states, horizon).items():
-            if d >= self.separation_m:
-                continue
-            low, high = sorted((a, b), key=lambda s: (self.priority.get(s, 99), s))[::-1]
-            target = low if low not in self.held else high
-            if target not in self.held:
-                self._do(target, self._hold, now, "hold", other=high if target == low else low,
-                         predicted=(d, when))
-        for sysid in list(self.held):
-            if sysid in states and self._clear(sysid, states, horizon):
-                self._do(sysid, self._resume, now, "resume", other=self.held[sysid][1])
+        ahead = {s: (frame.standing(s, horizon) if s in self.held else self._route(frame, s))
+                 for s in frame.here}
+        for a, b, begin in self._conflicts(ahead, horizon, self.separation_m):
+            self._separate(frame, ahead, a, b, begin, horizon)
+        for sysid in sorted(self.held, key=self._rank):
+            if sysid in frame.here and self._may_go(frame, ahead, sysid, horizon):
+                ahead[sysid] = self._route(frame, sysid)
+                self._do(sysid, self._resume, "resume", other=self.held[sysid][1])
 
-    # -- telemetry -------------------------------------------------------------------
-    def _states(self) -> dict:
-        """sysid -> (position m, velocity m/s) now, on a local flat frame."""
-        out = {}
-        rate = self.clock.rate()
-        mono = time.monotonic()
-        ids = self.airborne()
-        lat0 = None
-        for sysid in ids:
-            s = self.monitor.links[sysid].state
-            if s.lat is None or s.velocity is None or s.position_at is None:
-                continue
-            lat0 = s.lat if lat0 is None else lat0
-            k = math.cos(math.radians(lat0))
-            p = np.array([math.radians(s.lon) * EARTH_R * k, math.radians(s.lat) * EARTH_R,
-                          s.alt_amsl])
-            north, east, up = s.velocity
-            v = np.array([east, north, up])
-            if sysid in self.held:
-                v = np.zeros(3)          # braking to a stop where it was told to
-            out[sysid] = (p + v * (mono - s.position_at) * rate, v)
-        return out
+    # -- predictions -------------------------------------------------------------------
+    def _rank(self, sysid):
+        return self.priority.get(sysid, 99), sysid
 
-    def _predictions(self, states, horizon) -> dict:
-        out = {}
-        ids = sorted(states)
+    def _route(self, frame, sysid) -> Trajectory:
+        """Where ``sysid`` flies from now: the rest of its route, its landing included."""
+        v = self.monitor.vehicles[sysid]
+        rest = [w for i, w in enumerate(v.route.waypoints) if i not in v.done]
+        poly = frame.project([(w.lon, w.lat, w.alt_amsl) for w in rest])
+        launch = v.route.launch
+        ground = None if launch is None else \
+            frame.project([(launch.lon, launch.lat, launch.alt_amsl)])[0]
+        if not len(poly):
+            poly = frame.position(sysid)[None]
+        profile = Profile.of_route(poly, self.travel, launch=ground, start=frame.position(sysid),
+                                   stop_s=self.stop_s)
+        holds = np.zeros(profile.n)
+        holds[profile.route[0]:profile.route[0] + len(rest)] = [w.hold_s for w in rest]
+        return profile.timed(0.0, holds)
+
+    @staticmethod
+    def _conflicts(ahead, horizon, distance) -> list:
+        """(a, b, when) of every pair predicted closer than ``distance`` within the
+        horizon, soonest first."""
+        out = []
+        ids = sorted(ahead)
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
-                (pa, va), (pb, vb) = states[a], states[b]
-                out[a, b] = closest_ahead(pb - pa, vb - va, horizon)
-        return out
+                begin, _ = ahead[a].first_conflict(ahead[b], distance)
+                if begin <= horizon:
+                    out.append((a, b, begin))
+        return sorted(out, key=lambda c: c[2])
 
-    def _clear(self, sysid, states, horizon) -> bool:
-        """Whether ``sysid``, flying on toward its next waypoint, keeps clear."""
-        p, _ = states[sysid]
-        v = self._onward(sysid, p)
-        for other, (q, w) in states.items():
+    def _separate(self, frame, ahead, a, b, begin, horizon) -> None:
+        """Hold one of a conflicting pair: the lower priority, unless standing where it
+        is would still be in the other's way; both when neither alone will do."""
+        if a in self.held and b in self.held:
+            return
+        low, high = sorted((a, b), key=self._rank)[::-1]
+        predicted = ahead[a].closest_approach(ahead[b])
+        for target, other in ((low, high), (high, low)):
+            if target in self.held:
+                continue
+            still = frame.standing(target, horizon)
+            if ahead[other].first_conflict(still, self.separation_m)[0] > horizon:
+                ahead[target] = still
+                self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
+                return
+        for target, other in ((low, high), (high, low)):
+            if target not in self.held:
+                ahead[target] = frame.standing(target, horizon)
+                self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
+
+    def _may_go(self, frame, ahead, sysid, horizon) -> bool:
+        go = self._route(frame, sysid)
+        room = self.separation_m * RESUME_FACTOR
+        for other in frame.here:
             if other == sysid:
                 continue
-            if np.linalg.norm(q - p) < self.separation_m * RESUME_FACTOR:
+            if np.linalg.norm(frame.position(other) - frame.position(sysid)) < room:
                 return False
-            if closest_ahead(q - p, w - v, horizon)[0] < self.separation_m * RESUME_FACTOR:
+            if go.first_conflict(ahead[other], room)[0] <= horizon:
                 return False
         return True
 
-    def _onward(self, sysid, p) -> np.ndarray:
-        """Velocity toward the vehicle's next waypoint at cruise speed (zero if unknown)."""
-        v = self.monitor.vehicles[sysid]
-        ahead = [i for i in range(len(v.route.waypoints)) if i not in v.done]
-        if not ahead:
-            return np.zeros(3)
-        w = v.route.waypoints[ahead[0]]
-        s = self.monitor.links[sysid].state
-        k = math.cos(math.radians(s.lat))
-        lat0 = s.lat
-        d = np.array([math.radians(w.lon - s.lon) * EARTH_R * k,
-                      math.radians(w.lat - lat0) * EARTH_R, w.alt_amsl - s.alt_amsl])
-        n = np.linalg.norm(d)
-        return d / n * self.speed_mps if n > 1e-6 else np.zeros(3)
-
-    def _note_closest(self, states, now) -> None:
-        ids = sorted(states)
+    def _note_closest(self, frame) -> None:
+        now = self.monitor.now()
+        ids = sorted(frame.here)
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
-                d = float(np.linalg.norm(states[b][0] - states[a][0]))
+                d = float(np.linalg.norm(frame.position(a) - frame.position(b)))
                 seen = self.closest.get((a, b))
                 if seen is None or d < seen[0]:
                     self.closest[a, b] = [round(d, 2), round(now, 3)]
 
     # -- actions ---------------------------------------------------------------------
-    def _do(self, sysid, action, now, what, other, predicted=None) -> None:
+    def _do(self, sysid, action, what, other, predicted=None) -> None:
         if sysid in self._busy:
             return
+        now = self.monitor.now()
+        since = now
         if what == "hold":
             self.held[sysid] = (now, other)
         else:
             since, _ = self.held.pop(sysid)
-        self._record(what, sysid, other, predicted, self.held.get(sysid, (now,))[0]
-                     if what == "hold" else since)
+        self._record(what, sysid, other, predicted, since)
         self._busy.add(sysid)
 
         def run():
@@ -200,3 +211,43 @@ class SeparationGuard:
                  for (a, b), (d, t) in sorted(self.closest.items())]
         return {"separation_m": self.separation_m, "actions": self.actions, "pairs": pairs,
                 "closest_m": min((p["closest_m"] for p in pairs), default=None)}
+
+
+class _Frame:
+    """The airborne vehicles now, on one local flat frame (metres east, north, up),
+    each reported position carried forward to now at its reported velocity."""
+
+    def __init__(self, monitor, sysids, rate):
+        self.monitor = monitor
+        self._p, self.lat0, self.lon0 = {}, None, None
+        mono = time.monotonic()
+        for sysid in sysids:
+            s = monitor.links[sysid].state
+            if s.lat is None or s.velocity is None or s.position_at is None:
+                continue
+            if self.lat0 is None:
+                self.lat0, self.lon0 = s.lat, s.lon
+            north, east, up = s.velocity
+            p = self.project([(s.lon, s.lat, s.alt_amsl)])[0]
+            self._p[sysid] = p + np.array([east, north, up]) * (mono - s.position_at) * rate
+
+    @property
+    def here(self) -> list:
+        return list(self._p)
+
+    def position(self, sysid) -> np.ndarray:
+        return self._p[sysid]
+
+    def project(self, points) -> np.ndarray:
+        if not points:
+            return np.zeros((0, 3))
+        a = np.asarray(points, float)
+        k = math.cos(math.radians(self.lat0))
+        return np.column_stack([np.radians(a[:, 0] - self.lon0) * EARTH_R * k,
+                                np.radians(a[:, 1] - self.lat0) * EARTH_R, a[:, 2]])
+
+    def standing(self, sysid, horizon) -> Trajectory:
+        """Held where it is for the horizon."""
+        p = self._p[sysid]
+        return Trajectory(np.array([0.0, max(horizon, 1e-3)]), np.array([p, p]),
+                          np.ones(1, bool))

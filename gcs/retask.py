@@ -39,7 +39,7 @@ from gcs.monitor import (
 )
 from gcs.segments import upload_route
 from missions.build import MissionOptions
-from missions.segments import RouteMissions, fewer_waypoints, leg_prover
+from missions.segments import RouteMissions, fewer_waypoints
 from planner.replan import (
     Survivor,
     coverable_targets,
@@ -346,7 +346,7 @@ class Retasker:
     def _missions(self, sysid, route) -> RouteMissions:
         """The new route's missions (the whole, or segments), each proven hidden and
         clear leg by leg: `CheckedMission`, the only thing the upload takes; the
-        fewest waypoints the planner's leg proofs allow."""
+        re-plan's waypoints are already the fewest its leg proofs allow."""
         from missions.check import checked
 
         link = self.monitor.links[sysid]
@@ -354,7 +354,7 @@ class Retasker:
         return RouteMissions(route, link.flavour, self.mission_options,
                              lambda mission: checked(mission, ctx.surface,
                                                      ctx.scenario.clearance_m),
-                             fly=fewer_waypoints(route, leg_prover(ctx)))
+                             fly=fewer_waypoints(route))
 
     def _strand_unjoined(self, record, sysids) -> list:
         """``sysids`` without the held vehicles no hidden leg joins to the hidden

@@ -422,7 +422,7 @@ def _routes(ctx, routes, starts, progress=None):
                                      "hidden path (a defect: the planner only pairs reachable "
                                      "viewpoints)")
         poly, stops = got
-        poly = _rounded_for_mavlink(ctx, poly)
+        poly, stops = _fewest_vertices(ctx, _rounded_for_mavlink(ctx, poly), stops)
         _prove(ctx, r, poly)
         if progress is not None:
             progress(0.8 + 0.2 * (r + 1) / len(routes))
@@ -433,6 +433,40 @@ def _routes(ctx, routes, starts, progress=None):
         polylines.append(poly)
         arrivals.append((t, snap))
     return polylines, arrivals
+
+
+#: vertices closer than this (m, horizontally and vertically) are one place
+SAME_PLACE_M = 0.01
+
+
+def _fewest_vertices(ctx, poly, stops) -> tuple:
+    """The polyline with only the vertices a mission must fly: the ``stops`` (start,
+    snapshots, end), and a vertex between them only where the straight leg past it
+    fails the planned legs' proofs (`TravelGraph.legs_ok`); a vertex repeating the
+    one before is one. A vehicle stops at each waypoint it flies, so these are
+    the waypoints its missions carry and its schedule counts (`missions.segments`
+    finds nothing more to leave out)."""
+    must = np.zeros(len(poly), bool)
+    must[stops] = True
+    keep = [0]
+    for j in range(1, len(poly)):
+        if np.all(np.abs(poly[j] - poly[keep[-1]]) < SAME_PLACE_M):
+            if must[j]:
+                keep[-1] = j          # the stop is the one flown
+            continue
+        keep.append(j)
+    out = [keep[0]]
+    for i, j in enumerate(keep[1:-1], start=1):
+        if must[j] or not ctx.graph.legs_ok(poly[out[-1]], poly[keep[i + 1]])[0]:
+            out.append(j)
+    if len(keep) > 1:
+        out.append(keep[-1])
+    index = np.full(len(poly), -1, np.int64)
+    index[out] = np.arange(len(out))
+    # a stop merged into the same place as another keeps that one's index
+    for j in np.flatnonzero(must & (index < 0)):
+        index[j] = index[max(k for k in out if k <= j)] if any(k <= j for k in out) else 0
+    return poly[out], index[stops]
 
 
 def _rounded_for_mavlink(ctx, poly) -> np.ndarray:

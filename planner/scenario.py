@@ -56,7 +56,7 @@ class Scenario:
     descent_mps: float = 2.0
     track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
     separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
-    accel_mps2: float = 3.0  # horizontal acceleration: each waypoint stop costs speed / it
+    accel_mps2: float = 3.0  # horizontal acceleration: the time a waypoint costs (fleet.stop_time)
     firmware: str = "ardupilot"
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)

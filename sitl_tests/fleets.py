@@ -158,15 +158,20 @@ class SimBackend:
         return time.time()
 
     def tracks(self, flight_dir: Path) -> dict:
-        """{sysid: (t, lat, lon, alt, snapshots [(lat, lon, alt)], home (lat, lon, alt))}."""
+        """{sysid: (t, lat, lon, alt, snapshots [(lat, lon, alt)], home (lat, lon, alt))},
+        t on the wall clock (Unix s), which the vehicles share, as the judges' do."""
         from gcs.sim import read_track, track_path
 
         out = {}
         for v in self.fleet.vehicles:
             tr = read_track(track_path(self.track_dir, v.sysid))
             snaps = [(s["lat"], s["lon"], s["alt"]) for s in tr.snapshots]
-            out[v.sysid] = (tr.t, tr.lat, tr.lon, tr.alt, snaps, tr.home)
+            out[v.sysid] = (tr.wall, tr.lat, tr.lon, tr.alt, snaps, tr.home)
         return out
+
+    def hold_on_ground(self, sysid: int, hold: bool = True) -> None:
+        """Refuse (or allow again) the arming of ``sysid``: it starts late."""
+        self.fleet.refuse_arm(sysid, hold)
 
     def stop(self) -> None:
         self.fleet.stop()

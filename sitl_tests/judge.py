@@ -185,3 +185,32 @@ class Judge:
         """(t, lat, lon, alt, shots, home), as the fixtures' ``tracks()`` give them."""
         rows = np.array(self.samples, float).reshape(-1, 4)
         return (rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], list(self.shots), self.home)
+
+
+def closest_airborne(tracks, airborne_m=1.0) -> tuple:
+    """(least distance m, (sysid, sysid), wall t) of two vehicles while both are more
+    than ``airborne_m`` above their homes, from their recorded tracks
+    ({sysid: (wall t, lat, lon, alt, ...,  home)}), on the times of either's
+    samples (linear between them); (inf, None, None) if never two at once."""
+    import itertools
+
+    best = (np.inf, None, None)
+    lat0 = next(iter(tracks.values()))[1][0] if tracks else 0.0
+    k = np.cos(np.radians(lat0)) * 6371008.8 * np.pi / 180
+    for (a, ta), (b, tb) in itertools.combinations(sorted(tracks.items()), 2):
+        t = np.union1d(ta[0], tb[0])
+        t = t[(t >= max(ta[0][0], tb[0][0])) & (t <= min(ta[0][-1], tb[0][-1]))]
+        if not len(t):
+            continue
+        pa = np.column_stack([np.interp(t, ta[0], ta[2]) * k, np.interp(t, ta[0], ta[1]) *
+                              6371008.8 * np.pi / 180, np.interp(t, ta[0], ta[3])])
+        pb = np.column_stack([np.interp(t, tb[0], tb[2]) * k, np.interp(t, tb[0], tb[1]) *
+                              6371008.8 * np.pi / 180, np.interp(t, tb[0], tb[3])])
+        up = (pa[:, 2] > ta[-1][2] + airborne_m) & (pb[:, 2] > tb[-1][2] + airborne_m)
+        if not up.any():
+            continue
+        d = np.linalg.norm(pa - pb, axis=1)
+        i = int(np.argmin(np.where(up, d, np.inf)))
+        if d[i] < best[0]:
+            best = (float(d[i]), (a, b), float(t[i]))
+    return best

@@ -36,14 +36,16 @@ pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collect
 
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
-             capacity=None, **options):
+             capacity=None, late=None, **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
     ``interrupt``: (sysid, fraction) for a Ctrl-C then, answered "home".
     ``drop_pct``: packets lost both ways throughout; ``speedup``: of the simulation
     (default: the backend's); ``capacity``: mission items each simulated vehicle
-    holds; ``options``: `FlyOptions` fields to change. Returns a result dict."""
+    holds; ``late``: (sysid, fleet s) it takes off that much after its planned
+    time (its arming refused until then: simulated backends); ``options``:
+    `FlyOptions` fields to change. Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
     longest = max(v.mission_time_s for v in planned.plan.vehicles)
     be = start_backend(backend, planned.plan, workdir, speedup, capacity)
@@ -77,6 +79,19 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     for sysid, when in kills:
         threading.Thread(target=when_due, args=(sysid, when, lambda s=sysid: kill(s)),
                          daemon=True).start()
+    if late is not None:
+        sysid, seconds = late
+        be.hold_on_ground(sysid)
+        planned_at = next(v.takeoff_s for v in planned.plan.vehicles if v.id == sysid)
+
+        def release():
+            while not stop.is_set():
+                now = flight.clock.now()
+                if now is not None and now >= planned_at + seconds:
+                    be.hold_on_ground(sysid, False)
+                    return
+                time.sleep(0.01)
+        threading.Thread(target=release, daemon=True).start()
     if interrupt is not None:  # Ctrl-C: KeyboardInterrupt in the main thread
         threading.Thread(target=when_due, args=(*interrupt, _thread.interrupt_main),
                          daemon=True).start()

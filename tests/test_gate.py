@@ -18,7 +18,7 @@ from common.errors import InputError
 from gcs import mission_protocol as mp
 from gcs.cli import main
 from gcs.link import GroundLink
-from gcs.monitor import STRANDED, Monitor
+from gcs.monitor import FLYING, STRANDED, Monitor
 from gcs.retask import Retask, Retasker, RetaskError
 from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
 from missions import qgc, wpl
@@ -209,6 +209,7 @@ def _followed(planned, vehicle):
         mp.upload_verified(v, first)
         monitor = Monitor(5.0)
         monitor.follow(v, route.id, route, first)
+        monitor.set_state(1, FLYING)          # flying its mission, as far as gcs knows
         try:
             yield monitor, v, first, held(vehicle)
         finally:

@@ -47,8 +47,8 @@ def test_overview_explains_every_symbol(planned):
     for needed in ("snapshot", "base", "outpost (named)", "outpost detection range",
                    "grey: no hidden room"):
         assert any(needed in t for t in legend), (needed, legend)
-    for v in plan.vehicles:
-        assert any(t.startswith(f"UAV {v.id} route") for t in legend)
+    for v in plan.vehicles:      # each with its takeoff time on the fleet clock
+        assert any(t.startswith(f"UAV {v.id}: takeoff at {v.takeoff_s:.0f} s") for t in legend)
     # the post is named beside it with its range (its circle, wherever it crosses the
     # map, is labelled "hill: 2.5 km range"; here it lies outside the 1.8 km map)
     assert any(t.startswith("hill (2.5 km range)") for t in texts), texts
@@ -168,7 +168,7 @@ def test_one_palette_in_png_kml_and_geojson(planned):
               for s in kml.findall(".//k:Style", ns)}
     for v in plan.vehicles:
         colour = vehicle_colour(v.id)
-        assert any(label.startswith(f"UAV {v.id} route") and c == colour
+        assert any(label.startswith(f"UAV {v.id}: takeoff") and c == colour
                    for label, c in png.items()), png
         route = next(f for f in doc["features"] if f["properties"]["kind"] == "route"
                      and f["properties"]["vehicle"] == v.id)

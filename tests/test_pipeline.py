@@ -11,6 +11,7 @@ from planner.exposure import (
     segments_clear,
     segments_hidden,
 )
+from planner.fleet import stop_time
 from planner.pipeline import plan_mission
 from planner.scenario import Scenario
 from planner.terrain import bilinear, synthetic_terrain
@@ -104,13 +105,20 @@ def test_legs_stay_hidden_within_the_track_tolerance():
 
 
 def test_times_follow_the_travel_model(planned):
+    """On the fleet clock: the legs at the travel model's speeds, the slowing at each
+    inner waypoint (`stop_time`) and the schedule's holds; a snapshot is taken when
+    its waypoint (and hold) is done."""
     ctx, outcome = planned
     params = TravelParams()
+    stop = stop_time(vars(ctx.scenario))
     for poly, vehicle in zip(outcome.polylines, outcome.plan.vehicles):
-        t = [w.t_s for w in vehicle.waypoints]
-        assert t[-1] == pytest.approx(t[0] + polyline_time(poly, params), rel=1e-9, abs=1e-6)
-        assert vehicle.coverage_time_s == pytest.approx(max(w.t_s for w in vehicle.waypoints
-                                                            if w.snapshot))
+        w = vehicle.waypoints
+        t = [p.t_s for p in w]
+        holds = sum(p.hold_s for p in w[:-1])
+        assert t[-1] == pytest.approx(t[0] + polyline_time(poly, params) + holds +
+                                      stop * (len(w) - 2), rel=1e-9, abs=1e-6)
+        assert vehicle.coverage_time_s == pytest.approx(max(p.t_s + p.hold_s for p in w
+                                                            if p.snapshot))
 
 
 def test_deterministic(terrain, planned):

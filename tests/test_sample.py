@@ -31,7 +31,10 @@ def test_whole_sample_plans_with_every_method(sample, method):
     outcome = allocate(sample, 4, launch_starts(sample), method=method)
     metrics = outcome.plan.metrics
     assert metrics["k_covered"] == metrics["targets"] > 50_000
-    assert (outcome.counts >= 2).all()
+    # two sightings from two UAVs at two places, or one from each place there is
+    places = np.diff(sample.visibility.target_indptr)
+    assert (outcome.counts >= np.minimum(2, places)).all()
+    assert metrics["k_impossible"] == (places < 2).sum() < 0.05 * metrics["targets"]
     for mission in plan_missions(outcome.plan):
         check_mission(mission, sample.surface)
     # no waypoint lies on or next to the nodata margin
@@ -74,7 +77,7 @@ def test_whole_sample_planned_in_parts(sample):
                 off, e = tree.query(p[:2])
                 assert off < 0.1  # a viewpoint, as rounded for MAVLink
                 seen[r, vis.indices[vis.indptr[e]:vis.indptr[e + 1]]] = True
-    assert (seen.sum(axis=0) >= 2).all()
+    assert (seen.sum(axis=0) >= np.minimum(2, np.diff(vis.target_indptr))).all()
     for mission in plan_missions(outcome.plan):
         check_mission(mission, ctx.surface)
     assert metrics["coverage_time_s"] >= metrics["lower_bound_s"] > 0

@@ -37,8 +37,8 @@ HELP = {
                          "every point that close to a leg is proven hidden too",
     "separation_m": "least distance between two airborne vehicles, metres, proven on their "
                     "trajectories and kept by waits (0: vehicles are not kept apart)",
-    "accel_mps2": "horizontal acceleration, m/s²: a vehicle stops at each waypoint, which "
-                  "costs speed / acceleration in the schedule",
+    "accel_mps2": "horizontal acceleration, m/s²: a vehicle slows at each waypoint, which "
+                  "the schedule counts",
     "firmware": "mission flavour of the exported files",
     "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
               "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",

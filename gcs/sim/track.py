@@ -3,19 +3,23 @@
 File ``vehicle_<sysid>.json`` in the track directory, rewritten atomically every
 couple of wall seconds and when the vehicle stops or is killed::
 
-    {"format": "gcs-sim-track/1", "sysid": 1, "firmware": "ardupilot",
+    {"format": "gcs-sim-track/2", "sysid": 1, "firmware": "ardupilot",
      "home": [lat, lon, alt_amsl],
-     "columns": ["t", "lat", "lon", "alt"],
-     "samples": [[t, lat, lon, alt], ...],         # mission time s since boot, degrees, m AMSL
+     "columns": ["t", "lat", "lon", "alt", "wall"],
+     "samples": [[t, lat, lon, alt, wall], ...],   # mission time s since boot, degrees,
+                                                   # m AMSL, the wall clock (Unix s)
      "snapshots": [{"t", "lat", "lon", "alt", "seq"}],   # seq: mission item, or null for a command
      "events": [{"t", "event"}],      # boot, armed, takeoff, reached N, landed, killed: ...
      "killed_at": t or null, "complete": bool}     # complete: the file was closed on purpose
 
 Samples are taken every 0.1 s of mission time (10 Hz; never more than 0.15 s
-apart) and at boot, touchdown and kill.
+apart) and at boot, touchdown and kill. Each vehicle's mission time is its own
+(a busy machine slows each simulator differently), so tracks of a fleet are
+compared on the wall clock, the one they share (``wall``).
 """
 
 import json
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,7 +27,7 @@ import numpy as np
 
 from common.fileio import write_text_atomic
 
-FORMAT = "gcs-sim-track/1"
+FORMAT = "gcs-sim-track/2"
 SAMPLE_PERIOD_S = 0.1
 
 
@@ -35,7 +39,7 @@ class TrackRecorder:
     def __init__(self, path, sysid: int, firmware: str, home: tuple):
         self.path = Path(path) if path is not None else None
         self._head = {"format": FORMAT, "sysid": sysid, "firmware": firmware,
-                      "home": list(home), "columns": ["t", "lat", "lon", "alt"]}
+                      "home": list(home), "columns": ["t", "lat", "lon", "alt", "wall"]}
         self.samples, self.snapshots, self.events = [], [], []
         self.killed_at = None
         self._next_sample = 0.0
@@ -46,7 +50,8 @@ class TrackRecorder:
             return
         while self._next_sample <= t + 1e-9:      # stay on the grid: no drift, no gaps
             self._next_sample += SAMPLE_PERIOD_S
-        self.samples.append([round(t, 3), round(lat, 9), round(lon, 9), round(alt, 3)])
+        self.samples.append([round(t, 3), round(lat, 9), round(lon, 9), round(alt, 3),
+                             round(time.time(), 4)])
         self._dirty = True
 
     def snapshot(self, t, lat, lon, alt, seq=None) -> None:
@@ -76,6 +81,7 @@ class Track:
     lat: np.ndarray
     lon: np.ndarray
     alt: np.ndarray        # m AMSL
+    wall: np.ndarray       # Unix s: the clock a fleet's tracks share
     snapshots: list
     events: list
     killed_at: float | None
@@ -86,7 +92,7 @@ def read_track(path) -> Track:
     doc = json.loads(Path(path).read_text(encoding="utf-8"))
     if doc.get("format") != FORMAT:
         raise ValueError(f"{path}: not a {FORMAT} track file")
-    rows = np.asarray(doc["samples"], dtype=float).reshape(-1, 4)
+    rows = np.asarray(doc["samples"], dtype=float).reshape(-1, len(doc["columns"]))
     return Track(doc["sysid"], doc["firmware"], tuple(doc["home"]), rows[:, 0], rows[:, 1],
-                 rows[:, 2], rows[:, 3], doc["snapshots"], doc["events"], doc["killed_at"],
-                 doc["complete"])
+                 rows[:, 2], rows[:, 3], rows[:, 4], doc["snapshots"], doc["events"],
+                 doc["killed_at"], doc["complete"])

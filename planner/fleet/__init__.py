@@ -20,11 +20,22 @@ __all__ = ["FleetSchedule", "Profile", "Timing", "Trajectory", "doing_at", "prov
            "route_profile", "route_trajectory", "schedule", "separation", "stop_time"]
 
 
+#: a waypoint counts as reached this close (m): ArduPilot's WPNAV_RADIUS and PX4's
+#: NAV_ACC_RAD defaults, and the built-in simulator's
+ACCEPT_RADIUS_M = 2.0
+
+
 def stop_time(params: dict) -> float:
-    """What a stop at a waypoint costs, s: the cruise speed over the acceleration
-    (`Profile.of_route`), from a scenario's or a plan's parameters."""
+    """What flying through a waypoint costs beyond cruising past it, s: a vehicle
+    slows from cruise speed v to what lets it stop within the acceptance radius r,
+    sqrt(2 a r), and speeds up again (acceleration a), losing (v - sqrt(2 a r))² /
+    (a v) (`Profile.of_route`). From a scenario's or a plan's parameters."""
     accel = params.get("accel_mps2") or 0.0
-    return float(params["speed_mps"]) / accel if accel > 0 else 0.0
+    if accel <= 0:
+        return 0.0
+    v = float(params["speed_mps"])
+    slow = min(v, (2.0 * accel * ACCEPT_RADIUS_M) ** 0.5)
+    return (v - slow) ** 2 / (accel * v)
 
 
 def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:

@@ -1,0 +1,149 @@
+"""The separation guard on scripted telemetry: it holds the vehicle of lower
+priority before a predicted loss of separation, the other too if the pair still
+closes, and lets each fly on once clear; judged by where the scripted vehicles
+would have been, stepped on a clock of our own."""
+
+import math
+import time
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from gcs.guard import SeparationGuard, closest_ahead
+from gcs.monitor import Monitor
+from planner.plan import VehicleRoute, Waypoint
+from planner.travel import TravelParams
+
+LAT0, LON0, ALT = 36.5, -84.2, 500.0
+M_PER_DEG = 6371008.8 * math.pi / 180
+
+
+class Scripted:
+    """A vehicle whose telemetry follows a straight motion, unless held."""
+
+    def __init__(self, sysid, start_xy, velocity, route_to=None):
+        self.sysid, self.flavour = sysid, "ardupilot"
+        self.p = np.array([*start_xy, ALT], float)
+        self.v = np.array([*velocity, 0.0], float)
+        self.held = False
+        self.state = SimpleNamespace(lat=None, lon=None, alt_amsl=None, velocity=None,
+                                     position_at=None, relative_alt=50.0, armed=True,
+                                     last_heartbeat=time.monotonic(), mode="AUTO",
+                                     mission_seq=1, battery_pct=90)
+        self.route = route_to
+        self.report()
+
+    def subscribe(self, cb):
+        return lambda: None
+
+    def heartbeat_age(self):
+        return 0.0
+
+    def advance(self, dt):
+        if not self.held:
+            self.p = self.p + self.v * dt
+        self.report()
+
+    def report(self):
+        k = math.cos(math.radians(LAT0))
+        s = self.state
+        s.lat, s.lon, s.alt_amsl = (LAT0 + self.p[1] / M_PER_DEG,
+                                    LON0 + self.p[0] / (M_PER_DEG * k), self.p[2])
+        v = np.zeros(3) if self.held else self.v
+        s.velocity = (v[1], v[0], v[2])           # north, east, up
+        s.position_at = time.monotonic()
+
+
+def _route(x, y):
+    k = math.cos(math.radians(LAT0))
+    w = Waypoint(LON0 + x / (M_PER_DEG * k), LAT0 + y / M_PER_DEG, ALT, 0.0)
+    return VehicleRoute(1, None, [w], 0.0, 0.0, 0.0)
+
+
+def _guard(vehicles, priority):
+    monitor = Monitor(lost_after_s=5.0)
+    for v in vehicles:
+        monitor.follow(v, v.sysid, v.route or _route(*v.p[:2]), None)
+    clock = SimpleNamespace(rate=lambda: 1.0)
+    guard = SeparationGuard(monitor, 30.0, priority, clock,
+                            airborne=lambda: [v.sysid for v in vehicles],
+                            hold=lambda s: _set(vehicles, s, True),
+                            resume=lambda s: _set(vehicles, s, False),
+                            travel=TravelParams(speed_mps=12.0))
+    return monitor, guard
+
+
+def _set(vehicles, sysid, held):
+    next(v for v in vehicles if v.sysid == sysid).held = held
+
+
+def _run(vehicles, guard, seconds, dt=0.25):
+    """Step the scripted world and the guard; the least distance seen."""
+    least = math.inf
+    for _ in range(int(seconds / dt)):
+        for v in vehicles:
+            v.advance(dt)
+        guard.step()
+        time.sleep(0.002)                 # the guard's commands run in threads
+        ps = [v.p for v in vehicles]
+        least = min([least] + [float(np.linalg.norm(a - b)) for i, a in enumerate(ps)
+                               for b in ps[i + 1:]])
+    return least
+
+
+def test_closest_ahead_of_two_straight_motions():
+    d, u = closest_ahead(np.array([100.0, 10.0, 0.0]), np.array([-10.0, 0.0, 0.0]), 30.0)
+    assert d == pytest.approx(10.0) and u == pytest.approx(10.0)
+    d, u = closest_ahead(np.array([100.0, 10.0, 0.0]), np.array([-10.0, 0.0, 0.0]), 5.0)
+    assert d == pytest.approx(math.hypot(50.0, 10.0)) and u == pytest.approx(5.0)
+
+
+def test_crossing_paths_the_lower_priority_waits_then_flies_on():
+    """1 flies east, 2 flies north, both reaching the crossing at t = 20 s."""
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, -240.0), (0.0, 12.0), _route(0, 400))
+    monitor, guard = _guard([one, two], {1: 1, 2: 2})
+    least = _run([one, two], guard, 60.0)
+    holds = [a for a in guard.actions if a["action"] == "hold"]
+    assert [a["sysid"] for a in holds] == [2]                  # right of way: vehicle 1
+    assert holds[0]["predicted_m"] < 30.0
+    assert least >= 30.0                                       # never closer than it
+    assert [a["action"] for a in guard.actions] == ["hold", "resume"]
+    assert not two.held and two.p[1] > 100.0                   # and it flew on
+    report = guard.report()
+    assert report["pairs"][0]["vehicles"] == [1, 2]
+    assert report["closest_m"] == pytest.approx(least, abs=13.0)   # sampled every 0.25 s
+    assert any("separation guard: hold" in e["event"] for e in monitor.events)
+
+
+def test_head_on_both_are_held():
+    """On one line toward each other: standing still, either is in the other's way,
+    so both hold (and stay held: neither can pass the other on its route)."""
+    one = Scripted(1, (-150.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (150.0, 0.0), (-12.0, 0.0), _route(-400, 0))
+    _, guard = _guard([one, two], {1: 1, 2: 2})
+    least = _run([one, two], guard, 20.0)
+    assert {a["sysid"] for a in guard.actions if a["action"] == "hold"} == {1, 2}
+    assert least >= 30.0 and one.held and two.held
+
+
+def test_standing_in_the_way_the_other_one_holds():
+    """2 (lower priority) is 20 m from 1's route, crossing it: held there it would
+    still be in 1's way (20 m from where 1 passes), so 1 holds while 2 flies on
+    and clears the way."""
+    one = Scripted(1, (-60.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, -20.0), (0.0, 12.0), _route(0, 400))
+    _, guard = _guard([one, two], {1: 1, 2: 2})
+    least = _run([one, two], guard, 40.0)
+    first = guard.actions[0]
+    assert (first["action"], first["sysid"]) == ("hold", 1)
+    assert least >= 30.0 and not one.held and one.p[0] > 100.0   # and 1 went on after
+
+
+def test_apart_nobody_is_held():
+    one = Scripted(1, (0.0, 0.0), (12.0, 0.0))
+    two = Scripted(2, (0.0, 100.0), (12.0, 0.0))
+    _, guard = _guard([one, two], {1: 1, 2: 2})
+    assert _run([one, two], guard, 20.0) == pytest.approx(100.0)
+    assert guard.actions == []
