@@ -19,6 +19,13 @@ one more seed, and writes the least times found to the reference file.
 ``--budgets`` sweeps the ALNS budget (x 0.25 .. x 4 of the default) on the
 cases, the measurement behind the default.
 
+**Separation** (with the suite, or alone with ``--separation``): on the four
+terrains, 4 UAVs from the one base, k = 0 and 1, every method planned whole
+(hidden routes, fleet clock) at ``--separation 0`` (no two vehicles kept apart:
+the behaviour before issue 37) and at the default: coverage time of each, their
+ratio, the waits the separated plan holds, its proven closest approach and the
+seconds the deconfliction took.
+
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
 (planner.coverage.instances), ``--sweep`` the step-cap (th_ra) sweep,
 ``--large`` RT and ALNS on a 3,000-viewpoint x 50,000-target x 8-UAV problem.
@@ -344,6 +351,42 @@ def terrain_report(rows, default, methods, budgets=False):
                   f"{median([r[f'budget_{f}_s'] for r in rows]):6.2f}")
 
 
+def separation_cost(quick):
+    """Coverage time at separation 0 and at the default, per method (docstring)."""
+    from dataclasses import replace
+
+    from planner.pipeline import allocate, launch_starts
+    from planner.scenario import SEPARATION_M
+
+    print(f"\nSeparation: coverage time at --separation 0 and {SEPARATION_M:g} m "
+          "(4 UAVs, one base), waits of the separated plan")
+    head = (f"{'terrain':<8} {'k':>2} {'method':>6} | {'sep 0 min':>9} {'sep min':>8} "
+            f"{'ratio':>6} | {'waits s':>8} {'closest m':>9} {'deconf s':>8}")
+    print(head)
+    print("-" * len(head))
+    ratios = defaultdict(list)
+    for name in TERRAINS[:2] if quick else TERRAINS:
+        ctx = terrain_context(name)
+        base = ctx.scenario
+        starts = launch_starts(ctx)
+        for k in (0, 1):
+            for m in METHODS:
+                got = {}
+                for sep in (0.0, SEPARATION_M):
+                    ctx.scenario = replace(base, uavs=4, k=k, separation_m=sep)
+                    got[sep] = allocate(ctx, 4, [starts[0]] * 4, method=m).plan
+                free, kept = got[0.0].metrics, got[SEPARATION_M].metrics
+                ratio = kept["coverage_time_s"] / free["coverage_time_s"]
+                ratios[m].append(ratio)
+                print(f"{name:<8} {k:>2} {m:>6} | {free['coverage_time_s'] / 60:9.1f} "
+                      f"{kept['coverage_time_s'] / 60:8.1f} {ratio:6.3f} | "
+                      f"{kept['wait_s']:8.0f} {kept['min_separation_m']:9.1f} "
+                      f"{got[SEPARATION_M].timing_s['separation']:8.2f}", flush=True)
+        ctx.scenario = base
+    print("median separated / unseparated coverage time: " + ", ".join(
+        f"{m} {median(v):.3f}" for m, v in ratios.items()))
+
+
 def plot(rows, methods, path):
     import matplotlib
 
@@ -388,11 +431,15 @@ def main(argv=None):
     ap.add_argument("--synthetic", action="store_true", help="the seeded point-set suite")
     ap.add_argument("--sweep", action="store_true", help="also sweep the step cap th_ra")
     ap.add_argument("--large", action="store_true", help="also time the 3000 x 50000 problem")
+    ap.add_argument("--separation", action="store_true",
+                    help="only the separation table (coverage at --separation 0 vs default)")
     args, _ = ap.parse_known_args(argv)  # options of other benchmarks run with it
     t0 = time.perf_counter()
-    rows, default, methods = run_terrain_suite(args.quick, args.best_known, args.budgets)
-    terrain_report(rows, default, methods, args.budgets)
-    plot(rows, methods, args.plot)
+    if not args.separation:
+        rows, default, methods = run_terrain_suite(args.quick, args.best_known, args.budgets)
+        terrain_report(rows, default, methods, args.budgets)
+        plot(rows, methods, args.plot)
+    separation_cost(args.quick)
     if args.synthetic:
         srows = run_suite(args.quick, CoverageParams())
         report(srows)

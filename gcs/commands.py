@@ -36,6 +36,11 @@ class CommandError(Exception):
         super().__init__(f"vehicle {self.sysid}: {problem}")
 
 
+class StartCancelled(CommandError):
+    """The ground station called a start sequence off (a re-plan takes the vehicle
+    over): not a failure of the vehicle."""
+
+
 # -- acknowledged commands -------------------------------------------------------------
 def command_long(link, command: int, *params, timeout_s=TIMEOUT_S, retries=RETRIES):
     """Send COMMAND_LONG (params 1-7, missing ones 0) until acknowledged; returns the
@@ -246,7 +251,7 @@ def _until(link, predicate, timeout_s) -> bool:
 # -- the start sequence ----------------------------------------------------------------
 def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
                   climb_timeout_s: float = 120.0, retries: int = RETRIES,
-                  on_liftoff=None) -> None:
+                  on_liftoff=None, cancel=None) -> None:
     """Take off and start the uploaded mission, as the vehicle's firmware expects
     (the steps of its profile's ``start_sequence``).
 
@@ -255,13 +260,16 @@ def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
     takeoff item itself. Returns once the vehicle is airborne in its mission mode.
     retries: resends of each command (more on a lossy link); ``on_liftoff()``:
     called when the command that lifts it off is acknowledged (the moment a
-    fleet's schedule is kept to)."""
+    fleet's schedule is kept to); ``cancel`` (a `threading.Event`): once set, the
+    sequence sends nothing more and raises `StartCancelled` (a re-plan is about
+    to hold the vehicle where it is)."""
     profile = autopilot(link)
     ready_by = time.monotonic() + ready_timeout_s
     wait_ready(link, ready_timeout_s)
     run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries, ready_by,
-                    on_liftoff or (lambda: None))
+                    on_liftoff or (lambda: None), cancel)
     for step in profile.start_sequence:
+        run.check()
         getattr(run, step.action)(step.argument)
 
 
@@ -275,13 +283,25 @@ class _StartRun:
     """The steps a start sequence is made of (`autopilots.base.Step`)."""
 
     def __init__(self, link, profile, takeoff_alt_amsl, climb_timeout_s, retries,
-                 ready_by=None, on_liftoff=lambda: None):
+                 ready_by=None, on_liftoff=lambda: None, cancel=None):
         self.link, self.profile = link, profile
         self.on_liftoff = on_liftoff
+        self.cancel = cancel
         self.takeoff_alt_amsl = takeoff_alt_amsl
         self.climb_timeout_s, self.retries = climb_timeout_s, retries
         self.ready_by = ready_by            # until then a refused arming is tried again
         self.armed_at = None
+
+    def check(self) -> None:
+        if self.cancel is not None and self.cancel.is_set():
+            raise StartCancelled(self.link, "start called off by the ground station")
+
+    def _wait_airborne(self, climbed, doing) -> None:
+        """`_wait_airborne`, given up (`StartCancelled`) once the start is called off."""
+        _wait_airborne(self.link, self.armed_at,
+                       lambda s: climbed(s) or (self.cancel is not None and self.cancel.is_set()),
+                       self.climb_timeout_s, doing)
+        self.check()
 
     def set_current(self, _=None) -> None:
         set_current(self.link, self.profile.first_item, retries=self.retries)
@@ -298,6 +318,7 @@ class _StartRun:
                 arm(self.link, retries=self.retries)
                 break
             except CommandError as exc:
+                self.check()
                 if exc.result is None or self.ready_by is None or \
                         time.monotonic() + ARM_RETRY_S > self.ready_by:
                     raise
@@ -325,9 +346,11 @@ class _StartRun:
             try:
                 self._send_takeoff(climb)
                 self.on_liftoff()
-                _wait_airborne(link, self.armed_at, lambda s: (s.relative_alt or 0.0) >= target,
-                               self.climb_timeout_s, f"climbing to {climb:.1f} m above home")
+                self._wait_airborne(lambda s: (s.relative_alt or 0.0) >= target,
+                                    f"climbing to {climb:.1f} m above home")
                 return
+            except StartCancelled:
+                raise
             except CommandError:
                 # ArduPilot disarms itself idle on the ground (DISARM_DELAY, 10 s: at a
                 # high --speedup a fraction of a wall second, which a busy ground
@@ -352,8 +375,7 @@ class _StartRun:
 
     def airborne(self, _=None) -> None:
         self.on_liftoff()                    # armed in its mission mode: it climbs
-        _wait_airborne(self.link, self.armed_at, lambda s: (s.relative_alt or 0.0) > 1.0,
-                       self.climb_timeout_s, "taking off")
+        self._wait_airborne(lambda s: (s.relative_alt or 0.0) > 1.0, "taking off")
 
 
 def _climbing(link, wait_s: float = 3.0) -> bool:
@@ -391,5 +413,6 @@ def _home_alt(link) -> float:
     raise CommandError(link, "no home position or altitude reported yet")
 
 
-__all__ = ["CommandError", "arm", "autopilot", "command_int", "command_long", "disarm",
-           "set_current", "set_mode", "start_mission", "wait_position", "wait_ready"]
+__all__ = ["CommandError", "StartCancelled", "arm", "autopilot", "command_int",
+           "command_long", "disarm", "set_current", "set_mode", "start_mission",
+           "wait_position", "wait_ready"]

@@ -46,6 +46,7 @@ from gcs.monitor import (
     MIN_LAUNCH_TOLERANCE_M,
     STARTING,
     STRANDED,
+    WAITING,
     Monitor,
     distance_m,
 )
@@ -69,6 +70,9 @@ HOME_WAIT_S = 60.0
 #: how far (m) a vehicle may stand from its launch point when the plan names no track
 #: tolerance (plans older than it)
 LAUNCH_TOLERANCE_M = 5.0
+#: wall seconds a called-off start sequence is given to stop (its command in flight
+#: answered or timed out)
+CALL_OFF_WAIT_S = 10.0
 
 
 @dataclass
@@ -150,7 +154,7 @@ class Flight:
         self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
         self.clock = FleetClock(self.monitor)
         self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
-        self._departing = {}      # sysid -> [thread, error] of departures under way
+        self._departing = {}      # sysid -> (thread, error, cancel) of departures under way
         self._waiting_for = {}    # sysid -> the vehicle its base column waits for
         self._lifted = []         # (sysid, launch begun, lifted off): monitor times
         self.latency_s = 0.0      # fleet s from a launch's first command to its liftoff
@@ -353,17 +357,37 @@ class Flight:
                 self.departures[sysid] = Departure(v.route.takeoff_s, "launch", v.route)
         self._depart_due()
 
-    def _launch(self, sysid, route) -> None:
+    def _launch(self, sysid, route, cancel) -> None:
         m = self.monitor
-        begun = m.now()
+        begun, lifted = m.now(), []
+
+        def liftoff():
+            lifted.append(True)
+            self._lifted.append((sysid, begun, m.now()))
         m.set_state(sysid, STARTING)
-        commands.start_mission(m.links[sysid], route.waypoints[0].alt_amsl,
-                               ready_timeout_s=self.options.ready_timeout_s,
-                               retries=self.options.protocol_retries,
-                               on_liftoff=lambda: self._lifted.append((sysid, begun, m.now())))
+        try:
+            commands.start_mission(m.links[sysid], route.waypoints[0].alt_amsl,
+                                   ready_timeout_s=self.options.ready_timeout_s,
+                                   retries=self.options.protocol_retries,
+                                   on_liftoff=liftoff, cancel=cancel)
+        except commands.StartCancelled:
+            # sent up: the re-plan holds it where it is; never sent up: it stays down
+            if not lifted:
+                m.set_state(sysid, WAITING)
+            return
         m.set_state(sysid, FLYING)
 
-    def _resume(self, sysid, route=None) -> None:
+    def _call_off_starts(self) -> None:
+        """Stop every start sequence under way (a re-plan takes the vehicles over) and
+        wait for their threads, so nothing they send comes after the re-plan's hold."""
+        for thread, _, cancel in self._departing.values():
+            cancel.set()
+        for sysid, (thread, _, _) in list(self._departing.items()):
+            thread.join(CALL_OFF_WAIT_S)
+            if not thread.is_alive():
+                del self._departing[sysid]
+
+    def _resume(self, sysid, route=None, cancel=None) -> None:
         Retasker.resume(self.monitor, sysid, self.options.protocol_retries)
         self.monitor.set_state(sysid, FLYING)
 
@@ -388,7 +412,7 @@ class Flight:
         if now is None:     # the clock starts at the first takeoff: those go now, alone
             now = -math.inf if self._departing else \
                 min((d.due for d in self.departures.values()), default=0.0)
-        for sysid, (thread, error) in list(self._departing.items()):
+        for sysid, (thread, error, _) in list(self._departing.items()):
             if thread.is_alive():
                 continue
             del self._departing[sysid]
@@ -404,16 +428,16 @@ class Flight:
             if d.kind == "launch" and not self._column_clear(sysid, d.route):
                 continue
             del self.departures[sysid]
-            error = []
+            error, cancel = [], threading.Event()
             run = self._launch if d.kind == "launch" else self._resume
 
-            def go(s=sysid, route=d.route, run=run, error=error):
+            def go(s=sysid, route=d.route, run=run, error=error, cancel=cancel):
                 try:
-                    run(s, route)
+                    run(s, route, cancel)
                 except commands.CommandError as exc:
                     error.append(exc)
             thread = threading.Thread(target=go, daemon=True, name=f"depart-{sysid}")
-            self._departing[sysid] = (thread, error)
+            self._departing[sysid] = (thread, error, cancel)
             thread.start()
 
     def _anchor_clock(self) -> None:
@@ -557,6 +581,7 @@ class Flight:
             self.guard.forget()
         for sysid in list(self.departures):     # the re-plan decides who goes up
             del self.departures[sysid]
+        self._call_off_starts()
         try:
             record = Retasker(ctx, m, self.mission_options, self.options.protocol,
                               segments=self.segments, depart=self.depart).retask(home)
@@ -564,6 +589,10 @@ class Flight:
             raise FlightError(str(exc)) from None
         if self.guard is not None:
             self.guard.priority.update(record.priority)
+        for sysid, v in m.vehicles.items():     # never took off, and nothing to go up for
+            if v.state == WAITING and sysid not in self.departures:
+                m.set_state(sysid, LANDED)
+                m.event(sysid, "stays on the ground: the re-plan has no task for it")
         self.retasks.append(record)
 
     # -- results ------------------------------------------------------------------------

@@ -113,9 +113,10 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
     """Would the survivors' current missions, flown to the end, meet the requirement?
 
     ``meets_requirement``: every coverable target seen by min(k + 1, survivors)
-    survivors (what a re-plan aims at); ``tolerated``: seen by k + 1 - losses
-    (at least 1) survivors, which a k-tolerant plan guarantees for up to k
-    losses without re-planning. Also the time they still need: the latest
+    survivors (what a re-plan aims at); ``tolerated``: every target seen from at
+    least k + 1 places seen by k + 1 - losses (at least 1) survivors, which a
+    k-tolerant plan guarantees for up to k losses without re-planning
+    (``unprotected_targets``: those seen from fewer places, which it cannot). Also the time they still need: the latest
     planned time of a remaining snapshot minus that of the last waypoint reached.
     """
     snaps, left = [], 0.0
@@ -130,9 +131,14 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
     seen = seen_matrix(ctx, snaps)
     summary = coverage_summary(ctx, seen, ctx.scenario.k)
     summary["meets_requirement"] = summary["k_covered"] >= coverable_targets(ctx)
-    need = np.minimum(max(1, ctx.scenario.k + 1 - n_lost),   # or one per place
-                      np.diff(ctx.visibility.target_indptr))
-    summary["tolerated"] = bool((seen.sum(axis=0) >= need).sum() >= coverable_targets(ctx))
+    # a target seen from fewer than k + 1 places has one sighting per place: one loss
+    # can take its only one, which no plan could prevent without two vehicles flying
+    # one place (a shared fate)
+    places = np.diff(ctx.visibility.target_indptr)
+    protected = places >= ctx.scenario.k + 1
+    kept = seen.sum(axis=0) >= max(1, ctx.scenario.k + 1 - n_lost)
+    summary["tolerated"] = bool(kept[protected].all())
+    summary["unprotected_targets"] = int(((places > 0) & ~protected).sum())
     summary["remaining_time_s"] = left
     return summary
 

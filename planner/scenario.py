@@ -24,6 +24,9 @@ METHODS = ("rt", "rt+ls", "alns", "rd", "b", "c")
 #: telemetry and command latency at 12 m/s (12 m); and a multicopter spans about
 #: a metre: 30 m in all
 SEPARATION_M = 30.0
+#: below this a separation is not kept but pretended: GNSS error and track
+#: tolerance alone take 16 m (0 turns it off, for comparisons)
+MIN_SEPARATION_M = 15.0
 
 
 @dataclass
@@ -108,6 +111,9 @@ class Scenario:
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
                     for n in ("clearance_m", "hide_margin_m", "curvature_coeff",
                               "track_tolerance_m", "separation_m")]
+        checks.append((self.separation_m == 0 or self.separation_m >= MIN_SEPARATION_M,
+                       f"separation_m must be at least {MIN_SEPARATION_M:g} m (or 0: vehicles "
+                       f"not kept apart), got {self.separation_m:g}"))
         for ok, problem in checks:
             if not ok:
                 raise InputError(source, problem)

@@ -42,6 +42,7 @@ from common.errors import InputError
 from . import coverage
 from .coverage.insertion import arrival_times
 from .coverage.metrics import reach_bound_of
+from .coverage.places import count_with, matched_counts
 from .coverage.problem import CLOSED, achievable, csc_transpose
 from .coverage.setcover import greedy_cover
 from .parallel import run_chunks
@@ -85,20 +86,24 @@ def _bisect(xy, idx, parts, first, labels):
 
 
 @njit(cache=True)
-def _owners(vis_indptr, vis_indices, labels, n_targets, parts):
-    """Per target, the part with the most viewpoints that see it (-1: none)."""
-    votes = np.zeros((n_targets, parts), np.int32)
+def _shares(vis_indptr, vis_indices, labels, required, parts):
+    """[n_targets, parts]: the sightings each part's group owes each target. A
+    target's k+1 sightings come from distinct places, so no part can owe more
+    than it has viewpoints seeing the target: the part with the most of them owes
+    what it can, the next the rest, and so on (in all, what the area can give)."""
+    n_t = len(required)
+    votes = np.zeros((n_t, parts), np.int32)
     for e in range(len(vis_indptr) - 1):
         for j in range(vis_indptr[e], vis_indptr[e + 1]):
             votes[vis_indices[j], labels[e]] += 1
-    owner = np.full(n_targets, -1, np.int64)
-    for t in range(n_targets):
-        best = 0
-        for p in range(parts):
-            if votes[t, p] > best:
-                best = votes[t, p]
-                owner[t] = p
-    return owner
+    owed = np.zeros((n_t, parts), np.int32)
+    for t in range(n_t):
+        left = required[t]
+        for p in np.argsort(-votes[t], kind="mergesort"):
+            give = min(left, votes[t, p])
+            owed[t, p] = give
+            left -= give
+    return owed
 
 
 @dataclass
@@ -110,7 +115,7 @@ class Part:
     targets: np.ndarray
     vis_indptr: np.ndarray  # CSR rows of its viewpoints over its own target ids
     vis_indices: np.ndarray
-    required: np.ndarray  # per own target id: the plan's requirement, 0 if another part's
+    required: np.ndarray  # per own target id: the sightings this part's group owes it
     spacing_m: float  # median distance from a viewpoint to its nearest other one
 
     @property
@@ -124,8 +129,7 @@ def make_parts(problem, xy: np.ndarray, parts: int) -> list:
     labels = split_viewpoints(xy, parts)
     indptr = np.asarray(problem.vis_indptr, np.int64)
     indices = np.asarray(problem.vis_indices)
-    owner = _owners(indptr, indices, labels, int(problem.n_targets), parts)
-    required = problem.needs()
+    owed = _shares(indptr, indices, labels, problem.needs(), parts)
     out = []
     for p in range(parts):
         vps = np.flatnonzero(labels == p)
@@ -134,7 +138,7 @@ def make_parts(problem, xy: np.ndarray, parts: int) -> list:
         sub_indptr = np.r_[0, np.cumsum([len(r) for r in rows])].astype(np.int64)
         sub_indices = (np.searchsorted(targets, np.concatenate(rows)).astype(np.int32)
                        if rows else np.zeros(0, np.int32))
-        need = np.where(owner[targets] == p, required[targets], 0).astype(np.int32)
+        need = owed[targets, p]
         out.append(Part(vps, targets, sub_indptr, sub_indices, need, _spacing(xy[vps])))
     return out
 
@@ -315,7 +319,7 @@ def _sub(progress, stage, k, n):
 
 def drop_redundant(problem, routes, arrivals, by: float):
     """Drop every visit whose targets stay seen by their required number of
-    distinct UAVs by time ``by`` without it; long routes first, early visits
+    distinct UAVs at distinct places by time ``by`` without it; long routes first, early visits
     first (they delay the most). Returns (routes, arrivals, how many dropped);
     the arrivals of kept visits are left as upper bounds."""
     uav = np.concatenate([np.full(len(r), u, np.int64) for u, r in enumerate(routes)]
@@ -327,8 +331,20 @@ def drop_redundant(problem, routes, arrivals, by: float):
     length = np.array([a[-1] if len(a) else 0.0 for a in arrivals])
     pos = np.concatenate([np.arange(len(r)) for r in routes] + [np.zeros(0, np.int64)])
     order = np.lexsort((pos, -length[uav])) if len(uav) else np.zeros(0, np.int64)
-    keep = _droppable(uav, vp, when, order, np.asarray(problem.vis_indptr, np.int64),
-                      np.asarray(problem.vis_indices), seen, problem.needs(), float(by))
+    indptr, indices = np.asarray(problem.vis_indptr, np.int64), np.asarray(problem.vis_indices)
+    # where two UAVs fly one viewpoint (a share repair) distinct UAVs are not distinct
+    # places: what such a viewpoint sees is counted by the exact matching rule
+    at = np.full((problem.n_uavs, problem.n_viewpoints), np.inf)
+    np.minimum.at(at, (uav, vp), np.where(when <= by, when, np.inf))
+    shared = np.zeros(problem.n_targets, bool)
+    for e in np.flatnonzero(np.isfinite(at).sum(axis=0) >= 2):
+        shared[indices[indptr[e]:indptr[e + 1]]] = True
+    tgt_indptr, tgt_indices = csc_transpose(indptr, indices, int(problem.n_targets))
+    need = problem.needs()      # a short target keeps all it has
+    some = np.flatnonzero(shared)
+    need[some] = matched_counts(some, at, tgt_indptr, tgt_indices, seen, need)
+    keep = _droppable(uav, vp, when, order, indptr, indices, seen, need, float(by), shared,
+                      at, tgt_indptr, tgt_indices)
     out_routes, out_arrivals, start = [], [], 0
     for r, a in zip(routes, arrivals):
         k = keep[start:start + len(r)]
@@ -339,9 +355,12 @@ def drop_redundant(problem, routes, arrivals, by: float):
 
 
 @njit(cache=True)
-def _droppable(uav, vp, when, order, indptr, indices, seen, required, by):
+def _droppable(uav, vp, when, order, indptr, indices, seen, required, by, shared, at,
+               tgt_indptr, tgt_indices):
     """Keep flag per visit (see `drop_redundant`): ``mult[u, t]`` counts u's
-    sightings of t by ``by``, ``count[t]`` the distinct UAVs with one."""
+    sightings of t by ``by``, ``count[t]`` the distinct UAVs with one; a
+    ``shared`` target is counted by `places.count_with` on ``at`` (first visit
+    times, kept up to date) instead."""
     n_uavs, n_t = seen.shape
     mult = np.zeros((n_uavs, n_t), np.int16)  # a UAV sees a target from few viewpoints
     for u in range(n_uavs):
@@ -365,9 +384,19 @@ def _droppable(uav, vp, when, order, indptr, indices, seen, required, by):
         ok = True
         for j in range(indptr[e], indptr[e + 1]):
             t = indices[j]
-            if mult[u, t] == 1 and count[t] <= required[t]:
+            if not shared[t] and mult[u, t] == 1 and count[t] <= required[t]:
                 ok = False
                 break
+        if ok and at[u, e] == when[i]:      # its first visit there: the place may go
+            at[u, e] = np.inf
+            for j in range(indptr[e], indptr[e + 1]):
+                t = indices[j]
+                if shared[t] and count_with(t, at, tgt_indptr, tgt_indices, seen, -1, -1,
+                                            required[t]) < required[t]:
+                    ok = False
+                    break
+            if not ok:
+                at[u, e] = when[i]
         if ok:
             keep[i] = False
             for j in range(indptr[e], indptr[e + 1]):

@@ -154,7 +154,9 @@ def test_a_flight_in_segments_on_the_simulator(planned, tmp_path):
     waypoint reached in order, landed at launch, hidden all along."""
     base = free_base_port(10, 3)
     out = tmp_path / "flight"
-    code = main(["fly", str(planned.dir), "--sim", "3", "--speedup", "50", "--sim-capacity",
+    # 25x: each segment's hold is a fraction of a wall second, seconds of flight at
+    # higher speed-ups, and the fleet would drift off its separated schedule
+    code = main(["fly", str(planned.dir), "--sim", "3", "--speedup", "25", "--sim-capacity",
                  "24", "--lost-after", "3", "--sim-base-port", str(base), "-o", str(out)])
     report = json.loads((out / "flight.json").read_text())
     assert code == 0, report["outcome"]

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 from common.errors import InputError
 from planner.coverage import CoverageProblem
 from planner.split import (
-    _owners,
+    _shares,
     drop_redundant,
     group_sizes,
     make_parts,
@@ -41,20 +41,23 @@ def _random_vis(rng, n_vp, n_t, density=0.2):
 
 
 @settings(max_examples=30, deadline=None)
-@given(seed=st.integers(0, 10_000), parts=st.integers(1, 4))
-def test_each_target_belongs_to_a_part_with_most_viewpoints_seeing_it(seed, parts):
+@given(seed=st.integers(0, 10_000), parts=st.integers(1, 4), need=st.integers(1, 3))
+def test_each_target_owed_by_the_parts_with_most_viewpoints_seeing_it(seed, parts, need):
+    """A part owes a target no more sightings than it has viewpoints seeing it (they
+    must come from distinct places), the parts with most of them first, and all
+    parts together owe what the whole area can give: min(need, viewpoints)."""
     rng = np.random.default_rng(seed)
     n_vp, n_t = 25, 40
     indptr, indices = _random_vis(rng, n_vp, n_t)
     labels = rng.integers(0, parts, n_vp)
-    owner = _owners(indptr, indices, labels, n_t, parts)
+    owed = _shares(indptr, indices, labels, np.full(n_t, need, np.int32), parts)
     for t in range(n_t):
         seers = [e for e in range(n_vp) if t in indices[indptr[e]:indptr[e + 1]]]
-        if not seers:
-            assert owner[t] == -1
-            continue
-        votes = np.bincount(labels[seers], minlength=parts)
-        assert votes[owner[t]] == votes.max()
+        votes = np.bincount(labels[seers], minlength=parts) if seers else np.zeros(parts, int)
+        assert (owed[t] <= votes).all() and owed[t].sum() == min(need, len(seers))
+        # a part owes something only once every part with more viewpoints gives all it has
+        for p in np.flatnonzero(owed[t]):
+            assert all(owed[t, q] == votes[q] for q in range(parts) if votes[q] > votes[p])
 
 
 def _problem(rng, n_uavs=4, k=1, n_vp=30, n_t=50, seen=False):
@@ -65,14 +68,11 @@ def _problem(rng, n_uavs=4, k=1, n_vp=30, n_t=50, seen=False):
 
 
 def _counts_by(problem, routes, arrivals, by):
-    """Distinct UAVs that see each target by ``by`` (brute force)."""
-    seen = (np.zeros((problem.n_uavs, problem.n_targets), bool) if problem.seen is None
-            else problem.seen.copy())
-    for u, (r, a) in enumerate(zip(routes, arrivals)):
-        for e, when in zip(r, a):
-            if when <= by:
-                seen[u, problem.vis_indices[problem.vis_indptr[e]:problem.vis_indptr[e + 1]]] = 1
-    return seen.sum(axis=0)
+    """Counted sightings of each target by ``by``: distinct UAVs at distinct places
+    (brute force, `places_reference`)."""
+    found = ref.sightings(problem, routes, arrivals)
+    return np.array([ref.matched([f for f in found[t] if f[0] <= by])
+                     for t in range(problem.n_targets)])
 
 
 @settings(max_examples=40, deadline=None)
@@ -125,10 +125,11 @@ def test_groups_meet_every_part_s_need_and_use_the_whole_fleet():
     parts = make_parts(p, rng.uniform(0, 1000, (p.n_viewpoints, 2)), 3)
     sizes = group_sizes(parts, 7, np.array([100.0, 0.0, 0.0]), 12.0)
     assert sizes.sum() == 7 and (sizes >= [part.need for part in parts]).all()
-    # every target is required by exactly the part that owns it
-    owned = np.zeros(p.n_targets, int)
+    # the parts together owe each target its k + 1 sightings, or one per viewpoint
+    owed = np.zeros(p.n_targets, int)
     for part in parts:
-        owned[part.targets[part.required > 0]] += 1
-    assert (owned[np.bincount(p.vis_indices, minlength=p.n_targets) > 0] == 1).all()
+        owed[part.targets] += part.required
+    places = np.bincount(p.vis_indices, minlength=p.n_targets)
+    assert (owed == np.minimum(p.k + 1, places)).all()
     with pytest.raises(InputError, match="--parts"):
         group_sizes(parts, 5, np.zeros(3), 12.0)
