@@ -16,6 +16,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
+from flown import problems_beside_guard
 
 from gcs.cli import main
 from gcs.livemap import parse_address
@@ -114,7 +115,9 @@ def test_documents_without_a_browser(plan_dir, tmp_path):
         except OSError:
             break
         time.sleep(0.3)
-    assert fly.join() == 0
+    code = fly.join()
+    report = json.loads((tmp_path / "flight" / "flight.json").read_text())
+    assert problems_beside_guard(report) == [] and code == (0 if report["outcome"]["ok"] else 1)
     moving = [s for s in states if any(v["position"] for v in s["vehicles"])]
     assert moving, "no state with positions"
     last = moving[-1]["vehicles"]
