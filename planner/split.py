@@ -212,11 +212,16 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
         local[uavs] = np.arange(len(uavs))
         given = np.asarray(problem.owner, np.int64)[part.viewpoints]
         owner = np.where(given >= 0, local[np.maximum(given, 0)], given)
+    def per_uav(a):
+        return None if a is None else np.asarray(a)[uavs]
+
     return coverage.CoverageProblem(part.vis_indptr, part.vis_indices, len(part.targets),
                                     travel, rows(problem.launch_out),
                                     rows(problem.launch_back), len(uavs),
                                     min(problem.k, len(uavs) - 1), problem.visibility,
-                                    part.required, seen, owner)
+                                    part.required, seen, owner, problem.endurance_s,
+                                    problem.turnaround_s, rows(problem.base_out),
+                                    per_uav(problem.used_s), per_uav(problem.start_back))
 
 
 def _solve_part(method, params, report, n, overlay, chunk):
@@ -229,9 +234,9 @@ def _solve_part(method, params, report, n, overlay, chunk):
         problem = replace(problem, travel=overlay_rows(overlay, ids))
     on = (lambda f: report((k + f) / n)) if report is not None else None
     allocation = coverage.solve(problem, method, params, progress=on)
-    lo = problem.launch_out
-    arrivals = [arrival_times(np.asarray(r, np.int64), problem.travel,
-                              lo[u] if lo is not None else np.zeros(0), lo is not None)
+    prep = coverage.prepare(problem)
+    arrivals = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.frames[u],
+                              prep.sorties[u], prep.has_launch)
                 for u, r in enumerate(allocation.routes)]
     return allocation.routes, arrivals, allocation.coverage_time
 

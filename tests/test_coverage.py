@@ -1,6 +1,7 @@
 """Coverage methods on small synthetic problems, against independent references."""
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import places_reference as ref
@@ -17,9 +18,15 @@ from planner.coverage import (
     solve,
 )
 from planner.coverage.gains import CoverState
-from planner.coverage.insertion import insert_cost, route_time
+from planner.coverage.insertion import (
+    UNLIMITED,
+    arrival_times,
+    insert_cost,
+    removal_saving,
+    route_time,
+)
 from planner.coverage.instances import random_problem
-from planner.coverage.problem import prepare
+from planner.coverage.problem import achievable, beyond_battery, prepare
 
 FAST = CoverageParams(routing_solutions=20, routing_time_s=2.0)
 
@@ -80,6 +87,53 @@ def test_methods_cover_with_consistent_times(method, k, visibility, launch):
     assert_covers(problem, a)
     assert_times(problem, a)
     assert lower_bound(problem) <= a.coverage_time + 1e-9
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("k", [0, 1])
+def test_methods_plan_sorties_a_battery_can_fly(method, k):
+    """With an endurance every method's routes, flown by the greedy split (the
+    reference walk above), keep each sortie within one battery; the times it
+    reports are the walk's, turnarounds included; a bound without the battery is
+    still a bound (going home and out again is never quicker than flying on)."""
+    problem = small(k=k, launch=True, seed=7 + k, n_uavs=3)
+    unlimited = solve(problem, method, FAST)
+    endurance = float((problem.launch_out + problem.launch_back).max()) * 1.6
+    so = np.array([endurance, 120.0, 0.0, 0.0])
+    limited = replace(problem, endurance_s=endurance, turnaround_s=so[1])
+    a = solve(limited, method, FAST)
+    assert a.covered
+    assert_covers(limited, a)
+    several = 0
+    for r, route in enumerate(a.routes):
+        fr = np.stack([problem.launch_out[r], problem.launch_out[r], problem.launch_back[r]])
+        arrive, flights = _reference_walk(route, problem.travel, fr, so)
+        assert all(f <= endurance + 1e-9 for f in flights)
+        assert a.times[r] == pytest.approx(arrive[-1] if route else 0.0, abs=1e-6)
+        several += len(flights) > 1
+    assert several                                  # the battery did split routes
+    assert a.coverage_time >= unlimited.coverage_time * 0.9
+    assert lower_bound(problem) <= a.coverage_time + 1e-9
+
+
+def test_viewpoints_beyond_one_battery_are_never_flown():
+    problem = small(k=1, launch=True, seed=4, n_uavs=3)
+    round_trip = problem.launch_out + problem.launch_back
+    endurance = float(np.quantile(round_trip.min(axis=0), 0.8))
+    limited = replace(problem, endurance_s=endurance, turnaround_s=60.0)
+    far = beyond_battery(limited)
+    # by definition: no UAV's base reaches them and back within the battery
+    np.testing.assert_array_equal(far, np.flatnonzero(round_trip.min(axis=0) > endurance))
+    assert len(far) >= 4
+    for method in ("rt", "alns"):
+        a = solve(limited, method, FAST)
+        assert not set(far) & {e for r in a.routes for e in r}
+        # what the rest can still see is covered; targets only they saw are counted
+        counts = coverage_counts(limited, a)
+        need = np.minimum(limited.needs(), achievable(limited))
+        assert np.all(counts >= need)
+        assert a.uncoverable == int(np.count_nonzero(limited.needs() > achievable(limited)))
+    assert a.uncoverable > solve(problem, "alns", FAST).uncoverable
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -189,14 +243,69 @@ def test_edge_breaking_insertion_is_cheapest_position(seed, length, launch):
     n = 10
     travel = rng.uniform(1, 10, (n, n))
     lo = rng.uniform(1, 10, n)
+    fr = np.stack([lo, lo, rng.uniform(1, 10, n)])
     route = rng.permutation(n)[:length].astype(np.int64)
     e = int(rng.permutation(np.setdiff1d(np.arange(n), route))[0])
-    base = route_time(route, travel, lo, launch)
-    brute = min(route_time(np.insert(route, p, e), travel, lo, launch) - base
+    base = route_time(route, travel, fr, UNLIMITED, launch)
+    brute = min(route_time(np.insert(route, p, e), travel, fr, UNLIMITED, launch) - base
                 for p in range(length + 1))
-    cost, pos = insert_cost(route, e, travel, lo, launch)
+    cost, pos = insert_cost(route, e, travel, fr, UNLIMITED, launch)
     assert cost == pytest.approx(brute)
-    assert route_time(np.insert(route, pos, e), travel, lo, launch) - base == pytest.approx(brute)
+    assert route_time(np.insert(route, pos, e), travel, fr, UNLIMITED, launch) - base \
+        == pytest.approx(brute)
+
+
+def _metric_sorties(seed, n=12):
+    """Viewpoints and a base in the plane (travel is distance: the triangle
+    inequality holds, as for shortest hidden paths), a battery that flies 1-3 of
+    them, a UAV that starts at its base with part of its battery flown."""
+    rng = np.random.default_rng(seed)
+    xy = rng.uniform(0, 100, (n, 2))
+    travel = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
+    home = np.hypot(*xy.T)
+    fr = np.stack([home, home + 5.0, home + 3.0])      # a climb out, a landing back
+    endurance = float((fr[1] + fr[2]).max() + rng.uniform(0, 150))
+    so = np.array([endurance, rng.uniform(0, 50), rng.uniform(0, 0.3) * endurance, 3.0])
+    return rng, travel, fr, so
+
+
+def _reference_walk(route, travel, fr, so):
+    """The greedy split by its definition: fly on while the next viewpoint and the
+    way home from it fit the battery; else home, turnaround, a new battery."""
+    t, flown, sorties, arrive = 0.0, so[2], [[]], []
+    for i, e in enumerate(route):
+        out = fr[0, e] if i == 0 else travel[route[i - 1], e]
+        home = so[3] if i == 0 else fr[2, route[i - 1]]
+        if flown + out + fr[2, e] > so[0]:
+            t, flown = t + home + so[1] + fr[1, e], fr[1, e]
+            sorties.append([])
+        else:
+            t, flown = t + out, flown + out
+        arrive.append(t)
+        sorties[-1].append(flown + fr[2, e])
+    return arrive, [max(s) for s in sorties if s]
+
+
+@given(st.integers(0, 2 ** 16), st.integers(0, 10))
+@settings(max_examples=40, deadline=None)
+def test_sorties_fit_the_battery_and_insertion_costs_are_exact(seed, length):
+    rng, travel, fr, so = _metric_sorties(seed)
+    route = rng.permutation(len(travel))[:length].astype(np.int64)
+    arrive, flights = _reference_walk(route, travel, fr, so)
+    np.testing.assert_allclose(arrival_times(route, travel, fr, so, True), arrive)
+    assert all(f <= so[0] + 1e-9 for f in flights)      # every sortie within one battery
+    base = route_time(route, travel, fr, so, True)
+    e = int(rng.permutation(np.setdiff1d(np.arange(len(travel)), route))[0])
+    cost, pos = insert_cost(route, e, travel, fr, so, True)
+    # the rule's cost is the walked route's own, and no insertion is dearer than
+    # opening a sortie of its own at the end
+    assert route_time(np.insert(route, pos, e), travel, fr, so, True) - base \
+        == pytest.approx(cost, abs=1e-9)
+    assert cost <= route_time(np.append(route, e), travel, fr, so, True) - base + 1e-9
+    if length:
+        i = int(rng.integers(length))
+        assert removal_saving(route, i, travel, fr, so, True) == pytest.approx(
+            base - route_time(np.delete(route, i), travel, fr, so, True))
 
 
 @pytest.mark.parametrize("visibility", ["hard", "soft"])

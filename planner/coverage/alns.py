@@ -41,7 +41,7 @@ from .alns_kernels import (
     REGRET_MODE,
     apply_visit,
     drop_redundant,
-    improve_order,
+    improve_sorties,
     remove_visits,
     repair,
     restore_counts,
@@ -144,7 +144,8 @@ class Alns:
 
     # -- state -------------------------------------------------------------------
     def _time(self, r):
-        return time_of(self.R, self.L, r, self.p.travel, self.p.launch_out[r], self.p.has_launch)
+        return time_of(self.R, self.L, r, self.p.travel, self.p.frames, self.p.sorties,
+                       self.p.has_launch)
 
     def objective(self, times=None):
         t = self.times if times is None else times
@@ -182,7 +183,7 @@ class Alns:
     # -- destroy -----------------------------------------------------------------
     def _savings(self):
         p = self.p
-        return savings_all(self.R, self.L, p.travel, p.launch_out, p.has_launch)
+        return savings_all(self.R, self.L, p.travel, p.frames, p.sorties, p.has_launch)
 
     def _pick_ranked(self, keys, q, power=3.0):
         """q distinct indices, biased to the largest keys (y^power rank draw)."""
@@ -235,7 +236,8 @@ class Alns:
         ok, work = repair(self.R, self.L, self.times, self.cnt, self.dc, p.required,
                           self.weight, short,
                           p.vis_indptr, p.vis_indices, p.tgt_indptr, p.tgt_indices, p.travel,
-                          p.launch_out, p.has_launch, mode, self.params.alpha, lam, self.eps,
+                          p.frames, p.sorties, p.has_launch, mode, self.params.alpha, lam,
+                          self.eps,
                           noise, rnd, p.owner0)
         self.work += work + len(short)
         return ok
@@ -244,11 +246,11 @@ class Alns:
         p = self.p
         passes = ORDER_PASSES if passes is None else passes
         self.work += drop_redundant(self.R, self.L, self.times, self.cnt, self.dc, p.required,
-                                    p.vis_indptr, p.vis_indices, p.travel, p.launch_out,
-                                    p.has_launch)
+                                    p.vis_indptr, p.vis_indices, p.travel, p.frames,
+                                    p.sorties, p.has_launch)
         for r in routes_changed:
-            self.work += improve_order(self.R, self.L, r, p.travel, p.launch_out[r],
-                                       p.has_launch, passes)
+            self.work += improve_sorties(self.R, self.L, r, p.travel, p.frames, p.sorties,
+                                         p.has_launch, passes)
             self.times[r] = self._time(r)
 
     def covered(self):

@@ -13,7 +13,13 @@ Every kernel returns (or adds to) a count of elementary evaluations, the
 import numpy as np
 from numba import njit
 
-from .insertion import insert_cost, removal_saving
+from .insertion import (
+    _walked,
+    insert_cost,
+    limited,
+    removal_saving,
+    route_time,
+)
 from .problem import FREE
 
 START = -1  # a route's start: its launch point, or nowhere (free start) without one
@@ -23,24 +29,19 @@ PTV_MODE, MAKESPAN_MODE, REGRET_MODE = 0, 1, 2
 
 
 @njit(cache=True, nogil=True)
-def leg(u, v, travel, lo, has_launch):
-    """Time of the leg u -> v, with START / END sentinels."""
+def leg(u, v, travel, lo, back, has_launch):
+    """Time of the leg u -> v, with START / END sentinels (the end free, or, with
+    ``back``, the way home: a sortie that is not the last)."""
     if v == END:
-        return 0.0
+        return back[u] if len(back) else 0.0
     if u == START:
         return lo[v] if has_launch else 0.0
     return travel[u, v]
 
 
 @njit(cache=True, nogil=True)
-def time_of(R, L, r, travel, lo, has_launch):
-    m = L[r]
-    if m == 0:
-        return 0.0
-    t = lo[R[r, 0]] if has_launch else 0.0
-    for i in range(m - 1):
-        t += travel[R[r, i], R[r, i + 1]]
-    return t
+def time_of(R, L, r, travel, frames, sorties, has_launch):
+    return route_time(R[r, :L[r]], travel, frames[r], sorties[r], has_launch)
 
 
 @njit(cache=True, nogil=True)
@@ -67,8 +68,8 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
 
 @njit(cache=True, nogil=True)
 def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tgt_indptr,
-           tgt_indices, travel, launch_out, has_launch, mode, alpha, lam, eps, noise, rnd,
-           owner0):
+           tgt_indices, travel, frames, sorties, has_launch, mode, alpha, lam, eps, noise,
+           rnd, owner0):
     """Insert visits until no target in ``short`` (and no other) is short.
 
     Candidates are the (viewpoint, UAV) pairs that give a short target a new
@@ -120,8 +121,8 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
         route = R[r, :L[r]]
         for c in range(nc):
             if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
-                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, launch_out[r],
-                                                  has_launch)
+                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r],
+                                                  sorties[r], has_launch)
                 work += L[r] + 1
     k = 0
     while remaining > 0:
@@ -183,7 +184,7 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
         for q in range(n):          # closed to the other UAVs from now on
             if q != r:
                 dt[bc, q] = np.inf
-        times[r] = time_of(R, L, r, travel, launch_out[r], has_launch)
+        times[r] = time_of(R, L, r, travel, frames, sorties, has_launch)
         # coverage and gains
         for j in range(vis_indptr[x], vis_indptr[x + 1]):
             t = vis_indices[j]
@@ -206,8 +207,8 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
         route = R[r, :L[r]]
         for c in range(nc):
             if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
-                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, launch_out[r],
-                                                  has_launch)
+                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r],
+                                                  sorties[r], has_launch)
                 work += L[r] + 1
             else:
                 dt[c, r] = np.inf
@@ -224,8 +225,8 @@ def _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
 
 
 @njit(cache=True, nogil=True)
-def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, launch_out,
-                   has_launch):
+def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, frames,
+                   sorties, has_launch):
     """Remove visits coverage does not need, largest saving first (the longest
     route's first); returns work."""
     n = R.shape[0]
@@ -237,7 +238,7 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, l
             route = R[r, :L[r]]
             work += L[r]
             for i in range(L[r]):
-                s = removal_saving(route, i, travel, launch_out[r], has_launch)
+                s = removal_saving(route, i, travel, frames[r], sorties[r], has_launch)
                 if s < -1e-9:
                     continue
                 key = s + (1e12 if r == r_max else 0.0)
@@ -255,7 +256,7 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, l
         L[br] -= 1
         R[br, L[br]] = -1
         apply_visit(cnt, dc, br, e, -1, vis_indptr, vis_indices)
-        times[br] = time_of(R, L, br, travel, launch_out[br], has_launch)
+        times[br] = time_of(R, L, br, travel, frames, sorties, has_launch)
 
 
 @njit(cache=True, nogil=True)
@@ -266,7 +267,7 @@ def _prefix(a, m, travel, pf, pb):
 
 
 @njit(cache=True, nogil=True)
-def improve_order(R, L, r, travel, lo, has_launch, max_passes):
+def improve_order(R, L, r, travel, lo, back, has_launch, max_passes):
     """2-opt and or-opt (segments of 1-3, either way round) on route r, O(1) per
     candidate (prefix sums of the legs both ways, so asymmetric travel is
     exact); a pass applies every improving move it meets and goes on.  Passes
@@ -287,10 +288,10 @@ def improve_order(R, L, r, travel, lo, has_launch, max_passes):
             prev = a[i - 1] if i > 0 else START
             for j in range(i + 1, m):
                 nxt = a[j + 1] if j < m - 1 else END
-                old = (leg(prev, a[i], travel, lo, has_launch) + pf[j] - pf[i]
-                       + leg(a[j], nxt, travel, lo, has_launch))
-                new = (leg(prev, a[j], travel, lo, has_launch) + pb[j] - pb[i]
-                       + leg(a[i], nxt, travel, lo, has_launch))
+                old = (leg(prev, a[i], travel, lo, back, has_launch) + pf[j] - pf[i]
+                       + leg(a[j], nxt, travel, lo, back, has_launch))
+                new = (leg(prev, a[j], travel, lo, back, has_launch) + pb[j] - pb[i]
+                       + leg(a[i], nxt, travel, lo, back, has_launch))
                 if new < old - 1e-9:
                     a[i:j + 1] = a[i:j + 1][::-1].copy()
                     _prefix(a, m, travel, pf, pb)
@@ -309,23 +310,23 @@ def improve_order(R, L, r, travel, lo, has_launch, max_passes):
                     continue
                 inner_f = pf[j] - pf[i]
                 inner_b = pb[j] - pb[i]
-                removed = (leg(prev, a[i], travel, lo, has_launch) + inner_f
-                           + leg(a[j], nxt, travel, lo, has_launch)
-                           - leg(prev, nxt, travel, lo, has_launch))
+                removed = (leg(prev, a[i], travel, lo, back, has_launch) + inner_f
+                           + leg(a[j], nxt, travel, lo, back, has_launch)
+                           - leg(prev, nxt, travel, lo, back, has_launch))
                 best, best_g, best_rev = removed - 1e-9, -1, False
                 for g in range(m + 1):
                     if i <= g <= j + 1:
                         continue
                     left = a[g - 1] if g > 0 else START
                     right = a[g] if g < m else END
-                    base = leg(left, right, travel, lo, has_launch)
-                    fwd = (leg(left, a[i], travel, lo, has_launch) + inner_f
-                           + leg(a[j], right, travel, lo, has_launch) - base)
+                    base = leg(left, right, travel, lo, back, has_launch)
+                    fwd = (leg(left, a[i], travel, lo, back, has_launch) + inner_f
+                           + leg(a[j], right, travel, lo, back, has_launch) - base)
                     if fwd < best:
                         best, best_g, best_rev = fwd, g, False
                     if s > 1:
-                        bwd = (leg(left, a[j], travel, lo, has_launch) + inner_b
-                               + leg(a[i], right, travel, lo, has_launch) - base)
+                        bwd = (leg(left, a[j], travel, lo, back, has_launch) + inner_b
+                               + leg(a[i], right, travel, lo, back, has_launch) - base)
                         if bwd < best:
                             best, best_g, best_rev = bwd, g, True
                 work += (16 if s > 1 else 10) * m
@@ -352,6 +353,42 @@ def improve_order(R, L, r, travel, lo, has_launch, max_passes):
     return work
 
 
+NO_BACK = np.zeros(0)
+
+
+@njit(cache=True, nogil=True)
+def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
+    """`improve_order` on route r, one sortie at a time where a battery splits it:
+    each keeps its base at both ends (the way home counted, but in the last,
+    whose end is free as without sorties) and a reorder that would no longer
+    fit the battery is undone. Returns work."""
+    if not limited(sorties[r]) or L[r] < 2:
+        return improve_order(R, L, r, travel, frames[r, 0], NO_BACK, has_launch, max_passes)
+    so = sorties[r]
+    route = R[r, :L[r]].copy()
+    _, sortie, _ = _walked(route, travel, frames[r], so, True)
+    work = 0
+    first = 0
+    one = np.empty((1, L[r]), np.int64)
+    for i in range(1, L[r] + 1):
+        if i < L[r] and sortie[i] == sortie[first]:
+            continue
+        m = i - first
+        one[0, :m] = route[first:i]
+        lo = frames[r, 0] if sortie[first] == 0 else frames[r, 1]
+        last = i == L[r]
+        work += improve_order(one, np.array([m]), 0, travel, lo,
+                              NO_BACK if last else frames[r, 2], True, max_passes)
+        trial = route.copy()
+        trial[first:i] = one[0, :m]
+        if route_time(trial, travel, frames[r], so, True) <= \
+                route_time(route, travel, frames[r], so, True) + 1e-9:
+            route = trial
+        first = i
+    R[r, :L[r]] = route
+    return work
+
+
 @njit(cache=True, nogil=True)
 def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
     """Coverage counts back to the routes (R0, L0): visits in R but not R0 are
@@ -374,14 +411,14 @@ def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
 
 
 @njit(cache=True, nogil=True)
-def savings_all(R, L, travel, launch_out, has_launch):
+def savings_all(R, L, travel, frames, sorties, has_launch):
     """Removal saving of every visit, routes in order (the `visits` order)."""
     out = np.empty(L.sum())
     k = 0
     for r in range(R.shape[0]):
         route = R[r, :L[r]]
         for i in range(L[r]):
-            out[k] = removal_saving(route, i, travel, launch_out[r], has_launch)
+            out[k] = removal_saving(route, i, travel, frames[r], sorties[r], has_launch)
             k += 1
     return out
 

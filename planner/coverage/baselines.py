@@ -74,7 +74,8 @@ def tour(prep, r, nodes):
     """A short open tour of ``nodes`` for UAV r: cheapest insertion, then 2-opt / or-opt."""
     route = np.zeros(0, dtype=np.int64)
     for e in nodes:
-        _, p = insert_cost(route, e, prep.travel, prep.launch_out[r], prep.has_launch)
+        _, p = insert_cost(route, e, prep.travel, prep.frames[r], prep.sorties[r],
+                           prep.has_launch)
         route = np.insert(route, p, e)
     return polish(prep, r, route)
 
@@ -93,7 +94,8 @@ def finish(prep, params, routes):
 
 def polish(prep, r, route):
     arr = np.asarray(route, dtype=np.int64)
-    return list(map(int, improve_route(arr, prep.travel, prep.launch_out[r], prep.has_launch)))
+    return list(map(int, improve_route(arr, prep.travel, prep.frames[r], prep.sorties[r],
+                                       prep.has_launch)))
 
 
 def state_of(prep, routes) -> CoverState:

@@ -20,6 +20,7 @@ from numba import njit
 
 from .gains import CoverState
 from .insertion import (
+    UNLIMITED,
     combine_ends,
     insert_cost,
     middle_costs_all,
@@ -72,20 +73,21 @@ class RouteSet:
         self.mid_pos = np.empty((n, n_vp), dtype=np.int64)
         for r in range(n):
             arr = self._array(r)
-            middle_costs_all(arr, *self._model(r), self.mid_cost[r], self.mid_pos[r])
+            middle_costs_all(arr, *self._edges(r), self.mid_cost[r], self.mid_pos[r])
             self._finish(r, arr)
 
     def _array(self, r):
         return np.asarray(self.routes[r], dtype=np.int64)
 
-    def _model(self, r):
+    def _edges(self, r):
         p = self.prep
         return p.travel, p.travel_t, p.launch_out[r], p.has_launch
 
     def _finish(self, r, arr):
         p = self.prep
-        self.times[r] = route_time(arr, p.travel, p.launch_out[r], p.has_launch)
-        combine_ends(arr, *self._model(r), self.mid_cost[r], self.mid_pos[r], self.cost[r],
+        self.times[r] = route_time(arr, p.travel, p.frames[r], p.sorties[r], p.has_launch)
+        combine_ends(arr, p.travel, p.travel_t, p.frames[r], p.sorties[r], p.has_launch,
+                     self.mid_cost[r], self.mid_pos[r], self.cost[r],
                      self.pos[r])
         self.cost[r, (self.owner != FREE) & (self.owner != r)] = np.inf
 
@@ -97,7 +99,7 @@ class RouteSet:
         p = self.prep
         self.free[p.vis_indices[p.vis_indptr[e]:p.vis_indptr[e + 1]]] -= 1
         arr = self._array(r)
-        update_middle_costs(arr, s, *self._model(r), self.mid_cost[r], self.mid_pos[r])
+        update_middle_costs(arr, s, *self._edges(r), self.mid_cost[r], self.mid_pos[r])
         self._finish(r, arr)
 
 
@@ -117,7 +119,7 @@ def spread_out(prep, params, state, steps):
         e = best_spread(gains, chain, prep.travel, params.beta)
         if e < 0:
             break
-        _, p = insert_cost(chain, e, prep.travel, prep.launch_out[0], False)
+        _, p = insert_cost(chain, e, prep.travel, prep.frames[0], UNLIMITED, False)
         chain = np.insert(chain, p, e)
         routes[r].append(int(e))
         state.take(e, r)

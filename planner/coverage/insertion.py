@@ -1,26 +1,102 @@
 """Route times, the edge-breaking insertion rule, and intra-route improvement.
 
 A route is an array of viewpoint ids in visiting order.  Its time runs from
-the launch point (``lo[e]`` = transit from launch to e) or, without launch
+the launch point (``fr[0, e]`` = transit from launch to e) or, without launch
 points, from the first viewpoint (the paper's setting), to the last snapshot.
 Travel may be asymmetric, so every cost is taken in flight direction.
 
+**Sorties.** A UAV's frame ``fr`` [3, n_viewpoints] holds its times out from
+its start (row 0), out from its base for a later sortie (row 1, the climb
+included) and back to its base (row 2, the landing included); its sortie
+model ``so`` = (endurance, turnaround, used, start_back): the flight time one
+battery allows, the time on the ground between sorties, what the current
+battery has flown already (a re-plan in flight) and the time from the start
+back to the base. A route is flown in sorties by the greedy split: the UAV
+flies on while the next viewpoint and the way home from it still fit the
+battery, and otherwise goes home, takes ``turnaround`` and a new battery, and
+flies out to it (`walk`). With an unlimited endurance (inf) that is one
+flight, and every time is what it was without sorties.
+
 Edge-breaking rule: a viewpoint is inserted at either end of the route or into
-whichever edge gives the least increase in time (the cheapest of them all).
+whichever edge gives the least increase in time (the cheapest of them all);
+with sorties, only where its sortie still fits the battery, or as a new sortie
+at the end.
 """
 
 import numpy as np
 from numba import njit, prange
 
+#: the sortie model of a UAV whose battery does not limit it
+UNLIMITED = np.array([np.inf, 0.0, 0.0, 0.0])
+
 
 @njit(cache=True)
-def route_time(route, travel, lo, has_launch):
+def limited(so) -> bool:
+    return so[0] < np.inf
+
+
+@njit(cache=True)
+def walk(route, travel, fr, so, has_launch, arrive, sortie, flown) -> int:
+    """Fly ``route`` by the greedy split: ``arrive[i]`` the time of visit i since the
+    start (turnarounds included), ``sortie[i]`` its sortie (0: the flight under
+    way at the start; a route whose first viewpoint does not fit what is left
+    of that battery starts with sortie 1), ``flown[i]`` the flight time of its
+    sortie at the visit. Returns the number of sorties."""
+    m = len(route)
+    if m == 0:
+        return 0
+    endurance, turn = so[0], so[1]
+    t, s, j = 0.0, so[2], 0
+    for i in range(m):
+        e = route[i]
+        if i == 0:
+            out = fr[0, e] if has_launch else 0.0
+            home = so[3]
+        else:
+            out = travel[route[i - 1], e]
+            home = fr[2, route[i - 1]]
+        if s + out + fr[2, e] > endurance:      # home first, a new battery, out again
+            t += home + turn + fr[1, e]
+            s = fr[1, e]
+            j += 1
+        else:
+            t += out
+            s += out
+        arrive[i], sortie[i], flown[i] = t, j, s
+    return j + 1
+
+
+@njit(cache=True)
+def _walked(route, travel, fr, so, has_launch):
+    m = len(route)
+    arrive, sortie, flown = np.empty(m), np.empty(m, np.int64), np.empty(m)
+    walk(route, travel, fr, so, has_launch, arrive, sortie, flown)
+    return arrive, sortie, flown
+
+
+@njit(cache=True)
+def route_time(route, travel, fr, so, has_launch):
+    """Time of the route's last snapshot (0 for an empty route)."""
     if len(route) == 0:
         return 0.0
-    t = lo[route[0]] if has_launch else 0.0
-    for i in range(len(route) - 1):
-        t += travel[route[i], route[i + 1]]
-    return t
+    if not limited(so):
+        t = fr[0, route[0]] if has_launch else 0.0
+        for i in range(len(route) - 1):
+            t += travel[route[i], route[i + 1]]
+        return t
+    return _walked(route, travel, fr, so, has_launch)[0][-1]
+
+
+@njit(cache=True)
+def sortie_durations(route, sortie, flown, fr) -> np.ndarray:
+    """Flight time of each sortie of a walked route, the way home included (a
+    sortie without a visit, the start's flight home, is left 0)."""
+    m = len(route)
+    out = np.zeros(sortie[m - 1] + 1 if m else 0)
+    for i in range(m):
+        if i == m - 1 or sortie[i + 1] != sortie[i]:
+            out[sortie[i]] = flown[i] + fr[2, route[i]]
+    return out
 
 
 @njit(cache=True)
@@ -40,13 +116,15 @@ def nearest_other(travel, axis=1):
 
 
 @njit(cache=True)
-def arrival_times(route, travel, lo, has_launch):
+def arrival_times(route, travel, fr, so, has_launch):
     """Time of each snapshot along the route."""
+    if limited(so):
+        return _walked(route, travel, fr, so, has_launch)[0]
     out = np.empty(len(route))
     t = 0.0
     for i in range(len(route)):
         if i == 0:
-            t = lo[route[0]] if has_launch else 0.0
+            t = fr[0, route[0]] if has_launch else 0.0
         else:
             t += travel[route[i - 1], route[i]]
         out[i] = t
@@ -54,8 +132,11 @@ def arrival_times(route, travel, lo, has_launch):
 
 
 @njit(cache=True)
-def insert_cost(route, e, travel, lo, has_launch):
+def insert_cost(route, e, travel, fr, so, has_launch):
     """(Δt, position) of the cheapest edge-breaking insertion of e; position p = before route[p]."""
+    if limited(so):
+        return _sortie_insert_cost(route, e, travel, fr, so)
+    lo = fr[0]
     m = len(route)
     if m == 0:
         return (lo[e] if has_launch else 0.0), 0
@@ -77,6 +158,29 @@ def insert_cost(route, e, travel, lo, has_launch):
         best = c
         pos = m
     return best, pos
+
+
+@njit(cache=True)
+def _sortie_insert_cost(route, e, travel, fr, so):
+    """`insert_cost` where a battery limits the sorties (launch points given): each
+    slot only where its sortie still fits the battery with e in it, the greedy
+    split's own choice at a sortie's ends, and a new sortie after the last."""
+    m = len(route)
+    if m == 0:
+        if so[2] + fr[0, e] + fr[2, e] <= so[0]:
+            return fr[0, e], 0
+        return so[3] + so[1] + fr[1, e], 0
+    arrive, sortie, flown = _walked(route, travel, fr, so, True)
+    dur = sortie_durations(route, sortie, flown, fr)
+    starts = np.flatnonzero(np.diff(sortie)) + 1
+    best, pos = np.inf, -1
+    for p in range(1, m):                   # the cheapest edge inside a sortie that fits
+        if sortie[p - 1] == sortie[p]:
+            a, b = route[p - 1], route[p]
+            c = travel[a, e] + travel[e, b] - travel[a, b]
+            if c < best and dur[sortie[p]] + c <= so[0]:
+                best, pos = c, p
+    return _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, best, pos)
 
 
 @njit(cache=True)
@@ -113,9 +217,19 @@ def middle_costs_all(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos)
 
 
 @njit(cache=True, parallel=True)
-def combine_ends(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos, cost, pos):
-    """Edge-breaking rule: the cheapest of front, best edge and back."""
+def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos, cost, pos):
+    """Edge-breaking rule: the cheapest of front, best edge and back (with sorties:
+    `_sortie_slots`)."""
     m = len(route)
+    lo = fr[0]
+    if limited(so) and m > 0:
+        arrive, sortie, flown = _walked(route, travel, fr, so, True)
+        dur = sortie_durations(route, sortie, flown, fr)
+        starts = np.flatnonzero(np.diff(sortie)) + 1
+        for e in prange(travel.shape[0]):
+            cost[e], pos[e] = _sortie_slots(route, e, travel, fr, so, sortie, flown, dur,
+                                            starts, mid_cost[e], mid_pos[e])
+        return
     for e in prange(travel.shape[0]):
         c, p = slot_cost(route, 0, e, travel, travel_t, lo, has_launch), 0
         if mid_cost[e] < c:
@@ -126,6 +240,49 @@ def combine_ends(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos, cos
                 c, p = cb, m
         cost[e] = c
         pos[e] = p
+
+
+@njit(cache=True)
+def _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, mid_c, mid_p):
+    """(Δt, position) of e among the slots `_sortie_insert_cost` weighs, the edges
+    inside sorties by their cached best (``mid_c`` at ``mid_p``) only: that edge
+    if its sortie still fits, else the front, the sorties' ends and the back."""
+    endurance, turn = so[0], so[1]
+    m = len(route)
+    best, pos = np.inf, m
+    if 0 < mid_p < m and sortie[mid_p - 1] == sortie[mid_p] and \
+            dur[sortie[mid_p]] + mid_c <= endurance:
+        best, pos = mid_c, mid_p
+    a = route[m - 1]
+    if flown[m - 1] + travel[a, e] + fr[2, e] <= endurance:
+        c = travel[a, e]
+    else:
+        c = fr[2, a] + turn + fr[1, e]
+    if c < best:
+        best, pos = c, m
+    for k in range(len(starts) + 1):
+        p = 0 if k == 0 else starts[k - 1]
+        b, j = route[p], sortie[p]
+        if p == 0:
+            end_c = fr[0, e] + fr[2, e] - so[3]
+            before = so[2] + fr[0, e] + fr[2, e] <= endurance
+        else:
+            a = route[p - 1]
+            end_c = travel[a, e] + fr[2, e] - fr[2, a]
+            before = dur[sortie[p - 1]] + end_c <= endurance
+        if p == 0 and j == 0:
+            c = fr[0, e] + travel[e, b] - fr[0, b]
+            if dur[0] + c > endurance:
+                continue
+        elif before:
+            c = end_c
+        else:
+            c = fr[1, e] + travel[e, b] - fr[1, b]
+            if dur[j] + c > endurance:
+                continue
+        if c < best:
+            best, pos = c, p
+    return best, pos
 
 
 @njit(cache=True, parallel=True)
@@ -176,10 +333,15 @@ def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mi
 
 
 @njit(cache=True)
-def removal_saving(route, i, travel, lo, has_launch):
-    """Time saved by removing route[i] and joining its neighbours."""
+def removal_saving(route, i, travel, fr, so, has_launch):
+    """Time saved by removing route[i] and joining its neighbours (with sorties: the
+    route walked again without it, its sorties split anew)."""
     m = len(route)
     e = route[i]
+    if limited(so):
+        rest = np.concatenate((route[:i], route[i + 1:]))
+        return route_time(route, travel, fr, so, True) - route_time(rest, travel, fr, so, True)
+    lo = fr[0]
     if m == 1:
         return lo[e] if has_launch else 0.0
     if i == 0:
@@ -195,14 +357,14 @@ def removal_saving(route, i, travel, lo, has_launch):
 
 
 @njit(cache=True)
-def improve_route(route, travel, lo, has_launch):
+def improve_route(route, travel, fr, so, has_launch):
     """Or-opt (move segments of 1-3, also reversed) and 2-opt until no gain.
 
     Full re-evaluation per candidate keeps it exact for asymmetric travel;
     routes are short (tens to a few hundred snapshots).
     """
     best = route.copy()
-    best_t = route_time(best, travel, lo, has_launch)
+    best_t = route_time(best, travel, fr, so, has_launch)
     m = len(best)
     improved = True
     while improved:
@@ -212,7 +374,7 @@ def improve_route(route, travel, lo, has_launch):
             for j in range(i + 1, m):
                 cand = best.copy()
                 cand[i:j + 1] = best[i:j + 1][::-1]
-                t = route_time(cand, travel, lo, has_launch)
+                t = route_time(cand, travel, fr, so, has_launch)
                 if t < best_t - 1e-9:
                     best, best_t, improved = cand, t, True
         # or-opt: move a segment of length 1..3 elsewhere (optionally reversed)
@@ -227,7 +389,7 @@ def improve_route(route, travel, lo, has_launch):
                         if p == i and rev == 0:
                             continue
                         cand = np.concatenate((rest[:p], s, rest[p:]))
-                        t = route_time(cand, travel, lo, has_launch)
+                        t = route_time(cand, travel, fr, so, has_launch)
                         if t < best_t - 1e-9:
                             best, best_t, improved, moved = cand, t, True, True
                             break

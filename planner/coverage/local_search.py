@@ -84,15 +84,17 @@ class Search:
                    for e in viewpoints)
 
     def _time(self, r, route):
-        return route_time(route, self.p.travel, self.p.launch_out[r], self.p.has_launch)
+        return route_time(route, self.p.travel, self.p.frames[r], self.p.sorties[r],
+                          self.p.has_launch)
 
     def _saving(self, r, i):
-        return removal_saving(self.routes[r], i, self.p.travel, self.p.launch_out[r],
+        return removal_saving(self.routes[r], i, self.p.travel, self.p.frames[r], self.p.sorties[r],
                               self.p.has_launch)
 
     def _insertion(self, r, route, e):
         self.budget -= len(route) + 1
-        return insert_cost(route, e, self.p.travel, self.p.launch_out[r], self.p.has_launch)
+        return insert_cost(route, e, self.p.travel, self.p.frames[r], self.p.sorties[r],
+                           self.p.has_launch)
 
     def _legal(self, removals, additions):
         """Apply removals/additions tentatively; keep them if coverage holds."""
@@ -116,7 +118,7 @@ class Search:
     def optimise_orders(self):
         improved = False
         for r in range(len(self.routes)):
-            new = improve_route(self.routes[r], self.p.travel, self.p.launch_out[r],
+            new = improve_route(self.routes[r], self.p.travel, self.p.frames[r], self.p.sorties[r],
                                 self.p.has_launch)
             t = self._time(r, new)
             if t < self.times[r] - _EPS:

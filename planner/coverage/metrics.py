@@ -5,7 +5,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .insertion import arrival_times, nearest_other, route_time
+from .insertion import arrival_times, nearest_other
 from .places import Places, _max_matching, matched_counts, matched_times
 from .problem import Allocation, CoverageProblem, csc_transpose, prepare
 
@@ -91,8 +91,9 @@ def evaluate(prep, routes, method: str, steps=None, planning_s=0.0) -> Allocatio
     arrivals = []
     for r, route in enumerate(routes):
         arr = np.asarray(route, dtype=np.int64)
-        arrivals.append(arrival_times(arr, prep.travel, prep.launch_out[r], prep.has_launch))
-        times[r] = route_time(arr, prep.travel, prep.launch_out[r], prep.has_launch)
+        arrivals.append(arrival_times(arr, prep.travel, prep.frames[r], prep.sorties[r],
+                                      prep.has_launch))
+        times[r] = arrivals[-1][-1] if len(arr) else 0.0
         back[r] = times[r] + (prep.launch_back[r, arr[-1]] if prep.has_launch and len(arr) else 0.0)
     counts = sighting_counts(prep.problem, routes)
     covered = bool(np.all(counts >= prep.required))

@@ -42,7 +42,8 @@ class Places:
     @classmethod
     def of(cls, prep, routes, when=None) -> "Places":
         if when is None:
-            when = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.launch_out[u],
+            when = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.frames[u],
+                                  prep.sorties[u],
                                   prep.has_launch) for u, r in enumerate(routes)]
         return cls(prep.problem.n_uavs, prep.problem.n_viewpoints, routes, when)
 
@@ -179,7 +180,8 @@ def share(prep, routes, counts) -> list:
         if not len(short):
             break
         at = Places.of(prep, routes).at
-        times = np.array([route_time(r, prep.travel, prep.launch_out[u], prep.has_launch)
+        times = np.array([route_time(r, prep.travel, prep.frames[u], prep.sorties[u],
+                                     prep.has_launch)
                           for u, r in enumerate(routes)])
         best = None
         for t in short:
@@ -190,7 +192,7 @@ def share(prep, routes, counts) -> list:
                     if count_with(t, at, prep.tgt_indptr, prep.tgt_indices, prep.seen0, r, e,
                                   prep.required[t]) <= counts[t]:
                         continue
-                    dt, pos = insert_cost(routes[r], e, prep.travel, prep.launch_out[r],
+                    dt, pos = insert_cost(routes[r], e, prep.travel, prep.frames[r], prep.sorties[r],
                                           prep.has_launch)
                     key = (max(times[r] + dt, times.max()), dt)
                     if best is None or key < best[0]:

@@ -53,6 +53,15 @@ class CoverageProblem:
     required: Optional[np.ndarray] = None
     seen: Optional[np.ndarray] = None
     owner: Optional[np.ndarray] = None
+    # sorties (`insertion.walk`; launch points needed): the flight time of one
+    # battery, the time on the ground between two sorties, per UAV the times out of
+    # its base for a later sortie (default ``launch_out``: it starts at its base),
+    # what its battery has flown at the start, and the time from its start home
+    endurance_s: float = np.inf
+    turnaround_s: float = 0.0
+    base_out: Optional[np.ndarray] = None
+    used_s: Optional[np.ndarray] = None
+    start_back: Optional[np.ndarray] = None
 
     @property
     def n_viewpoints(self) -> int:
@@ -151,6 +160,8 @@ class Prepared:
     launch_out: np.ndarray  # float64 [n_uavs, n_vp] (zeros if no launch)
     launch_back: np.ndarray
     has_launch: bool
+    frames: np.ndarray  # float64 [n_uavs, 3, n_vp]: out from start, out from base, back
+    sorties: np.ndarray  # float64 [n_uavs, 4]: `insertion.walk`'s sortie model per UAV
     seen0: np.ndarray  # uint8 [n_uavs, n_targets]
     required: np.ndarray  # int32 [n_targets], reduced to what is achievable
     uncoverable: int  # targets whose requirement cannot be met at all
@@ -213,6 +224,10 @@ def prepare(problem: CoverageProblem) -> Prepared:
         np.asarray(problem.owner, np.int64)
     if owner0.shape != (n_vp,) or owner0.max(initial=FREE) >= n or owner0.min(initial=0) < CLOSED:
         raise ValueError(f"owner must hold one UAV, FREE or CLOSED per viewpoint ({n_vp})")
+    frames, sorties = _sortie_model(problem, lo, lb)
+    beyond = _beyond_battery(frames, sorties)
+    owner0 = np.where(beyond.all(axis=0) & (owner0 == FREE), CLOSED, owner0)
+    frames[:, :2][np.broadcast_to(beyond[:, None], frames[:, :2].shape)] = np.inf
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
     # A target seen from fewer places than it needs distinct UAVs (each viewpoint
     # serves one UAV), or needing more UAVs than exist, is capped at what is
@@ -222,8 +237,44 @@ def prepare(problem: CoverageProblem) -> Prepared:
     req = np.minimum(req, achievable).astype(np.int32)
     return Prepared(problem, indptr, indices, tgt_indptr, tgt_indices, travel,
                     np.ascontiguousarray(travel.T), lo, lb,
-                    has_launch, seen0, req, uncoverable, problem.visibility == "soft",
-                    float(n) / k if k > 0 else 1.0, owner0)
+                    has_launch, frames, sorties, seen0, req, uncoverable,
+                    problem.visibility == "soft", float(n) / k if k > 0 else 1.0, owner0)
+
+
+def _sortie_model(problem: CoverageProblem, lo, lb) -> tuple:
+    """(frames, sorties) of `Prepared` (see `insertion`)."""
+    n = int(problem.n_uavs)
+    endurance = float(problem.endurance_s)
+    if endurance < np.inf and problem.launch_out is None:
+        raise ValueError("an endurance needs launch points (bases to come back to)")
+    base = lo if problem.base_out is None else np.asarray(problem.base_out, np.float64)
+    if base.shape != lo.shape:
+        raise ValueError(f"base_out must be {lo.shape}")
+    frames = np.ascontiguousarray(np.stack([lo, base, lb], axis=1))
+    sorties = np.zeros((n, 4))
+    sorties[:, 0] = endurance
+    sorties[:, 1] = problem.turnaround_s
+    if problem.used_s is not None:
+        sorties[:, 2] = problem.used_s
+    if problem.start_back is not None:
+        sorties[:, 3] = problem.start_back
+    return frames, sorties
+
+
+def _beyond_battery(frames, sorties) -> np.ndarray:
+    """bool [n_uavs, n_vp]: viewpoints a UAV cannot fly to from its base and back on
+    one battery (closed to it; to everyone when no UAV can: `beyond_battery`)."""
+    return frames[:, 1] + frames[:, 2] > sorties[:, :1]
+
+
+def beyond_battery(problem: CoverageProblem) -> np.ndarray:
+    """Ids of the viewpoints no UAV can fly to from its base and back on one
+    battery: no plan visits them (a plan reports them)."""
+    lo = np.asarray(problem.launch_out, np.float64) if problem.launch_out is not None \
+        else np.zeros((problem.n_uavs, problem.n_viewpoints))
+    lb = np.asarray(problem.launch_back, np.float64) if problem.launch_back is not None \
+        else np.zeros_like(lo)
+    return np.flatnonzero(_beyond_battery(*_sortie_model(problem, lo, lb)).all(axis=0))
 
 
 def achievable(problem: CoverageProblem) -> np.ndarray:
@@ -235,7 +286,10 @@ def achievable(problem: CoverageProblem) -> np.ndarray:
     seen = (np.zeros((n, n_t), np.bool_) if problem.seen is None
             else np.asarray(problem.seen, np.bool_))
     owner = (np.full(len(indptr) - 1, FREE, np.int64) if problem.owner is None
-             else np.asarray(problem.owner, np.int64))
+             else np.array(problem.owner, np.int64))
+    if problem.endurance_s < np.inf:
+        far = beyond_battery(problem)
+        owner[far[owner[far] == FREE]] = CLOSED
     return _achievable(tgt_indptr, tgt_indices, owner, seen, n)
 
 
