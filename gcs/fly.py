@@ -147,6 +147,15 @@ class Flight:
         otherwise it is loaded from the plan folder."""
         self.plan_dir = Path(plan_dir)
         self.plan = Plan.load(self.plan_dir)
+        several = [v for v in self.plan.vehicles if len(v.sorties) > 1]
+        if several:
+            v = several[0]
+            raise InputError(self.plan_dir / PLAN_FILE,
+                             f"vehicle {v.id} flies {len(v.sorties)} sorties (one battery "
+                             "each, a turnaround on the ground between them): gcs fly flies "
+                             "plans of one sortie per vehicle; fly each sortie's mission "
+                             f"(vehicle-{v.id}-sortie-1.plan, ...) from its base, or plan "
+                             "with a longer --endurance")
         self.urls = list(urls)
         self.options = options
         self.output = Path(options.output)

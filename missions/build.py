@@ -66,10 +66,11 @@ class VehicleMission:
     first_waypoint: int = 0
     last_waypoint: int | None = None
     final: bool = True
+    sortie: int = 0  # of a route flown on several batteries: which one (1, 2, ...)
 
     @property
     def name(self) -> str:
-        return f"vehicle {self.vehicle_id}"
+        return f"vehicle {self.vehicle_id}" + (f" sortie {self.sortie}" if self.sortie else "")
 
 
 def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptions(),
@@ -137,13 +138,23 @@ def firmware_profile(firmware: str):
 
 def plan_missions(plan, firmware: Optional[str] = None, options: Optional[MissionOptions] = None
                   ) -> list:
-    """One `VehicleMission` per vehicle of ``plan`` (firmware default: the plan's;
-    options default: fly the plan's speed, trigger the camera, no hold)."""
+    """One `VehicleMission` per vehicle of ``plan``, or per sortie of a vehicle that
+    flies several (each takes off from its base and lands there; firmware default:
+    the plan's; options default: fly the plan's speed, trigger the camera, no hold)."""
     firmware = firmware or plan.params.get("firmware") or ARDUPILOT
     if options is None:
         options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
-    return [vehicle_mission(route, firmware, options) for route in plan.vehicles
-            if route.waypoints]
+    return [sortie_mission(route, j, firmware, options) for route in plan.vehicles
+            for j in range(len(route.sortie_routes())) if route.waypoints]
+
+
+def sortie_mission(route, j, firmware, options) -> VehicleMission:
+    """The mission of sortie ``j`` (0-based) of ``route``: the whole route when it
+    flies one."""
+    parts = route.sortie_routes()
+    mission = vehicle_mission(parts[j], firmware, options)
+    mission.sortie = j + 1 if len(parts) > 1 else 0
+    return mission
 
 
 class _Builder:

@@ -2,7 +2,9 @@
 so a refused plan writes nothing; each file is then written atomically.
 
 Per vehicle ``vehicle-<id>.plan`` (QGroundControl) and ``vehicle-<id>.waypoints``
-(QGC WPL 110); for the whole fleet ``routes.geojson`` and ``routes.kml``.
+(QGC WPL 110), or per sortie of a vehicle that flies several
+``vehicle-<id>-sortie-<n>.plan`` and ``.waypoints``; for the whole fleet
+``routes.geojson`` and ``routes.kml``.
 """
 
 from pathlib import Path
@@ -19,8 +21,11 @@ ROUTES_GEOJSON = "routes.geojson"
 ROUTES_KML = "routes.kml"
 
 
-def vehicle_file(directory, vehicle_id, suffix) -> Path:
-    return Path(directory) / f"vehicle-{vehicle_id}.{suffix}"
+def vehicle_file(directory, vehicle_id, suffix, sortie=0) -> Path:
+    """``vehicle-<id>.<suffix>``, or ``vehicle-<id>-sortie-<n>.<suffix>`` for one
+    sortie of a vehicle that flies several."""
+    tail = f"-sortie-{sortie}" if sortie else ""
+    return Path(directory) / f"vehicle-{vehicle_id}{tail}.{suffix}"
 
 
 def export_plan_dir(directory, plan, firmware: Optional[str] = None, surface=None,
@@ -60,14 +65,14 @@ def export_plan_dir(directory, plan, firmware: Optional[str] = None, surface=Non
 def _vehicle_files(directory, mission, plan, speed, formats, fences) -> list:
     out = []
     n = len(mission.items)
-    what = f"vehicle {mission.vehicle_id}: {n} items, {mission.firmware}"
+    what = f"{mission.name}: {n} items, {mission.firmware}"
     if "plan" in formats:
-        path = vehicle_file(directory, mission.vehicle_id, "plan")
+        path = vehicle_file(directory, mission.vehicle_id, "plan", mission.sortie)
         qgc.write_plan_file(path, mission, speed, plan.outposts if fences else (),
                             home=_home(plan, mission.vehicle_id))
         out.append((path, f"{what} (QGroundControl .plan)"))
     if "waypoints" in formats:
-        path = vehicle_file(directory, mission.vehicle_id, "waypoints")
+        path = vehicle_file(directory, mission.vehicle_id, "waypoints", mission.sortie)
         wpl.write_waypoints(path, mission.items, mission.firmware,
                             home=_home(plan, mission.vehicle_id))
         out.append((path, f"{what} (QGC WPL 110: Mission Planner, MAVProxy)"))

@@ -173,6 +173,11 @@ def _plan_sources(directory: Path, plans: _Plans, firmware) -> list:
     for route in plan.vehicles:
         if not route.waypoints:
             continue
+        if len(route.sorties) > 1:
+            raise InputError(directory, f"vehicle {route.id} flies {len(route.sorties)} "
+                                        "sorties, one battery each: upload one sortie's "
+                                        f"mission at a time (vehicle-{route.id}-sortie-1.plan, "
+                                        "...) once the vehicle is on the ground at its base")
         missions = {fw: vehicle_mission(route, fw, options) for fw in NAMES}
         out.append(MissionSource(route.id, f"{directory} vehicle {route.id}", missions, proof,
                                  firmware or plan.params.get("firmware")))
@@ -190,7 +195,7 @@ def _file_source(path: Path, number: int, count: int, plan_dir, plans: _Plans,
         raise InputError(path, "not a mission file: expected .plan or .waypoints")
     if not path.is_file():
         raise InputError(path, "no such file")
-    match = re.search(r"(\d+)$", path.stem)
+    match = re.search(r"(\d+)(?:-sortie-(\d+))?$", path.stem)
     route_id = int(match.group(1)) if match and count > 1 else number
     directory = plan_dir if plan_dir is not None else \
         (path.parent if (path.parent / PLAN_FILE).is_file() else None)

@@ -10,7 +10,7 @@ positions and what they have already seen.
 import time
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -43,6 +43,7 @@ from planner.visibility.unseen import area_summary, unseen_reasons
 
 from . import coverage, split
 from .context import PlanningContext, outposts_json
+from .coverage.insertion import walk
 from .coverage.metrics import last_needed_sighting
 from .coverage.problem import achievable
 from .fleet import FleetSchedule, Profile, schedule, stop_time
@@ -62,6 +63,7 @@ class Start:
     launch: Optional[np.ndarray] = None  # ground point (x, y, ground AMSL) it returns to
     climb_s: float = 0.0  # vertical takeoff time before xyz, counted in the route's time
     held: Optional[np.ndarray] = None  # in flight: where it stands now (it flies to xyz)
+    flown_s: float = 0.0  # in flight: what its battery has flown (a sortie model counts it)
 
 
 @contextmanager
@@ -285,12 +287,14 @@ class Outcome:
 
 
 def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibility="soft",
-                     seen=None, required=None, travel=True,
-                     owner=None) -> coverage.CoverageProblem:
+                     seen=None, required=None, travel=True, owner=None,
+                     battery_scale=(1.0, 1.0)) -> coverage.CoverageProblem:
     """The combinatorial problem: visibility sets, viewpoint times, start/return times
-    (``travel`` False: without the viewpoint times, for a plan made in parts)."""
+    (``travel`` False: without the viewpoint times, for a plan made in parts), and
+    with an endurance the sortie model (`_battery`)."""
     vis = ctx.visibility
     out = back = None
+    battery = {}
     if starts:
         vp = ctx.viewpoints.xyz
         climb = np.array([s.climb_s for s in starts])[:, None]
@@ -298,11 +302,35 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
         if all(s.launch is not None for s in starts):
             tops = np.stack([above_launch(ctx, s.launch) for s in starts])
             ground = np.array([s.launch[2] for s in starts])
-            land = leg_time(0.0, ground - tops[:, 2], ctx.travel_params)[:, None]
-            back = ctx.graph.times_between(vp, tops).T + land
+            land = leg_time(0.0, ground - tops[:, 2], ctx.travel_params)
+            back = ctx.graph.times_between(vp, tops).T + land[:, None]
+            if ctx.scenario.endurance_min is not None:
+                battery = _battery(ctx, starts, out, tops, land, battery_scale)
     return coverage.CoverageProblem(vis.indptr, vis.indices, vis.n_targets,
                                     ctx.travel if travel else None, out, back, n_uavs, k,
-                                    visibility, required, seen, owner)
+                                    visibility, required, seen, owner, **battery)
+
+
+def _battery(ctx, starts, out, tops, land, scale=(1.0, 1.0)) -> dict:
+    """The sortie model of `coverage.CoverageProblem`: the usable flight time of a
+    battery for the split and for the round trips that close a viewpoint (each
+    times its ``scale``: `allocate` tightens them where the slowing at waypoints
+    outgrows the search's estimate), the turnaround, and for a vehicle in flight the times out of its
+    base for later sorties, its battery flown, its way home."""
+    s = ctx.scenario
+    model = dict(endurance_s=s.usable_s * scale[0], reach_s=s.usable_s * scale[1],
+                 turnaround_s=60.0 * s.turnaround_min,
+                 used_s=np.array([st.flown_s for st in starts]))
+    held = [r for r, st in enumerate(starts) if st.held is not None]
+    if held:
+        base_out, home = out.copy(), np.zeros(len(starts))
+        for r in held:
+            climb = float(leg_time(0.0, tops[r, 2] - starts[r].launch[2], ctx.travel_params))
+            base_out[r] = ctx.graph.times_between(tops[r][None], ctx.viewpoints.xyz)[0] + climb
+            home[r] = starts[r].climb_s + float(
+                ctx.graph.times_between(starts[r].xyz[None], tops[r][None])[0, 0]) + land[r]
+        model.update(base_out=base_out, start_back=home)
+    return model
 
 
 def above_launch(ctx, ground_xyz) -> np.ndarray:
@@ -327,35 +355,93 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
                                      time_budget_s=s.time_budget_s,
                                      budget_fraction=budget_fraction)
     parts = split.n_parts(len(ctx.viewpoints), s)
-    try:
-        if parts > 1:
-            problem, allocation = _in_parts(ctx, parts, n_uavs, starts, seen, required,
-                                            method, params, timing, progress, scheduler, log,
-                                            owner)
-        else:
-            with _stage("allocation", timing, progress):
-                problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen,
-                                           required, owner=owner)
-                prep = coverage.prepare(problem)  # once: the bounds below share it
-                allocation = coverage.solve(problem, method, params,
-                                            progress=(lambda f: progress("allocation", f))
-                                            if progress else None, prep=prep)
-    except ValueError as exc:
-        raise InputError("plan", str(exc)) from None
-    with _stage("routes", timing, progress):
-        polylines, arrivals = _routes(ctx, allocation.routes, starts,
-                                      _fraction(progress, "routes"))
-        counts = coverage.coverage_counts(problem, allocation)
-    with _stage("separation", timing, progress):
-        fleet = fleet_clock(ctx, polylines, arrivals, starts, problem, allocation.routes)
+    if parts > 1 and s.endurance_min is not None:
+        raise InputError("plan", f"an endurance (sorties) on an area planned in {parts} parts "
+                                 "is not supported yet: plan the area in smaller pieces, or "
+                                 "without --endurance")
+    scale = np.ones(2)
+    for _ in range(BATTERY_TRIES):
+        try:
+            problem, allocation, prep = _search(ctx, parts, n_uavs, starts, seen, required,
+                                                method, params, timing, progress, scheduler,
+                                                log, owner, scale)
+        except ValueError as exc:
+            raise InputError("plan", str(exc)) from None
+        with _stage("routes", timing, progress):
+            sorties = _routes(ctx, allocation.routes, starts, _fraction(progress, "routes"),
+                              _sortie_of(prep, allocation.routes) if prep else None)
+            counts = coverage.coverage_counts(problem, allocation)
+        with _stage("separation", timing, progress):
+            fleet = fleet_clock(ctx, sorties, starts, problem, allocation.routes)
+        over = _over_battery(fleet, s.usable_s)
+        if not over.any():
+            break
+        # the search's times leave out the slowing at the waypoints: plan again with
+        # the sorties (or, where one viewpoint alone is too far, the round trips) that
+        # much shorter
+        scale = np.where(over > 0, scale * 0.98 / np.maximum(over, 1.0), scale)
+    else:
+        raise InputError("plan", f"a sortie takes {max(over) * s.usable_s / 60:.1f} min, more "
+                                 f"than the {s.usable_s / 60:.1f} min a battery allows "
+                                 f"(endurance {s.endurance_min:g} min less {s.reserve_pct:g} % "
+                                 f"reserve), after {BATTERY_TRIES} tries: give a longer "
+                                 "--endurance")
     # only the reach bound holds for the whole of an area planned in parts
     bounds = ((split.reach_bound(problem),) * 2 if parts > 1
               else coverage.bounds(problem, strong_bound, prep))
-    plan = _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, counts,
-                      timing, bounds)
+    plan = _make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds)
     if parts > 1:
         plan.metrics["parts"] = parts
-    return Outcome(plan, problem, allocation, polylines, counts)
+    return Outcome(plan, problem, allocation, uav_polylines(sorties, n_uavs), counts)
+
+
+#: plans tried on a smaller battery before a sortie that outgrows it is an error
+BATTERY_TRIES = 4
+
+
+def _search(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
+            scheduler, log, owner, scale) -> tuple:
+    """(problem, allocation, prepared problem or None for a plan in parts): the
+    coverage method's search, the battery ``scale``d (`_battery`)."""
+    s = ctx.scenario
+    if parts > 1:
+        problem, allocation = _in_parts(ctx, parts, n_uavs, starts, seen, required, method,
+                                        params, timing, progress, scheduler, log, owner)
+        return problem, allocation, None
+    with _stage("allocation", timing, progress):
+        problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
+                                   owner=owner, battery_scale=scale)
+        prep = coverage.prepare(problem)  # once: the bounds below share it
+        allocation = coverage.solve(problem, method, params,
+                                    progress=(lambda f: progress("allocation", f))
+                                    if progress else None, prep=prep)
+    return problem, allocation, prep
+
+
+def _over_battery(fleet, usable_s) -> np.ndarray:
+    """(sorties of several viewpoints, of one): the longest flight of each kind over
+    the usable battery, as a multiple of it (0 where none is over)."""
+    over = np.zeros(2)
+    for i, f in enumerate(fleet.sorties):
+        ratio = fleet.flight_s(i) / usable_s
+        if ratio > 1.0:
+            kind = int(len(f.visits) <= 1)
+            over[kind] = max(over[kind], ratio)
+    return over
+
+
+def _sortie_of(prep, routes) -> list:
+    """Per UAV, the sortie of each visit: the greedy split the methods planned with
+    (`coverage.insertion.walk`; all 0 with an unlimited battery)."""
+    out = []
+    for r, route in enumerate(routes):
+        m = len(route)
+        arrive, sortie, flown = np.empty(m), np.zeros(m, np.int64), np.empty(m)
+        if m and np.isfinite(prep.sorties[r, 0]):
+            walk(np.asarray(route, np.int64), prep.travel, prep.frames[r], prep.sorties[r],
+                 prep.has_launch, arrive, sortie, flown)
+        out.append(sortie)
+    return out
 
 
 def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
@@ -391,32 +477,57 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
     return problem, joined.allocation(problem, method)
 
 
-def _routes(ctx, routes, starts, progress=None):
-    """Hidden polylines through each route's viewpoints, and times at every vertex.
+@dataclass
+class Sortie:
+    """One flight of a UAV's route, takeoff to touchdown (one battery)."""
+
+    uav: int
+    number: int          # 1, 2, ... along the route
+    visits: list         # viewpoint ids photographed, in order
+    poly: np.ndarray     # its hidden polyline (projected x, y, alt AMSL), rounded and proven
+    snap: np.ndarray     # the polyline vertex of each visit
+    first: bool          # the route's first: from its start (the others from the base)
+
+
+def _sortie_points(ctx, route, start, of) -> list:
+    """[(visits, points)] per sortie of one route: each from its start (the first)
+    or the point above its base, through its viewpoints, to the point above its
+    base. ``of``: the sortie of each visit (0: the flight under way at the start;
+    a vehicle in flight whose battery cannot take it to its first viewpoint flies
+    home first, a sortie without visits)."""
+    vp = ctx.viewpoints.xyz
+    if start is None:
+        return [(list(route), vp[list(route)])]
+    top = above_launch(ctx, start.launch) if start.launch is not None else None
+    out = []
+    for j in range(int(of[-1]) + 1 if len(of) else 1):
+        visits = [e for e, o in zip(route, of) if o == j]
+        if not visits and j > 0:
+            continue
+        p = [start.xyz if j == 0 else top] + [vp[e] for e in visits]
+        if top is not None:
+            p.append(top)
+        out.append((visits, np.array(p, float).reshape(-1, 3)))
+    return out
+
+
+def _routes(ctx, routes, starts, progress=None, sortie_of=None) -> list:
+    """The `Sortie`s of every route: hidden polylines through its viewpoints, one
+    per battery (``sortie_of[r]``: the sortie of each visit; default one flight).
 
     Waypoints are rounded as MAVLink carries them (1e-7 degrees, float32
     altitudes) and every leg is proven again, rounded, by the same tests the
     mission check runs (`planner.exposure.segments_hidden`, `segments_clear`)."""
-    points = []
+    wanted = []
     for r, route in enumerate(routes):
         start = starts[r] if starts else None
-        p = [ctx.viewpoints.xyz[e] for e in route]
-        if start is not None:
-            p = [start.xyz] + p
-            if start.launch is not None:
-                p.append(above_launch(ctx, start.launch))
-        points.append(np.array(p, float).reshape(-1, 3))
-    found = ctx.graph.route_polylines([p for p in points if len(p)],
+        if route or start is not None:    # a UAV without viewpoints takes off and lands
+            of = np.zeros(len(route), int) if sortie_of is None else sortie_of[r]
+            wanted += [(r, v, p) for v, p in _sortie_points(ctx, route, start, of)]
+    found = ctx.graph.route_polylines([p for _, _, p in wanted],
                                       (lambda f: progress(0.8 * f)) if progress else None)
-    found = iter(found)
-    polylines, arrivals = [], []
-    for r, (route, p) in enumerate(zip(routes, points)):
-        start = starts[r] if starts else None
-        if not len(p):
-            polylines.append(np.zeros((0, 3)))
-            arrivals.append((np.zeros(0), np.zeros(0, np.int64)))
-            continue
-        got = next(found)
+    sorties, number = [], {}
+    for n, ((r, visits, _), got) in enumerate(zip(wanted, found)):
         if got is None:
             raise InputError("plan", f"UAV {r + 1}: two of its viewpoints are not joined by a "
                                      "hidden path (a defect: the planner only pairs reachable "
@@ -425,14 +536,20 @@ def _routes(ctx, routes, starts, progress=None):
         poly, stops = _fewest_vertices(ctx, _rounded_for_mavlink(ctx, poly), stops)
         _prove(ctx, r, poly)
         if progress is not None:
-            progress(0.8 + 0.2 * (r + 1) / len(routes))
-        d = np.diff(poly, axis=0)
-        legs = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], ctx.travel_params)
-        t = np.r_[0.0, np.cumsum(legs)] + (start.climb_s if start is not None else 0.0)
-        snap = stops[1:len(route) + 1] if start is not None else stops[:len(route)]
-        polylines.append(poly)
-        arrivals.append((t, snap))
-    return polylines, arrivals
+            progress(0.8 + 0.2 * (n + 1) / len(wanted))
+        number[r] = number.get(r, 0) + 1
+        snap = stops[1:len(visits) + 1] if starts else stops[:len(visits)]
+        sorties.append(Sortie(r, number[r], visits, poly, np.asarray(snap, np.int64),
+                              number[r] == 1))
+    return sorties
+
+
+def uav_polylines(sorties, n_uavs) -> list:
+    """Per UAV, its sorties' polylines one after the other (for maps and checks)."""
+    out = [[] for _ in range(n_uavs)]
+    for f in sorties:
+        out[f.uav].append(f.poly)
+    return [np.vstack(p) if p else np.zeros((0, 3)) for p in out]
 
 
 #: vertices closer than this (m, horizontally and vertically) are one place
@@ -497,70 +614,74 @@ def _prove(ctx, r, poly) -> None:
 
 @dataclass
 class Fleet:
-    """The routes as one fleet on the fleet clock (`planner.fleet`)."""
+    """The routes as one fleet on the fleet clock (`planner.fleet`), one flight per
+    `Sortie`."""
 
-    schedule: FleetSchedule
-    profiles: list      # `Profile` per UAV (None: no route)
-    snapshots: list     # per UAV: profile vertex of each snapshot, in route order
+    sorties: list       # `Sortie` per flight
+    schedule: FleetSchedule   # its timings per flight
+    profiles: list      # `Profile` per flight
     coverage_time_s: float
+
+    def of(self, r) -> list:
+        """Indices of UAV r's flights, in order."""
+        return [i for i, f in enumerate(self.sorties) if f.uav == r]
 
     def snapshot_times(self, r) -> np.ndarray:
         """Fleet-clock time of UAV r's snapshots: when it leaves them (a camera
         fires once its waypoint, hold included, is done)."""
-        if self.profiles[r] is None:
-            return np.zeros(0)
-        t = self.schedule.timings[r]
-        return self.profiles[r].arrivals(t.start_s, t.holds)[1][self.snapshots[r]]
+        out = [np.zeros(0)]
+        for i in self.of(r):
+            t, profile = self.schedule.timings[i], self.profiles[i]
+            out.append(profile.arrivals(t.start_s, t.holds)[1][self.sorties[i].snap
+                                                               + profile.route[0]])
+        return np.concatenate(out)
+
+    def flight_s(self, i) -> float:
+        """Flight i's time from takeoff to touchdown, waits in the air included."""
+        t, profile = self.schedule.timings[i], self.profiles[i]
+        return float(t.trajectory.end - _leaves(profile, t))
 
 
-def fleet_clock(ctx, polylines, arrivals, starts, problem, routes) -> Fleet:
-    """Every route on the fleet clock with the waits that keep the fleet separated
-    (`planner.fleet.schedule`, ``separation_m`` of the scenario), the waits chosen
-    for the earliest coverage time."""
-    profiles, snaps = [], []
-    for r, (poly, (_, snap)) in enumerate(zip(polylines, arrivals)):
-        start = starts[r] if starts else None
-        if not len(poly):
-            profiles.append(None)
-            snaps.append(np.zeros(0, np.int64))
-            continue
-        profile = Profile.of_route(poly, ctx.travel_params,
-                                   launch=None if start is None else start.launch,
-                                   start=None if start is None else start.held,
-                                   stop_s=stop_time(vars(ctx.scenario)))
-        profiles.append(profile)
-        snaps.append(np.asarray(snap, np.int64) + profile.route[0])
-    flying = [r for r, p in enumerate(profiles) if p is not None]
+def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
+    """Every sortie on the fleet clock with the waits that keep the fleet separated
+    (`planner.fleet.schedule`, ``separation_m`` of the scenario), a vehicle's
+    sorties a turnaround apart, the waits chosen for the earliest coverage time."""
+    s = ctx.scenario
+    profiles = []
+    for f in sorties:
+        start = starts[f.uav] if starts else None
+        profiles.append(Profile.of_route(
+            f.poly, ctx.travel_params, launch=None if start is None else start.launch,
+            start=None if start is None or not f.first else start.held,
+            stop_s=stop_time(vars(s))))
+    after = [None if f.first else i - 1 for i, f in enumerate(sorties)]
     need = np.minimum(problem.needs(), achievable(problem))   # as the methods aim at
 
     def coverage_time(timings) -> float:
-        when = [np.zeros(0)] * len(profiles)
-        for r, t in zip(flying, timings):
-            when[r] = profiles[r].arrivals(t.start_s, t.holds)[1][snaps[r]]
+        fleet = Fleet(sorties, FleetSchedule(timings, [], 0.0, None, 0.0), profiles, 0.0)
+        when = [fleet.snapshot_times(r) for r in range(len(routes))]
         return last_needed_sighting(problem, routes, when, need)
 
-    fleet = schedule([profiles[r] for r in flying], ctx.scenario.separation_m, coverage_time)
-    timings = [None] * len(profiles)
-    for r, t in zip(flying, fleet.timings):
-        timings[r] = t
-    order = [flying[i] for i in fleet.order]
-    closest = None if fleet.closest is None else \
-        (flying[fleet.closest[0]], flying[fleet.closest[1]], fleet.closest[2])
-    fleet = FleetSchedule(timings, order, fleet.min_separation_m, closest, fleet.wait_s)
-    return Fleet(fleet, profiles, snaps, coverage_time(fleet.timings[r] for r in flying)
-                 if flying else 0.0)
+    sched = schedule(profiles, s.separation_m, coverage_time, after,
+                     60.0 * s.turnaround_min, s.usable_s)
+    return Fleet(sorties, sched, profiles, coverage_time(sched.timings) if sorties else 0.0)
 
 
-def _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, counts, timing,
-               bounds):
+def _make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds):
     """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time."""
     s = ctx.scenario
-    # k + 1 (or the re-plan's need), or one per place where fewer places see it
-    required = np.minimum(problem.needs(), achievable(problem))
-    vehicles = [_vehicle(ctx, r, poly, fleet, starts[r] if starts else None)
-                for r, poly in enumerate(polylines)]
+    # k + 1 (or the re-plan's need), or one per place where fewer places see it; a
+    # target only a viewpoint beyond one battery sees still counts as not covered
+    places = achievable(replace(problem, endurance_s=np.inf))
+    required = np.minimum(problem.needs(), places)
+    ranks = list(dict.fromkeys(fleet.sorties[i].uav for i in fleet.schedule.order))
+    vehicles = [_vehicle(ctx, r, fleet, starts[r] if starts else None, ranks)
+                for r in range(len(allocation.routes))]
     lengths = [v.path_length_m for v in vehicles]
     sched = fleet.schedule
+    closest = None if sched.closest is None else \
+        (fleet.sorties[sched.closest[0]].uav, fleet.sorties[sched.closest[1]].uav,
+         sched.closest[2])
     metrics = {
         "coverage_time_s": fleet.coverage_time_s,
         "mission_time_s": max((v.mission_time_s for v in vehicles), default=0.0),
@@ -570,11 +691,13 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, count
         "k": int(s.k),
         "k_covered": int((counts >= required).sum()),
         "snapshots": int(allocation.n_snapshots),
-        "k_impossible": int(allocation.uncoverable),
+        "k_impossible": int(np.count_nonzero(problem.needs() > places)),
         "min_separation_m": sched.min_separation_m,
-        "closest_approach": None if sched.closest is None else
-        {"vehicles": [sched.closest[0] + 1, sched.closest[1] + 1], "t_s": sched.closest[2]},
+        "closest_approach": None if closest is None else
+        {"vehicles": [closest[0] + 1, closest[1] + 1], "t_s": closest[2]},
         "wait_s": sched.wait_s,
+        "sorties": len(fleet.sorties),
+        "battery": _battery_metrics(ctx, problem, fleet, required),
     }
     if ctx.terrain.meta.get("filled_at"):
         metrics["filled_voids"] = {"at": ctx.terrain.meta["filled_at"],
@@ -591,37 +714,67 @@ def _make_plan(ctx, method, problem, allocation, starts, polylines, fleet, count
                 vehicles=vehicles, metrics=metrics, timing_s=timing)
 
 
-def _vehicle(ctx, r, poly, fleet, start) -> VehicleRoute:
-    """UAV r's route: its waypoints with their fleet-clock times and holds, and
-    its trajectory ground to ground."""
+def _battery_metrics(ctx, problem, fleet, required) -> dict:
+    """What the battery allows and what the sorties take (plan.json ``battery``):
+    the viewpoints no base reaches and leaves on one battery (``beyond_battery_at``:
+    [lat, lon] of each), and the targets that lose sightings for it."""
+    s = ctx.scenario
+    longest = max((fleet.flight_s(i) for i in range(len(fleet.sorties))), default=0.0)
+    if s.endurance_min is None:
+        return {"endurance_min": None, "longest_flight_s": longest}
+    problem = replace(problem, endurance_s=s.usable_s)
+    far = coverage.problem.beyond_battery(problem)
+    return {"endurance_min": s.endurance_min, "reserve_pct": s.reserve_pct,
+            "usable_s": s.usable_s, "turnaround_min": s.turnaround_min,
+            "longest_flight_s": longest, "beyond_battery": int(len(far)),
+            "beyond_battery_at": [[round(float(b), 7), round(float(a), 7)] for a, b in
+                                  zip(*_lonlat(ctx, ctx.viewpoints.xyz[far]))],
+            "targets_short": int(np.count_nonzero(achievable(problem) < required))}
+
+
+def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
+    """UAV r's route: its waypoints with their fleet-clock times and holds, each
+    with its sortie, and its trajectory ground to ground (the turnarounds on the
+    ground between its sorties)."""
     launch = None
     if start is not None and start.launch is not None:
         llon, llat = ctx.terrain.to_lonlat(start.launch[0], start.launch[1])
         launch = GeoPoint(float(llon), float(llat), float(start.launch[2]))
-    profile, timing = fleet.profiles[r], fleet.schedule.timings[r]
-    if profile is None:
+    flights = fleet.of(r)
+    if not flights:
         return VehicleRoute(id=r + 1, launch=launch, waypoints=[], coverage_time_s=0.0,
                             mission_time_s=0.0, path_length_m=0.0)
-    first = profile.route[0]
-    arrive, _ = profile.arrivals(timing.start_s, timing.holds)
-    snapshot = np.zeros(profile.n, bool)
-    snapshot[fleet.snapshots[r]] = True
-    lon, lat = _lonlat(ctx, poly)
-    waypoints = [Waypoint(float(a), float(b), float(z), float(ts), bool(f), float(h))
-                 for a, b, z, ts, f, h in zip(lon, lat, poly[:, 2], arrive[first:],
-                                              snapshot[first:], timing.holds[first:])]
-    d = np.diff(poly, axis=0)
-    length = float(np.sqrt((d ** 2).sum(axis=1)).sum()) if len(poly) > 1 else 0.0
+    waypoints, rows, sorties = [], [], []
+    for i in flights:
+        f, profile, timing = fleet.sorties[i], fleet.profiles[i], fleet.schedule.timings[i]
+        first = profile.route[0]
+        arrive, _ = profile.arrivals(timing.start_s, timing.holds)
+        snapshot = np.zeros(profile.n, bool)
+        snapshot[f.snap + first] = True
+        lon, lat = _lonlat(ctx, f.poly)
+        waypoints += [Waypoint(float(a), float(b), float(z), float(ts), bool(p), float(h),
+                               f.number)
+                      for a, b, z, ts, p, h in zip(lon, lat, f.poly[:, 2], arrive[first:],
+                                                   snapshot[first:], timing.holds[first:])]
+        trajectory = timing.trajectory
+        tlon, tlat = _lonlat(ctx, trajectory.xyz)
+        rows += [[round(float(t), 3), float(a), float(b), float(z)]
+                 for t, a, b, z in zip(trajectory.t, tlon, tlat, trajectory.xyz[:, 2])]
+        sorties.append({"takeoff_s": _leaves(profile, timing), "landing_s": trajectory.end,
+                        "flight_s": fleet.flight_s(i), "length_m": _length(f.poly)})
     shots = fleet.snapshot_times(r)
-    trajectory = timing.trajectory
-    tlon, tlat = _lonlat(ctx, trajectory.xyz)
-    rows = [[round(float(t), 3), float(a), float(b), float(z)]
-            for t, a, b, z in zip(trajectory.t, tlon, tlat, trajectory.xyz[:, 2])]
     return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints,
                         coverage_time_s=float(shots.max()) if len(shots) else 0.0,
-                        mission_time_s=trajectory.end, path_length_m=length,
-                        takeoff_s=_leaves(profile, timing), trajectory=rows,
-                        priority=fleet.schedule.order.index(r) + 1)
+                        mission_time_s=sorties[-1]["landing_s"],
+                        path_length_m=sum(x["length_m"] for x in sorties),
+                        takeoff_s=sorties[0]["takeoff_s"], trajectory=rows,
+                        priority=ranks.index(r) + 1,
+                        sorties=sorties if len(sorties) > 1 else [])
+
+
+def _length(poly) -> float:
+    d = np.diff(poly, axis=0)
+    return float(np.sqrt((d ** 2).sum(axis=1)).sum()) if len(poly) > 1 else 0.0
 
 
 def _leaves(profile, timing) -> float:

@@ -15,7 +15,7 @@ Schema 2 added the fleet clock (``gcs-plan/1`` times were each vehicle's own).
 
 import json
 import math
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Optional
 
@@ -44,6 +44,7 @@ class Waypoint:
     t_s: float  # planned arrival, fleet clock
     snapshot: bool = False
     hold_s: float = 0.0  # waits here this long before flying on (whole seconds)
+    sortie: int = 1  # the battery it is flown on (1, 2, ...: `VehicleRoute.sorties`)
 
 
 @dataclass
@@ -59,10 +60,30 @@ class VehicleRoute:
     takeoff_s: float = 0.0  # leaves the ground, fleet clock
     trajectory: list = field(default_factory=list)  # [[t_s, lon, lat, alt_amsl], ...]
     priority: int = 1  # right of way in flight: 1 first (the separation guard holds others)
+    # one per battery when the route takes more than one: {"takeoff_s", "landing_s"}
+    # (fleet clock), "flight_s" (airborne, holds included), "length_m"; empty: one flight
+    sorties: list = field(default_factory=list)
 
     @property
     def snapshots(self) -> list:
         return [w for w in self.waypoints if w.snapshot]
+
+    def sortie_routes(self) -> list:
+        """The route as one `VehicleRoute` per sortie (itself when it flies one):
+        each takes off from its launch point and lands there, its own mission."""
+        if len(self.sorties) < 2:
+            return [self]
+        out = []
+        for j, s in enumerate(self.sorties, start=1):
+            w = [p for p in self.waypoints if p.sortie == j]
+            rows = [r for r in self.trajectory     # their times are kept to the ms
+                    if s["takeoff_s"] - 1e-3 <= r[0] <= s["landing_s"] + 1e-3]
+            shots = [p.t_s for p in w if p.snapshot]
+            out.append(replace(self, waypoints=w, takeoff_s=s["takeoff_s"],
+                               coverage_time_s=max(shots, default=0.0),
+                               mission_time_s=s["landing_s"], trajectory=rows,
+                               path_length_m=s["length_m"], sorties=[]))
+        return out
 
 
 @dataclass
@@ -99,6 +120,7 @@ class Plan:
                     takeoff_s=float(v.get("takeoff_s", 0.0)),
                     trajectory=[list(map(float, row)) for row in v.get("trajectory", [])],
                     priority=int(v.get("priority", v["id"])),
+                    sorties=[{k: float(x) for k, x in s.items()} for s in v.get("sorties", [])],
                 )
                 for v in data["vehicles"]
             ]

@@ -28,6 +28,12 @@ SEPARATION_M = 30.0
 #: tolerance alone take 16 m (0 turns it off, for comparisons)
 MIN_SEPARATION_M = 15.0
 
+#: the part of a battery's endurance a plan never uses (%): PX4 warns at 15 % left
+#: (BAT_LOW_THR) and acts at 7 % (BAT_CRIT_THR); a sortie planned to touch down
+#: with a quarter left keeps clear of the warning with 10 % more for a headwind on
+#: the way home, a landing queue at the base and a battery older than its rating
+RESERVE_PCT = 25.0
+
 
 @dataclass
 class Scenario:
@@ -61,6 +67,9 @@ class Scenario:
     separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
     accel_mps2: float = 3.0  # horizontal acceleration: the time a waypoint costs (fleet.stop_time)
     firmware: str = "ardupilot"
+    endurance_min: Optional[float] = None  # flight per battery, takeoff to touchdown; None: unlimited
+    reserve_pct: float = RESERVE_PCT  # of the endurance, never planned
+    turnaround_min: float = 5.0  # on the ground between two sorties: landing, battery swap, checks
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
     k: int = 0
@@ -111,6 +120,15 @@ class Scenario:
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
                     for n in ("clearance_m", "hide_margin_m", "curvature_coeff",
                               "track_tolerance_m", "separation_m")]
+        checks += [
+            (self.endurance_min is None or _positive(self.endurance_min),
+             "endurance_min must be a positive number of minutes (leave it out: unlimited)"),
+            (0 <= self.reserve_pct < 90, f"reserve_pct must be from 0 to 90, got "
+                                         f"{self.reserve_pct:g}"),
+            (self.turnaround_min >= 0, "turnaround_min must not be negative"),
+            (self.endurance_min is None or self.launch, "endurance_min needs launch points "
+             "(--launch): a sortie starts and ends at a base"),
+        ]
         checks.append((self.separation_m == 0 or self.separation_m >= MIN_SEPARATION_M,
                        f"separation_m must be at least {MIN_SEPARATION_M:g} m (or 0: vehicles "
                        f"not kept apart), got {self.separation_m:g}"))
@@ -159,6 +177,14 @@ class Scenario:
             raise InputError(source, f"bad planning parameters: {exc}") from None
 
     @property
+    def usable_s(self) -> float:
+        """Flight time a sortie may take, s: the endurance less the reserve (inf:
+        unlimited)."""
+        if self.endurance_min is None:
+            return math.inf
+        return 60.0 * self.endurance_min * (1.0 - self.reserve_pct / 100.0)
+
+    @property
     def launch_points(self) -> list:
         """One (lat, lon) per UAV, or [] when UAVs start at their phase-1 points."""
         if len(self.launch) == 1:
@@ -184,7 +210,8 @@ SECTIONS = {
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
-              "separation_m", "accel_mps2", "firmware"),
+              "separation_m", "accel_mps2", "firmware", "endurance_min", "reserve_pct",
+              "turnaround_min"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
                "seed", "parts"),
 }

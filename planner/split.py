@@ -219,9 +219,12 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
                                     travel, rows(problem.launch_out),
                                     rows(problem.launch_back), len(uavs),
                                     min(problem.k, len(uavs) - 1), problem.visibility,
-                                    part.required, seen, owner, problem.endurance_s,
-                                    problem.turnaround_s, rows(problem.base_out),
-                                    per_uav(problem.used_s), per_uav(problem.start_back))
+                                    part.required, seen, owner,
+                                    endurance_s=problem.endurance_s,
+                                    turnaround_s=problem.turnaround_s,
+                                    reach_s=problem.reach_s, base_out=rows(problem.base_out),
+                                    used_s=per_uav(problem.used_s),
+                                    start_back=per_uav(problem.start_back))
 
 
 def _solve_part(method, params, report, n, overlay, chunk):

@@ -40,6 +40,13 @@ HELP = {
     "accel_mps2": "horizontal acceleration, m/s²: a vehicle slows at each waypoint, which "
                   "the schedule counts",
     "firmware": "mission flavour of the exported files",
+    "endurance_min": "flight time of one battery, takeoff to touchdown, minutes: routes "
+                     "longer than it are flown in sorties from the base (default: unlimited, "
+                     "said in every summary)",
+    "reserve_pct": "percent of the endurance never planned: clear of the autopilot's "
+                   "low-battery warning at 15 %% left, with room for wind",
+    "turnaround_min": "minutes on the ground between two sorties: landing, battery swap, "
+                      "checks",
     "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
               "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",
     "k": "fault tolerance: every target seen by k+1 distinct UAVs",
@@ -108,7 +115,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
-                  "separation_m", "accel_mps2"),
+                  "separation_m", "accel_mps2", "endurance_min", "reserve_pct",
+                  "turnaround_min"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }
     for title, names in fields_of.items():
@@ -128,7 +136,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
             group.add_argument("--visibility", choices=("hard", "soft"), help=_help("visibility"))
 
 
-_UNITS = {"_mps2": "M/S2", "_mps": "M/S", "_deg": "DEG", "_m": "M", "_s": "S"}
+_UNITS = {"_mps2": "M/S2", "_mps": "M/S", "_deg": "DEG", "_m": "M", "_s": "S",
+          "_min": "MIN", "_pct": "PCT"}
 
 
 def _flag(name: str) -> dict:

@@ -23,8 +23,12 @@ def plan_summary(plan) -> Group:
     for col in ("UAV", "takeoff", "snapshots", "coverage time", "mission time", "waits",
                 "path"):
         table.add_column(col, justify="right")
+    turnaround = 60.0 * (plan.params.get("turnaround_min") or 0.0)
     for v in plan.vehicles:
-        waits = v.takeoff_s + sum(w.hold_s for w in v.waypoints)
+        # on the ground before it leaves, held in the air, and between sorties beyond
+        # the turnaround
+        waits = v.takeoff_s + sum(w.hold_s for w in v.waypoints) + sum(
+            b["takeoff_s"] - a["landing_s"] - turnaround for a, b in zip(v.sorties, v.sorties[1:]))
         table.add_row(str(v.id), f"{v.takeoff_s:.0f} s", str(len(v.snapshots)),
                       _minutes(v.coverage_time_s), _minutes(v.mission_time_s),
                       f"{waits:.0f} s", f"{v.path_length_m / 1000:.1f} km")
@@ -42,8 +46,8 @@ def plan_summary(plan) -> Group:
     if impossible:
         targets += (f"; of them {impossible} have fewer places than k+1 (two UAVs at one "
                     "place share one fate): seen once from each of their places")
-    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan))] + \
-        [Text(t) for t in area_lines(plan)]
+    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)),
+             Text(battery_line(plan))] + [Text(t) for t in area_lines(plan)]
     return Group(*lines)
 
 
@@ -58,6 +62,34 @@ def fleet_line(plan) -> str:
         else f"closest approach {closest:.1f} m"
     return (f"takeoffs: {takeoffs}; waits {m.get('wait_s', 0):.0f} s in all; {proven} "
             f"(separation {sep:g} m)")
+
+
+#: a flight longer than this (min) is past what many multicopter batteries give
+LONG_FLIGHT_MIN = 20.0
+
+
+def battery_line(plan) -> str:
+    """What one battery allows, and the sorties flown on it; or that the plan
+    assumed an unlimited battery (and, past `LONG_FLIGHT_MIN`, that it should not)."""
+    b = plan.metrics.get("battery") or {}
+    longest = b.get("longest_flight_s", 0.0) / 60
+    if b.get("endurance_min") is None:
+        line = (f"battery: unlimited (no --endurance given): the longest flight takes "
+                f"{longest:.1f} min")
+        if longest > LONG_FLIGHT_MIN:
+            line += (", more than many multicopter batteries give (20-40 min): give "
+                     "--endurance MIN to fly it in sorties")
+        return line
+    several = {v.id: len(v.sorties) for v in plan.vehicles if len(v.sorties) > 1}
+    flown = ("sorties " + ", ".join(f"vehicle {i}: {n}" for i, n in several.items())
+             if several else "one sortie per vehicle")
+    line = (f"battery: {b['endurance_min']:g} min less {b['reserve_pct']:g} % reserve = "
+            f"{b['usable_s'] / 60:.1f} min a sortie; {flown}, the longest {longest:.1f} min, "
+            f"{b['turnaround_min']:g} min on the ground between two")
+    if b.get("beyond_battery"):
+        line += (f"; {b['beyond_battery']} viewpoints beyond one battery from any base "
+                 f"(not flown: {b['targets_short']} targets seen fewer times for it)")
+    return line
 
 
 def area_lines(plan) -> list:

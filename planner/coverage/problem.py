@@ -59,6 +59,7 @@ class CoverageProblem:
     # what its battery has flown at the start, and the time from its start home
     endurance_s: float = np.inf
     turnaround_s: float = 0.0
+    reach_s: Optional[float] = None  # longest round trip to one viewpoint (default: endurance_s)
     base_out: Optional[np.ndarray] = None
     used_s: Optional[np.ndarray] = None
     start_back: Optional[np.ndarray] = None
@@ -225,7 +226,7 @@ def prepare(problem: CoverageProblem) -> Prepared:
     if owner0.shape != (n_vp,) or owner0.max(initial=FREE) >= n or owner0.min(initial=0) < CLOSED:
         raise ValueError(f"owner must hold one UAV, FREE or CLOSED per viewpoint ({n_vp})")
     frames, sorties = _sortie_model(problem, lo, lb)
-    beyond = _beyond_battery(frames, sorties)
+    beyond = _beyond_battery(problem, frames)
     owner0 = np.where(beyond.all(axis=0) & (owner0 == FREE), CLOSED, owner0)
     frames[:, :2][np.broadcast_to(beyond[:, None], frames[:, :2].shape)] = np.inf
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
@@ -261,10 +262,11 @@ def _sortie_model(problem: CoverageProblem, lo, lb) -> tuple:
     return frames, sorties
 
 
-def _beyond_battery(frames, sorties) -> np.ndarray:
+def _beyond_battery(problem, frames) -> np.ndarray:
     """bool [n_uavs, n_vp]: viewpoints a UAV cannot fly to from its base and back on
     one battery (closed to it; to everyone when no UAV can: `beyond_battery`)."""
-    return frames[:, 1] + frames[:, 2] > sorties[:, :1]
+    reach = problem.endurance_s if problem.reach_s is None else problem.reach_s
+    return frames[:, 1] + frames[:, 2] > reach
 
 
 def beyond_battery(problem: CoverageProblem) -> np.ndarray:
@@ -274,7 +276,7 @@ def beyond_battery(problem: CoverageProblem) -> np.ndarray:
         else np.zeros((problem.n_uavs, problem.n_viewpoints))
     lb = np.asarray(problem.launch_back, np.float64) if problem.launch_back is not None \
         else np.zeros_like(lo)
-    return np.flatnonzero(_beyond_battery(*_sortie_model(problem, lo, lb)).all(axis=0))
+    return np.flatnonzero(_beyond_battery(problem, _sortie_model(problem, lo, lb)[0]).all(axis=0))
 
 
 def achievable(problem: CoverageProblem) -> np.ndarray:

@@ -44,7 +44,8 @@ def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:
     vehicles when it is less than the plan's ``separation_m``."""
     from common.errors import InputError
 
-    routes = [v for v in plan.vehicles if v.waypoints]
+    # one trajectory per sortie: a vehicle is on the ground between two
+    routes = [s for v in plan.vehicles if v.waypoints for s in v.sortie_routes()]
     stop = stop_time(plan.params)
     d, where = separation([route_trajectory(v, terrain, travel_params, stop) for v in routes])
     need = float(plan.params.get("separation_m", 0.0))

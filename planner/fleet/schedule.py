@@ -17,6 +17,8 @@ before has climbed the separation above it, and land one at a time, the later
 ones holding at a hidden waypoint while another is in the column. A vehicle
 that finds no room after `MAX_WAITS` waits takes off once all the others have
 landed. Several priority orders are tried and the best plan kept (`schedule`).
+A vehicle flying several sorties (one per battery) is one flight per sortie,
+each taking off no sooner than the turnaround after the one before landed.
 """
 
 import math
@@ -43,10 +45,11 @@ class Timing:
     start_s: float           # leaves the ground (or, in flight, its held point) then
     holds: np.ndarray        # s waited at each profile vertex
     trajectory: Trajectory
+    earliest_s: float = 0.0  # it could have left then (a later sortie: after its turnaround)
 
     @property
     def wait_s(self) -> float:
-        return float(self.start_s + self.holds.sum())
+        return float(self.start_s - self.earliest_s + self.holds.sum())
 
 
 @dataclass
@@ -62,21 +65,29 @@ class FleetSchedule:
         return [t.trajectory for t in self.timings]
 
 
-def schedule(profiles, separation_m: float, score=None) -> FleetSchedule:
-    """Time ``profiles`` (`Profile` per vehicle) so that no two airborne vehicles
+def schedule(profiles, separation_m: float, score=None, after=None,
+             turnaround_s=0.0, air_s=math.inf) -> FleetSchedule:
+    """Time ``profiles`` (`Profile` per flight) so that no two airborne vehicles
     come closer than ``separation_m``. ``score(timings)``: what a schedule costs
     (default: when the last vehicle is done); the best of a few priority orders
-    is kept, a separated one before any other."""
+    is kept, a separated one before any other. ``after[i]``: the flight that
+    must have landed ``turnaround_s`` before flight i takes off (a vehicle's
+    earlier sortie; None: none). ``air_s``: the most a flight from the ground may
+    be airborne (a battery): a wait in the air that would take it past that is
+    waited on the ground before takeoff instead."""
     score = score or (lambda timings: max((t.trajectory.end for t in timings), default=0.0))
+    after = after or [None] * len(profiles)
     # kept with a little room: the waypoints are stored to 1e-7 degrees, and a
     # saved plan's trajectories are proven again from them (`prove_separated`)
     room = separation_m + SLACK_M if separation_m > 0 else 0.0
     best = None
-    for order in _orders(profiles):
+    for order in _orders(profiles, after):
         timings = [None] * len(profiles)
         placed = []
         for i in order:
-            timings[i] = _fit(profiles[i], placed, room)
+            earliest = 0.0 if after[i] is None else \
+                float(math.ceil(timings[after[i]].trajectory.end + turnaround_s))
+            timings[i] = _fit(profiles[i], placed, room, earliest, air_s)
             placed.append(timings[i].trajectory)
         d, closest = separation(placed)
         closest = None if closest is None else (order[closest[0]], order[closest[1]],
@@ -99,29 +110,37 @@ def separation(trajectories) -> tuple:
     return best, where
 
 
-def _orders(profiles) -> list:
-    """Priority orders worth trying: the longest flights first (they set the
-    makespan; a wait there costs most), the shortest first, and as given."""
-    total = [float(p.duration.sum()) for p in profiles]
-    n = len(profiles)
+def _orders(profiles, after) -> list:
+    """Priority orders worth trying: the longest vehicles' flights first (they set
+    the makespan; a wait there costs most), the shortest first, and as given; a
+    vehicle's sorties one after the other, in their order."""
+    chains = [[i] for i in range(len(profiles)) if after[i] is None]
+    for chain in chains:
+        while (nxt := [j for j, a in enumerate(after) if a == chain[-1]]):
+            chain.append(nxt[0])
+    total = [sum(float(profiles[i].duration.sum()) for i in c) for c in chains]
+    n = len(chains)
     out = []
     for order in (sorted(range(n), key=lambda i: (-total[i], i)),
                   sorted(range(n), key=lambda i: (total[i], i)), list(range(n))):
-        if order not in out:
-            out.append(order)
+        flat = [i for c in order for i in chains[c]]
+        if flat not in out:
+            out.append(flat)
     return out
 
 
-def _fit(profile: Profile, placed, separation_m) -> Timing:
-    """`Timing` of one vehicle among those ``placed`` (see the module doc)."""
+def _fit(profile: Profile, placed, separation_m, earliest=0.0, air_s=math.inf) -> Timing:
+    """`Timing` of one flight among those ``placed``, leaving at ``earliest`` or
+    later, airborne at most ``air_s`` when it leaves the ground (see the module
+    doc and `schedule`)."""
     holds = np.zeros(profile.n)
-    start = 0.0
+    start = earliest
     where, step = None, 1.0
     for _ in range(MAX_WAITS):
         trajectory = profile.timed(start, holds)
         begin, end = _first_conflict(trajectory, placed, separation_m)
         if not math.isfinite(begin):
-            return Timing(start, holds, trajectory)
+            return Timing(start, holds, trajectory, earliest)
         vertex, holding = doing_at(trajectory, begin)
         if holding:
             vertex -= 1                  # arrive later where it held
@@ -136,21 +155,25 @@ def _fit(profile: Profile, placed, separation_m) -> Timing:
         where = vertex
         if vertex < 0:
             start += step
+        elif profile.on_ground[0] and \
+                trajectory.end - start + step > air_s + 1e-9:
+            start += holds.sum() + step  # the battery has no room for it: wait on the ground
+            holds[:] = 0.0
         else:
             holds[vertex] += step
-    return _after_everyone(profile, placed)
+    return _after_everyone(profile, placed, earliest)
 
 
-def _after_everyone(profile, placed) -> Timing:
+def _after_everyone(profile, placed, earliest=0.0) -> Timing:
     """Leave once every placed vehicle has landed (in flight: hold until then)."""
-    last = max((t.end for t in placed), default=0.0)
+    last = max([t.end for t in placed] + [earliest])
     holds = np.zeros(profile.n)
     start = 0.0
     if profile.on_ground[0]:
         start = float(math.ceil(last))
     else:
         holds[0] = float(math.ceil(last))
-    return Timing(start, holds, profile.timed(start, holds))
+    return Timing(start, holds, profile.timed(start, holds), earliest)
 
 
 def drift_s(trajectory) -> float:

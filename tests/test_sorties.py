@@ -1,0 +1,169 @@
+"""Sorties a battery can fly (`--endurance`): the shared small plan (tests/conftest.py)
+planned again on an 8-minute battery, judged from what plan.json and the mission
+files say: each sortie within the battery, from the base and back to it, a
+turnaround apart, every mission proven and read back by pymavlink, the fleet
+separated across sorties, and every viewpoint beyond one battery reported."""
+
+import json
+import math
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from common.errors import InputError
+from gcs.cli import main
+from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
+from gcs.plan_folder import write_plan_folder
+from missions.items import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
+from missions.sources import load_sources
+from planner.fleet import prove_separated
+from planner.pipeline import plan_mission
+from planner.plan import Plan
+from planner.scenario import Scenario
+
+pytestmark = pytest.mark.timeout(300)
+
+ENDURANCE_MIN = 8.0
+
+
+@pytest.fixture(scope="module")
+def sortied(planned, tmp_path_factory):
+    """The shared plan's scenario on an 8-minute battery, written as `gcs plan` does."""
+    scenario = replace(Scenario.from_params(planned.plan.params), endurance_min=ENDURANCE_MIN,
+                       sample=True).validate()
+    ctx, outcome = plan_mission(scenario, terrain=planned.terrain,
+                                outposts=planned.ctx.outposts)
+    d = tmp_path_factory.mktemp("sorties")
+    write_plan_folder(d, ctx, outcome)
+    return SimpleNamespace(dir=d, plan=Plan.load(d), ctx=ctx, outcome=outcome,
+                           scenario=scenario, unlimited=planned.plan)
+
+
+def _ground(route, rows):
+    """Rows of a trajectory standing at the route's launch point (on the ground)."""
+    return [abs(r[3] - route.launch.alt_amsl) < 0.01 and
+            abs(r[1] - route.launch.lon) < 1e-6 and abs(r[2] - route.launch.lat) < 1e-6
+            for r in rows]
+
+
+def test_each_sortie_flies_from_the_base_and_back_within_one_battery(sortied):
+    plan, s = sortied.plan, sortied.scenario
+    usable = 60 * ENDURANCE_MIN * (1 - s.reserve_pct / 100)
+    assert plan.metrics["battery"]["usable_s"] == pytest.approx(usable)
+    # the unlimited plan needs more than one battery per vehicle: this one splits it
+    assert max(v.mission_time_s - v.takeoff_s for v in sortied.unlimited.vehicles) > usable
+    for v in plan.vehicles:
+        assert len(v.sorties) >= 2, v.id
+        for j, (sortie, part) in enumerate(zip(v.sorties, v.sortie_routes()), start=1):
+            rows = [r for r in v.trajectory if sortie["takeoff_s"] - 1e-3 <= r[0]
+                    <= sortie["landing_s"] + 1e-3]
+            ground = _ground(v, rows)
+            # on the ground at the base at both ends, airborne in between
+            assert ground[0] and ground[-1] and not any(ground[1:-1]), (v.id, j)
+            assert rows[-1][0] - rows[0][0] == pytest.approx(sortie["landing_s"]
+                                                             - sortie["takeoff_s"], abs=1e-3)
+            assert sortie["flight_s"] <= usable + 1e-6, (v.id, j)
+            assert [w.sortie for w in part.waypoints] == [j] * len(part.waypoints)
+        # one battery after another: a turnaround on the ground between two
+        for a, b in zip(v.sorties, v.sorties[1:]):
+            assert b["takeoff_s"] >= a["landing_s"] + 60 * s.turnaround_min - 1e-6
+        assert v.mission_time_s == v.sorties[-1]["landing_s"]
+    # the coverage time counts the turnarounds: it is a time on the fleet clock
+    last_shot = max(w.t_s for v in plan.vehicles for w in v.waypoints if w.snapshot)
+    assert plan.metrics["coverage_time_s"] <= last_shot + 1e-6
+    assert plan.metrics["coverage_time_s"] > sortied.unlimited.metrics["coverage_time_s"]
+
+
+def test_sorties_are_separated_on_the_fleet_clock(sortied):
+    """Proven again from the saved missions, one trajectory per sortie."""
+    d = prove_separated(sortied.plan, sortied.ctx.terrain,
+                        sortied.scenario.travel_params(), source="plan.json")
+    assert d >= sortied.plan.params["separation_m"] - 1e-6
+    assert d == pytest.approx(sortied.plan.metrics["min_separation_m"], abs=0.05)
+
+
+def test_one_mission_file_per_sortie_read_back_by_pymavlink(sortied):
+    from pymavlink import mavwp
+
+    for v in sortied.plan.vehicles:
+        assert not (sortied.dir / f"vehicle-{v.id}.waypoints").exists()
+        for j, part in enumerate(v.sortie_routes(), start=1):
+            path = sortied.dir / f"vehicle-{v.id}-sortie-{j}.waypoints"
+            loader = mavwp.MAVWPLoader()
+            loader.load(str(path))
+            items = [loader.wp(i) for i in range(1, loader.count())]   # line 0: home
+            assert items[0].command == NAV_TAKEOFF and items[-1].command == NAV_LAND
+            assert (items[-1].x, items[-1].y) == pytest.approx((v.launch.lat, v.launch.lon),
+                                                               abs=1e-6)
+            flown = [(i.x, i.y) for i in items if i.command == NAV_WAYPOINT]
+            np.testing.assert_allclose(flown, [(w.lat, w.lon) for w in part.waypoints],
+                                       atol=1e-6)
+            # the file of one sortie is proven against the plan beside it, as its vehicle's
+            source, = load_sources([sortied.dir / f"vehicle-{v.id}-sortie-{j}.plan"])
+            assert source.proof.surface is not None
+
+
+def test_viewpoints_beyond_one_battery_are_reported_and_never_flown(sortied):
+    b = sortied.plan.metrics["battery"]
+    assert b["beyond_battery"] == len(b["beyond_battery_at"]) > 0
+    shots = {(round(w.lat, 6), round(w.lon, 6)) for v in sortied.plan.vehicles
+             for w in v.waypoints if w.snapshot}
+    assert not shots & {(round(lat, 6), round(lon, 6)) for lat, lon in b["beyond_battery_at"]}
+    m = sortied.plan.metrics
+    # the targets only they see are not counted as covered
+    assert b["targets_short"] > 0
+    assert m["k_covered"] <= m["targets"] - b["targets_short"]
+
+
+def test_an_unlimited_battery_is_said_and_plans_as_before(planned):
+    from gcs.cli.views import battery_line
+
+    assert all(not v.sorties for v in planned.plan.vehicles)
+    assert planned.plan.metrics["battery"]["endurance_min"] is None
+    assert battery_line(planned.plan).startswith("battery: unlimited (no --endurance given)")
+
+
+def test_gcs_fly_and_upload_refuse_a_plan_of_several_sorties(sortied, tmp_path, capsys):
+    code = main(["fly", str(sortied.dir), "--connect", "tcp:127.0.0.1:1",
+                 "-o", str(tmp_path / "f")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and "sorties (one battery each" in err[-1] and "vehicle 1" in err[-1]
+    with pytest.raises(InputError, match="upload one sortie's mission at a time"):
+        load_sources([sortied.dir])
+
+
+@pytest.mark.parametrize("flags,message", [
+    (["--endurance", "0"], "endurance_min must be a positive number"),
+    (["--endurance", "nan"], "endurance_min must be a positive number"),
+    (["--reserve", "95"], "reserve_pct must be from 0 to 90"),
+    (["--turnaround", "-1"], "turnaround_min must not be negative"),
+])
+def test_bad_battery_flags_are_one_line_errors(planned, tmp_path, capsys, flags, message):
+    lat, lon, _ = planned.launch
+    code = main(["plan", "--sample", "--launch", f"{lat},{lon}", *flags,
+                 "-o", str(tmp_path / "p")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and message in err[-1] and not (tmp_path / "p").exists()
+
+
+def test_an_endurance_needs_a_base(tmp_path, capsys):
+    code = main(["plan", "--sample", "--endurance", "20", "-o", str(tmp_path / "p")])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and "endurance_min needs launch points" in err[-1]
+
+
+def test_summary_says_the_sorties(sortied):
+    from gcs.cli.views import battery_line
+
+    line = battery_line(sortied.plan)
+    usable = sortied.plan.metrics["battery"]["usable_s"] / 60
+    assert line.startswith(f"battery: {ENDURANCE_MIN:g} min less 25 % reserve = "
+                           f"{usable:.1f} min a sortie; sorties vehicle 1: ")
+    assert "viewpoints beyond one battery" in line
+    assert math.isfinite(sortied.plan.metrics["battery"]["longest_flight_s"])
+    assert json.loads((sortied.dir / "plan.json").read_text())["vehicles"][0]["sorties"]
+    assert np.all([w["sortie"] >= 1 for w in
+                   json.loads((sortied.dir / "plan.json").read_text())["vehicles"][0]
+                   ["waypoints"]])
