@@ -141,4 +141,12 @@ PROFILE = ArduPilot(
     capacity_text=r"Only (\d+) items are supported",
     capacity_advice="raise it with the parameter BRD_SD_MISSION (kB of the SD card kept for "
                     "missions: 64 holds about 4,368 items), then reboot",
+    battery_failsafe=("BATT_FS_LOW_ACT", {
+        0: "a warning only: it flies on",
+        1: "LAND where it is",
+        2: "RTL: a climb to RTL_ALT and a straight line home",
+        3: "SmartRTL (its own track back) or RTL",
+        4: "SmartRTL (its own track back) or LAND",
+        5: "terminate: motors off where it is",
+    }),
 )

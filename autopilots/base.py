@@ -67,6 +67,9 @@ class Autopilot:
     #: vehicle is found: what the ground station reads at its rate, and the heavy
     #: streams it does not read slowed down (PX4 SITL sends 50 Hz streams)
     message_rates: tuple = ()
+    #: the parameter that says what the autopilot does on a low battery, and what
+    #: each of its values does (in words that say where the vehicle would fly)
+    battery_failsafe: tuple = ("", {})
 
     # -- missions -----------------------------------------------------------------
     @property

@@ -73,6 +73,14 @@ LAUNCH_TOLERANCE_M = 5.0
 #: wall seconds a called-off start sequence is given to stop (its command in flight
 #: answered or timed out)
 CALL_OFF_WAIT_S = 10.0
+#: a battery reporting this much (%) or more is fresh: the next sortie may go
+FRESH_BATTERY_PCT = 95
+#: fleet seconds of a sortie, and % of its battery drawn, before its rate of draw is
+#: trusted by the battery watch
+WATCH_AFTER_S, WATCH_AFTER_PCT = 240.0, 5
+#: a battery drawn this many times faster than its rating (the plan's endurance) is
+#: not trusted: the vehicle comes home early and stays down
+FAST_DRAIN = 1.25
 
 
 @dataclass
@@ -91,6 +99,8 @@ class FlyOptions:
     forward: object = None  # gcs.forward.Forwarder: the fleet's MAVLink relayed (--forward)
     live: bool = True  # rich status table on a terminal, event lines otherwise
     plot: bool = True
+    auto_turnaround: bool = False  # between sorties: a fresh battery reported is enough
+                                   # (simulators, SITL); else the operator confirms too
 
     @property
     def protocol(self) -> dict:
@@ -147,15 +157,6 @@ class Flight:
         otherwise it is loaded from the plan folder."""
         self.plan_dir = Path(plan_dir)
         self.plan = Plan.load(self.plan_dir)
-        several = [v for v in self.plan.vehicles if len(v.sorties) > 1]
-        if several:
-            v = several[0]
-            raise InputError(self.plan_dir / PLAN_FILE,
-                             f"vehicle {v.id} flies {len(v.sorties)} sorties (one battery "
-                             "each, a turnaround on the ground between them): gcs fly flies "
-                             "plans of one sortie per vehicle; fly each sortie's mission "
-                             f"(vehicle-{v.id}-sortie-1.plan, ...) from its base, or plan "
-                             "with a longer --endurance")
         self.urls = list(urls)
         self.options = options
         self.output = Path(options.output)
@@ -173,6 +174,12 @@ class Flight:
         self.start_unix = time.time()
         self.link = None
         self.retasks = []
+        self.later = {}           # sysid -> [(offset, sortie route)] after this one
+        self.offset = {}          # sysid -> fleet s of t = 0 of its route's times (a re-plan's)
+        self._waiting_battery = {}  # sysid -> the sortie waiting for a fresh battery
+        self.swapped = set()      # sysids whose battery swap the operator confirmed
+        self._sortie_began = {}   # sysid -> (fleet s, battery %) at its last liftoff
+        self.spent = set()        # sysids the battery watch sent home: they stay down
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
         self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
         self.ctx = ctx
@@ -198,11 +205,13 @@ class Flight:
         for route in self.plan.vehicles:
             if not route.waypoints:
                 continue
-            for firmware in NAMES:
-                mission = vehicle_mission(route, firmware, self.mission_options)
-                missions[route.id, firmware] = checked(
-                    mission, self.surface, clearance,
-                    name=f"{self.plan_dir / PLAN_FILE}: vehicle {route.id}")
+            for firmware in NAMES:      # every sortie's, the first kept for the upload
+                for j, part in reversed(list(enumerate(route.sortie_routes(), start=1))):
+                    mission = vehicle_mission(part, firmware, self.mission_options)
+                    missions[route.id, firmware] = checked(
+                        mission, self.surface, clearance,
+                        name=f"{self.plan_dir / PLAN_FILE}: vehicle {route.id}"
+                             + (f" sortie {j}" if route.sorties else ""))
         self.missions = missions
         terrain = self.surface.terrain
         # the fleet keeps apart as planned: proven again from what the missions fly
@@ -231,6 +240,7 @@ class Flight:
         try:
             self.connect()
             self.locate()
+            self.check_failsafes()
             self.upload()
             self.start()
             self._watch_and_answer(status, on_interrupt, on_timeout or (lambda: "home"))
@@ -308,7 +318,9 @@ class Flight:
             if mission is None:
                 raise FlightError(f"vehicle {sysid}: its autopilot ({link.flavour}) is neither "
                                   f"{' nor '.join(NAMES)}: no mission for it")
-            self.monitor.follow(link, route.id, route, mission)
+            first, *later = route.sortie_routes()
+            self.monitor.follow(link, route.id, first, mission)
+            self.later[sysid] = [(0.0, part) for part in later]
             self.monitor.event(sysid, "connected", flavour=link.flavour, vehicle=route.id,
                                items=len(mission.items))
 
@@ -373,6 +385,7 @@ class Flight:
         def liftoff():
             lifted.append(True)
             self._lifted.append((sysid, begun, m.now()))
+            self._sortie_began[sysid] = (m.now(), m.links[sysid].state.battery_pct)
         m.set_state(sysid, STARTING)
         try:
             commands.start_mission(m.links[sysid], route.waypoints[0].alt_amsl,
@@ -501,8 +514,7 @@ class Flight:
         the ground). A vehicle elsewhere would climb and fly a first leg nobody
         proved hidden: FlightError naming each one and how far off it stands.
         (Its home is not compared: ArduPilot and PX4 both set home where they arm.)"""
-        tolerance = max(float(self.plan.params.get("track_tolerance_m", LAUNCH_TOLERANCE_M)),
-                        MIN_LAUNCH_TOLERANCE_M)
+        tolerance = self._launch_tolerance()
         off = []
         for sysid, v in sorted(self.monitor.vehicles.items()):
             launch, s = v.route.launch, self.monitor.links[sysid].state
@@ -518,6 +530,32 @@ class Flight:
                 self.monitor.event(None, f"refused: {line}")
             raise FlightError("; ".join(off) + f": each must stand within {tolerance:g} m of "
                               "its launch point (the plan's track tolerance) before it is armed")
+
+    def check_failsafes(self) -> None:
+        """Say, one line per vehicle, what its autopilot does on a low battery
+        (ArduPilot BATT_FS_LOW_ACT, PX4 COM_LOW_BAT_ACT): anything but a warning or
+        a landing flies a path nobody proved hidden, in view of the outposts. The
+        plan's reserve keeps the battery above it; the battery watch acts first."""
+        m = self.monitor
+        for sysid, v in sorted(m.vehicles.items()):
+            link = m.links[sysid]
+            name, actions = commands.autopilot(link).battery_failsafe
+            if not name or v.state == LOST:
+                continue
+            value = commands.read_param(link, name, retries=1)
+            if value is None:
+                m.event(sysid, f"battery failsafe: {name} not answered: what it does on a "
+                               "low battery is unknown")
+                continue
+            does = actions.get(int(value), f"value {int(value)} (see the autopilot's manual)")
+            # straight down from a hidden point stays hidden (below the exposure surface)
+            unproven = "" if does.startswith(("a warning", "LAND where")) else \
+                ": if it fired, that flight is not proven hidden from the outposts"
+            m.event(sysid, f"battery failsafe: {name} = {int(value)}, {does}{unproven}")
+
+    def _launch_tolerance(self) -> float:
+        return max(float(self.plan.params.get("track_tolerance_m", LAUNCH_TOLERANCE_M)),
+                   MIN_LAUNCH_TOLERANCE_M)
 
     def _all(self, fn, what, expected) -> None:
         """fn on every vehicle at once. A vehicle that fails and then falls silent
@@ -552,7 +590,9 @@ class Flight:
             m.check_losses()
             if m.take_losses():
                 self.retask()
-            if m.all_finished() and not self.departures:
+            self._next_sorties()
+            self._watch_batteries()
+            if m.all_finished() and not self.departures and not any(self.later.values()):
                 break
             self._depart_due()
             if self.guard is not None:
@@ -567,6 +607,98 @@ class Flight:
             time.sleep(LOOP_S)
         if status is not None:
             status(m.status_rows())
+
+    def _next_sorties(self) -> None:
+        """A vehicle down at its base after a sortie flies its next one at its planned
+        time, once the battery it reports is fresh (`FRESH_BATTERY_PCT`: swapped in
+        the turnaround); one that landed elsewhere flies no more sorties."""
+        m = self.monitor
+        for sysid, parts in self.later.items():
+            v = m.vehicles[sysid]
+            if not parts or v.state != LANDED or sysid in self.departures:
+                continue
+            offset, route = parts[0]
+            state = m.links[sysid].state
+            if state.lat is None or distance_m(route.launch.lat, route.launch.lon, state.lat,
+                                               state.lon) > self._launch_tolerance():
+                parts.clear()
+                m.event(sysid, "landed away from its base: its later sorties are not flown")
+                continue
+            if not self._battery_ready(sysid, route, state.battery_pct):
+                continue
+            parts.pop(0)
+            self.swapped.discard(sysid)
+            try:
+                missions = self.route_missions(route, m.links[sysid].flavour)
+                mission = upload_route(m.links[sysid], missions, self.options.protocol,
+                                       limit=self.options.max_items)
+            except (InputError, MissionError) as exc:
+                raise FlightError(f"vehicle {sysid}: next sortie: {exc}") from None
+            m.new_mission(sysid, route, mission)
+            self.segments.fly(sysid, missions)
+            m.relaunch(sysid)
+            self.offset[sysid] = offset
+            self.departures[sysid] = Departure(offset + route.takeoff_s, "launch", route)
+            m.event(sysid, f"sortie {route.waypoints[0].sortie} uploaded and verified",
+                    items=len(mission), takeoff_s=round(offset + route.takeoff_s, 1))
+
+    def _watch_batteries(self) -> None:
+        """A vehicle whose battery draws faster than its rating (`FAST_DRAIN`) and, at
+        the rate it has drawn since takeoff, would eat into more than half the
+        plan's reserve before the end of its sortie is brought home early by its
+        hidden path (the reserve is there for smaller surprises: a headwind, a
+        landing queue) and kept down until the crew has looked at it: the fleet is
+        re-planned without it, its work going to the others."""
+        endurance = self.plan.params.get("endurance_min")
+        if not endurance:
+            return                    # no battery model to hold the draw against
+        rated = 100.0 / (60.0 * endurance)                  # % per fleet s
+        m, reserve = self.monitor, float(self.plan.params.get("reserve_pct") or 0.0)
+        now, rate = self.clock.now(), self.clock.rate()     # fleet s, per wall s
+        short = []
+        for sysid, (t0, pct0) in list(self._sortie_began.items()):
+            v, pct = m.vehicles[sysid], m.links[sysid].state.battery_pct
+            flown = (m.now() - t0) * rate
+            if v.state not in (FLYING, HOLDING) or None in (now, pct0, pct) or \
+                    flown < WATCH_AFTER_S or pct0 - pct < WATCH_AFTER_PCT:
+                continue
+            left_s = max(self.offset.get(sysid, 0.0) + v.route.mission_time_s - now, 0.0)
+            drawn = (pct0 - pct) / flown
+            need = drawn * left_s + reserve / 2
+            if pct < need and drawn > FAST_DRAIN * rated:
+                short.append(sysid)
+                m.event(sysid, f"battery {pct} % will not last the rest of its sortie "
+                               f"({need:.0f} % with half the reserve, drawn {drawn / rated:.1f}"
+                               " times faster than rated): brought home early by its hidden "
+                               "path and kept down, its work re-planned")
+        if short:
+            for sysid in short:
+                del self._sortie_began[sysid]
+            self.spent.update(short)
+            self.retask()
+
+    def _battery_ready(self, sysid, route, pct) -> bool:
+        """The next sortie may go: the vehicle reports a fresh battery, and the
+        operator confirmed the swap (`confirm_swap`) unless ``auto_turnaround``."""
+        fresh = pct is None or pct >= FRESH_BATTERY_PCT
+        confirmed = self.options.auto_turnaround or sysid in self.swapped
+        if fresh and confirmed:
+            return True
+        if self._waiting_battery.get(sysid) is not route:
+            self._waiting_battery[sysid] = route
+            why = [] if fresh else [f"a fresh battery ({pct} % reported)"]
+            if not confirmed:
+                why.append(f"the operator's word that it is swapped (type {sysid} and Enter)")
+            self.monitor.event(sysid, f"sortie {route.waypoints[0].sortie} waits for "
+                               + " and ".join(why))
+        return False
+
+    def confirm_swap(self, sysid: int) -> None:
+        """The operator says vehicle ``sysid``'s battery is swapped (its next sortie may
+        go once the battery it reports is fresh too)."""
+        if sysid in self.monitor.vehicles:
+            self.swapped.add(sysid)
+            self.monitor.event(sysid, "battery swap confirmed by the operator")
 
     def next_segments(self, sysids) -> None:
         """Send ``sysids`` their next segments; a loss meanwhile re-tasks the survivors
@@ -591,11 +723,17 @@ class Flight:
         for sysid in list(self.departures):     # the re-plan decides who goes up
             del self.departures[sysid]
         self._call_off_starts()
+        retasker = Retasker(ctx, m, self.mission_options, self.options.protocol,
+                            segments=self.segments, depart=self.depart, spent=self.spent)
         try:
-            record = Retasker(ctx, m, self.mission_options, self.options.protocol,
-                              segments=self.segments, depart=self.depart).retask(home)
+            record = retasker.retask(home)
         except RetaskError as exc:
             raise FlightError(str(exc)) from None
+        # the re-plan covers what the later sorties would have: its own replace them
+        now = self.clock.now() or 0.0
+        self.later = {s: [(now, part) for part in parts]
+                      for s, parts in retasker.later.items() if s in record.survivors}
+        self.offset.update({s: now for s in record.survivors})
         if self.guard is not None:
             self.guard.priority.update(record.priority)
         for sysid, v in m.vehicles.items():     # never took off, and nothing to go up for
@@ -688,7 +826,10 @@ class Flight:
         k = int(self.plan.metrics.get("k", ctx.scenario.k))
         alive = [v for _, v in sorted(m.vehicles.items()) if v.state != LOST]
         every = [v for _, v in sorted(m.vehicles.items())]
-        out = {"coverable_targets": coverable_targets(ctx)}
+        # the targets only viewpoints beyond one battery see are not the flight's to cover
+        short = int((self.plan.metrics.get("battery") or {}).get("targets_short", 0))
+        out = {"coverable_targets": coverable_targets(ctx) - short,
+               "beyond_battery_targets": short}
         for name, group in (("survivors", alive), ("all_vehicles", every)):
             seen = seen_matrix(ctx, [snapshot_xyz(ctx, v) for v in group])
             out[name] = coverage_summary(ctx, seen, k)

@@ -174,17 +174,20 @@ class Retasker:
     """Re-plans and re-uploads the survivors of a flight (see module doc)."""
 
     def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions(),
-                 protocol=None, segments=None, depart=None):
+                 protocol=None, segments=None, depart=None, spent=()):
         """``segments``: the flight's `gcs.segments.Segments`, told what each re-tasked
         vehicle flies from now on; ``depart(sysid, after_s, kind, route)``: the flight
         sends each on its way at the re-plan's time (the fleet stays separated on it;
-        None: all at once, now)."""
+        None: all at once, now); ``spent``: vehicles whose battery counts as empty
+        (the battery watch's: each flies home first)."""
         self.ctx = ctx
         self.segments = segments
         self.depart = depart
         self.monitor = monitor
         self.mission_options = mission_options
         self.protocol = protocol or {}  # timeout_s / retries of the mission protocol
+        self.later = {}  # sysid -> the re-plan's later sorties of its route (`Flight`)
+        self.spent = set(spent)
         self._retries = self.protocol.get("retries", commands.RETRIES)  # of each command
         self.home = False
 
@@ -218,7 +221,7 @@ class Retasker:
         """Landed survivors to send up again: when the snapshots the survivors have
         taken leave a coverable target seen by fewer than min(k + 1, survivors) of
         them, and the hidden volume takes them from their launch point."""
-        landed = self.landed_at_launch()
+        landed = [s for s in self.landed_at_launch() if s not in self.spent]
         if not landed:
             return []
         ctx, m = self.ctx, self.monitor
@@ -276,7 +279,20 @@ class Retasker:
         position = [launch.lon, launch.lat, launch.alt_amsl] if landed else \
             [state.lon, state.lat, state.alt_amsl]
         return (Survivor(v.vehicle_id, geo_to_xyz(ctx, *position),
-                         geo_to_xyz(ctx, launch.lon, launch.lat, launch.alt_amsl)), position)
+                         geo_to_xyz(ctx, launch.lon, launch.lat, launch.alt_amsl),
+                         self._flown_s(sysid), sysid in self.spent), position)
+
+    def _flown_s(self, sysid) -> float:
+        """What a survivor's battery has flown, from the share left it reports
+        (SYS_STATUS): a re-plan with an endurance flies it no further than that allows."""
+        s = self.ctx.scenario
+        if s.endurance_min is None:
+            return 0.0
+        pct = self.monitor.links[sysid].state.battery_pct
+        if pct is None:
+            self.monitor.event(sysid, "battery not reported: re-planned as if full")
+            return 0.0
+        return 60.0 * s.endurance_min * (1.0 - min(pct, 100) / 100.0)
 
     def _attempt(self, record, sysids, landed=()) -> None:
         m, ctx = self.monitor, self.ctx
@@ -308,7 +324,15 @@ class Retasker:
             raise RetaskError(f"re-plan failed: {exc}") from None
         record.planning_s = round(time.perf_counter() - t0, 3)
         record.planned = dict(outcome.plan.metrics)
-        routes = dict(zip(everyone, outcome.plan.vehicles))
+        over = (record.planned.get("battery") or {}).get("over_battery")
+        if over:
+            m.event(None, f"re-plan: a sortie takes {over:.2f} times the usable battery "
+                          "(the survivors' batteries are partly flown): the battery watch "
+                          "guards it")
+        # a route of several sorties flies its first now, the others after landing
+        parts = {s: r.sortie_routes() for s, r in zip(everyone, outcome.plan.vehicles)}
+        routes = {s: p[0] for s, p in parts.items()}
+        self.later = {s: p[1:] for s, p in parts.items()}
         # a landed vehicle goes up only if the re-plan gives it something to see
         up = [s for s in landed if any(w.snapshot for w in routes[s].waypoints)]
         tasked = list(sysids) + up

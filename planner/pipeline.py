@@ -64,6 +64,7 @@ class Start:
     climb_s: float = 0.0  # vertical takeoff time before xyz, counted in the route's time
     held: Optional[np.ndarray] = None  # in flight: where it stands now (it flies to xyz)
     flown_s: float = 0.0  # in flight: what its battery has flown (a sortie model counts it)
+    retired: bool = False  # in flight: it flies home and no more sorties (battery not trusted)
 
 
 @contextmanager
@@ -322,11 +323,16 @@ def _battery(ctx, starts, out, tops, land, scale=(1.0, 1.0)) -> dict:
                  turnaround_s=60.0 * s.turnaround_min,
                  used_s=np.array([st.flown_s for st in starts]))
     held = [r for r, st in enumerate(starts) if st.held is not None]
+    for r in held:
+        if starts[r].retired:         # a whole battery flown: nothing fits but home
+            model["used_s"][r] = max(model["used_s"][r], s.usable_s)
     if held:
         base_out, home = out.copy(), np.zeros(len(starts))
         for r in held:
             climb = float(leg_time(0.0, tops[r, 2] - starts[r].launch[2], ctx.travel_params))
             base_out[r] = ctx.graph.times_between(tops[r][None], ctx.viewpoints.xyz)[0] + climb
+            if starts[r].retired:     # no later sortie
+                base_out[r] = np.inf
             home[r] = starts[r].climb_s + float(
                 ctx.graph.times_between(starts[r].xyz[None], tops[r][None])[0, 0]) + land[r]
         model.update(base_out=base_out, start_back=home)
@@ -359,7 +365,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         raise InputError("plan", f"an endurance (sorties) on an area planned in {parts} parts "
                                  "is not supported yet: plan the area in smaller pieces, or "
                                  "without --endurance")
-    scale = np.ones(2)
+    scale, over = np.ones(2), np.zeros(2)
     for _ in range(BATTERY_TRIES):
         try:
             problem, allocation, prep = _search(ctx, parts, n_uavs, starts, seen, required,
@@ -373,7 +379,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
             counts = coverage.coverage_counts(problem, allocation)
         with _stage("separation", timing, progress):
             fleet = fleet_clock(ctx, sorties, starts, problem, allocation.routes)
-        over = _over_battery(fleet, s.usable_s)
+        over = _over_battery(fleet, s.usable_s, starts)
         if not over.any():
             break
         # the search's times leave out the slowing at the waypoints: plan again with
@@ -381,15 +387,20 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         # much shorter
         scale = np.where(over > 0, scale * 0.98 / np.maximum(over, 1.0), scale)
     else:
-        raise InputError("plan", f"a sortie takes {max(over) * s.usable_s / 60:.1f} min, more "
-                                 f"than the {s.usable_s / 60:.1f} min a battery allows "
-                                 f"(endurance {s.endurance_min:g} min less {s.reserve_pct:g} % "
-                                 f"reserve), after {BATTERY_TRIES} tries: give a longer "
-                                 "--endurance")
+        # a re-plan in flight is flown all the same (the vehicles are in the air, and
+        # gcs fly's battery watch brings one home early); a plan on the ground is not
+        if not (starts and any(st.held is not None for st in starts)):
+            raise InputError("plan", f"a sortie takes {max(over) * s.usable_s / 60:.1f} min, "
+                                     f"more than the {s.usable_s / 60:.1f} min a battery "
+                                     f"allows (endurance {s.endurance_min:g} min less "
+                                     f"{s.reserve_pct:g} % reserve), after {BATTERY_TRIES} "
+                                     "tries: give a longer --endurance")
     # only the reach bound holds for the whole of an area planned in parts
     bounds = ((split.reach_bound(problem),) * 2 if parts > 1
               else coverage.bounds(problem, strong_bound, prep))
     plan = _make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds)
+    if over.any():
+        plan.metrics["battery"]["over_battery"] = float(max(over))
     if parts > 1:
         plan.metrics["parts"] = parts
     return Outcome(plan, problem, allocation, uav_polylines(sorties, n_uavs), counts)
@@ -418,14 +429,18 @@ def _search(ctx, parts, n_uavs, starts, seen, required, method, params, timing, 
     return problem, allocation, prep
 
 
-def _over_battery(fleet, usable_s) -> np.ndarray:
+def _over_battery(fleet, usable_s, starts) -> np.ndarray:
     """(sorties of several viewpoints, of one): the longest flight of each kind over
-    the usable battery, as a multiple of it (0 where none is over)."""
+    the usable battery, as a multiple of it (0 where none is over); a vehicle in
+    flight has flown part of its first battery already."""
     over = np.zeros(2)
     for i, f in enumerate(fleet.sorties):
-        ratio = fleet.flight_s(i) / usable_s
-        if ratio > 1.0:
-            kind = int(len(f.visits) <= 1)
+        if not f.visits and f.first and starts and starts[f.uav].held is not None:
+            continue    # in flight with too little battery: home first, whatever it takes
+        flown = starts[f.uav].flown_s if starts and f.first else 0.0
+        ratio = (fleet.flight_s(i) + flown) / usable_s
+        if ratio > 1.0:     # a battery partly flown shares the split's room, not the reach's
+            kind = int(len(f.visits) <= 1 and not flown)
             over[kind] = max(over[kind], ratio)
     return over
 
@@ -637,9 +652,10 @@ class Fleet:
         return np.concatenate(out)
 
     def flight_s(self, i) -> float:
-        """Flight i's time from takeoff to touchdown, waits in the air included."""
-        t, profile = self.schedule.timings[i], self.profiles[i]
-        return float(t.trajectory.end - _leaves(profile, t))
+        """Flight i's time from takeoff (or, in flight, from now) to touchdown, waits
+        in the air included."""
+        t = self.schedule.timings[i]
+        return float(t.trajectory.end - t.start_s)
 
 
 def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:

@@ -55,6 +55,8 @@ class Survivor:
     vehicle_id: int  # its plan vehicle id
     xyz: np.ndarray  # current position: projected x, y, alt AMSL
     launch: np.ndarray  # ground point it returns to: x, y, ground AMSL
+    flown_s: float = 0.0  # of its battery, used already (a plan with an endurance counts it)
+    retired: bool = False  # its batteries are not trusted: it only flies home
 
 
 # --- what has been seen ------------------------------------------------------------------
@@ -144,6 +146,12 @@ def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
 # --- re-planning ------------------------------------------------------------------------
 
 def survivor_start(ctx: PlanningContext, survivor: Survivor) -> Start:
+    """`_start_of` the survivor, with the battery it has flown."""
+    return replace(_start_of(ctx, survivor), flown_s=float(survivor.flown_s),
+                   retired=bool(survivor.retired))
+
+
+def _start_of(ctx: PlanningContext, survivor: Survivor) -> Start:
     """A survivor's start: its own position when the hidden graph can take it from
     there, else the nearest graph node reachable by a straight hidden leg (the
     time of that leg counted as ``climb_s``). A vehicle held over its launch

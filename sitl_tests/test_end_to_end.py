@@ -201,6 +201,17 @@ def loss_latency(result, sysid) -> float:
     return detected - result["killed"][sysid]
 
 
+def assert_prompt_loss(result, sysid) -> None:
+    """The loss is declared ``lost_after_s`` after the last HEARTBEAT the ground
+    station read, give or take its loop (1 s: the product's promise), and that
+    HEARTBEAT came within a heartbeat period or so of the kill (2 s: the kill is
+    asked by the test and done by the simulator's next step, on a busy machine)."""
+    report = result["report"]
+    loss = next(x for x in report["losses"] if x["sysid"] == sysid)
+    assert loss["detected_s"] - loss["last_heartbeat_s"] <= report["lost_after_s"] + 1.0
+    assert loss_latency(result, sysid) <= report["lost_after_s"] + 2.0
+
+
 def still_flying(report, sysids, t_s) -> list:
     """Those of ``sysids`` that had not landed by ``t_s`` (flight time)."""
     landed = {e["sysid"] for e in report["events"] if e["event"] == "landed" and e["t_s"] <= t_s}
@@ -212,7 +223,7 @@ def assert_one_loss_retasked(planned, result, sysid) -> dict:
     clear, landed, and covering every coverable target. Returns the coverage."""
     report, tracks = result["report"], result["tracks"]
     assert [x["sysid"] for x in report["losses"]] == [sysid]
-    assert loss_latency(result, sysid) <= report["lost_after_s"] + 1.0
+    assert_prompt_loss(result, sysid)
     survivors = [s for s in tracks if s != sysid]
     replan = report["replans"][0]
     # re-tasked: those in the air, and landed ones sent up again for the lost coverage
@@ -278,6 +289,7 @@ def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
     _print("k=1, one killed", result, cov, loss_latency(result, 3))
 
 
+@pytest.mark.timeout(480)     # 62 s beside two CPU hogs; slower when the machine is busier
 def test_one_killed_with_20_percent_packet_loss_throughout(planned, tmp_path):
     """Every packet, both ways, dropped with probability 0.2 from boot to landing.
     A HEARTBEAT missing 3 times in a row is then common (0.8 % per second), so
@@ -315,7 +327,7 @@ def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
     report, tracks = result["report"], result["tracks"]
     assert sorted(x["sysid"] for x in report["losses"]) == [2, n]
     for sysid in (2, n):
-        assert loss_latency(result, sysid) <= report["lost_after_s"] + 1.0
+        assert_prompt_loss(result, sysid)
     survivors = [s for s in range(1, n + 1) if s not in (2, n)]
     assert report["replans"][-1]["survivors"] == survivors
     assert_hidden_and_clear(p, tracks)

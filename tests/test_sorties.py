@@ -6,16 +6,20 @@ separated across sorties, and every viewpoint beyond one battery reported."""
 
 import json
 import math
+import threading
+import time
 from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from flown import problems_beside_guard
 
 from common.errors import InputError
 from gcs.cli import main
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
 from gcs.plan_folder import write_plan_folder
+from gcs.sim import fleet_for_plan, free_base_port, read_track, terrain_ground, track_path
 from missions.items import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
 from missions.sources import load_sources
 from planner.fleet import prove_separated
@@ -125,11 +129,7 @@ def test_an_unlimited_battery_is_said_and_plans_as_before(planned):
     assert battery_line(planned.plan).startswith("battery: unlimited (no --endurance given)")
 
 
-def test_gcs_fly_and_upload_refuse_a_plan_of_several_sorties(sortied, tmp_path, capsys):
-    code = main(["fly", str(sortied.dir), "--connect", "tcp:127.0.0.1:1",
-                 "-o", str(tmp_path / "f")])
-    err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and "sorties (one battery each" in err[-1] and "vehicle 1" in err[-1]
+def test_upload_of_a_plan_folder_of_several_sorties_is_refused(sortied):
     with pytest.raises(InputError, match="upload one sortie's mission at a time"):
         load_sources([sortied.dir])
 
@@ -167,3 +167,123 @@ def test_summary_says_the_sorties(sortied):
     assert np.all([w["sortie"] >= 1 for w in
                    json.loads((sortied.dir / "plan.json").read_text())["vehicles"][0]
                    ["waypoints"]])
+
+
+@pytest.fixture(scope="module")
+def twelve(planned, tmp_path_factory):
+    """The shared plan on a 12-minute battery: 2-3 sorties a vehicle."""
+    scenario = replace(Scenario.from_params(planned.plan.params), endurance_min=12.0,
+                       sample=True).validate()
+    ctx, outcome = plan_mission(scenario, terrain=planned.terrain,
+                                outposts=planned.ctx.outposts)
+    d = tmp_path_factory.mktemp("twelve")
+    write_plan_folder(d, ctx, outcome)
+    return SimpleNamespace(dir=d, plan=outcome.plan)
+
+
+def _takeoffs_on_fresh_batteries(track) -> int:
+    """Takeoffs in a simulator's track, asserting that each after the first came
+    after a landing and a battery swap (the simulator's crew's)."""
+    kinds = [e["event"] for e in track.events if e["event"] in
+             ("takeoff", "landed", "battery swapped")]
+    ups = [i for i, e in enumerate(kinds) if e == "takeoff"]
+    for k in ups[1:]:
+        assert kinds[k - 2:k] == ["landed", "battery swapped"], kinds
+    return len(ups)
+
+
+@pytest.mark.parametrize("kill", [None, "2@item8"])
+def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
+    """`gcs fly` of a plan of several sorties: each vehicle lands at its base, the
+    next sortie waits for the fresh battery the simulator's crew puts in, then goes
+    at its planned time; a loss re-plans the survivors on the battery they report
+    left, in sorties again. Judged by the simulator's own tracks."""
+    out = tmp_path / "flight"
+    code = main(["fly", str(twelve.dir), "--sim", "3", "--speedup", "100", "--lost-after",
+                 "3", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)]
+                + (["--kill", kill] if kill else []))
+    report = json.loads((out / "flight.json").read_text())
+    lost = [2] if kill else []
+    assert report["outcome"]["lost"] == lost and report["outcome"]["coverage_reached"]
+    assert [p for p in problems_beside_guard(report) if "lost" not in p] == []
+    assert code == (0 if report["outcome"]["ok"] else 1)
+    assert report["coverage"]["beyond_battery_targets"] == \
+        twelve.plan.metrics["battery"]["targets_short"]
+    for v in twelve.plan.vehicles:
+        if v.id in lost:
+            continue
+        track = read_track(track_path(out / "tracks", v.id))
+        ups = _takeoffs_on_fresh_batteries(track)
+        assert ups == len(v.sorties) if not kill else ups >= 2
+        assert abs(track.alt[-1] - track.home[2]) < 1.0
+    # what each autopilot would do on a low battery, said before anything flies
+    said = [e for e in report["events"] if e["event"].startswith("battery failsafe: ")]
+    assert sorted(e["sysid"] for e in said) == [1, 2, 3]
+    assert all("BATT_FS_LOW_ACT = 2, RTL" in e["event"] and "not proven hidden" in e["event"]
+               for e in said)
+    uploads = [e for e in report["events"] if "uploaded and verified" in e["event"]
+               and e["event"].startswith("sortie ")]
+    assert len(uploads) >= (sum(len(v.sorties) - 1 for v in twelve.plan.vehicles)
+                            if not kill else 2)
+
+
+def test_a_battery_that_drains_fast_is_brought_home_early(twelve, tmp_path):
+    """Vehicle 2's battery empties twice as fast as its rating (a simulator fault):
+    the battery watch sees it from the draw, brings it home by its hidden path
+    before the battery runs down, keeps it down, and the others take its work."""
+    out = tmp_path / "flight"
+    code = main(["fly", str(twelve.dir), "--sim", "3", "--speedup", "50", "--drain", "2@2",
+                 "--lost-after", "3", "--sim-base-port", str(free_base_port(10, 3)),
+                 "-o", str(out)])
+    report = json.loads((out / "flight.json").read_text())
+    assert problems_beside_guard(report) == [] and report["outcome"]["coverage_reached"]
+    assert code == (0 if report["outcome"]["ok"] else 1)
+    watched = [e for e in report["events"] if "will not last the rest of its sortie" in
+               e["event"]]
+    assert [e["sysid"] for e in watched] == [2], watched
+    # the draw measured from the battery it reports: twice the rating, within the
+    # whole percents it reports and the fleet clock's estimate of the speed-up
+    factor = float(watched[0]["event"].split("drawn ")[1].split(" times")[0])
+    assert 1.5 <= factor <= 2.5
+    reserve = twelve.plan.params["reserve_pct"]
+    assert int(watched[0]["event"].split("battery ")[1].split(" %")[0]) > reserve / 2
+    track = read_track(track_path(out / "tracks", 2))
+    assert _takeoffs_on_fresh_batteries(track) == 1            # kept down after
+    assert abs(track.alt[-1] - track.home[2]) < 1.0            # at its base
+    assert report["replans"] and 2 not in report["replans"][-1]["relaunched"]
+
+
+def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve, tmp_path):
+    """On real vehicles the next sortie waits for the operator's word as well as a
+    fresh battery: the flight waits, says so, and goes once it is given."""
+    from gcs.fly import Flight, FlyOptions
+
+    fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
+                           track_dir=tmp_path / "tracks", battery_min=12.0,
+                           terrain=terrain_ground(planned.terrain))
+    try:
+        flight = Flight(twelve.dir, fleet.urls(), FlyOptions(output=tmp_path / "f",
+                                                             lost_after_s=3.0, plot=False,
+                                                             timeout_s=240.0))
+
+        def confirm_when_asked():       # once per request, as an operator would
+            seen, deadline = 0, time.monotonic() + 200
+            while time.monotonic() < deadline:
+                events = list(flight.monitor.events)
+                for e in events[seen:]:
+                    if "the operator's word" in e["event"]:
+                        flight.confirm_swap(e["sysid"])
+                seen = len(events)
+                time.sleep(0.2)
+        threading.Thread(target=confirm_when_asked, daemon=True).start()
+        report = flight.run()
+    finally:
+        fleet.stop()
+    later = sum(len(v.sorties) - 1 for v in twelve.plan.vehicles)
+    for sysid in (1, 2, 3):     # each later sortie went only after the operator's word
+        mine = [e["event"] for e in report["events"] if e.get("sysid") == sysid]
+        ups = [i for i, e in enumerate(mine) if e.startswith("sortie ") and "uploaded" in e]
+        words = [i for i, e in enumerate(mine) if e == "battery swap confirmed by the operator"]
+        assert len(words) == len(ups) and all(w < u for w, u in zip(words, ups)), mine
+        later -= len(ups)
+    assert later == 0 and report["outcome"]["coverage_reached"]

@@ -1,6 +1,7 @@
 """`gcs fly`: upload, start, monitor, re-task survivors on losses, land, report."""
 
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 from autopilots import ARDUPILOT, NAMES
@@ -43,6 +44,11 @@ def add_arguments(parser) -> None:
                              "segments, the next uploaded in flight (default: as many as each "
                              "vehicle holds, learned when it refuses more)")
     parser.add_argument("--no-tlog", action="store_true", help="do not write .tlog files")
+    parser.add_argument("--auto-turnaround", action="store_true",
+                        help="between two sorties, send a vehicle on once it reports a fresh "
+                             "battery, without the operator's word (SITL; --sim always does); "
+                             "otherwise type its system id and Enter once its battery is "
+                             "swapped")
     view = parser.add_argument_group("watching the flight elsewhere")
     view.add_argument("--forward", action="append", default=[], metavar="URL",
                       help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
@@ -69,6 +75,9 @@ def add_arguments(parser) -> None:
                      help="first simulator port; none = 5760 (ArduPilot TCP), 18570 (PX4 UDP)")
     sim.add_argument("--sim-gcs-port", type=int, default=14550, metavar="P",
                      help="PX4 flavour: UDP port the simulated vehicles send to")
+    sim.add_argument("--drain", action="append", default=[], metavar="SYSID@FACTOR",
+                     help="a simulated vehicle whose battery empties FACTOR times faster than "
+                          "its rating (a cold or worn battery): the battery watch's case")
     sim.add_argument("--sim-capacity", type=int, metavar="N",
                      help="mission items each simulated vehicle holds (default: the "
                           "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
@@ -93,7 +102,8 @@ def options_from_args(args):
                       ready_timeout_s=args.ready_timeout, timeout_s=args.timeout,
                       protocol_timeout_s=protocol["timeout_s"],
                       protocol_retries=protocol["retries"], max_items=args.max_items,
-                      tlog=not args.no_tlog)
+                      tlog=not args.no_tlog,
+                      auto_turnaround=bool(args.auto_turnaround or args.sim))
 
 
 def sim_fleet(plan, plan_dir, args, output: Path):
@@ -111,12 +121,17 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     if args.sim_capacity is not None and args.sim_capacity < 1:
         raise InputError("--sim-capacity", f"must be at least 1, got {args.sim_capacity}")
     capacity = {} if args.sim_capacity is None else {"mission_capacity": args.sim_capacity}
+    if plan.params.get("endurance_min"):    # the battery the plan was made for
+        capacity["battery_min"] = float(plan.params["endurance_min"])
     faults = {}
     for text in args.kill:
         sysid, at_s, at_item = parse_kill(text)
         if not 1 <= sysid <= n:
             raise InputError("--kill", f"no simulated vehicle {sysid} (ids are 1..{n})")
         faults[sysid] = FaultPlan(kill_at_s=at_s, kill_at_item=at_item)
+    for text in args.drain:
+        sysid, factor = _drain(text, n)
+        faults[sysid] = replace(faults.get(sysid, FaultPlan()), drain=factor)
     try:
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
             "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
@@ -126,6 +141,19 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim", str(exc)) from None
     except OSError as exc:
         raise InputError("--sim-base-port", f"cannot open a simulator endpoint: {exc}") from None
+
+
+def _drain(text: str, n: int) -> tuple:
+    """``2@3`` -> (2, 3.0): vehicle 2's battery drains 3 times faster."""
+    try:
+        sysid, factor = text.split("@")
+        sysid, factor = int(sysid), float(factor)
+    except ValueError:
+        raise InputError("--drain", f"expected SYSID@FACTOR, got {text!r}") from None
+    if not 1 <= sysid <= n or not factor > 0:
+        raise InputError("--drain", f"{text!r}: need a simulated vehicle 1..{n} and a "
+                                    "positive factor")
+    return sysid, factor
 
 
 def start_map(flight, args):

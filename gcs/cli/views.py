@@ -5,6 +5,7 @@ Shared by the commands (`gcs plan` and `gcs demo` show a plan; `gcs fly` and
 """
 
 import sys
+import threading
 from pathlib import Path
 
 from rich.console import Group
@@ -143,6 +144,7 @@ def fly_flight(flight, live: bool) -> dict:
     """Run ``flight``: on a terminal with the status table, and Ctrl-C or --timeout
     answered by the user; otherwise Ctrl-C leaves the vehicles flying and the
     timeout brings them home."""
+    _read_battery_swaps(flight)
     if live:
         with Live(status_table([]), console=console, refresh_per_second=4) as view:
             timeout = flight.options.timeout_s
@@ -150,6 +152,20 @@ def fly_flight(flight, live: bool) -> dict:
                               lambda: ask(view, "interrupted"),
                               lambda: ask(view, f"timed out after {timeout:g} s"))
     return flight.run(on_interrupt=lambda: "leave", on_timeout=lambda: "home")
+
+
+def _read_battery_swaps(flight) -> None:
+    """Between sorties the operator confirms each battery swap by typing the
+    vehicle's system id and Enter (not needed with --auto-turnaround)."""
+    if flight.options.auto_turnaround or not any(v.sorties for v in flight.plan.vehicles):
+        return
+
+    def read():
+        for line in sys.stdin:
+            for word in line.split():
+                if word.isdigit():
+                    flight.confirm_swap(int(word))
+    threading.Thread(target=read, daemon=True, name="battery-swaps").start()
 
 
 ANSWERS = {"h": "home", "home": "home", "l": "leave", "leave": "leave"}

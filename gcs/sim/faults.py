@@ -24,6 +24,7 @@ class FaultPlan:
     kill_at_item: int | None = None      # when this mission item is reached (nav) or run (DO)
     cuts: list = field(default_factory=list)   # (start mission time s, duration wall s)
     refuse_arm: bool = False
+    drain: float = 1.0                   # its battery empties this many times faster
 
 
 def parse_kill(text: str) -> tuple:

@@ -179,7 +179,7 @@ ARDUPILOT = Flavour(
     streams_on_request=True,
     zero_position=True,
     params={"AUTO_OPTIONS": 0.0, "WPNAV_RADIUS": 200.0, "RTL_ALT": 1500.0,
-            "DISARM_DELAY": 10.0},
+            "DISARM_DELAY": 10.0, "BATT_FS_LOW_ACT": 2.0},
 )
 
 PX4 = Flavour(
@@ -213,7 +213,8 @@ PX4 = Flavour(
     port_step=1,
     # PX4 v1.17 SIH: HEARTBEAT ~1-2 s after start, arming accepted ~3-7 s
     boot=Boot(gps_s=1.5, origin_s=2.0, ready_s=5.0),
-    params={"NAV_ACC_RAD": 2.0, "RTL_RETURN_ALT": 15.0, "COM_DISARM_PRFLT": 10.0},
+    params={"NAV_ACC_RAD": 2.0, "RTL_RETURN_ALT": 15.0, "COM_DISARM_PRFLT": 10.0,
+            "COM_LOW_BAT_ACT": 3.0},
 )
 
 FLAVOURS = {f.name: f for f in (ARDUPILOT, PX4)}

@@ -64,6 +64,8 @@ class FleetConfig:
     transport: str | None = None                # "pty": each vehicle on a serial line
     serial_baud: int = 57600                    # what urls() asks a pty link for
     mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
+    battery_min: float = 60.0                   # flight time of a full battery
+    swap_s: float = 60.0                        # on the ground, disarmed, until it is swapped
 
     def vehicle_configs(self) -> list:
         flavour(self.firmware)                  # ValueError naming the choices
@@ -86,7 +88,8 @@ class FleetConfig:
                 faults=replace(self.faults.get(sysid, FaultPlan())),
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
                 seed=self.seed, signing_key=self.signing_key, terrain=self.terrain,
-                transport=self.transport, mission_capacity=self.mission_capacity))
+                transport=self.transport, mission_capacity=self.mission_capacity,
+                battery_min=self.battery_min, swap_s=self.swap_s))
         return configs
 
 

@@ -27,7 +27,6 @@ NAV_SENSORS = M.MAV_SYS_STATUS_SENSOR_GPS | M.MAV_SYS_STATUS_AHRS
 EKF_OK = (M.EKF_ATTITUDE | M.EKF_VELOCITY_HORIZ | M.EKF_VELOCITY_VERT | M.EKF_POS_HORIZ_REL
           | M.EKF_POS_HORIZ_ABS | M.EKF_POS_VERT_ABS | M.EKF_PRED_POS_HORIZ_REL
           | M.EKF_PRED_POS_HORIZ_ABS)
-BATTERY_MINUTES = 60.0           # flight time from full to empty
 
 
 def _e7(deg: float) -> int:
@@ -51,7 +50,7 @@ def sys_status(v):
         health |= M.MAV_SYS_STATUS_SENSOR_GPS
     if v.ready:
         health |= M.MAV_SYS_STATUS_AHRS | M.MAV_SYS_STATUS_PREARM_CHECK
-    remaining = max(0, int(round(100 - v.airborne_s / (0.6 * BATTERY_MINUTES))))
+    remaining = max(0, int(round(100 - v.airborne_s / (0.6 * v.cfg.battery_min))))
     millivolts = 14000 + 28 * remaining
     centiamps = 50 if v.landed else 1500
     return v.mav.sys_status_encode(present, present, health, 200, millivolts, centiamps,

@@ -68,6 +68,9 @@ class VehicleConfig:
     terrain: Callable | None = None            # (lat, lon) -> ground m AMSL; None: flat
     transport: str | None = None               # "pty": a serial line; None: the flavour's
     mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
+    battery_min: float = 60.0                  # flight time from a full battery to empty
+    swap_s: float = 60.0                       # mission s disarmed on the ground until the
+                                               # crew has put in a full battery
 
 
 class _LinkWriter:
@@ -128,6 +131,7 @@ class SimVehicle:
         self._clients_seen = 0
         self._images = 0
         self.airborne_s = 0.0
+        self.ground_s = 0.0               # disarmed on the ground since (mission s)
         self.heading = 0.0
         self._last_dest = None         # destination of the last nav item reached
         self._stop = threading.Event()
@@ -269,6 +273,7 @@ class SimVehicle:
     def _physics(self, dt: float) -> None:
         if self.landed:
             self.body.vel = [0.0, 0.0, 0.0]
+            self._swap_battery(dt)
             return
         kind = self.task["kind"] if self.task else None
         descent = self.cfg.limits.descent_mps
@@ -278,11 +283,19 @@ class SimVehicle:
             descent = min(descent, LAND_SLOW_MPS)
         self.body.descent_mps = descent
         self.body.step(dt)
-        self.airborne_s += dt
+        self.airborne_s += dt * self.plan.drain
+        self.ground_s = 0.0
         if math.hypot(self.body.vel[0], self.body.vel[1]) > 0.5:
             self.heading = math.degrees(math.atan2(self.body.vel[0], self.body.vel[1])) % 360
         if self.body.pos[2] <= self.ground:
             self._touch_down()
+
+    def _swap_battery(self, dt: float) -> None:
+        """Disarmed on the ground `swap_s` after a flight: a full battery is in."""
+        self.ground_s = 0.0 if self.armed else self.ground_s + dt
+        if self.airborne_s > 0 and self.ground_s >= self.cfg.swap_s:
+            self.airborne_s = 0.0
+            self.track.event(self.t, "battery swapped")
 
     def _sample(self, force=False) -> None:
         lat, lon, alt = self.position()
