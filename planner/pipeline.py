@@ -316,8 +316,8 @@ def _battery(ctx, starts, out, tops, land, scale=(1.0, 1.0)) -> dict:
     """The sortie model of `coverage.CoverageProblem`: the usable flight time of a
     battery for the split and for the round trips that close a viewpoint (each
     times its ``scale``: `allocate` tightens them where the slowing at waypoints
-    outgrows the search's estimate), the turnaround, and for a vehicle in flight the times out of its
-    base for later sorties, its battery flown, its way home."""
+    outgrows the search's estimate), the turnaround, and for a vehicle in flight
+    the times out of its base for later sorties, its battery flown, its way home."""
     s = ctx.scenario
     model = dict(endurance_s=s.usable_s * scale[0], reach_s=s.usable_s * scale[1],
                  turnaround_s=60.0 * s.turnaround_min,

@@ -67,9 +67,10 @@ class Scenario:
     separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
     accel_mps2: float = 3.0  # horizontal acceleration: the time a waypoint costs (fleet.stop_time)
     firmware: str = "ardupilot"
-    endurance_min: Optional[float] = None  # flight per battery, takeoff to touchdown; None: unlimited
+    endurance_min: Optional[float] = None  # flight per battery, takeoff to touchdown (None: no
+    #                                        limit, said in every summary)
     reserve_pct: float = RESERVE_PCT  # of the endurance, never planned
-    turnaround_min: float = 5.0  # on the ground between two sorties: landing, battery swap, checks
+    turnaround_min: float = 5.0  # on the ground between sorties: landing, battery swap, checks
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
     k: int = 0

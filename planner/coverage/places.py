@@ -192,8 +192,8 @@ def share(prep, routes, counts) -> list:
                     if count_with(t, at, prep.tgt_indptr, prep.tgt_indices, prep.seen0, r, e,
                                   prep.required[t]) <= counts[t]:
                         continue
-                    dt, pos = insert_cost(routes[r], e, prep.travel, prep.frames[r], prep.sorties[r],
-                                          prep.has_launch)
+                    dt, pos = insert_cost(routes[r], e, prep.travel, prep.frames[r],
+                                          prep.sorties[r], prep.has_launch)
                     key = (max(times[r] + dt, times.max()), dt)
                     if best is None or key < best[0]:
                         best = (key, r, int(e), int(pos))
