@@ -275,12 +275,18 @@ class Flight:
             return
         self.retask(home=True)
         bound = None if self.options.timeout_s is None else \
-            max(self.options.timeout_s, HOME_WAIT_S)
+            max(self.options.timeout_s, HOME_WAIT_S, self._home_wall_s())
         try:
             self.watch(status, bound)          # bounded again: never forever
             self.stopped = None
         except (KeyboardInterrupt, _TimedOut):
             self.monitor.event(None, "stopped while bringing the vehicles home")
+
+    def _home_wall_s(self) -> float:
+        """Wall seconds the flights home take, twice over: the re-plan's mission time
+        at the fleet clock's rate (a simulator on a busy machine runs slower)."""
+        planned = self.retasks[-1].planned if self.retasks else {}
+        return 2.0 * float(planned.get("mission_time_s") or 0.0) / max(self.clock.rate(), 1e-3)
 
     def _prepare_context(self) -> None:
         """The travel times between viewpoints (of an area planned in parts: the
