@@ -263,21 +263,21 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
                            terrain=terrain_ground(planned.terrain))
     try:
         flight = Flight(twelve.dir, fleet.urls(), FlyOptions(output=tmp_path / "f",
-                                                             lost_after_s=3.0, plot=False,
-                                                             timeout_s=240.0))
+                                                             lost_after_s=3.0, plot=False))
+        done = threading.Event()
 
-        def confirm_when_asked():       # once per request, as an operator would
-            seen, deadline = 0, time.monotonic() + 200
-            while time.monotonic() < deadline:
-                events = list(flight.monitor.events)
-                for e in events[seen:]:
-                    if "the operator's word" in e["event"]:
-                        flight.confirm_swap(e["sysid"])
-                seen = len(events)
+        def confirm_when_asked():       # once per sortie waiting, as an operator would
+            answered = set()
+            while not done.is_set():
+                for sysid, route in list(flight._waiting_battery.items()):
+                    if id(route) not in answered:
+                        answered.add(id(route))
+                        flight.confirm_swap(sysid)
                 time.sleep(0.2)
         threading.Thread(target=confirm_when_asked, daemon=True).start()
         report = flight.run()
     finally:
+        done.set()
         fleet.stop()
     later = sum(len(v.sorties) - 1 for v in twelve.plan.vehicles)
     for sysid in (1, 2, 3):     # each later sortie went only after the operator's word
