@@ -616,8 +616,8 @@ class Flight:
 
     def _next_sorties(self) -> None:
         """A vehicle down at its base after a sortie flies its next one at its planned
-        time, once the battery it reports is fresh (`FRESH_BATTERY_PCT`: swapped in
-        the turnaround); one that landed elsewhere flies no more sorties."""
+        time, once its battery is swapped (`_battery_ready`); one that landed
+        elsewhere flies no more sorties."""
         m = self.monitor
         for sysid, parts in self.later.items():
             v = m.vehicles[sysid]
