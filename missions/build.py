@@ -144,17 +144,18 @@ def plan_missions(plan, firmware: Optional[str] = None, options: Optional[Missio
     firmware = firmware or plan.params.get("firmware") or ARDUPILOT
     if options is None:
         options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
-    return [sortie_mission(route, j, firmware, options) for route in plan.vehicles
-            for j in range(len(route.sortie_routes())) if route.waypoints]
+    return [mission for route in plan.vehicles if route.waypoints
+            for mission in sortie_missions(route, firmware, options)]
 
 
-def sortie_mission(route, j, firmware, options) -> VehicleMission:
-    """The mission of sortie ``j`` (0-based) of ``route``: the whole route when it
-    flies one."""
+def sortie_missions(route, firmware, options) -> list:
+    """One mission per sortie of ``route`` (the whole route when it flies one)."""
     parts = route.sortie_routes()
-    mission = vehicle_mission(parts[j], firmware, options)
-    mission.sortie = j + 1 if len(parts) > 1 else 0
-    return mission
+    missions = [vehicle_mission(part, firmware, options) for part in parts]
+    if len(parts) > 1:
+        for j, mission in enumerate(missions, start=1):
+            mission.sortie = j
+    return missions
 
 
 class _Builder:

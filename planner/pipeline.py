@@ -43,7 +43,7 @@ from planner.visibility.unseen import area_summary, unseen_reasons
 
 from . import coverage, split
 from .context import PlanningContext, outposts_json
-from .coverage.insertion import walk
+from .coverage.insertion import walked
 from .coverage.metrics import last_needed_sighting
 from .coverage.problem import achievable
 from .fleet import FleetSchedule, Profile, schedule, stop_time
@@ -448,15 +448,8 @@ def _over_battery(fleet, usable_s, starts) -> np.ndarray:
 def _sortie_of(prep, routes) -> list:
     """Per UAV, the sortie of each visit: the greedy split the methods planned with
     (`coverage.insertion.walk`; all 0 with an unlimited battery)."""
-    out = []
-    for r, route in enumerate(routes):
-        m = len(route)
-        arrive, sortie, flown = np.empty(m), np.zeros(m, np.int64), np.empty(m)
-        if m and np.isfinite(prep.sorties[r, 0]):
-            walk(np.asarray(route, np.int64), prep.travel, prep.frames[r], prep.sorties[r],
-                 prep.has_launch, arrive, sortie, flown)
-        out.append(sortie)
-    return out
+    return [walked(np.asarray(route, np.int64), prep.travel, prep.frames[r], prep.sorties[r],
+                   prep.has_launch)[1] for r, route in enumerate(routes)]
 
 
 def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,

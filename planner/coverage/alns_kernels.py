@@ -14,11 +14,11 @@ import numpy as np
 from numba import njit
 
 from .insertion import (
-    _walked,
     insert_cost,
     limited,
     removal_saving,
     route_time,
+    walked,
 )
 from .problem import FREE
 
@@ -366,7 +366,7 @@ def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
         return improve_order(R, L, r, travel, frames[r, 0], NO_BACK, has_launch, max_passes)
     so = sorties[r]
     route = R[r, :L[r]].copy()
-    _, sortie, _ = _walked(route, travel, frames[r], so, True)
+    _, sortie, _ = walked(route, travel, frames[r], so, True)
     work = 0
     first = 0
     one = np.empty((1, L[r]), np.int64)

@@ -67,7 +67,8 @@ def walk(route, travel, fr, so, has_launch, arrive, sortie, flown) -> int:
 
 
 @njit(cache=True)
-def _walked(route, travel, fr, so, has_launch):
+def walked(route, travel, fr, so, has_launch):
+    """`walk`'s (arrive, sortie, flown) as new arrays."""
     m = len(route)
     arrive, sortie, flown = np.empty(m), np.empty(m, np.int64), np.empty(m)
     walk(route, travel, fr, so, has_launch, arrive, sortie, flown)
@@ -84,7 +85,7 @@ def route_time(route, travel, fr, so, has_launch):
         for i in range(len(route) - 1):
             t += travel[route[i], route[i + 1]]
         return t
-    return _walked(route, travel, fr, so, has_launch)[0][-1]
+    return walked(route, travel, fr, so, has_launch)[0][-1]
 
 
 @njit(cache=True)
@@ -119,7 +120,7 @@ def nearest_other(travel, axis=1):
 def arrival_times(route, travel, fr, so, has_launch):
     """Time of each snapshot along the route."""
     if limited(so):
-        return _walked(route, travel, fr, so, has_launch)[0]
+        return walked(route, travel, fr, so, has_launch)[0]
     out = np.empty(len(route))
     t = 0.0
     for i in range(len(route)):
@@ -170,7 +171,7 @@ def _sortie_insert_cost(route, e, travel, fr, so):
         if so[2] + fr[0, e] + fr[2, e] <= so[0]:
             return fr[0, e], 0
         return so[3] + so[1] + fr[1, e], 0
-    arrive, sortie, flown = _walked(route, travel, fr, so, True)
+    arrive, sortie, flown = walked(route, travel, fr, so, True)
     dur = sortie_durations(route, sortie, flown, fr)
     starts = np.flatnonzero(np.diff(sortie)) + 1
     best, pos = np.inf, -1
@@ -223,7 +224,7 @@ def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos,
     m = len(route)
     lo = fr[0]
     if limited(so) and m > 0:
-        arrive, sortie, flown = _walked(route, travel, fr, so, True)
+        arrive, sortie, flown = walked(route, travel, fr, so, True)
         dur = sortie_durations(route, sortie, flown, fr)
         starts = np.flatnonzero(np.diff(sortie)) + 1
         for e in prange(travel.shape[0]):
