@@ -13,7 +13,9 @@ hidden: the one of lower priority (the plan's: the later placed on the fleet
 clock), unless standing there would still be in the other's way, then the other;
 both only when neither alone clears it. A held vehicle flies on, highest priority
 first, once its route from where it stands keeps clear of every other's
-prediction (with `RESUME_FACTOR` of room) and no other stands that close now.
+prediction (with `RESUME_FACTOR` of room) and no other stands that close now, or,
+where one does (two held in one base column), its route never comes closer to it
+than now (the lower one's descent): a pair that close and parting is no conflict.
 
 Every hold and resume is an event, and `report` gives them with the closest
 approach seen between each pair (from telemetry).
@@ -35,6 +37,8 @@ HORIZON_S = 8.0
 LATENCY_S = 1.0
 #: a held vehicle flies on only when predicted this many separations clear
 RESUME_FACTOR = 1.2
+#: metres a pair standing too close may close in by rounding and still be parting
+PARTING_SLACK_M = 0.5
 EARTH_R = 6371008.8
 
 
@@ -89,7 +93,7 @@ class SeparationGuard:
         horizon = self.horizon()
         ahead = {s: (frame.standing(s, horizon) if s in self.held else self._route(frame, s))
                  for s in frame.here}
-        for a, b, begin in self._conflicts(ahead, horizon, self.separation_m):
+        for a, b, begin in self._conflicts(frame, ahead, horizon, self.separation_m):
             self._separate(frame, ahead, a, b, begin, horizon)
         for sysid in sorted(self.held, key=self._rank):
             if sysid in frame.here and self._may_go(frame, ahead, sysid, horizon):
@@ -117,15 +121,16 @@ class SeparationGuard:
         return profile.timed(0.0, holds)
 
     @staticmethod
-    def _conflicts(ahead, horizon, distance) -> list:
+    def _conflicts(frame, ahead, horizon, distance) -> list:
         """(a, b, when) of every pair predicted closer than ``distance`` within the
-        horizon, soonest first."""
+        horizon, soonest first; a pair already that close is one only while it
+        closes in (one leaving the other is what ends it)."""
         out = []
         ids = sorted(ahead)
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
                 begin, _ = ahead[a].first_conflict(ahead[b], distance)
-                if begin <= horizon:
+                if begin <= horizon and not (begin == 0.0 and _parting(frame, ahead, a, b)):
                     out.append((a, b, begin))
         return sorted(out, key=lambda c: c[2])
 
@@ -150,14 +155,18 @@ class SeparationGuard:
                 self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
 
     def _may_go(self, frame, ahead, sysid, horizon) -> bool:
+        """Whether ``sysid``'s route from here keeps ``RESUME_FACTOR`` separations
+        clear of every other; from closer than that (two held in one base column)
+        only a route that never comes closer than now, the lower one's descent."""
         go = self._route(frame, sysid)
         room = self.separation_m * RESUME_FACTOR
         for other in frame.here:
             if other == sysid:
                 continue
             if np.linalg.norm(frame.position(other) - frame.position(sysid)) < room:
-                return False
-            if go.first_conflict(ahead[other], room)[0] <= horizon:
+                if not _parting(frame, {**ahead, sysid: go}, sysid, other):
+                    return False
+            elif go.first_conflict(ahead[other], room)[0] <= horizon:
                 return False
         return True
 
@@ -211,6 +220,12 @@ class SeparationGuard:
                  for (a, b), (d, t) in sorted(self.closest.items())]
         return {"separation_m": self.separation_m, "actions": self.actions, "pairs": pairs,
                 "closest_m": min((p["closest_m"] for p in pairs), default=None)}
+
+
+def _parting(frame, ahead, a, b) -> bool:
+    """Whether ``a`` and ``b`` never come closer than they stand now."""
+    now = float(np.linalg.norm(frame.position(a) - frame.position(b)))
+    return ahead[a].closest_approach(ahead[b])[0] >= now - PARTING_SLACK_M
 
 
 class _Frame:

@@ -160,7 +160,8 @@ def _start_of(ctx: PlanningContext, survivor: Survivor) -> Start:
     A vehicle held where it strayed from its leg may have no first leg that
     passes the planner's strict checks (track tolerance, ceiling); that one
     short leg is then proven on its own (the vehicle is there already) and the
-    route starts at that leg's node: routes start with a strict leg otherwise."""
+    route starts at that leg's node: routes start with a strict leg otherwise.
+    Last, a vehicle hovering by a node over the edge of a void (`_beside_node`)."""
     graph = ctx.graph
     xyz = np.asarray(survivor.xyz, float)
     launch = np.asarray(survivor.launch, float)
@@ -170,8 +171,9 @@ def _start_of(ctx: PlanningContext, survivor: Survivor) -> Start:
     node = _node_under(graph, xyz)
     if node >= 0 and graph.legs_ok(xyz, graph.node_xyz[node])[0]:
         return Start(xyz, launch, 0.0, held=xyz)
-    for strict in (True, False):
-        target = _nearest_reachable_node(graph, xyz, strict)
+    for strict in (True, False, None):
+        target = _beside_node(ctx, xyz, node) if strict is None else \
+            _nearest_reachable_node(graph, xyz, strict)
         if target is not None:
             d = target - xyz
             return Start(target, launch,
@@ -192,6 +194,25 @@ def _climb_at_launch(ctx, xyz, launch):
         return None
     return Start(top, launch, float(leg_time(0.0, top[2] - xyz[2], ctx.travel_params)),
                  held=xyz)
+
+
+def _beside_node(ctx, xyz, node):
+    """The node a vehicle hovers beside, when no leg to it passes the checks: within
+    the room around it that the node's own check proves hidden and clear (its
+    `slack_m` disc, at its altitude), no lower than it and hidden on the straight
+    way there. A vehicle held at a waypoint on the edge of a void (a nodata margin)
+    drifts a few centimetres over ground the checks call unknown: it is still where
+    the node's proof holds."""
+    graph = ctx.graph
+    if node < 0:
+        return None
+    target = graph.node_xyz[node]
+    if np.hypot(*(xyz[:2] - target[:2])) > graph.params.slack_m or xyz[2] < target[2]:
+        return None
+    if not (graph.legs_ok(target, target)[0]
+            and segments_hidden(ctx.surface, xyz[None], target[None])[0]):
+        return None
+    return target.copy()
 
 
 def _node_under(graph, xyz) -> int:

@@ -12,7 +12,7 @@ import pytest
 
 from gcs.guard import SeparationGuard, closest_ahead
 from gcs.monitor import Monitor
-from planner.plan import VehicleRoute, Waypoint
+from planner.plan import GeoPoint, VehicleRoute, Waypoint
 from planner.travel import TravelParams
 
 LAT0, LON0, ALT = 36.5, -84.2, 500.0
@@ -147,3 +147,44 @@ def test_apart_nobody_is_held():
     _, guard = _guard([one, two], {1: 1, 2: 2})
     assert _run([one, two], guard, 20.0) == pytest.approx(100.0)
     assert guard.actions == []
+
+
+def test_two_held_in_one_base_column_the_lower_lands_first():
+    """Both coming home to one base: 2 held 11 m above it, 3 held 21 m above 2 (as a
+    sped-up flight left them). Neither may stand where it is for ever: the lower
+    one's descent only takes it further from the other, so it lands, then 3."""
+    base = GeoPoint(LON0, LAT0, ALT - 40.0)
+    top = Waypoint(LON0, LAT0, ALT, 0.0)
+    two = Descending(2, ALT - 29.0, base.alt_amsl)
+    three = Descending(3, ALT - 8.0, base.alt_amsl)
+    monitor, guard = _guard([two, three], {2: 1, 3: 2})
+    for v in (two, three):
+        monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0, 0.0, 0.0)
+        monitor.vehicles[v.sysid].done.add(0)          # on the final descent
+        v.held = True
+        guard.held[v.sysid] = (0.0, 5 - v.sysid)
+    least = math.inf
+    for _ in range(240):
+        _run([two, three], guard, 0.25)
+        if two.p[2] > base.alt_amsl:            # both in the air
+            least = min(least, three.p[2] - two.p[2])
+    resumed = [a["sysid"] for a in guard.actions if a["action"] == "resume"]
+    assert resumed[:1] == [2] and 3 in resumed
+    assert two.p[2] == base.alt_amsl and three.p[2] == base.alt_amsl    # both landed
+    assert least >= 21.0 - 0.5                  # never closer than they stood
+
+
+class Descending(Scripted):
+    """A vehicle over the base that, unless held, descends at 2 m/s to the ground."""
+
+    def __init__(self, sysid, alt, ground):
+        self.ground = ground
+        super().__init__(sysid, (0.0, 0.0), (0.0, 0.0))
+        self.p[2], self.v[2] = alt, -2.0
+        self.report()
+
+    def advance(self, dt):
+        super().advance(dt)
+        if self.p[2] <= self.ground:
+            self.p[2], self.v[2] = self.ground, 0.0
+            self.report()

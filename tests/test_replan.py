@@ -220,3 +220,25 @@ def test_nothing_required_goes_straight_home(planned):
     assert not any(w.snapshot for w in new.plan.vehicles[0].waypoints)
     assert np.allclose(poly[0], survivor.xyz) and np.allclose(poly[-1, :2], survivor.launch[:2])
     assert segments_hidden(ctx.surface, poly[:-1], poly[1:]).all()
+
+
+def test_survivor_hovering_at_a_waypoint_on_a_voids_edge_is_joined(planned):
+    """A vehicle held at a waypoint whose cell borders a void (a nodata margin), as a
+    hover leaves it: a millimetre over the void side and a metre up. No leg from there
+    passes the checks (they call ground beside a void unknown), yet it stands where
+    the node's own proof holds: the re-plan starts at that node (the flaky timeout
+    flight of issue 31 stranded such a vehicle)."""
+    ctx, _ = planned
+    g = ctx.graph
+    west_void = np.isnan(g._h_round[g.node_rows, np.maximum(g.node_cols - 1, 0)])
+    edge = [n for n in np.flatnonzero(west_void & (g.node_cols > 0))
+            if g.legs_ok(g.node_xyz[n], g.node_xyz[n])[0]]
+    assert edge, "the terrain has no node beside a void"
+    node = g.node_xyz[edge[0]]
+    here = node + [-1e-3, 0.4, 1.0]
+    assert segments_hidden(ctx.surface, here[None], node[None])[0]
+    assert not g.legs_ok(here, node, strict=False)[0]
+    launch = ctx.terrain.xy(8, 8)
+    start = survivor_start(ctx, Survivor(1, here, np.array([*launch, 0.0])))
+    assert np.array_equal(start.xyz, node) and np.array_equal(start.held, here)
+    assert start.climb_s > 0
