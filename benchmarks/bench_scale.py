@@ -6,8 +6,14 @@ method; the fitted exponent per stage (time ~ cells^p); and the chunked stages
 ``--huge[=N]``: instead, N² (default 4096², 123 km square; 16 UAVs, planned in
 parts: ``--parts=P`` to choose how many) on a LocalCluster of 2 and then 1
 worker, every stage, and the ratio.
+``--terrains[=N]``: instead, N² (default 1024²) on the benchmark's own terrain
+and on held-out ones of other kinds and seeds (`TERRAINS`: hills, ridges, peaks;
+outposts on summits or in valleys, eyes 4-8 m, ranges 3-8 km), each stage per
+terrain, the worst terrain's total as the headline beside the own one's
+(issue 36: the travel-time stage's cost must not depend on the terrain's luck).
 
-    .venv/bin/python -m benchmarks scale [--quick | --huge[=N] [--parts=P] [--workers=W]]
+    .venv/bin/python -m benchmarks scale [--quick | --huge[=N] [--parts=P] [--workers=W]
+                                          | --terrains[=N]]
 
 Each size runs in its own process, so its peak resident memory is its own. The
 goals (issue 22): 1024² with 8 UAVs under 60 s and 4 GiB on 2 cores, both
@@ -26,11 +32,15 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 UAVS = {256: 4, 512: 6, 1024: 8, 2048: 12, 3072: 16, 4096: 16}
+#: name -> (family, seed, where the outposts stand); "own" is `_inputs`' default
+TERRAINS = {"own": ("mixed", 11, "anywhere"), "hills": ("hills", 5, "summits"),
+            "hills-valleys": ("hills", 23, "valleys"), "ridges": ("ridges", 7, "summits"),
+            "peaks": ("peaks", 13, "valleys")}
 STAGES = ("terrain", "exposure", "travel graph", "viewpoints", "visibility", "travel times",
           "allocation", "routes")
 
 
-def _one(n: int, scheduler: str, parts=None) -> dict:
+def _one(n: int, scheduler: str, parts=None, terrain="own") -> dict:
     """Plan an n x n terrain in this process; per-stage wall/CPU seconds, peak RSS."""
     import resource
     import time
@@ -41,7 +51,7 @@ def _one(n: int, scheduler: str, parts=None) -> dict:
     from planner.scenario import Scenario
 
     folder = Path(tempfile.mkdtemp(prefix="bench-scale-"))
-    dem, posts, launch = _inputs(n, folder)
+    dem, posts, launch = _inputs(n, folder, *TERRAINS[terrain])
     scenario = Scenario(dem=[str(dem)], outposts=str(posts), uavs=UAVS[n], k=1,
                         launch=[launch], parts=parts).validate()
     marks = {}
@@ -61,7 +71,8 @@ def _one(n: int, scheduler: str, parts=None) -> dict:
         cpu = stages["travel times"][1]
         stages["travel times"] = [outcome.plan.timing_s["travel times"], np.nan]
         stages["allocation"] = [outcome.plan.timing_s["allocation"], cpu]
-    return {"n": n, "stages": stages, "viewpoints": len(ctx.viewpoints),
+    return {"n": n, "terrain": terrain, "stages": stages, "viewpoints": len(ctx.viewpoints),
+            "hidden_pct": 100.0 * float((ctx.surface.regions > 0).mean()),
             "targets": int(ctx.visibility.n_targets),
             "coverage_min": outcome.plan.metrics["coverage_time_s"] / 60,
             "parts": outcome.plan.metrics.get("parts", 1),
@@ -82,14 +93,17 @@ def _worker_peaks(address) -> list:
     return [v / 2**20 for v in peaks.values()]
 
 
-def _inputs(n, folder):
-    """A seeded synthetic DEM in its UTM zone, 5 outposts and a hidden launch point."""
+def _inputs(n, folder, family="mixed", seed=11, where="anywhere"):
+    """A seeded synthetic DEM in its UTM zone, 5 outposts and a hidden launch point.
+    ``where``: "anywhere" (the benchmark's own: eyes 10 m, unlimited range), or
+    "summits" / "valleys" (held-out: the highest / lowest cell of each of 5 random
+    windows, eyes 4-8 m, ranges 3-8 km, as operators place them)."""
     import rasterio
 
     from planner.exposure import compute_exposure, load_outposts
     from planner.terrain import synthetic_terrain
 
-    t = synthetic_terrain(n, n, cell=30.0, seed=11, family="mixed")
+    t = synthetic_terrain(n, n, cell=30.0, seed=seed, family=family)
     dem = folder / "dem.tif"
     with rasterio.open(dem, "w", driver="GTiff", width=n, height=n, count=1, dtype="float32",
                        crs=t.crs, transform=t.transform) as ds:
@@ -97,8 +111,16 @@ def _inputs(n, folder):
     rng = np.random.default_rng(2)
     features = []
     for k in range(5):
-        lon, lat = t.to_lonlat(*t.xy(*rng.integers(n // 8, 7 * n // 8, 2)))
-        features.append({"type": "Feature", "properties": {"name": f"P{k + 1}", "height_m": 10},
+        cell, props = rng.integers(n // 8, 7 * n // 8, 2), {"height_m": 10}
+        if where != "anywhere":
+            w = n // 16
+            box = t.height[cell[0] - w:cell[0] + w, cell[1] - w:cell[1] + w]
+            pick = np.nanargmax(box) if where == "summits" else np.nanargmin(box)
+            cell = cell - w + np.array(np.unravel_index(pick, box.shape))
+            props = {"height_m": float(rng.uniform(4, 8)),
+                     "range_m": float(rng.uniform(3000, 8000))}
+        lon, lat = t.to_lonlat(*t.xy(*cell))
+        features.append({"type": "Feature", "properties": {"name": f"P{k + 1}", **props},
                          "geometry": {"type": "Point", "coordinates": [float(lon), float(lat)]}})
     posts = folder / "posts.geojson"
     posts.write_text(json.dumps({"type": "FeatureCollection", "features": features}))
@@ -109,8 +131,8 @@ def _inputs(n, folder):
     return dem, posts, (float(lat), float(lon))
 
 
-def _run(n, scheduler="none", parts=None) -> dict:
-    more = ["--parts", str(parts)] if parts else []
+def _run(n, scheduler="none", parts=None, terrain="own") -> dict:
+    more = (["--parts", str(parts)] if parts else []) + ["--terrain", terrain]
     out = subprocess.run([sys.executable, __file__, "--one", str(n), "--scheduler", scheduler]
                          + more, stdout=subprocess.PIPE, text=True, cwd=ROOT)  # stderr shown
     if out.returncode:
@@ -123,6 +145,10 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="up to 1024² only")
     ap.add_argument("--huge", type=int, nargs="?", const=4096, metavar="N",
                     help="N² (default 4096²) on a LocalCluster of 2, then 1 worker")
+    ap.add_argument("--terrains", type=int, nargs="?", const=1024, metavar="N",
+                    help="N² (default 1024²) on the own and the held-out terrains")
+    ap.add_argument("--terrain", default="own", choices=sorted(TERRAINS),
+                    help="with --one: which terrain")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--scheduler", default="none", help=argparse.SUPPRESS)
     ap.add_argument("--parts", type=int, help="with --huge: plan in this many parts "
@@ -132,7 +158,10 @@ def main(argv=None):
                          "an hour per cluster)")
     args, _ = ap.parse_known_args(argv)
     if args.one:
-        print(json.dumps(_one(args.one, args.scheduler, args.parts)))
+        print(json.dumps(_one(args.one, args.scheduler, args.parts, args.terrain)))
+        return
+    if args.terrains:
+        _terrains(args.terrains)
         return
     if args.huge:
         _huge(args.huge, args.parts, (args.workers,) if args.workers else (2, 1))
@@ -160,6 +189,27 @@ def main(argv=None):
         r = _cluster_run(1024, workers)
         print(f"  {workers} worker(s): travel graph {r['stages']['travel graph'][0]:.1f} s, "
               f"travel times {r['stages']['travel times'][0]:.1f} s")
+
+
+def _terrains(n):
+    """Every stage of an n² plan on each of `TERRAINS`, and the worst total."""
+    runs = {}
+    for name in TERRAINS:
+        runs[name] = _run(n, terrain=name)
+        print(f"{name}: {json.dumps(runs[name])}", flush=True)
+    head = f"{'stage':<14}" + "".join(f"{name:>15}" for name in runs)
+    print(f"\n{n}², {UAVS[n]} UAVs, k = 1; wall s per stage\n{head}\n" + "-" * len(head))
+    for stage in STAGES:
+        print(f"{stage:<14}" + "".join(f"{r['stages'].get(stage, [np.nan])[0]:15.1f}"
+                                       for r in runs.values()))
+    total = {name: sum(w for w, _ in r["stages"].values()) for name, r in runs.items()}
+    print(f"{'total':<14}" + "".join(f"{t:15.1f}" for t in total.values()))
+    for row in ("viewpoints", "hidden_pct", "peak_gib"):
+        print(f"{row:<14}" + "".join(f"{r[row]:15.1f}" for r in runs.values()))
+    worst = max(total, key=total.get)
+    print(f"\nworst terrain: {worst}, {total[worst]:.1f} s = {total[worst] / total['own']:.2f}"
+          f" x the own terrain's {total['own']:.1f} s (goal: under "
+          f"{60 if n <= 1024 else 300} s)")
 
 
 def _huge(n, parts=None, clusters=(2, 1)):

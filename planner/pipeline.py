@@ -468,12 +468,10 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
         # one sparse overlay of the whole area: the parts' times go through any viewpoint
         overlay = ctx.viewpoint_overlay(client, _fraction(progress, "travel times"))
         overlay_s = time.perf_counter() - start
-        # on a cluster a part's times are made in its task, unless the overlay misses
-        # a pair there (filled from the graph, which only this process holds)
+        # on a cluster a part's times are made in its task, from the overlay alone
         joined = split.solve_parts(problem, pieces, method, params, lambda ids, on: (
-            None if client is not None and ctx.graph.overlay_exact(overlay, ids)
-            else ctx.graph.overlay_times(overlay, ids, on)), s.speed_mps, client, progress,
-            overlay)
+            None if client is not None else ctx.graph.overlay_times(overlay, ids, on)),
+            s.speed_mps, client, progress, overlay)
     timing["travel times"] = overlay_s + joined.travel_s
     timing["allocation"] = time.perf_counter() - start - timing["travel times"]
     for stage in ("travel times", "allocation"):

@@ -14,8 +14,8 @@ for the 54,908 of a 4096² one. Past `PART_VIEWPOINTS` viewpoints (or with
 - each part is a coverage problem of its own: its viewpoints, the targets they
   see and their travel times (shortest paths over one sparse overlay of the
   whole area, `planner.travel.overlay_rows`: a part's two viewpoints are often
-  joined only through another part; made in the part's own task, or here with
-  `TravelGraph.overlay_times` where the overlay misses a pair the graph has);
+  joined only through another part; made in the part's own task on a cluster,
+  else here: the overlay is bridged, so no part needs the graph for them);
   its own targets need k + 1 distinct UAVs of its group, the others nothing.
   The parts are solved by the scenario's method, as dask tasks on the plan's
   cluster or here one after another;

@@ -65,6 +65,13 @@ EDGE_CHUNK = 100_000
 #: nodes on every HINT_LATTICE-th row and column are checked first; their horizons
 #: then hint the proofs of the nodes around them (`TravelGraph._check_nodes`)
 HINT_LATTICE = 3
+#: rounds of doubling the hubs' time limit (`TravelGraph._bridged`) before the last,
+#: unlimited one: from twice the radius to 128 times it
+BRIDGE_ROUNDS = 6
+#: hubs per overlay part, each chosen among its nearest points (`_hubs`): more
+#: hubs, shorter detours through them
+HUBS_PER_PART = 3
+HUB_NEIGHBOURS = 16
 
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
@@ -513,10 +520,12 @@ class TravelGraph:
             return np.zeros((n, n))
         csr = self._local_search(nodes, radius_factor)
         local = np.vstack(run_chunks(_bounded_rows, _split(nodes, -(-n // 8)), (csr,), client,
-                                     _part(progress, 0.0, 0.7)))
+                                     _part(progress, 0.0, 0.6)))
         indptr, nbr, w = K.dense_to_csr(local, K.undominated_edges(local))
         del local
-        return self._fill_missed(_all_pairs(indptr, nbr, w, _part(progress, 0.7, 0.9)), nodes)
+        indptr, nbr, w = self._bridged(nodes, (indptr, nbr, w), csr[5],
+                                       _part(progress, 0.6, 0.7))
+        return _all_pairs(indptr, nbr, w, _part(progress, 0.7, 1.0))
 
     def _local_search(self, nodes, radius_factor) -> tuple:
         """What a bounded Dijkstra from each of ``nodes`` takes (`_bounded_rows`): the
@@ -538,47 +547,51 @@ class TravelGraph:
         nodes = self.nodes_of(xyz)
         csr = self._local_search(nodes, radius_factor)
         size = max(1, int(3e7 // max(len(nodes), 1)))  # a dense chunk of rows stays small
-        rows = run_chunks(_bounded_sparse, _split(nodes, size), (csr,), client, progress)
+        rows = run_chunks(_bounded_sparse, _split(nodes, size), (csr,), client,
+                          _part(progress, 0.0, 0.9))
         counts = np.concatenate([r[0] for r in rows] + [np.zeros(0, np.int64)])
         indptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
         nbr = np.concatenate([r[1] for r in rows] + [np.zeros(0, np.int64)])
         w = np.concatenate([r[2] for r in rows] + [np.zeros(0)])
-        return nodes, indptr, nbr, w
+        return (nodes, *self._bridged(nodes, (indptr, nbr, w), csr[5],
+                                      _part(progress, 0.9, 1.0)))
 
     def overlay_times(self, overlay, ids, progress=None) -> np.ndarray:
         """[len(ids), len(ids)] times between those points of `overlay`: shortest
         paths over the whole overlay (through any of its points, as in
-        ``time_matrix``), exact where the graph has a path the overlay misses."""
-        ids = np.asarray(ids, np.int64)
-        return self._fill_missed(overlay_rows(overlay, ids, progress), overlay[0][ids])
+        ``time_matrix``); the overlay is bridged, so this needs no graph."""
+        return overlay_rows(overlay, np.asarray(ids, np.int64), progress)
 
-    def overlay_exact(self, overlay, ids) -> bool:
-        """Whether `overlay_rows` of these points of `overlay` is already what
-        `overlay_times` makes: every two of them that the graph joins lie in one
-        strongly connected part of the overlay, so the overlay joins them too and
-        nothing is left to fill from the graph. Then the rows can be made where
-        the graph is not (a dask worker)."""
-        nodes, indptr, nbr, w = overlay
-        ids = np.asarray(ids, np.int64)
-        mine = connected_components(csr_matrix((w, nbr, indptr), shape=(len(nodes),) * 2),
-                                    directed=True, connection="strong")[1][ids]
-        theirs = self._strong_parts()[nodes[ids]]
-        return len(np.unique(np.stack([theirs, mine]), axis=1)[0]) == len(np.unique(theirs))
-
-    def _fill_missed(self, times, nodes):
-        """Exact times where the overlay found no path but the graph has one: a point
-        whose only ways in (or out) are longer than the radius is joined to no other.
-        Whole columns (reverse Dijkstra) first, then whole rows."""
+    def _bridged(self, nodes, overlay, radius_s, progress=None) -> tuple:
+        """The overlay (indptr, nbr, w over point ids) with edges added until it
+        joins every two points that one strongly connected part of the graph
+        holds. A bounded search misses the pairs whose every way leaves its
+        radius (a pocket of viewpoints behind a long hidden corridor): per
+        overlay part that shares its graph part with another, a few hubs (its
+        points nearest another's) get exact edges to and from every point within a time
+        limit that doubles each round, until no such part is left. The work
+        follows what is missing, not the number of points (a whole-graph search
+        per point was the cost of a disconnected overlay). Every edge is the
+        exact time of a real hidden path: the overlay's times stay upper bounds,
+        exact within the radius."""
         part = self._strong_parts()[nodes]
-        missed = ~np.isfinite(times) & (part[:, None] == part[None, :])
-        cols = np.flatnonzero(missed.sum(axis=0) > 1)
-        if cols.size:
-            times[:, cols] = self._rows(self._reverse(), nodes[cols], nodes).T
-            missed[:, cols] = False
-        rows = np.flatnonzero(missed.any(axis=1))
-        if rows.size:
-            times[rows] = self._rows(self.csr, nodes[rows], nodes)
-        return times
+        xy = self.node_xyz[nodes, :2]
+        slot = np.full(self.n_nodes, -1, np.int64)
+        slot[nodes] = np.arange(len(nodes))
+        reverse, limit = None, 2.0 * radius_s
+        for round_ in range(BRIDGE_ROUNDS + 1):
+            hubs = _hubs(xy, part, overlay)
+            if progress is not None:
+                progress(round_ / (BRIDGE_ROUNDS + 1))
+            if not hubs.size:
+                break
+            reverse = self._reverse() if reverse is None else reverse
+            limit = np.inf if round_ == BRIDGE_ROUNDS else limit * 2.0
+            out = _hub_times(self.csr, nodes[hubs], slot, limit)
+            back = _hub_times(reverse, nodes[hubs], slot, limit)
+            overlay = _with_edges(overlay, [(hubs[out[0]], out[1], out[2]),
+                                            (back[1], hubs[back[0]], back[2])])
+        return overlay
 
     # --- paths ------------------------------------------------------------------------
     def node_path(self, a_node, b_node) -> np.ndarray:
@@ -807,6 +820,63 @@ def _checked_edges(graph, node_horizons, pairs):
         ok[idx[fine]] = True
         dipped[idx[fine]] = True
     return ok, dipped
+
+
+def _hubs(xy, part, overlay) -> np.ndarray:
+    """`HUBS_PER_PART` points per strongly connected part of the overlay that shares
+    its part of the graph with another: those nearest (horizontally, among their
+    `HUB_NEIGHBOURS` nearest points) a point of another overlay part there, the
+    likeliest ways out of a pocket. Empty when the overlay joins what the graph does."""
+    indptr, nbr, w = overlay
+    n = len(part)
+    label = connected_components(csr_matrix((w, nbr, indptr), shape=(n, n)), directed=True,
+                                 connection="strong")[1]
+    shared, count = np.unique(np.unique(np.stack([part, label]), axis=1)[0],
+                              return_counts=True)
+    ids = np.flatnonzero(np.isin(part, shared[count > 1]))
+    if not ids.size:
+        return ids
+    dist, near = cKDTree(xy[ids]).query(xy[ids], k=min(HUB_NEIGHBOURS, len(ids)))
+    near = ids[near]
+    other = (label[near] != label[ids, None]) & (part[near] == part[ids, None])
+    dist = np.where(other, dist, np.inf).min(axis=1)
+    order = np.lexsort((dist, label[ids]))
+    group = label[ids][order]
+    start = np.r_[0, np.flatnonzero(np.diff(group)) + 1]
+    rank = np.arange(len(group)) - np.repeat(start, np.diff(np.r_[start, len(group)]))
+    return ids[order][rank < HUBS_PER_PART]
+
+
+def _hub_times(csr, sources, slot, limit) -> tuple:
+    """(source index, point id, time) of every point a bounded search from each
+    source reaches within ``limit`` (rows of a few sources at a time, so that
+    the dense rows stay small)."""
+    n = int(slot.max()) + 1
+    found = []
+    for chunk in _split(np.arange(len(sources)), max(1, int(2e7 // max(n, 1)))):
+        t = K.bounded_times(csr.indptr, csr.indices, csr.data, sources[chunk], slot, n,
+                            limit, _n_threads())
+        r, c = np.nonzero(np.isfinite(t))
+        found.append((chunk[r], c, t[r, c]))
+    return tuple(np.concatenate([f[i] for f in found]) for i in range(3))
+
+
+def _with_edges(overlay, added) -> tuple:
+    """The overlay with the ``added`` (src, dst, time) edges, the shorter kept where
+    two join the same pair, none from a point to itself."""
+    indptr, nbr, w = overlay
+    n = len(indptr) - 1
+    src = np.concatenate([np.repeat(np.arange(n), np.diff(indptr))] + [a[0] for a in added])
+    dst = np.concatenate([nbr] + [a[1] for a in added]).astype(np.int64)
+    w = np.concatenate([w] + [a[2] for a in added])
+    keep = src != dst
+    src, dst, w = src[keep], dst[keep], w[keep]
+    order = np.lexsort((w, dst, src))
+    src, dst, w = src[order], dst[order], w[order]
+    first = np.ones(len(src), bool)
+    first[1:] = (np.diff(src) != 0) | (np.diff(dst) != 0)
+    counts = np.bincount(src[first], minlength=n)
+    return np.r_[0, np.cumsum(counts)].astype(np.int64), dst[first], w[first]
 
 
 def overlay_rows(overlay, ids, progress=None) -> np.ndarray:
