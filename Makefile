@@ -3,9 +3,10 @@ PY      ?= python3
 VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
+DOCS_STAMP := $(VENV)/.installed-docs
 OUT     ?= demo-out
 
-.PHONY: install browser test test-under-load demo bench clean
+.PHONY: install browser test test-under-load demo bench docs figures clean
 
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
@@ -37,6 +38,19 @@ demo: $(STAMP)
 bench: $(STAMP)
 	bash benchmarks/setup_gdal.sh
 	$(BIN)/python -m benchmarks
+
+# the documentation site (MkDocs, mkdocs.yml) into site/; --strict: a warning, such as a
+# broken link or API reference, is an error
+$(DOCS_STAMP): pyproject.toml $(STAMP)
+	$(BIN)/python -m pip install --quiet -e '.[docs]'
+	touch $(DOCS_STAMP)
+
+docs: $(DOCS_STAMP)
+	NO_MKDOCS_2_WARNING=1 $(BIN)/mkdocs build --strict
+
+# the pictures README.md and docs/ show, drawn again by the code (docs/figures.py)
+figures: $(STAMP)
+	$(BIN)/python docs/figures.py
 
 clean:
 	rm -rf $(VENV) $(OUT) .pytest_cache

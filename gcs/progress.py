@@ -21,6 +21,8 @@ STAGE_TEXT = {
     "visibility": "visibility sets",
     "travel graph": "hidden travel graph",
     "travel times": "hidden travel times between viewpoints",
+    "candidate bases": "candidate bases: quick bounds",
+    "launch checks": "candidate bases: proving their takeoffs",
     "allocation": "allocating viewpoints",
     "routes": "hidden routes",
     "write": "writing files",

@@ -1,0 +1,197 @@
+"""`gcs bases`: where to put the base. Ranks ground launch points that `gcs plan
+--launch` accepts by the reach bound of a fleet leaving from them
+(`planner.bases`), and writes them as GeoJSON, KML and a map."""
+
+import json
+import xml.etree.ElementTree as ET
+from dataclasses import replace
+from pathlib import Path
+
+from common.errors import InputError
+from common.fileio import check_output_dir, write_text_atomic
+from gcs.cli.options import add_scenario_arguments, scenario_from_args
+
+HELP = "suggest bases: rank hidden ground launch points by how fast a fleet covers the area"
+
+FILES = ("bases.geojson", "bases.kml", "bases.png")
+
+
+def add_arguments(parser) -> None:
+    add_scenario_arguments(parser)
+    parser.add_argument("-o", "--output", required=True, metavar="DIR",
+                        help="output directory (created; files in it are replaced atomically)")
+    parser.add_argument("--count", type=int, default=10, metavar="N",
+                        help="how many bases to report")
+    parser.add_argument("--base-separation", dest="base_separation", type=float, default=None,
+                        metavar="M",
+                        help="least distance between two reported bases, metres "
+                             "(default: 500)")
+    parser.add_argument("--base-spacing", dest="base_spacing", type=float, default=None,
+                        metavar="M",
+                        help="grid spacing of the ground points tried, metres (default: "
+                             "automatic, at most 200 points over the hidden area)")
+
+
+def run(args) -> int:
+    if getattr(args, "launch", None):
+        raise InputError("--launch", "gcs bases suggests the launch point: leave --launch out")
+    # a scenario is checked as a plan's, and a plan's endurance needs a launch point:
+    # one stands in for the bases tried (a scenario file's launch is ignored here)
+    args.launch = ["0,0"]
+    scenario = replace(scenario_from_args(args), launch=[])   # option errors first
+    if args.count < 1:
+        raise InputError("--count", f"must be at least 1, got {args.count}")
+    if args.base_separation is not None and not args.base_separation >= 0:
+        raise InputError("--base-separation",
+                         f"must not be negative, got {args.base_separation}")
+    if args.base_spacing is not None and not args.base_spacing > 0:
+        raise InputError("--base-spacing", f"must be positive, got {args.base_spacing}")
+    check_output_dir(args.output)
+    from gcs.progress import console, stage_progress
+    from planner.bases import SEPARATION_M, suggest_bases
+    from planner.pipeline import prepare
+
+    separation = SEPARATION_M if args.base_separation is None else args.base_separation
+
+    with stage_progress() as progress:
+        ctx = prepare(scenario, progress, log=lambda text: console.print(text, markup=False))
+        bases = suggest_bases(ctx, args.count, separation, args.base_spacing, progress)
+        progress("write", 0.0)
+        written = write_bases(args.output, ctx, bases)
+        progress("write", 1.0)
+    print(bases_table(bases, scenario.uavs))
+    for path, what in written:
+        console.print(f"  {path}  [dim]{what}[/dim]")
+    return 0
+
+
+def bases_table(bases, uavs) -> str:
+    """The terminal table, and the ``--launch`` of the best base."""
+    lines = [f"{len(bases)} bases for {uavs} UAVs, best first (bound: no plan from there "
+             "covers the targets sooner)",
+             f"{'rank':>4}  {'lat,lon':<22} {'ground m':>8} {'takeoff m':>9} {'bound min':>9}"]
+    for b in bases:
+        lines.append(f"{b.rank:>4}  {b.launch_arg:<22} {b.ground_m:>8.0f} {b.takeoff_m:>9.0f} "
+                     f"{b.bound_s / 60:>9.1f}")
+    lines.append(f"best: --launch {bases[0].launch_arg}")
+    return "\n".join(lines)
+
+
+def write_bases(directory, ctx, bases) -> list:
+    """bases.geojson, bases.kml and bases.png in ``directory``; [(path, what)]."""
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(out / "bases.geojson", json.dumps(bases_geojson(bases), indent=1) + "\n")
+    write_text_atomic(out / "bases.kml", bases_kml(bases))
+    bases_png(out / "bases.png", ctx, bases)
+    return [(out / "bases.geojson", "ranked bases (GeoJSON points)"),
+            (out / "bases.kml", "ranked bases (Google Earth)"),
+            (out / "bases.png", "map: hidden area, outposts, bases by rank")]
+
+
+def _properties(b) -> dict:
+    return {"rank": b.rank, "lat": round(b.lat, 7), "lon": round(b.lon, 7),
+            "ground_amsl_m": round(b.ground_m, 1), "takeoff_amsl_m": round(b.takeoff_m, 1),
+            "bound_min": round(b.bound_s / 60, 2), "launch": b.launch_arg,
+            "marker-color": "#ffffff", "marker-symbol": str(b.rank) if b.rank < 10 else "square"}
+
+
+def bases_geojson(bases) -> dict:
+    return {"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": _properties(b),
+         "geometry": {"type": "Point", "coordinates": [round(b.lon, 7), round(b.lat, 7),
+                                                       round(b.ground_m, 1)]}}
+        for b in bases]}
+
+
+def bases_kml(bases) -> str:
+    from missions.geo import KML_NS
+
+    ET.register_namespace("", KML_NS)
+
+    def sub(parent, tag, text=None):
+        element = ET.SubElement(parent, f"{{{KML_NS}}}{tag}")
+        if text is not None:
+            element.text = text
+        return element
+
+    kml = ET.Element(f"{{{KML_NS}}}kml")
+    doc = sub(kml, "Document")
+    sub(doc, "name", "suggested bases (gcs bases)")
+    for b in bases:
+        mark = sub(doc, "Placemark")
+        sub(mark, "name", f"base {b.rank}")
+        sub(mark, "description", f"coverage bound {b.bound_s / 60:.1f} min; ground "
+                                 f"{b.ground_m:.0f} m, takeoff to {b.takeoff_m:.0f} m AMSL; "
+                                 f"gcs plan --launch {b.launch_arg}")
+        point = sub(mark, "Point")
+        sub(point, "altitudeMode", "clampToGround")
+        sub(point, "coordinates", f"{b.lon:.7f},{b.lat:.7f},0")
+    ET.indent(kml)
+    return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(kml, encoding="unicode") + "\n"
+
+
+# --- the map ---------------------------------------------------------------------------
+def bases_png(path, ctx, bases) -> None:
+    """bases.png: the overview map's background (hidden room, outposts and their
+    ranges), the area of operations, and the bases numbered by rank."""
+    from gcs.plots import _save
+    _save(bases_figure(ctx, bases), path)
+
+
+def bases_figure(ctx, bases):
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
+    from common.colours import BASE_COLOUR
+    from gcs.plots import _lonlat_km, draw_background, symbol_legend
+
+    terrain = ctx.terrain
+    fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)
+    im = draw_background(ax, terrain, ctx.surface)
+    _draw_area(ax, terrain, ctx.scenario)
+    x, y = _lonlat_km(terrain, [b.lon for b in bases], [b.lat for b in bases])
+    for b, bx, by in zip(reversed(bases), x[::-1], y[::-1]):   # the best drawn on top
+        best = b.rank == 1
+        ax.plot(bx, by, marker="s", color="#ffd700" if best else BASE_COLOUR,
+                markeredgecolor="black", markersize=16 if best else 13, zorder=12)
+        ax.text(bx, by, str(b.rank), ha="center", va="center", fontsize=8 if b.rank < 10 else 6,
+                fontweight="bold", zorder=13)
+    s = ctx.scenario
+    ax.set_title(f"Suggested bases for {s.uavs} UAVs (k = {s.k}), numbered best first: "
+                 f"best {bases[0].bound_s / 60:.1f} min\n(coverage time bound from the "
+                 f"base; --launch {bases[0].launch_arg})")
+    fig.colorbar(im, ax=ax, shrink=0.7, label="hidden ceiling above ground (m): "
+                                              "room to fly unseen")
+    handles, _ = ax.get_legend_handles_labels()
+    handles += [Line2D([], [], linestyle="none", marker="s", color="#ffd700",
+                       markeredgecolor="black", markersize=11,
+                       label=f"best base (1): bound {bases[0].bound_s / 60:.1f} min"),
+                Line2D([], [], linestyle="none", marker="s", color=BASE_COLOUR,
+                       markeredgecolor="black", markersize=10,
+                       label="other bases, numbered by rank (lower = faster coverage)")]
+    ax.legend(handles=handles + symbol_legend(ctx.surface, snapshots=False, base=False),
+              loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8,
+              framealpha=0.9)
+    return fig
+
+
+def _draw_area(ax, terrain, scenario) -> None:
+    """The --area box and the --area-file polygon, dashed, labelled for the legend."""
+    import numpy as np
+
+    from gcs.plots import _lonlat_km
+
+    rings = []
+    if scenario.area is not None:
+        s, w, n, e = scenario.area
+        rings.append(np.array([[w, s], [e, s], [e, n], [w, n], [w, s]], float))
+    if scenario.area_file:
+        from planner.terrain.area import read_area
+        rings += [ring for polygon in read_area(scenario.area_file) for ring in polygon]
+    label = "area of operations"
+    for ring in rings:
+        x, y = _lonlat_km(terrain, ring[:, 0], ring[:, 1])
+        ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
+                label=label)
+        label = None
