@@ -12,6 +12,8 @@ VEHICLE_COLOURS = ("#1f77b4", "#ff7f0e", "#9467bd", "#17becf", "#e377c2", "#8c56
                    "#637939", "#aec7e8", "#ffbb78", "#c5b0d5")
 OUTPOST_COLOUR = "#d62728"
 BASE_COLOUR = "#ffffff"
+#: viewpoints beyond one battery (crossed out on the overview): dark, not a vehicle's
+BEYOND_COLOUR = "#4d4d4d"
 
 
 def vehicle_colour(vehicle_id: int) -> str:

@@ -161,7 +161,8 @@ class Flight:
         self.options = options
         self.output = Path(options.output)
         self.log = log or (lambda text: None)
-        self.monitor = Monitor(options.lost_after_s, on_event=self._on_event)
+        self.monitor = Monitor(options.lost_after_s, on_event=self._on_event,
+                               track_tolerance_m=self.plan.params.get("track_tolerance_m"))
         self.clock = FleetClock(self.monitor)
         self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
         self._departing = {}      # sysid -> (thread, error, cancel) of departures under way
@@ -374,7 +375,8 @@ class Flight:
                               if v.state in (FLYING, HOLDING) and v.airborne],
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
             resume=lambda s: self._set_mode(s, "mission_mode", FLYING),
-            travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params))
+            travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
+            on_pad=m.on_pad)
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self._all(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
@@ -799,6 +801,11 @@ class Flight:
             problems.append(f"vehicle(s) {', '.join(map(str, held))} held by the separation "
                             "guard: flown off the proven schedule")
         for sysid, v in sorted(m.vehicles.items()):
+            if v.off_route:
+                worst = max(e[2] for e in v.off_route)
+                problems.append(f"vehicle {sysid} flew off its proven route ({len(v.off_route)} "
+                                f"time(s), up to {worst:.0f} m from its legs): what it flew "
+                                "there was not proven hidden")
             if v.uncommanded:
                 modes = ", ".join(f"{mode} at {t:.1f} s" for t, mode in v.uncommanded)
                 problems.append(f"vehicle {sysid} flew in modes gcs did not command ({modes}): "
@@ -820,6 +827,7 @@ class Flight:
             "lost_reason": v.lost_reason, "landed_at_s": v.landed_at_s,
             "snapshots": [asdict(s) for s in v.snapshots],
             "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],
+            "off_route": [list(e) for e in v.off_route],
         }
 
     def coverage(self) -> dict:

@@ -56,15 +56,17 @@ class SeparationGuard:
     ``airborne()``: the system ids flying now; ``priority[sysid]``: 1 has right of
     way; ``clock``: the flight's `gcs.clock.FleetClock`; ``hold(sysid)`` /
     ``resume(sysid)``: what holding means for the flight (mode and state);
-    ``travel``: the plan's speeds (`TravelParams`) and ``stop_s`` per waypoint."""
+    ``travel``: the plan's speeds (`TravelParams`) and ``stop_s`` per waypoint;
+    ``on_pad(sysid)``: touched down at its base, not yet told landed."""
 
     def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
-                 travel=TravelParams(), stop_s=0.0):
+                 travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.airborne = clock, airborne
         self._hold, self._resume = hold, resume
         self.travel, self.stop_s = travel, float(stop_s)
+        self.on_pad = on_pad
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
@@ -171,8 +173,11 @@ class SeparationGuard:
         return True
 
     def _note_closest(self, frame) -> None:
+        """The closest approach of each pair in the air: not counting one touched
+        down on its base pad (a shared base is one point of the plan; the next
+        vehicle's descent to it is the plan's, proven on its schedule)."""
         now = self.monitor.now()
-        ids = sorted(frame.here)
+        ids = sorted(s for s in frame.here if not self.on_pad(s))
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
                 d = float(np.linalg.norm(frame.position(a) - frame.position(b)))

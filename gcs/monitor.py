@@ -16,6 +16,10 @@ Loss detection (`check_losses`, called by the flight loop on the wall clock):
 a vehicle is lost when no HEARTBEAT has arrived for ``lost_after_s`` seconds,
 or when it disarms in the air. A link that comes back earlier is not a loss.
 
+A vehicle in the air further from its route's proven legs than the plan's track
+tolerance (`gcs.corridor`) flies where nothing was proven: an event when it
+leaves them and when it is back, and an episode in ``off_route``.
+
 Touching the ground is a landing only at the launch point after the mission's
 last waypoint (the one above launch, before the landing). Anywhere else, or
 earlier, it is a crash: the vehicle is lost with its snapshots. So is a vehicle
@@ -29,6 +33,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from gcs.corridor import POSITION_MARGIN_M, ProvenPath
 from gcs.link import has_position
 from gcs.mavlink import M
 from missions.items import NAV_LAND
@@ -105,6 +110,8 @@ class VehicleProgress:
     relaunched: int = 0  # times sent up again after landing
     segments: int = 0  # segments sent in flight (a route longer than the vehicle holds)
     uncommanded: list = field(default_factory=list)  # [(t_s, mode)] flown in, not commanded
+    proven: object = None  # gcs.corridor.ProvenPath of the route flown now
+    off_route: list = field(default_factory=list)  # [[from t_s, to t_s or None, max m]]
 
     @property
     def snapshot_total(self) -> int:
@@ -175,11 +182,14 @@ class StallClock:
 class Monitor:
     """Telemetry of every vehicle of a flight, on one clock (seconds since `t0`)."""
 
-    def __init__(self, lost_after_s: float = 5.0, on_event=None, ground=None):
+    def __init__(self, lost_after_s: float = 5.0, on_event=None, ground=None,
+                 track_tolerance_m=None):
         """``ground(lat, lon)``: terrain altitude (m AMSL; NaN outside) of the plan's
-        DEM, to tell a vehicle that went below it; None: not judged."""
+        DEM, to tell a vehicle that went below it; ``track_tolerance_m``: the room
+        the plan's legs are proven with, to tell a vehicle off them; None: not judged."""
         self.lost_after_s = float(lost_after_s)
         self.ground = ground
+        self.track_tolerance_m = track_tolerance_m
         self.stalls = StallClock()
         self.t0 = time.monotonic()
         self.vehicles = {}  # sysid -> VehicleProgress
@@ -197,6 +207,7 @@ class Monitor:
     def follow(self, link, vehicle_id: int, route, mission) -> VehicleProgress:
         """Start following vehicle ``link`` flying ``route`` as ``mission``."""
         progress = VehicleProgress(link.sysid, vehicle_id, link.flavour, route, mission)
+        progress.proven = ProvenPath(route)
         with self._lock:
             self.vehicles[link.sysid] = progress
             self.links[link.sysid] = link
@@ -229,7 +240,9 @@ class Monitor:
         """The vehicle now flies ``mission`` (a re-plan): progress restarts at its item 1."""
         with self._lock:
             v = self.vehicles[sysid]
-            v.route, v.mission = route, mission
+            s = self.links[sysid].state
+            held = (s.lat, s.lon, s.alt_amsl) if v.airborne and s.lat is not None else None
+            v.route, v.mission, v.proven = route, mission, ProvenPath(route, held)
             v.generation += 1
             v.reached, v.done = set(), set()
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
@@ -368,6 +381,8 @@ class Monitor:
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:
                 return
+            if v.state != STRANDED:
+                self._judge_route(v, msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3, t)
         if v.disarmed_at_s is not None and v.state != LANDED:
             v.disarmed_reports += 1
             self._judge_disarm(v, agl)
@@ -378,6 +393,26 @@ class Monitor:
         boot = getattr(msg, "time_boot_ms", None)
         v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3,
                         None if boot is None else round(boot * 1e-3, 3)))
+
+    def _judge_route(self, v, lat, lon, alt, t) -> None:
+        """Off its proven legs (beyond the track tolerance and the position's own
+        error) or back on them: an event each time, the episode kept."""
+        if self.track_tolerance_m is None or v.proven is None:
+            return
+        d = v.proven.distance_m(lat, lon, alt)
+        off = v.off_route[-1] if v.off_route and v.off_route[-1][1] is None else None
+        if d > self.track_tolerance_m + POSITION_MARGIN_M:
+            if off is None:
+                v.off_route.append([round(t, 3), None, round(d, 1)])
+                self.event(v.sysid, f"{d:.0f} m off its proven route (its legs are proven "
+                                    f"with {self.track_tolerance_m:g} m of room): what it "
+                                    "flies there is not proven hidden")
+            else:
+                off[2] = max(off[2], round(d, 1))
+        elif off is not None:
+            off[1] = round(t, 3)
+            self.event(v.sysid, f"back on its proven route after {t - off[0]:.1f} s, "
+                                f"{off[2]:.0f} m off at most")
 
     def _reached(self, v, msg) -> None:
         """An item reached: its waypoint, and every waypoint of the mission before it
@@ -436,6 +471,15 @@ class Monitor:
                     lost.append(sysid)
             self._untaken.extend(lost)
         return lost
+
+    def on_pad(self, sysid) -> bool:
+        """Down at its launch point (within `LAUNCH_RADIUS_M`, at home height), whether
+        or not its landing has been told yet (the disarm comes a few seconds after
+        the touchdown)."""
+        v, s = self.vehicles[sysid], self.links[sysid].state
+        agl, away = getattr(s, "relative_alt", None), self._from_launch(v, s)
+        return agl is not None and abs(agl) <= LANDED_AGL_M and away is not None \
+            and away <= LAUNCH_RADIUS_M
 
     def silent(self, sysid) -> bool:
         """No HEARTBEAT from ``sysid`` for ``lost_after_s`` of the time this ground

@@ -22,6 +22,7 @@ from matplotlib.patches import Patch  # noqa: E402
 
 from common.colours import (  # noqa: E402
     BASE_COLOUR,
+    BEYOND_COLOUR,
     OUTPOST_COLOUR,
     VEHICLE_COLOURS,
     vehicle_colour,
@@ -256,10 +257,11 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
             continue
         x, y = _lonlat_km(terrain, lon, lat)
         waits = vehicle.takeoff_s + sum(w.hold_s for w in vehicle.waypoints)
+        sorties = f", {len(vehicle.sorties)} sorties" if len(vehicle.sorties) > 1 else ""
         ax.plot(x, y, linestyle, color=colour, linewidth=1.6, alpha=alpha, zorder=5,
                 label=f"{label_prefix} {vehicle.id}: takeoff at {vehicle.takeoff_s:.0f} s, "
                       f"{sum(1 for w in vehicle.waypoints if w.snapshot)} snapshots by "
-                      f"{vehicle.coverage_time_s / 60:.1f} min, waits {waits:.0f} s")
+                      f"{vehicle.coverage_time_s / 60:.1f} min, waits {waits:.0f} s{sorties}")
         snaps = np.array([w.snapshot for w in vehicle.waypoints])
         ax.plot(x[snaps], y[snaps], "o", color=colour, markersize=3.5, zorder=6,
                 markeredgecolor="black", markeredgewidth=0.4, alpha=alpha)
@@ -324,6 +326,29 @@ def draw_unseen(ax, terrain, unseen) -> list:
     return handles
 
 
+def draw_beyond_battery(ax, terrain, plan) -> None:
+    """The viewpoints no base reaches and leaves on one battery (plan.json
+    ``battery.beyond_battery_at``), crossed out: their targets lose those sightings."""
+    at = (plan.metrics.get("battery") or {}).get("beyond_battery_at") or []
+    if not at:
+        return
+    lat, lon = np.array(at, float).T
+    x, y = _lonlat_km(terrain, lon, lat)
+    ax.plot(x, y, linestyle="none", marker="D", color=BEYOND_COLOUR, markersize=3.5,
+            markeredgecolor="white", markeredgewidth=0.5, zorder=7,
+            label=f"viewpoint beyond one battery ({len(at)}): not flown to")
+
+
+def battery_title(plan) -> str:
+    """One line on what a battery allows, for a map's title ('' without an endurance)."""
+    b = plan.metrics.get("battery") or {}
+    if b.get("endurance_min") is None:
+        return ""
+    return (f"battery {b['endurance_min']:g} min ({b['reserve_pct']:g} % kept): longest "
+            f"flight {b['longest_flight_s'] / 60:.1f} min; {b.get('beyond_battery', 0)} "
+            "viewpoints beyond it")
+
+
 def overview_png(path, terrain, surface, plan, unseen=None) -> None:
     """overview.png: where one can hide, who watches, every route, and the ground no
     snapshot sees (``unseen``: `planner.visibility.unseen_reasons`)."""
@@ -336,6 +361,7 @@ def overview_figure(terrain, surface, plan, unseen=None):
     draw_area(ax, terrain, plan)
     unseen_handles = draw_unseen(ax, terrain, unseen)
     draw_routes(ax, terrain, plan)
+    draw_beyond_battery(ax, terrain, plan)
     m = plan.metrics
     title = (f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "
              f"coverage time {m.get('coverage_time_s', float('nan')) / 60:.1f} min "
@@ -344,9 +370,11 @@ def overview_figure(terrain, surface, plan, unseen=None):
     if a:
         title += (f"\narea {a['area_km2']:.1f} km²: {a['visible']['pct']:.0f} % seen from "
                   f"reachable hidden viewpoints, {a['planned']['pct']:.0f} % planned")
+    if battery_title(plan):
+        title += "\n" + battery_title(plan)
     if not plan.outposts:
         title += "\nno observers: planned with no outposts"
-    ax.set_title(title)
+    ax.set_title(title, fontsize=10)
     fig.colorbar(im, ax=ax, shrink=0.7, label="hidden ceiling above ground (m): "
                                               "room to fly unseen")
     handles, _ = ax.get_legend_handles_labels()

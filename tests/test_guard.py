@@ -188,3 +188,20 @@ class Descending(Scripted):
         if self.p[2] <= self.ground:
             self.p[2], self.v[2] = self.ground, 0.0
             self.report()
+
+
+def test_closest_approach_counts_no_vehicle_touched_down_on_its_pad():
+    """One down on the base pad (its landing not yet told: the disarm comes seconds
+    later), the next descending the column 12 m above it: no approach in the air."""
+    base = GeoPoint(LON0, LAT0, ALT - 40.0)
+    top = Waypoint(LON0, LAT0, ALT, 0.0)
+    down = Descending(2, base.alt_amsl, base.alt_amsl)
+    above = Descending(3, base.alt_amsl + 12.0, base.alt_amsl)
+    monitor, guard = _guard([down, above], {2: 1, 3: 2})
+    for v in (down, above):
+        monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0, 0.0, 0.0)
+    down.state.relative_alt = 0.0
+    guard.on_pad = monitor.on_pad
+    assert monitor.on_pad(2) and not monitor.on_pad(3)
+    _run([down, above], guard, 1.0)
+    assert guard.report()["pairs"] == []

@@ -121,6 +121,20 @@ def test_viewpoints_beyond_one_battery_are_reported_and_never_flown(sortied):
     assert m["k_covered"] <= m["targets"] - b["targets_short"]
 
 
+def test_the_overview_draws_the_viewpoints_beyond_one_battery(sortied):
+    """Each one, where plan.json puts it, and the battery in the title."""
+    from gcs.plots import overview_figure
+
+    plan = sortied.plan
+    fig = overview_figure(sortied.ctx.terrain, sortied.ctx.surface, plan)
+    ax = fig.axes[0]
+    drawn = [line for line in ax.lines if "beyond one battery" in (line.get_label() or "")]
+    b = plan.metrics["battery"]
+    assert len(drawn) == 1 and len(drawn[0].get_xdata()) == b["beyond_battery"]
+    assert f"battery {ENDURANCE_MIN:g} min" in ax.get_title()
+    assert any("sorties" in (line.get_label() or "") for line in ax.lines)
+
+
 def test_an_unlimited_battery_is_said_and_plans_as_before(planned):
     from gcs.cli.views import battery_line
 
