@@ -6,9 +6,9 @@ import tempfile
 from types import SimpleNamespace
 
 import pytest
+from hills import central_outpost
 
 from gcs.plan_folder import write_plan_folder
-from planner.exposure import Outpost
 from planner.pipeline import allocate, launch_starts, plan_mission
 from planner.plan import TERRAIN_FILE
 from planner.scenario import Scenario
@@ -20,9 +20,7 @@ N = 60
 def _small_plan():
     """(scenario, terrain, outposts) of the shared plan."""
     terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
-    x, y = terrain.xy(N // 2, N // 2)
-    lon, lat = terrain.to_lonlat(x, y)
-    outposts = [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
+    outposts = [central_outpost(terrain)]
     llon, llat = terrain.to_lonlat(*terrain.xy(6, 6))
     # RT, not the default ALNS: its routes end at clearly different times, which the
     # flight tests use (a vehicle shot down once the others have landed)

@@ -8,10 +8,10 @@ import zipfile
 
 import numpy as np
 import pytest
+from hills import central_outpost
 
 from common.errors import InputError
 from gcs.cli import main
-from planner.exposure import Outpost
 from planner.pipeline import plan_mission
 from planner.scenario import Scenario, read_scenario
 from planner.terrain import synthetic_terrain
@@ -25,9 +25,7 @@ N = 60
 @pytest.fixture(scope="module")
 def hills():
     terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
-    x, y = terrain.xy(N // 2, N // 2)
-    lon, lat = terrain.to_lonlat(x, y)
-    outposts = [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
+    outposts = [central_outpost(terrain)]
     launch = terrain.to_lonlat(*terrain.xy(6, 6))
     return terrain, outposts, (launch[1], launch[0])
 

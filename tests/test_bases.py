@@ -9,12 +9,12 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from hills import central_outpost
 from scipy.ndimage import map_coordinates
 
 from common.errors import InputError
 from gcs.cli import main
 from planner.bases import suggest_bases
-from planner.exposure import Outpost
 from planner.exposure.los import EARTH_RADIUS_M
 from planner.pipeline import allocate, coverage_problem, launch_starts, prepare
 from planner.scenario import Scenario
@@ -30,9 +30,7 @@ AREA = "36.57,-84.28,36.61,-84.22"
 def hills():
     """Synthetic hills with one outpost on the central hill, its context and bases."""
     terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
-    x, y = terrain.xy(N // 2, N // 2)
-    lon, lat = terrain.to_lonlat(x, y)
-    outposts = [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
+    outposts = [central_outpost(terrain)]
     scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
                         clearance_m=20.0, hide_margin_m=5.0, method="rt").validate()
     ctx = prepare(scenario, terrain=terrain, outposts=outposts)

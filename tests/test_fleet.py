@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import places_reference as ref
 import pytest
+from hills import central_outpost
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
@@ -151,11 +152,7 @@ def test_one_base_one_vehicle_in_its_column_at_a_time():
 # -- every method, on generated terrains ----------------------------------------------
 def _plan(method, k, seed, separation_m=30.0):
     terrain = synthetic_terrain(56, 56, cell=30.0, seed=seed, family="hills")
-    from planner.exposure import Outpost
-
-    x, y = terrain.xy(28, 28)
-    lon, lat = terrain.to_lonlat(x, y)
-    post = Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")
+    post = central_outpost(terrain)
     s = Scenario(sample=True, uavs=3, k=k, sensor_range_m=500.0, ceiling_agl_m=150.0,
                  clearance_m=20.0, hide_margin_m=5.0, method=method,
                  separation_m=separation_m, time_budget_s=0.2)

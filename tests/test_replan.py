@@ -7,9 +7,10 @@ from its folder (`PlanningContext.load`).
 
 import numpy as np
 import pytest
+from hills import central_outpost
 
 from planner.context import PlanningContext
-from planner.exposure import Outpost, segments_clear, segments_hidden
+from planner.exposure import segments_clear, segments_hidden
 from planner.pipeline import plan_mission
 from planner.plan import TERRAIN_FILE
 from planner.replan import (
@@ -41,9 +42,7 @@ def _scenario(terrain, **kw):
 
 
 def _outposts(terrain):
-    x, y = terrain.xy(N // 2, N // 2)
-    lon, lat = terrain.to_lonlat(x, y)
-    return [Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")]
+    return [central_outpost(terrain)]
 
 
 @pytest.fixture(scope="module")
