@@ -70,6 +70,10 @@ class Autopilot:
     #: the parameter that says what the autopilot does on a low battery, and what
     #: each of its values does (in words that say where the vehicle would fly)
     battery_failsafe: tuple = ("", {})
+    #: a held mission, flown on, goes back first to the position item before the one
+    #: it was flying to (PX4 re-flies a leg its camera was triggering on), unless its
+    #: current item was set since the hold
+    resume_rewinds: bool = False
 
     # -- missions -----------------------------------------------------------------
     @property

@@ -96,6 +96,7 @@ PROFILE = PX4(
     rtl_mode="AUTO.RTL",
     guided_mode="AUTO.LOITER",
     mission_end_mode="AUTO.LOITER",
+    resume_rewinds=True,    # MissionBase::on_activation, camera triggering: replay
     start_sequence=(Step("set_current"), Step("mission_start", "AUTO.MISSION"), Step("arm"),
                     Step("airborne")),
     request_streams=False,

@@ -374,7 +374,7 @@ class Flight:
             airborne=lambda: [s for s, v in m.vehicles.items()
                               if v.state in (FLYING, HOLDING) and v.airborne],
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
-            resume=lambda s: self._set_mode(s, "mission_mode", FLYING),
+            resume=self._resume,
             travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
             on_pad=m.on_pad)
         # every vehicle ready to arm first: then each start takes about as long, and the
@@ -426,6 +426,19 @@ class Flight:
         commands.set_mode(link, getattr(commands.autopilot(link), which),
                           retries=self.options.protocol_retries)
         self.monitor.set_state(sysid, state)
+
+    def _resume(self, sysid) -> None:
+        """A vehicle the guard held flies on toward the item it was flying to. Where
+        the firmware would go back to the item before (`resume_rewinds`, PX4), along
+        no proven leg and climbing first to that item's altitude where it stands, its
+        current item is moved away and back first: then the mission starts again
+        from where it is."""
+        link = self.monitor.links[sysid]
+        profile, seq = commands.autopilot(link), link.state.mission_seq
+        if profile.resume_rewinds and seq is not None and seq > profile.first_item:
+            for item in (seq - 1, seq):
+                commands.set_current(link, item, retries=self.options.protocol_retries)
+        self._set_mode(sysid, "mission_mode", FLYING)
 
     def depart(self, sysid, after_s, kind, route) -> None:
         """``sysid`` takes off (``kind`` "launch") or flies on ("resume") ``after_s``

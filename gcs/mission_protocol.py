@@ -148,6 +148,10 @@ def _upload_once(link, items, progress, mission_type, timeout_s, retries) -> Non
                 continue                         # a stale ACK of an earlier transfer
             if msg.type == M.MAV_MISSION_NO_SPACE and highest < 0:
                 raise _NoSpace(_capacity_said(link))
+            if msg.type == M.MAV_MISSION_INVALID_SEQUENCE and highest >= 0:
+                # an item it did not ask for now (our re-send crossed its next
+                # request): ArduPilot says so and keeps the transfer open
+                continue
             where = f"after item {highest}" if highest >= 0 else "at MISSION_COUNT"
             more = _capacity(link, count) if msg.type == M.MAV_MISSION_NO_SPACE else ""
             raise MissionError(link, f"upload of {count} items refused {where}: "

@@ -397,3 +397,25 @@ def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened
     commands.start_mission(vehicle, ALT)
     assert len(armed) == 2
     assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0
+
+
+def test_an_item_sent_twice_is_said_out_of_order_and_the_upload_goes_on(opened, monkeypatch):
+    """ArduPilot answers an item it is not asking for now with MISSION_ACK
+    INVALID_SEQUENCE and keeps the transfer open (MissionItemProtocol::
+    handle_mission_item): on a busy machine a re-sent item crosses its next request.
+    Every item sent twice, each second one so answered: the upload still completes
+    (it was a refusal, and a failed flight on a loaded machine with real SITL)."""
+    fleet, link = opened(fleet_config("ardupilot", 1))
+    time.sleep(1.2)                             # past ArduPilot's no-upload second
+    vehicle = link.vehicles[1]
+    send = mp._send_item
+
+    def twice(link_, item, mission_type):
+        send(link_, item, mission_type)
+        send(link_, item, mission_type)
+
+    monkeypatch.setattr(mp, "_send_item", twice)
+    mission = mission_for("ardupilot", 1, legs=3)
+    items = mission.items
+    mp.upload(vehicle, sendable(mission))
+    assert mp.compare(items, sim_items(fleet, 1), "ardupilot") == []

@@ -50,6 +50,10 @@ class Flavour:
     initial_mode: str
     armable: frozenset             # modes that allow arming (AUTO on ArduPilot: see AUTO_OPTIONS)
     legacy_request: bool           # asks for items with MISSION_REQUEST, not _INT (ArduPilot)
+    nacks_out_of_order: bool       # an upload's item out of order: MISSION_ACK
+                                   # INVALID_SEQUENCE, the transfer still open, asked
+                                   # again on its own timer (ArduPilot's
+                                   # MissionItemProtocol); else asked again at once (PX4)
     reached_after_do_items: bool   # MISSION_ITEM_REACHED once the DO commands after a
                                    # navigation item are done, with the last one's seq (PX4)
     resume_old_index: bool         # a new upload keeps the current index (ArduPilot)
@@ -151,6 +155,7 @@ ARDUPILOT = Flavour(
     initial_mode="STABILIZE",
     armable=frozenset({"STABILIZE", "GUIDED", "LOITER"}),
     legacy_request=True,
+    nacks_out_of_order=True,
     reached_after_do_items=False,
     resume_old_index=True,
     holds_in_hold_mode=False,
@@ -190,6 +195,7 @@ PX4 = Flavour(
     initial_mode="AUTO.LOITER",
     armable=frozenset({"MANUAL", "POSCTL", "AUTO.TAKEOFF", "AUTO.LOITER", "AUTO.MISSION"}),
     legacy_request=False,
+    nacks_out_of_order=False,
     reached_after_do_items=True,
     resume_old_index=False,
     holds_in_hold_mode=True,

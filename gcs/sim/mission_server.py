@@ -172,8 +172,10 @@ class MissionServer:
             return
         if partner != up["partner"]:
             return self._ack(partner, mavlink.MAV_MISSION_DENIED)
-        if msg.seq != up["next"]:
-            return self._request(now)                   # out of order: ask again
+        if msg.seq != up["next"]:                       # out of order: said, or asked again
+            if self.flavour.nacks_out_of_order:
+                return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE)
+            return self._request(now)
         if msg.frame not in SUPPORTED_FRAMES:
             self._up = None
             return self._ack(partner, mavlink.MAV_MISSION_UNSUPPORTED_FRAME)

@@ -134,6 +134,10 @@ class SimVehicle:
         self.ground_s = 0.0               # disarmed on the ground since (mission s)
         self.heading = 0.0
         self._last_dest = None         # destination of the last nav item reached
+        # PX4: the item the mission was left at (AUTO left in the air), and whether a
+        # camera item of this mission has run: flown on, it rewinds (`_rewound`)
+        self._left_at = None
+        self._camera_ran = False
         self._stop = threading.Event()
         self._kill = threading.Event()
         self._next_flush = 0.0
@@ -543,18 +547,20 @@ class SimVehicle:
         return self.flavour.behaviour[self.mode]
 
     def _set_mode(self, name: str) -> int:
+        flying = self.armed and not self.landed      # a falling vehicle obeys nothing
+        if flying and self.behaviour() == fl.AUTO and self.flavour.behaviour[name] != fl.AUTO:
+            self._left_at = self.current
         self.mode = name
         self._last_dest = None     # a resumed leg starts where the vehicle is, as AC_WPNav
         behaviour = self.behaviour()
         if behaviour != fl.AUTO:
             self.auto_started = False
-        flying = self.armed and not self.landed      # a falling vehicle obeys nothing
         if behaviour in (fl.MANUAL, fl.GUIDED):
             if flying:
                 self._go_to(self.body.pos)
         elif behaviour == fl.AUTO:
             if flying or (self.armed and self.flavour.arm_in_auto_starts):
-                self._run_mission(self.current)
+                self._run_mission(self._rewound())
         elif behaviour == fl.LAND:
             if flying:
                 self._start_land(None, None)
@@ -723,6 +729,22 @@ class SimVehicle:
                 reached = seq
             seq += 1
 
+    def _rewound(self) -> int:
+        """Where a mission flown on starts: its current item, or on PX4 (the profile's
+        `resume_rewinds`), left in the air with its camera triggering and its current
+        item not set since, the position item before (MissionBase::on_activation
+        re-flies that leg so as to lose no image)."""
+        left, self._left_at = self._left_at, None
+        if not (self.flavour.profile.resume_rewinds and self._camera_ran
+                and left == self.current and left > self.flavour.first_item):
+            return self.current
+        for seq in range(left - 1, self.flavour.first_item - 1, -1):
+            item = self.mission.item(seq)
+            if item is not None and item.is_nav:
+                self.track.event(self.t, f"resumed at the previous position item {seq}")
+                return seq
+        return self.current
+
     def _reached_after(self, seq) -> None:
         if seq is not None:
             self._report_reached(seq)
@@ -795,6 +817,7 @@ class SimVehicle:
         elif item.command == M.MAV_CMD_DO_DIGICAM_CONTROL and item.param5 == 1:
             self._snapshot(item.seq)
         elif item.command == M.MAV_CMD_IMAGE_START_CAPTURE:
+            self._camera_ran = True
             self._snapshot(item.seq)
         elif item.command == M.MAV_CMD_DO_SET_CAM_TRIGG_DIST and item.param3 == 1:
             self._snapshot(item.seq)
@@ -809,6 +832,7 @@ class SimVehicle:
         self.current = seq
         self._send(telemetry.mission_current(self))
         if run:
+            self._left_at = None        # set by the ground station: no rewind (PX4)
             self._last_dest = None
             if self.behaviour() == fl.AUTO and not self.landed and self.armed:
                 self._run_mission(seq)
@@ -816,6 +840,7 @@ class SimVehicle:
 
     def _mission_changed(self, kind: str) -> None:
         self.track.event(self.t, f"mission {kind}")
+        self._left_at, self._camera_ran = None, False
         if not self.flavour.resume_old_index:
             self.current = self.flavour.first_item
             if self.behaviour() == fl.AUTO and not self.landed:
