@@ -6,7 +6,7 @@ method; the fitted exponent per stage (time ~ cells^p); and the chunked stages
 ``--huge[=N]``: instead, N² (default 4096², 123 km square; 16 UAVs, planned in
 parts: ``--parts=P`` to choose how many) on a LocalCluster of 2 and then 1
 worker, every stage, and the ratio.
-``--terrains[=N]``: instead, N² (default 1024²) on the benchmark's own terrain
+``--terrains[=N]`` (the = is needed): instead, N² (default 1024²) on the benchmark's own terrain
 and on held-out ones of other kinds and seeds (`TERRAINS`: hills, ridges, peaks;
 outposts on summits or in valleys, eyes 4-8 m, ranges 3-8 km), each stage per
 terrain, the worst terrain's total as the headline beside the own one's
