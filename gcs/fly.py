@@ -374,7 +374,7 @@ class Flight:
             airborne=lambda: [s for s, v in m.vehicles.items()
                               if v.state in (FLYING, HOLDING) and v.airborne],
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
-            resume=self._resume,
+            resume=self._fly_on,
             travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
             on_pad=m.on_pad)
         # every vehicle ready to arm first: then each start takes about as long, and the
@@ -427,7 +427,7 @@ class Flight:
                           retries=self.options.protocol_retries)
         self.monitor.set_state(sysid, state)
 
-    def _resume(self, sysid) -> None:
+    def _fly_on(self, sysid) -> None:
         """A vehicle the guard held flies on toward the item it was flying to. Where
         the firmware would go back to the item before (`resume_rewinds`, PX4), along
         no proven leg and climbing first to that item's altitude where it stands, its
