@@ -51,9 +51,8 @@ class Flavour:
     armable: frozenset             # modes that allow arming (AUTO on ArduPilot: see AUTO_OPTIONS)
     legacy_request: bool           # asks for items with MISSION_REQUEST, not _INT (ArduPilot)
     nacks_out_of_order: bool       # an upload's item out of order: MISSION_ACK
-                                   # INVALID_SEQUENCE, the transfer still open, asked
-                                   # again on its own timer (ArduPilot's
-                                   # MissionItemProtocol); else asked again at once (PX4)
+                                   # INVALID_SEQUENCE, the transfer still open (ArduPilot's
+                                   # MissionItemProtocol); asked again at once either way
     reached_after_do_items: bool   # MISSION_ITEM_REACHED once the DO commands after a
                                    # navigation item are done, with the last one's seq (PX4)
     resume_old_index: bool         # a new upload keeps the current index (ArduPilot)

@@ -172,9 +172,11 @@ class MissionServer:
             return
         if partner != up["partner"]:
             return self._ack(partner, mavlink.MAV_MISSION_DENIED)
-        if msg.seq != up["next"]:                       # out of order: said, or asked again
+        if msg.seq != up["next"]:                       # out of order: said, and asked again
             if self.flavour.nacks_out_of_order:
-                return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE)
+                self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE)
+            # at once, where ArduPilot asks again on its own timer: the suite's lossy
+            # links at 100x would otherwise spend the simulator's retries
             return self._request(now)
         if msg.frame not in SUPPORTED_FRAMES:
             self._up = None
