@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 
+#: mean Earth radius (m) of the flat local frames of a flight (this path's, the guard's)
 EARTH_R = 6371008.8
 #: what a reported position may be off by (GNSS, the report's latency) before a
 #: vehicle counts as off its proven legs (m)

@@ -28,6 +28,7 @@ import time
 import numpy as np
 
 from gcs import commands
+from gcs.corridor import EARTH_R
 from planner.fleet import Profile, Trajectory
 from planner.travel import TravelParams
 
@@ -39,7 +40,6 @@ LATENCY_S = 1.0
 RESUME_FACTOR = 1.2
 #: metres a pair standing too close may close in by rounding and still be parting
 PARTING_SLACK_M = 0.5
-EARTH_R = 6371008.8
 
 
 def closest_ahead(d0, dv, horizon):
