@@ -238,6 +238,7 @@ class Flight:
         self.output.mkdir(parents=True, exist_ok=True)
         threading.Thread(target=self._prepare_context, daemon=True,
                          name="replan-context").start()
+        self.monitor.watch_losses()
         try:
             self.connect()
             self.locate()

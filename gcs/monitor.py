@@ -12,7 +12,8 @@ navigation items only, and camera feedback only with a camera configured, so
 the waypoint is the one signal every autopilot gives. Camera feedback, where
 it comes, is kept beside it.
 
-Loss detection (`check_losses`, called by the flight loop on the wall clock):
+Loss detection (`check_losses`, on the wall clock, by the flight loop and by a
+thread of its own while the flight computes or waits: `watch_losses`):
 a vehicle is lost when no HEARTBEAT has arrived for ``lost_after_s`` seconds,
 or when it disarms in the air. A link that comes back earlier is not a loss.
 
@@ -199,6 +200,7 @@ class Monitor:
         self._untaken = []  # lost vehicles not yet taken by the flight (`take_losses`)
         self._unsubscribe = []
         self._on_event = on_event
+        self._watching = None  # the event that stops `watch_losses`
 
     def now(self) -> float:
         return time.monotonic() - self.t0
@@ -214,7 +216,23 @@ class Monitor:
         self._unsubscribe.append(link.subscribe(lambda msg, s=link.sysid: self._on(s, msg)))
         return progress
 
+    def watch_losses(self, period_s: float = 0.2) -> None:
+        """`check_losses` every ``period_s`` on a thread of its own until `close`: a
+        loss is found on time even while the flight computes (a re-plan takes
+        seconds on a busy machine) or waits on other vehicles."""
+        if self._watching is not None:
+            return
+        self._watching = threading.Event()
+        stop = self._watching
+
+        def run():
+            while not stop.wait(period_s):
+                self.check_losses()
+        threading.Thread(target=run, name="loss-watch", daemon=True).start()
+
     def close(self) -> None:
+        if self._watching is not None:
+            self._watching.set()
         for unsubscribe in self._unsubscribe:
             unsubscribe()
         self._unsubscribe = []

@@ -122,6 +122,30 @@ def test_a_loss_found_while_waiting_on_another_vehicle_is_not_forgotten(plan_dir
     assert m.take_losses() == []
 
 
+def test_a_loss_is_found_on_time_while_the_flight_computes(plan_dir):
+    """The flight's loop is busy (a re-plan takes seconds on a loaded machine) and
+    calls nothing: the loss watch still finds the silent vehicle within its period
+    of ``lost_after_s``, at that time, and keeps it for the loop."""
+    plan = Plan.load(plan_dir)
+    m = Monitor(lost_after_s=0.3)
+    links = [_FakeLink(1), _FakeLink(2)]
+    for link, route in zip(links, plan.vehicles):
+        m.follow(link, route.id, route, SimpleNamespace(items=[], waypoint_of_item=[]))
+    m.watch_losses(period_s=0.05)
+    try:
+        links[1].beat()
+        silent_from = m.now()
+        end = time.monotonic() + 1.5     # "computing": only vehicle 1 is heard
+        while time.monotonic() < end and m.vehicles[2].state != LOST:
+            links[0].beat()
+            time.sleep(0.02)
+        assert m.vehicles[2].state == LOST and m.vehicles[1].state != LOST
+        assert m.vehicles[2].lost_at_s - silent_from <= 0.3 + 0.5
+        assert m.take_losses() == [2]
+    finally:
+        m.close()
+
+
 def test_landing_after_flying_only_below_home(plan_dir):
     """A route over ground lower than the launch point: every heartbeat may come
     while the vehicle is below home height (at 150x the climb above it lasts a
