@@ -2,6 +2,7 @@
 
     .venv/bin/python benchmarks/bench_coverage.py [--quick] [--best-known] [--synthetic]
                                                   [--budgets] [--large] [--sweep]
+                                                  [--optimal [N]]
 
 **Suite** (default): three synthetic terrain families (hills, ridges, peaks;
 208 x 208 cells of 30 m, three outposts, one launch point in the hidden
@@ -26,6 +27,9 @@ the behaviour before issue 37) and at the default: coverage time of each, their
 ratio, the waits the separated plan holds, its proven closest approach and the
 seconds the deconfliction took.
 
+**Optimality** (``--optimal [N]``, alone): every method and the best bound
+against the proven optima of N small generated problems (benchmarks/optimality.py).
+
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
 (planner.coverage.instances), ``--sweep`` the step-cap (th_ra) sweep,
 ``--large`` RT and ALNS on a 3,000-viewpoint x 50,000-target x 8-UAV problem.
@@ -43,6 +47,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from benchmarks import optimality  # noqa: E402
 from planner.coverage import METHODS, CoverageParams, lower_bound, solve  # noqa: E402
 from planner.coverage.instances import FAMILIES, random_problem  # noqa: E402
 
@@ -431,10 +436,18 @@ def main(argv=None):
     ap.add_argument("--synthetic", action="store_true", help="the seeded point-set suite")
     ap.add_argument("--sweep", action="store_true", help="also sweep the step cap th_ra")
     ap.add_argument("--large", action="store_true", help="also time the 3000 x 50000 problem")
+    ap.add_argument("--optimal", nargs="?", const=90, type=int, metavar="N",
+                    help="only every method against proven optima (N instances, default 90)")
+    ap.add_argument("--optimal-limit", type=float, default=60.0, metavar="S",
+                    help="the exact solver's time per instance not yet in the cache")
     ap.add_argument("--separation", action="store_true",
                     help="only the separation table (coverage at --separation 0 vs default)")
     args, _ = ap.parse_known_args(argv)  # options of other benchmarks run with it
     t0 = time.perf_counter()
+    if args.optimal:
+        optimality.run(args.optimal, args.optimal_limit)
+        print(f"\n(total {time.perf_counter() - t0:.0f} s)")
+        return 0
     if not args.separation:
         rows, default, methods = run_terrain_suite(args.quick, args.best_known, args.budgets)
         terrain_report(rows, default, methods, args.budgets)

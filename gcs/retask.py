@@ -392,13 +392,14 @@ class Retasker:
         and the others are re-planned (one stray vehicle does not stop the flight)."""
         m, joined = self.monitor, []
         for s in sysids:
+            survivor, position = self._survivor(s)
             try:
-                survivor_start(self.ctx, self._survivor(s)[0])
+                survivor_start(self.ctx, survivor)
                 joined.append(s)
             except InputError as exc:
                 m.set_state(s, STRANDED)
                 m.event(s, "stranded: held where it is, the operator takes over",
-                        reason=str(exc))
+                        reason=str(exc), lon_lat_alt=[round(float(v), 7) for v in position])
                 record.stranded.append(s)
         return joined
 

@@ -12,7 +12,7 @@ objectives (So, M_PTV, M_PTV2, per-distance), insertion (edge-breaking rule,
 route times), greedy (RT/RD phases), setcover, routing (OR-Tools), baselines
 (B, C), local_search (RT+LS), alns and alns_kernels (ALNS), metrics
 (evaluation, reach and packing bounds), bounds (the flow LP bound and the best
-of all), solve.
+of all), exact (the proven optimum of small problems: the tests' oracle), solve.
 """
 
 from .bounds import bounds, lower_bound

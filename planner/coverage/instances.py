@@ -78,3 +78,20 @@ def _travel(rng, vp, alt, speed, climb, descent):
                         (np.concatenate([rows, cols]), np.concatenate([cols, rows]))),
                        shape=(n, n))
     return shortest_path(graph, method="D", directed=True)
+
+
+def optimality_case(seed, min_viewpoints=8, max_viewpoints=16) -> tuple:
+    """(name, problem): one of the small problems whose optimum is proven
+    (`exact.optimum`) to judge the methods by. The seed draws the size (viewpoints,
+    10 to 25 targets per viewpoint), the fleet (2-4 UAVs), k (0 to n-1), launch
+    points or none, and the family (in turn)."""
+    rng = np.random.default_rng([seed, 34])
+    n_vp = int(rng.integers(min_viewpoints, max_viewpoints + 1))
+    n_uavs = int(rng.integers(2, 5))
+    k = int(rng.integers(0, n_uavs))
+    launch = bool(rng.integers(0, 2))
+    family = FAMILIES[seed % len(FAMILIES)]
+    n_targets = int(rng.integers(10, 26)) * n_vp
+    name = f"{family}-{n_vp}vp-{n_uavs}uav-k{k}{'-launch' if launch else ''}-s{seed}"
+    return name, random_problem(n_vp, n_targets, n_uavs, k, family=family, seed=seed,
+                                launch=launch)

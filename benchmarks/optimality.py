@@ -1,0 +1,86 @@
+"""Every method and the best bound against proven optima (``bench_coverage --optimal``).
+
+The instances are `instances.optimality_case` for seeds 0..N-1 (8-16
+viewpoints, 2-4 UAVs, k = 0..n-1, launch points or none, the three families).
+Their optima come from `planner.coverage.exact.optimum` (started from the
+default method's plan) and are kept in `CACHE` with the solver's proof status
+and time: an instance is solved once, and again only if it was not proven. Per
+method: median and worst coverage time / optimum, how many plans are optimal
+(within 1e-6), median planning time; the best lower bound's median and lowest
+ratio to the optimum and its median time. Only proven instances with a
+non-zero optimum count.
+"""
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from planner.coverage import METHODS, lower_bound, solve
+from planner.coverage.exact import optimum
+from planner.coverage.instances import optimality_case
+from planner.scenario import Scenario
+
+CACHE = Path(__file__).resolve().parent / "coverage_optimal.json"
+EQUAL = 1e-6
+DEFAULT_METHOD = Scenario.method
+
+
+def _load() -> dict:
+    return json.loads(CACHE.read_text())["cases"] if CACHE.exists() else {}
+
+
+def _save(cases: dict) -> None:
+    CACHE.write_text(json.dumps({"solver": "planner.coverage.exact.optimum",
+                                 "cases": dict(sorted(cases.items()))}, indent=1) + "\n")
+
+
+def optima(count: int, limit_s: float) -> dict:
+    """name -> cached record, solving what is missing or unproven (saved as it goes)."""
+    cases, wanted = _load(), {optimality_case(seed)[0] for seed in range(count)}
+    cases = {name: rec for name, rec in cases.items() if name in wanted}
+    for seed in range(count):
+        name, problem = optimality_case(seed)
+        if cases.get(name, {}).get("proven"):
+            continue
+        start = solve(problem, DEFAULT_METHOD)
+        found = optimum(problem, time_limit_s=limit_s, hint=start.routes)
+        cases[name] = {"seed": seed, "value": found.value, "proven": found.proven,
+                       "seconds": round(found.seconds, 2), "rounds": found.rounds}
+        print(f"  {name}: optimum {found.value:.3f} s "
+              f"{'proven' if found.proven else 'NOT proven'} in {found.seconds:.1f} s", flush=True)
+        _save(cases)
+    return cases
+
+
+def run(count: int = 90, limit_s: float = 60.0) -> dict:
+    print(f"\n== Against proven optima ({count} instances, {CACHE.name}) ==", flush=True)
+    cases = optima(count, limit_s)
+    ratios = {m: [] for m in METHODS}
+    seconds = {m: [] for m in METHODS}
+    bound, bound_s, unproven = [], [], 0
+    for seed in range(count):
+        name, problem = optimality_case(seed)
+        rec = cases[name]
+        if not rec["proven"] or rec["value"] <= 0:
+            unproven += not rec["proven"]
+            continue
+        for m in METHODS:
+            plan = solve(problem, m)
+            ratios[m].append(plan.coverage_time / rec["value"])
+            seconds[m].append(plan.planning_s)
+        t = time.perf_counter()
+        bound.append(lower_bound(problem) / rec["value"])
+        bound_s.append(time.perf_counter() - t)
+    n = len(bound)
+    print(f"{n} instances with a proven non-zero optimum ({unproven} not proven)")
+    print(f"{'method':8s} {'median/OPT':>10s} {'worst/OPT':>10s} {'= OPT':>6s} {'plan s':>7s}")
+    for m in METHODS:
+        r = np.array(ratios[m])
+        print(f"{m:8s} {np.median(r):10.3f} {r.max():10.3f} {int((r <= 1 + EQUAL).sum()):6d} "
+              f"{np.median(seconds[m]):7.2f}")
+    b = np.array(bound)
+    print(f"{'bound':8s} {np.median(b):10.3f} {b.min():10.3f} (lowest) "
+          f"{int((b >= 1 - EQUAL).sum()):4d} {np.median(bound_s):7.2f}")
+    return {"ratios": ratios, "bound": bound}
