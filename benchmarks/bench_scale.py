@@ -37,7 +37,7 @@ TERRAINS = {"own": ("mixed", 11, "anywhere"), "hills": ("hills", 5, "summits"),
             "hills-valleys": ("hills", 23, "valleys"), "ridges": ("ridges", 7, "summits"),
             "peaks": ("peaks", 13, "valleys")}
 STAGES = ("terrain", "exposure", "travel graph", "viewpoints", "visibility", "travel times",
-          "allocation", "routes")
+          "allocation", "routes", "separation")
 
 
 def _one(n: int, scheduler: str, parts=None, terrain="own") -> dict:
