@@ -22,6 +22,10 @@ slow) and forbidden to that UAV, and to every UAV with the same launch times.
 A choice that all UAVs fly within T is a plan: T drops below its makespan and
 the master is asked again. The master's "no choice" is the proof: no plan beats
 the incumbent. Forbidden sets stay forbidden as T falls.
+Whenever T falls, every viewpoint and pair already slower than T is forbidden
+up front, and each UAV's set must fit a knapsack relaxation of its route
+(each viewpoint entered by its cheapest way in: `_knapsack`). UAVs without
+launch points are interchangeable: only one order of them is searched.
 
 Written from the problem's definition; checked against enumeration of every
 plan on tiny problems (tests/test_exact.py). Plain problems only: no earlier
