@@ -769,7 +769,8 @@ class Flight:
         m = self.monitor
         vehicles = [self._vehicle_report(v) for _, v in sorted(m.vehicles.items())]
         losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
-                   "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason}
+                   "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason,
+                   "stalled_s": v.lost_stalled_s}
                   for _, v in sorted(m.vehicles.items()) if v.state == LOST]
         coverage = self.coverage()
         return {

@@ -104,6 +104,7 @@ class VehicleProgress:
     airborne: bool = False
     lost_at_s: float | None = None
     lost_reason: str | None = None
+    lost_stalled_s: float = 0.0  # of its silence, the time this ground station stood still
     last_heartbeat_s: float | None = None
     landed_at_s: float | None = None
     disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
@@ -484,6 +485,7 @@ class Monitor:
                     continue
                 if self.silent(sysid):
                     age = self.links[sysid].heartbeat_age()
+                    v.lost_stalled_s = round(self.stalls.stalled(time.monotonic() - age), 3)
                     self._lose(v, f"no HEARTBEAT for {age:.1f} s")
                     v._reported = True
                     lost.append(sysid)
