@@ -36,12 +36,11 @@ def _save(cases: dict) -> None:
                                  "cases": dict(sorted(cases.items()))}, indent=1) + "\n")
 
 
-def optima(count: int, limit_s: float) -> dict:
-    """name -> cached record, solving what is missing or unproven (saved as it goes)."""
-    cases, wanted = _load(), {optimality_case(seed)[0] for seed in range(count)}
-    cases = {name: rec for name, rec in cases.items() if name in wanted}
-    for seed in range(count):
-        name, problem = optimality_case(seed)
+def optima(problems, limit_s: float) -> dict:
+    """name -> cached record of each (name, problem), solving what is missing or
+    unproven (saved as it goes; records of other problems are dropped)."""
+    cases = {name: rec for name, rec in _load().items() if name in dict(problems)}
+    for seed, (name, problem) in enumerate(problems):
         if cases.get(name, {}).get("proven"):
             continue
         start = solve(problem, DEFAULT_METHOD)
@@ -56,12 +55,12 @@ def optima(count: int, limit_s: float) -> dict:
 
 def run(count: int = 90, limit_s: float = 60.0) -> dict:
     print(f"\n== Against proven optima ({count} instances, {CACHE.name}) ==", flush=True)
-    cases = optima(count, limit_s)
+    problems = [optimality_case(seed) for seed in range(count)]
+    cases = optima(problems, limit_s)
     ratios = {m: [] for m in METHODS}
     seconds = {m: [] for m in METHODS}
     bound, bound_s, unproven = [], [], 0
-    for seed in range(count):
-        name, problem = optimality_case(seed)
+    for name, problem in problems:
         rec = cases[name]
         if not rec["proven"] or rec["value"] <= 0:
             unproven += not rec["proven"]

@@ -483,9 +483,9 @@ class Monitor:
                         v._reported = True
                         lost.append(sysid)
                     continue
-                if self.silent(sysid):
-                    age = self.links[sysid].heartbeat_age()
-                    v.lost_stalled_s = round(self.stalls.stalled(time.monotonic() - age), 3)
+                age, stalled = self._silence(sysid)
+                if age - stalled > self.lost_after_s:
+                    v.lost_stalled_s = round(stalled, 3)
                     self._lose(v, f"no HEARTBEAT for {age:.1f} s")
                     v._reported = True
                     lost.append(sysid)
@@ -505,10 +505,16 @@ class Monitor:
         """No HEARTBEAT from ``sysid`` for ``lost_after_s`` of the time this ground
         station was running (`StallClock`: a starved ground station hears nothing
         from anyone, and would otherwise lose its whole fleet at once)."""
+        age, stalled = self._silence(sysid)
+        return age - stalled > self.lost_after_s
+
+    def _silence(self, sysid) -> tuple:
+        """(seconds since ``sysid``'s last HEARTBEAT, of them the seconds this ground
+        station stood still); the stall is only looked up past ``lost_after_s``."""
         age = self.links[sysid].heartbeat_age()
         if age <= self.lost_after_s:
-            return False
-        return age - self.stalls.stalled(time.monotonic() - age) > self.lost_after_s
+            return age, 0.0
+        return age, self.stalls.stalled(time.monotonic() - age)
 
     def take_losses(self) -> list:
         """Vehicles found lost since the last call, by any `check_losses` (a loss

@@ -79,3 +79,10 @@ def requirement(problem) -> np.ndarray:
     need = (np.full(problem.n_targets, min(problem.k + 1, problem.n_uavs))
             if problem.required is None else np.asarray(problem.required))
     return np.minimum(need, achievable(problem))
+
+
+def shortfall(problem, routes) -> int:
+    """Targets with fewer sightings from distinct UAVs at distinct places than they
+    need (the one rule, or ``problem.required``, at most what they can get)."""
+    need = requirement(problem)
+    return int(sum(matched(f, q) < q for f, q in zip(sightings(problem, routes), need)))

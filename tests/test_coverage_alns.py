@@ -24,15 +24,6 @@ from planner.coverage.problem import prepare
 QUICK = CoverageParams(time_budget_s=0.05, routing_solutions=10, routing_time_s=1.0)
 
 
-def brute_force_shortfall(problem, routes):
-    """Targets with fewer sightings from distinct UAVs at distinct places than they
-    need (the one rule, or ``problem.required``, at most what they can get), by
-    the brute-force reference (tests/places_reference.py)."""
-    need = ref.requirement(problem)
-    found = ref.sightings(problem, routes)
-    return int(sum(ref.matched(f, q) < q for f, q in zip(found, need)))
-
-
 @pytest.mark.parametrize("family,k,launch,seed", [
     ("uniform", 0, False, 0), ("clustered", 1, True, 1), ("corridor", 2, True, 2),
     ("uniform", 2, False, 3)])
@@ -41,7 +32,7 @@ def test_alns_plan_covers_every_target_by_its_required_distinct_uavs(family, k, 
                              seed=seed, launch=launch, size_m=2000.0, sensor_m=450.0)
     a = solve(problem, "alns", QUICK)
     assert a.covered
-    assert brute_force_shortfall(problem, a.routes) == 0
+    assert ref.shortfall(problem, a.routes) == 0
     # no viewpoint is flown twice by one UAV
     assert all(len(set(route)) == len(route) for route in a.routes)
 
@@ -56,7 +47,7 @@ def test_alns_keeps_coverage_after_a_loss():
     need[::4] = 1
     problem.required = need
     a = solve(problem, "alns", QUICK)
-    assert a.covered and brute_force_shortfall(problem, a.routes) == 0
+    assert a.covered and ref.shortfall(problem, a.routes) == 0
 
 
 def test_every_intermediate_alns_solution_covers(monkeypatch):
@@ -72,13 +63,13 @@ def test_every_intermediate_alns_solution_covers(monkeypatch):
 
     def polish(self, *args, **kwargs):
         out = original(self, *args, **kwargs)
-        checked.append(brute_force_shortfall(problem, self.routes()) == 0)
+        checked.append(ref.shortfall(problem, self.routes()) == 0)
         return out
 
     monkeypatch.setattr(alns_module.Alns, "polish", polish)
     result = search(prep, [start], CoverageParams(seed=3), units=2_000_000)
     assert result.iterations > 10 and len(checked) > 10 and all(checked)
-    assert brute_force_shortfall(problem, result.routes) == 0
+    assert ref.shortfall(problem, result.routes) == 0
 
 
 def test_alns_is_deterministic_for_a_seed_and_budget():
@@ -109,7 +100,7 @@ def test_two_chains_are_never_worse_than_one_and_run_at_once():
     two = search(prep, [start], CoverageParams(seed=5), units=20_000_000, chains=2)
     assert two.best_time <= one.best_time + 1e-9
     assert two.iterations > one.iterations
-    assert brute_force_shortfall(problem, two.routes) == 0
+    assert ref.shortfall(problem, two.routes) == 0
     kernels = [f for f in vars(alns_kernels).values() if isinstance(f, CPUDispatcher)
                and f.py_func.__module__ == alns_kernels.__name__]
     assert kernels and all(f.targetoptions.get("nogil") for f in kernels)

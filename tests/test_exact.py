@@ -16,11 +16,6 @@ from planner.coverage.metrics import evaluate
 from planner.coverage.problem import prepare
 
 
-def shortfall(problem, routes):
-    need = ref.requirement(problem)
-    return sum(ref.matched(f, q) < q for f, q in zip(ref.sightings(problem, routes), need))
-
-
 @pytest.mark.parametrize("case,sensor", list(itertools.product(CASES, (450.0, 700.0))))
 def test_the_optimum_is_the_exhaustive_one(case, sensor):
     problem = tiny(*case, sensor_m=sensor)
@@ -29,7 +24,7 @@ def test_the_optimum_is_the_exhaustive_one(case, sensor):
     assert found.proven
     assert found.value == pytest.approx(best, rel=1e-9, abs=1e-6)
     # its plan is a plan: covered by the brute-force rule, timed by `evaluate`
-    assert shortfall(problem, found.routes) == 0
+    assert ref.shortfall(problem, found.routes) == 0
     assert evaluate(prepare(problem), found.routes, "x").coverage_time == found.value
 
 

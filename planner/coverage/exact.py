@@ -152,6 +152,7 @@ class _Master:
         self.forbidden = set()
         self.small_limit = math.inf
         self.entries = _entries(prep)
+        self.entered = self._entered()
         self._coverage()
         self._order_twins()
 
@@ -233,12 +234,19 @@ class _Master:
         that exceeds its time from the start (in whole milliseconds, rounded
         to keep it a relaxation)."""
         cap = int(math.ceil(limit * 1000.0))
+        for entered in self.entered:
+            self.model.add(entered <= cap)
+
+    def _entered(self):
+        """Per UAV, the knapsack's left side (see `_knapsack`), built once."""
+        out = []
         for r in range(self.n):
             into, spare = self.entries[r]
             first = self.model.new_int_var(int(min(spare.min(initial=0), 0)),
                                            int(max(spare.max(initial=0), 0)), "")
             self.model.add_max_equality(first, [int(c) * x for c, x in zip(spare, self.visit[r])])
-            self.model.add(sum(int(c) * x for c, x in zip(into, self.visit[r])) - first <= cap)
+            out.append(sum(int(c) * x for c, x in zip(into, self.visit[r])) - first)
+        return out
 
     def _slow(self, r, vs, limit):
         p = self.prep
@@ -253,14 +261,13 @@ class _Master:
             t, order = route_time(vs, self.prep.travel, self.prep.launch_out[r],
                                   self.prep.has_launch)
             routes.append(list(map(int, order)))
-            rest = list(vs)
-            while t > limit:  # forbid disjoint minimal slow subsets while any is left
+            rest, slow_here = list(vs), t > limit
+            while slow_here:  # forbid disjoint minimal slow subsets while any is left
                 slow = True
                 cut = self._minimal(r, rest, limit)
                 self.forbid(r, cut, limit)
                 rest = [e for e in rest if e not in cut]
-                t = route_time(np.asarray(rest, np.int64), self.prep.travel,
-                               self.prep.launch_out[r], self.prep.has_launch)[0]
+                slow_here = self._slow(r, rest, limit)
         return routes, slow
 
     def _minimal(self, r, vs, limit):
