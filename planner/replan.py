@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from common.errors import InputError
 from planner.exposure import segments_hidden
-from planner.travel import leg_time
+from planner.travel import CLEARANCE_MARGIN_M, leg_time
 from planner.visibility import Viewpoints, compute_visibility
 
 from .context import PlanningContext
@@ -199,15 +199,17 @@ def _climb_at_launch(ctx, xyz, launch):
 def _beside_node(ctx, xyz, node):
     """The node a vehicle hovers beside, when no leg to it passes the checks: within
     the room around it that the node's own check proves hidden and clear (its
-    `slack_m` disc, at its altitude), no lower than it and hidden on the straight
-    way there. A vehicle held at a waypoint on the edge of a void (a nodata margin)
-    drifts a few centimetres over ground the checks call unknown: it is still where
-    the node's proof holds."""
+    `slack_m` disc, at its altitude), no lower than it by more than the clearance
+    margin, and hidden on the straight way there. A vehicle held at a waypoint on
+    the edge of a void (a nodata margin) drifts a few centimetres over ground the
+    checks call unknown, at the mission item's float32 altitude (hundredths of a
+    millimetre under the node): it is still where the node's proof holds."""
     graph = ctx.graph
     if node < 0:
         return None
     target = graph.node_xyz[node]
-    if np.hypot(*(xyz[:2] - target[:2])) > graph.params.slack_m or xyz[2] < target[2]:
+    if np.hypot(*(xyz[:2] - target[:2])) > graph.params.slack_m or \
+            xyz[2] < target[2] - CLEARANCE_MARGIN_M:
         return None
     if not (graph.legs_ok(target, target)[0]
             and segments_hidden(ctx.surface, xyz[None], target[None])[0]):

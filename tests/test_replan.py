@@ -223,10 +223,11 @@ def test_nothing_required_goes_straight_home(planned):
 
 def test_survivor_hovering_at_a_waypoint_on_a_voids_edge_is_joined(planned):
     """A vehicle held at a waypoint whose cell borders a void (a nodata margin), as a
-    hover leaves it: a millimetre over the void side and a metre up. No leg from there
-    passes the checks (they call ground beside a void unknown), yet it stands where
-    the node's own proof holds: the re-plan starts at that node (the flaky timeout
-    flight of issue 31 stranded such a vehicle)."""
+    hover leaves it: a millimetre over the void side, and a metre up or at the mission
+    item's float32 altitude (under the node). No leg from there passes the checks
+    (they call ground beside a void unknown), yet it stands where the node's own
+    proof holds: the re-plan starts at that node (the flaky timeout flight of issue
+    31 stranded such vehicles)."""
     ctx, _ = planned
     g = ctx.graph
     west_void = np.isnan(g._h_round[g.node_rows, np.maximum(g.node_cols - 1, 0)])
@@ -234,10 +235,10 @@ def test_survivor_hovering_at_a_waypoint_on_a_voids_edge_is_joined(planned):
             if g.legs_ok(g.node_xyz[n], g.node_xyz[n])[0]]
     assert edge, "the terrain has no node beside a void"
     node = g.node_xyz[edge[0]]
-    here = node + [-1e-3, 0.4, 1.0]
-    assert segments_hidden(ctx.surface, here[None], node[None])[0]
-    assert not g.legs_ok(here, node, strict=False)[0]
-    launch = ctx.terrain.xy(8, 8)
-    start = survivor_start(ctx, Survivor(1, here, np.array([*launch, 0.0])))
-    assert np.array_equal(start.xyz, node) and np.array_equal(start.held, here)
-    assert start.climb_s > 0
+    launch = np.array([*ctx.terrain.xy(8, 8), 0.0])
+    on_the_wire = float(np.float32(node[2]) - np.spacing(np.float32(node[2])))
+    for here in (node + [-1e-3, 0.4, 1.0], np.array([node[0] - 1e-3, node[1], on_the_wire])):
+        assert segments_hidden(ctx.surface, here[None], node[None])[0]
+        assert not g.legs_ok(here, node, strict=False)[0]
+        start = survivor_start(ctx, Survivor(1, here, launch))
+        assert np.array_equal(start.xyz, node) and np.array_equal(start.held, here)

@@ -5,6 +5,7 @@ pulling), kernels (numba).
 """
 
 from .graph import (
+                    CLEARANCE_MARGIN_M,
                     ROUNDING_SLACK_M,
                     TravelGraph,
                     TravelParams,
@@ -15,5 +16,5 @@ from .graph import (
                     raised_terrain,
 )
 
-__all__ = ["ROUNDING_SLACK_M", "TravelGraph", "TravelParams", "build_travel_graph", "leg_time",
+__all__ = ["CLEARANCE_MARGIN_M", "ROUNDING_SLACK_M", "TravelGraph", "TravelParams", "build_travel_graph", "leg_time",
            "overlay_rows", "polyline_time", "raised_terrain"]
