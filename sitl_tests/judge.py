@@ -2,8 +2,10 @@
 
 `gcs fly` talks to each vehicle on its ground-station link; the judge listens on
 the autopilot's second link, which gcs never touches, and keeps what the
-autopilot says of itself: its positions (GLOBAL_POSITION_INT) and where its
-camera fired (ArduPilot CAMERA_FEEDBACK, PX4 CAMERA_IMAGE_CAPTURED).
+autopilot says of itself: its positions (GLOBAL_POSITION_INT), where its
+camera fired (ArduPilot CAMERA_FEEDBACK, PX4 CAMERA_IMAGE_CAPTURED) and the
+battery it reports (SYS_STATUS). On ArduPilot's link it also plays the crew
+that swaps a battery between sorties (`Judge.command`: MAV_CMD_BATTERY_RESET).
 
 - ArduPilot SITL instance i: SERIAL1 on TCP 5762 + 10 i, open once its first
   port has a client; it streams what is asked (REQUEST_DATA_STREAM).
@@ -20,8 +22,8 @@ import numpy as np
 
 from gcs.mavlink import M
 
-POSITION, FEEDBACK, CAPTURED = 33, 180, 263
-WANTED = frozenset({POSITION, FEEDBACK, CAPTURED})
+STATUS, POSITION, FEEDBACK, CAPTURED = 1, 33, 180, 263
+WANTED = frozenset({STATUS, POSITION, FEEDBACK, CAPTURED})
 JUDGE_SYSID = 254          # not 255: ArduPilot forwards between its links
 RATE_HZ = 10
 
@@ -85,6 +87,8 @@ class Judge:
         self.sysid, self.home = sysid, home
         self.samples = []                  # (wall t, lat, lon, alt AMSL)
         self.shots = []                    # (lat, lon, alt AMSL)
+        self.battery = []                  # (wall t, % remaining)
+        self._sock = None                  # ArduPilot's link, once connected
         self._mav = M.MAVLink(None, srcSystem=JUDGE_SYSID, srcComponent=190)
         self._mav.robust_parsing = True
         self._stop = threading.Event()
@@ -100,9 +104,11 @@ class Judge:
             wait_listening(port, timeout_s, alive)
             sock = socket.create_connection(("127.0.0.1", port), timeout=5)
             sock.settimeout(0.2)
-            ask = judge._mav.request_data_stream_encode(sysid, 1, M.MAV_DATA_STREAM_POSITION,
-                                                        RATE_HZ, 1)
-            sock.sendall(ask.pack(judge._mav))
+            for stream, hz in ((M.MAV_DATA_STREAM_POSITION, RATE_HZ),
+                               (M.MAV_DATA_STREAM_EXTENDED_STATUS, 2)):
+                ask = judge._mav.request_data_stream_encode(sysid, 1, stream, hz, 1)
+                sock.sendall(ask.pack(judge._mav))
+            judge._sock = sock
             return sock
 
         judge._start(lambda: judge._run_tcp(connect))
@@ -117,6 +123,14 @@ class Judge:
         sock.settimeout(0.2)
         judge._start(lambda: judge._run_udp(sock, ("127.0.0.1", px4_port)))
         return judge
+
+    def command(self, command: int, *params) -> None:
+        """Send COMMAND_LONG ``command`` to the autopilot on this link (ArduPilot)."""
+        if self._sock is None:
+            raise RuntimeError(f"vehicle {self.sysid}: the judge's link is not connected")
+        msg = self._mav.command_long_encode(self.sysid, 1, command, 0,
+                                            *(list(params) + [0.0] * 7)[:7])
+        self._sock.sendall(msg.pack(self._mav))
 
     def _start(self, target) -> None:
         self._thread = threading.Thread(target=target, daemon=True,
@@ -176,6 +190,9 @@ class Judge:
                     if msg.lat or msg.lon:                  # 0, 0: no EKF origin yet
                         self.samples.append((now, msg.lat * 1e-7, msg.lon * 1e-7,
                                              msg.alt * 1e-3))
+                elif kind == "SYS_STATUS":
+                    if msg.battery_remaining >= 0:
+                        self.battery.append((now, msg.battery_remaining))
                 elif kind == "CAMERA_FEEDBACK":
                     self.shots.append((msg.lat * 1e-7, msg.lng * 1e-7, msg.alt_msl))
                 elif kind == "CAMERA_IMAGE_CAPTURED":

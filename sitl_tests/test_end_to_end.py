@@ -36,7 +36,7 @@ pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collect
 
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
-             capacity=None, late=None, **options):
+             capacity=None, late=None, crew=False, **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
@@ -44,7 +44,9 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     ``drop_pct``: packets lost both ways throughout; ``speedup``: of the simulation
     (default: the backend's); ``capacity``: mission items each simulated vehicle
     holds; ``late``: (sysid, fleet s) it takes off that much after its planned
-    time (its arming refused until then: simulated backends); ``options``:
+    time (its arming refused until then: simulated backends); ``crew``: swap the
+    battery of each vehicle waiting on the ground for its next sortie (real SITL:
+    the backend's ``swap_battery``; the simulator's crew does it unasked); ``options``:
     `FlyOptions` fields to change. Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
     longest = max(v.mission_time_s for v in planned.plan.vehicles)
@@ -92,6 +94,16 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
                     return
                 time.sleep(0.01)
         threading.Thread(target=release, daemon=True).start()
+    if crew:
+        def swap_when_waiting():
+            swapped = set()
+            while not stop.is_set():
+                for sysid, route in list(flight._waiting_battery.items()):
+                    if id(route) not in swapped:
+                        swapped.add(id(route))
+                        be.swap_battery(sysid)
+                time.sleep(0.1)
+        threading.Thread(target=swap_when_waiting, daemon=True).start()
     if interrupt is not None:  # Ctrl-C: KeyboardInterrupt in the main thread
         threading.Thread(target=when_due, args=(*interrupt, _thread.interrupt_main),
                          daemon=True).start()
@@ -109,7 +121,8 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
             tracks[sysid] = (t, lat, lon, alt, confirmed_snapshots(planned.ctx, report, sysid,
                                                                    lat, lon, alt), home)
     return {"report": report, "tracks": tracks, "killed": killed, "wall_s": wall,
-            "flight": flight, "backend": backend, "camera": shots}
+            "flight": flight, "backend": backend, "camera": shots,
+            "judges": getattr(be, "judges", {})}
 
 
 #: a snapshot viewpoint counts as visited when the autopilot's own track passed
