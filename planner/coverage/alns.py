@@ -2,10 +2,8 @@
 
 RT+LS gives the start.  Each iteration then *destroys* part of the routes
 (removes q visits: at random, the most expensive ones, a stretch of the
-longest route, the most expensive ones of the longest route, a group of
-visits close to each other in travel time, or on small searches every visit
-of one or two UAVs, which re-splits viewpoints between them) and *repairs*
-them: visits are
+longest route, the most expensive ones of the longest route, or a group of
+visits close to each other in travel time) and *repairs* them: visits are
 inserted at their cheapest edge-breaking slot until every target is seen by
 its required number of distinct UAVs again, chosen by the paper's M_PTV, by
 targets gained per growth of the makespan, or by regret (the short target
@@ -16,16 +14,10 @@ a little of the mean route time, which guides the search across plateaus).
 Operators are chosen by roulette on weights that adapt to how often they
 found a new best, an improvement, or an accepted move (Ropke and Pisinger,
 2006).  Every intermediate solution keeps every target seen by its required
-number of distinct UAVs at distinct places (`places`): a repair only inserts
-(viewpoint, UAV) pairs that give a short target one more such sighting, and
-the removal of a visit is only kept if coverage holds (`alns_kernels`).  Where
-targets need two sightings, two UAVs may fly one viewpoint: 20 of the 90
-proven optima of ``bench_coverage --optimal`` do, and a search that gives
-each viewpoint to one UAV stayed up to 16 % above them.  The best solution is
-returned, never worse than the RT+LS start.  A start that meets the rule only
-with a viewpoint flown by two UAVs where that is not allowed (`places.share`)
-is first repaired, or rebuilt, into one that does not (`_cover`); if none is
-found it is returned as it is, unsearched.
+number of distinct UAVs: a repair only inserts (viewpoint, UAV) pairs that
+give a short target a new distinct viewer, and the removal of a visit is only
+kept if coverage holds.  The best solution is returned, never worse than the
+RT+LS start.
 
 **Budget and determinism.** The budget is given in seconds
 (``CoverageParams.time_budget_s``, ``--time-budget``) but counted in *work
@@ -47,7 +39,6 @@ from .alns_kernels import (
     MAKESPAN_MODE,
     PTV_MODE,
     REGRET_MODE,
-    apply_place,
     apply_visit,
     drop_redundant,
     improve_sorties,
@@ -75,7 +66,7 @@ ITERATION_UNITS = 30_000
 #: short (a 2048² plan flies 5.8 % less with 20 s than with 5 s, and a 1024² one 8.6 %;
 #: both stay within the planning-time goals of issue 22)
 BUDGET_PER_VISIT_S = 0.01
-MIN_BUDGET_S, MAX_BUDGET_S = 0.5, 5.0
+MIN_BUDGET_S, MAX_BUDGET_S = 0.1, 5.0
 BUDGET_PER_MILLION_CELLS_S, LARGE_MAX_BUDGET_S = 5.0, 20.0
 #: RT+LS is a start too (so ALNS is never worse than it) up to this many
 #: viewpoints x UAVs; beyond, its Python local search takes longer than the
@@ -96,18 +87,8 @@ ORDER_PASSES = 1
 WORSE_START, WORSE_END = 0.01, 0.0001
 #: visits removed per iteration: 1 .. min(Q_MAX, Q_FRACTION x visits)
 Q_MAX, Q_FRACTION = 40, 0.25
-#: whole-route rebuilds tried (`ROUTE_DESTROYS`) to turn a start that needs a shared
-#: viewpoint into one that does not
-COVER_TRIES = 20
 
 DESTROYS = ("random", "worst", "segment", "longest", "related")
-#: whole routes destroyed: one UAV's, or two UAVs' (their viewpoints re-split
-#: between them). Only on searches of at most this many visits: on the proven
-#: optima of ``bench_coverage --optimal`` (8-16 viewpoints) they take ALNS from
-#: 61 to 70 optimal plans of 90 and its worst from 1.155 (a k = 0 case) to
-#: 1.111; allowed up to 80 visits, they cost 2-5 % on three of the terrain
-#: suite's 4-UAV k = 2 cases
-ROUTE_DESTROYS, ROUTE_DESTROY_VISITS = ("route", "routes"), 30
 # (name, mode, lam, noise)
 REPAIRS = (("ptv", PTV_MODE, 0.0, 0.0), ("makespan", MAKESPAN_MODE, 0.1, 0.0),
            ("makespan-noisy", MAKESPAN_MODE, 0.5, 0.25), ("regret", REGRET_MODE, 0.1, 0.0))
@@ -149,16 +130,9 @@ class Alns:
             self.L[r] = len(route)
         self.cnt = prep.seen0.astype(np.int32)
         self.dc = (self.cnt > 0).sum(axis=0).astype(np.int32)
-        self.pc = self.dc.copy()  # each earlier sighting is a place of its own
-        self.fly = np.zeros(n_vp, np.int32)
         for r in range(n):
             for e in self.R[r, :self.L[r]]:
                 apply_visit(self.cnt, self.dc, r, e, 1, prep.vis_indptr, prep.vis_indices)
-                apply_place(self.pc, self.fly, e, 1, prep.vis_indptr, prep.vis_indices)
-        # two UAVs may fly one viewpoint where targets need two sightings at most:
-        # there min(distinct UAVs, distinct places) is the exact count (with one,
-        # a second UAV at a place adds nothing)
-        self.share = int(prep.required.max(initial=0)) == 2
         self.times = np.array([self._time(r) for r in range(n)])
         nn = nearest_other(prep.travel)
         nn = nn[np.isfinite(nn)]
@@ -184,8 +158,7 @@ class Alns:
         """An independent search from this state, drawing from ``rng``."""
         other = object.__new__(Alns)
         other.__dict__.update(self.__dict__)
-        for name in ("R", "L", "cnt", "dc", "pc", "fly", "times", "mark_vp", "mark_t",
-                     "removed"):
+        for name in ("R", "L", "cnt", "dc", "times", "mark_vp", "mark_t", "removed"):
             setattr(other, name, getattr(self, name).copy())
         other.rng, other.work = rng, 0
         return other
@@ -194,8 +167,8 @@ class Alns:
         """Go back to ``snap``; the coverage counts follow the changed visits."""
         R0, L0, times0 = snap
         p = self.p
-        restore_counts(self.R, self.L, R0, L0, self.cnt, self.dc, self.pc, self.fly,
-                       p.vis_indptr, p.vis_indices, self.mark_vp)
+        restore_counts(self.R, self.L, R0, L0, self.cnt, self.dc, p.vis_indptr, p.vis_indices,
+                       self.mark_vp)
         self.R[:], self.L[:], self.times[:] = R0, L0, times0
 
     def routes(self):
@@ -230,10 +203,6 @@ class Alns:
             pick = self.rng.choice(len(rs), q, replace=False)
         elif name == "worst":
             pick = self._pick_ranked(self._savings(), q)
-        elif name in ("route", "routes"):
-            n_pick = 1 if name == "route" else min(2, len(self.L))
-            gone = self.rng.choice(len(self.L), n_pick, replace=False)
-            pick = np.flatnonzero(np.isin(rs, gone))
         elif name in ("segment", "longest"):
             r = int(np.argmax(self.times))
             on_r = np.flatnonzero(rs == r)
@@ -251,8 +220,8 @@ class Alns:
             pick = self._pick_ranked(-np.where(np.isfinite(near), near, 1e12), q, power=4.0)
         pick = np.asarray(pick, np.int64)
         p = self.p
-        k = remove_visits(self.R, self.L, rs[pick], idx[pick], self.cnt, self.dc, self.pc,
-                          self.fly, p.vis_indptr, p.vis_indices, self.removed)
+        k = remove_visits(self.R, self.L, rs[pick], idx[pick], self.cnt, self.dc,
+                          p.vis_indptr, p.vis_indices, self.removed)
         for r in np.unique(rs[pick]):
             self.times[r] = self._time(r)
         return self.removed[:k].copy()
@@ -260,31 +229,32 @@ class Alns:
     # -- repair ------------------------------------------------------------------
     def repair(self, removed, spec):
         p = self.p
-        short = short_targets(removed, self.dc, self.pc, p.required, p.vis_indptr,
-                              p.vis_indices, self.mark_t)
+        short = short_targets(removed, self.dc, p.required, p.vis_indptr, p.vis_indices,
+                              self.mark_t)
         _, mode, lam, noise = spec
         rnd = self.rng.random(257) if noise > 0 else np.zeros(1)
-        ok, work = repair(self.R, self.L, self.times, self.cnt, self.dc, self.pc, self.fly,
-                          p.required, self.weight, short, p.vis_indptr, p.vis_indices,
-                          p.tgt_indptr, p.tgt_indices, p.travel, p.frames, p.sorties,
-                          p.has_launch, mode, self.params.alpha, lam, self.eps, noise, rnd,
-                          p.owner0, self.share)
+        ok, work = repair(self.R, self.L, self.times, self.cnt, self.dc, p.required,
+                          self.weight, short,
+                          p.vis_indptr, p.vis_indices, p.tgt_indptr, p.tgt_indices, p.travel,
+                          p.frames, p.sorties, p.has_launch, mode, self.params.alpha, lam,
+                          self.eps,
+                          noise, rnd, p.owner0)
         self.work += work + len(short)
         return ok
 
     def polish(self, routes_changed, passes=None):
         p = self.p
         passes = ORDER_PASSES if passes is None else passes
-        self.work += drop_redundant(self.R, self.L, self.times, self.cnt, self.dc, self.pc,
-                                    self.fly, p.required, p.vis_indptr, p.vis_indices,
-                                    p.travel, p.frames, p.sorties, p.has_launch)
+        self.work += drop_redundant(self.R, self.L, self.times, self.cnt, self.dc, p.required,
+                                    p.vis_indptr, p.vis_indices, p.travel, p.frames,
+                                    p.sorties, p.has_launch)
         for r in routes_changed:
             self.work += improve_sorties(self.R, self.L, r, p.travel, p.frames, p.sorties,
                                          p.has_launch, passes)
             self.times[r] = self._time(r)
 
     def covered(self):
-        return bool(np.all(np.minimum(self.dc, self.pc) >= self.p.required))
+        return bool(np.all(self.dc >= self.p.required))
 
 
 def search(prep, starts, params, units=None, progress=None, classes=True,
@@ -306,7 +276,7 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
     s = None
     for routes in starts:
         cand = Alns(prep, routes, params, rng, weight)
-        if not cand.covered() and not _cover(cand):
+        if not cand.covered():
             continue       # left short by the one-UAV-a-viewpoint rule: `places.share`'s
         cand.polish(range(len(cand.L)), passes=100)
         if s is None or _key(cand.times) < _key(s.times):
@@ -331,31 +301,6 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
                   start_time, float(s.times.max()))
 
 
-def _cover(s) -> bool:
-    """Make ``s`` cover every target with each viewpoint flown by one UAV, where a
-    start (RT's greedy) painted itself into a corner that only a shared viewpoint
-    gets out of: its short targets repaired; else, on small searches, whole routes
-    rebuilt by each repair in turn, up to `COVER_TRIES` times (a regret repair of
-    both routes of seed 33 of `instances.optimality_case` covers where the start
-    could not, and the search then finds the optimum). False (``s`` unchanged) if
-    none covers."""
-    start = s.snapshot()
-    every = np.arange(s.p.problem.n_viewpoints)  # the short targets are anywhere
-    tries = COVER_TRIES if _destroys(s) != DESTROYS else 0
-    for attempt in range(tries + 1):
-        if attempt:
-            s.destroy(ROUTE_DESTROYS[attempt % 2], 0)
-        if s.repair(every, REPAIRS[-1 - (attempt // 2) % len(REPAIRS)]) and s.covered():
-            return True
-        s.restore(start)
-    return False
-
-
-def _destroys(s) -> tuple:
-    small = s.L.sum() <= ROUTE_DESTROY_VISITS
-    return DESTROYS + ROUTE_DESTROYS if small else DESTROYS
-
-
 def _chain(s, units, progress=None):
     """One annealing chain of ``units`` work from ``s``'s state: (best state, its
     key, iterations)."""
@@ -366,10 +311,9 @@ def _chain(s, units, progress=None):
     # temperature: geometric in the budget spent, from WORSE_START to WORSE_END
     t_start = WORSE_START * f_cur / math.log(2)
     t_end = WORSE_END * f_cur / math.log(2)
-    destroys = _destroys(s)
-    wd = np.ones(len(destroys))
+    wd = np.ones(len(DESTROYS))
     wr = np.ones(len(REPAIRS))
-    sd, ud = np.zeros(len(destroys)), np.zeros(len(destroys))
+    sd, ud = np.zeros(len(DESTROYS)), np.zeros(len(DESTROYS))
     sr, ur = np.zeros(len(REPAIRS)), np.zeros(len(REPAIRS))
     q_hi = max(2, min(Q_MAX, int(round(Q_FRACTION * int(s.L.sum())))))
     it = 0
@@ -383,7 +327,7 @@ def _chain(s, units, progress=None):
         q = int(rng.integers(1, q_hi + 1))
         before = s.snapshot()
         s.work += ITERATION_UNITS
-        removed = s.destroy(destroys[d], q)
+        removed = s.destroy(DESTROYS[d], q)
         if not s.repair(removed, REPAIRS[h]):
             s.restore(before)
             continue
