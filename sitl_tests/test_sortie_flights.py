@@ -16,7 +16,7 @@ from test_end_to_end import (
     recorded_coverage,
 )
 
-#: 2 vehicles on real SITL's 4 km window with a 10-minute battery: 3-4 sorties each,
+#: 2 vehicles on real SITL's 4 km window with a 10-minute battery: 4-5 sorties each,
 #: about 33 min of fleet time (3.3 min of wall time at 10x)
 SORTIES = Setting(2, 100.0, (215, 130, 40), 1200.0,
                   (("endurance_min", 10.0), ("turnaround_min", 2.0)))
