@@ -307,13 +307,15 @@ def _twins(prep):
 def _needed_classes(prep):
     """(viewers, need) per target class that must be covered and is not implied
     by another (a class whose viewers include another's and needs no more: a
-    matching for that one serves it too)."""
-    need = prep.required
+    matching for that one serves it too). Built on `classes.target_classes`
+    (targets seen from the same viewpoints), which the problem keeps anyway."""
+    cp, _, _ = prep.classes
+    need = cp.required
     seen = {}
-    for t in range(prep.problem.n_targets):
+    for t in range(len(need)):
         if need[t] <= 0:
             continue
-        viewers = tuple(prep.tgt_indices[prep.tgt_indptr[t]:prep.tgt_indptr[t + 1]])
+        viewers = tuple(cp.tgt_indices[cp.tgt_indptr[t]:cp.tgt_indptr[t + 1]])
         seen[viewers] = max(seen.get(viewers, 0), int(need[t]))
     kept = []
     for viewers, q in sorted(seen.items(), key=lambda c: len(c[0])):
