@@ -117,6 +117,20 @@ class ArduPilot(Autopilot):
         return out
 
 
+#: BATT_FS_LOW_ACT and BATT_FS_CRT_ACT (Copter's values for both), in words that say
+#: where the vehicle would fly
+_BATTERY_ACTIONS = {
+    0: "a warning only: it flies on",
+    1: "LAND where it is",
+    2: "RTL: a climb to RTL_ALT and a straight line home",
+    3: "SmartRTL (its own track back) or RTL",
+    4: "SmartRTL (its own track back) or LAND",
+    5: "terminate: motors off where it is",
+    6: "the mission's DO_LAND_START (ours have none) or RTL",
+    7: "brake where it is, then LAND",
+}
+
+
 def _float32(value: float) -> float:
     return struct.unpack("f", struct.pack("f", float(value)))[0]
 
@@ -141,12 +155,6 @@ PROFILE = ArduPilot(
     capacity_text=r"Only (\d+) items are supported",
     capacity_advice="raise it with the parameter BRD_SD_MISSION (kB of the SD card kept for "
                     "missions: 64 holds about 4,368 items), then reboot",
-    battery_failsafe=("BATT_FS_LOW_ACT", {
-        0: "a warning only: it flies on",
-        1: "LAND where it is",
-        2: "RTL: a climb to RTL_ALT and a straight line home",
-        3: "SmartRTL (its own track back) or RTL",
-        4: "SmartRTL (its own track back) or LAND",
-        5: "terminate: motors off where it is",
-    }),
+    battery_failsafes=(("BATT_FS_LOW_ACT", _BATTERY_ACTIONS),
+                       ("BATT_FS_CRT_ACT", _BATTERY_ACTIONS)),
 )

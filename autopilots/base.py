@@ -67,9 +67,9 @@ class Autopilot:
     #: vehicle is found: what the ground station reads at its rate, and the heavy
     #: streams it does not read slowed down (PX4 SITL sends 50 Hz streams)
     message_rates: tuple = ()
-    #: the parameter that says what the autopilot does on a low battery, and what
-    #: each of its values does (in words that say where the vehicle would fly)
-    battery_failsafe: tuple = ("", {})
+    #: (parameter, {value: what it does}) for each parameter that says what the
+    #: autopilot does on a low battery (in words that say where the vehicle would fly)
+    battery_failsafes: tuple = ()
     #: a held mission, flown on, goes back first to the position item before the one
     #: it was flying to (PX4 re-flies a leg its camera was triggering on), unless its
     #: current item was set since the hold

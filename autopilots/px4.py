@@ -102,12 +102,12 @@ PROFILE = PX4(
     request_streams=False,
     capacity_advice="a board keeps missions in its dataman: on the SD card (SYS_DM_BACKEND 0) "
                     "it holds more than in RAM",
-    battery_failsafe=("COM_LOW_BAT_ACT", {
+    battery_failsafes=(("COM_LOW_BAT_ACT", {
         0: "a warning only: it flies on",
         2: "LAND where it is",
         3: "RTL at the critical level (a climb to RTL_RETURN_ALT and a straight line "
            "home), LAND at the emergency level",
-    }),
+    }),),
     # GLOBAL_POSITION_INT at the ground station's rate; POSITION_TARGET_LOCAL_NED,
     # LOCAL_POSITION_NED, ATTITUDE, ATTITUDE_QUATERNION, ATTITUDE_TARGET,
     # SERVO_OUTPUT_RAW, RC_CHANNELS, OPTICAL_FLOW_RAD (unread) at 1 Hz

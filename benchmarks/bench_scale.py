@@ -11,9 +11,13 @@ and on held-out ones of other kinds and seeds (`TERRAINS`: hills, ridges, peaks;
 outposts on summits or in valleys, eyes 4-8 m, ranges 3-8 km), each stage per
 terrain, the worst terrain's total as the headline beside the own one's
 (issue 36: the travel-time stage's cost must not depend on the terrain's luck).
+``--endurance MIN`` (with ``--terrains``): instead, the same plans on a battery of
+MIN minutes, each terrain planned with and without it in the same run (issue 33:
+sorties a battery can fly), and what the sorties cost: planning time, coverage
+time, sorties per UAV, the viewpoints beyond one battery.
 
     .venv/bin/python -m benchmarks scale [--quick | --huge[=N] [--parts=P] [--workers=W]
-                                          | --terrains[=N]]
+                                          | --terrains[=N] [--endurance MIN]]
 
 Each size runs in its own process, so its peak resident memory is its own. The
 goals (issue 22): 1024² with 8 UAVs under 60 s and 4 GiB on 2 cores, both
@@ -40,7 +44,7 @@ STAGES = ("terrain", "exposure", "travel graph", "viewpoints", "visibility", "tr
           "allocation", "routes", "separation")
 
 
-def _one(n: int, scheduler: str, parts=None, terrain="own") -> dict:
+def _one(n: int, scheduler: str, parts=None, terrain="own", endurance=None) -> dict:
     """Plan an n x n terrain in this process; per-stage wall/CPU seconds, peak RSS."""
     import resource
     import time
@@ -53,7 +57,7 @@ def _one(n: int, scheduler: str, parts=None, terrain="own") -> dict:
     folder = Path(tempfile.mkdtemp(prefix="bench-scale-"))
     dem, posts, launch = _inputs(n, folder, *TERRAINS[terrain])
     scenario = Scenario(dem=[str(dem)], outposts=str(posts), uavs=UAVS[n], k=1,
-                        launch=[launch], parts=parts).validate()
+                        launch=[launch], parts=parts, endurance_min=endurance).validate()
     marks = {}
 
     def progress(stage, fraction):
@@ -75,6 +79,9 @@ def _one(n: int, scheduler: str, parts=None, terrain="own") -> dict:
             "hidden_pct": 100.0 * float((ctx.surface.regions > 0).mean()),
             "targets": int(ctx.visibility.n_targets),
             "coverage_min": outcome.plan.metrics["coverage_time_s"] / 60,
+            "sorties": max((len(v.sorties) or 1 for v in outcome.plan.vehicles), default=0),
+            "longest_flight_min": outcome.plan.metrics["battery"]["longest_flight_s"] / 60,
+            "beyond_battery": outcome.plan.metrics["battery"].get("beyond_battery", 0),
             "parts": outcome.plan.metrics.get("parts", 1),
             "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20,
             "worker_peaks_gib": _worker_peaks(where)}
@@ -131,8 +138,9 @@ def _inputs(n, folder, family="mixed", seed=11, where="anywhere"):
     return dem, posts, (float(lat), float(lon))
 
 
-def _run(n, scheduler="none", parts=None, terrain="own") -> dict:
-    more = (["--parts", str(parts)] if parts else []) + ["--terrain", terrain]
+def _run(n, scheduler="none", parts=None, terrain="own", endurance=None) -> dict:
+    more = (["--parts", str(parts)] if parts else []) + ["--terrain", terrain] + \
+        (["--endurance", str(endurance)] if endurance else [])
     out = subprocess.run([sys.executable, __file__, "--one", str(n), "--scheduler", scheduler]
                          + more, stdout=subprocess.PIPE, text=True, cwd=ROOT)  # stderr shown
     if out.returncode:
@@ -149,6 +157,8 @@ def main(argv=None):
                     help="N² (default 1024²) on the own and the held-out terrains")
     ap.add_argument("--terrain", default="own", choices=sorted(TERRAINS),
                     help="with --one: which terrain")
+    ap.add_argument("--endurance", type=float, metavar="MIN",
+                    help="with --terrains: also plan each terrain on a battery of MIN minutes")
     ap.add_argument("--one", type=int, help=argparse.SUPPRESS)
     ap.add_argument("--scheduler", default="none", help=argparse.SUPPRESS)
     ap.add_argument("--parts", type=int, help="with --huge: plan in this many parts "
@@ -158,10 +168,14 @@ def main(argv=None):
                          "an hour per cluster)")
     args, _ = ap.parse_known_args(argv)
     if args.one:
-        print(json.dumps(_one(args.one, args.scheduler, args.parts, args.terrain)))
+        print(json.dumps(_one(args.one, args.scheduler, args.parts, args.terrain,
+                              args.endurance)))
         return
     if args.terrains:
-        _terrains(args.terrains)
+        if args.endurance:
+            _sorties(args.terrains, args.endurance)
+        else:
+            _terrains(args.terrains)
         return
     if args.huge:
         _huge(args.huge, args.parts, (args.workers,) if args.workers else (2, 1))
@@ -210,6 +224,23 @@ def _terrains(n):
     print(f"\nworst terrain: {worst}, {total[worst]:.1f} s = {total[worst] / total['own']:.2f}"
           f" x the own terrain's {total['own']:.1f} s (goal: under "
           f"{60 if n <= 1024 else 300} s)")
+
+
+def _sorties(n, endurance):
+    """Each terrain planned on an ``endurance``-minute battery, beside its plan without
+    one made in the same run."""
+    print(f"\n{n}², {UAVS[n]} UAVs, k = 1: unlimited battery vs {endurance:g} min")
+    head = (f"{'terrain':<14}{'plan s':>14}{'coverage min':>16}{'sorties/UAV':>13}"
+            f"{'longest min':>13}{'beyond':>8}")
+    print(head + "\n" + "-" * len(head))
+    for name in TERRAINS:
+        free, limited = _run(n, terrain=name), _run(n, terrain=name, endurance=endurance)
+        walls = [sum(w for w, _ in r["stages"].values()) for r in (free, limited)]
+        print(f"{name:<14}{walls[0]:6.1f} ->{walls[1]:6.1f}"
+              f"{free['coverage_min']:7.1f} ->{limited['coverage_min']:6.1f}"
+              f"{free['sorties']:5d} ->{limited['sorties']:4d}"
+              f"{free['longest_flight_min']:6.1f} ->{limited['longest_flight_min']:5.1f}"
+              f"{limited['beyond_battery']:8d}", flush=True)
 
 
 def _huge(n, parts=None, clusters=(2, 1)):

@@ -261,7 +261,7 @@ def _until(link, predicate, timeout_s) -> bool:
 # -- the start sequence ----------------------------------------------------------------
 def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
                   climb_timeout_s: float = 120.0, retries: int = RETRIES,
-                  on_liftoff=None, cancel=None) -> None:
+                  on_liftoff=None, cancel=None, column=None) -> None:
     """Take off and start the uploaded mission, as the vehicle's firmware expects
     (the steps of its profile's ``start_sequence``).
 
@@ -272,12 +272,16 @@ def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
     called when the command that lifts it off is acknowledged (the moment a
     fleet's schedule is kept to); ``cancel`` (a `threading.Event`): once set, the
     sequence sends nothing more and raises `StartCancelled` (a re-plan is about
-    to hold the vehicle where it is)."""
+    to hold the vehicle where it is); ``column``: its base column, asked before
+    each arming attempt (``claim()``: whether it may leave the ground now, and if so
+    the column is kept for it) and waited for, given back on a refused arming
+    (``release()``): arming is the last step before it lifts off (PX4 climbs as it
+    arms in its mission mode, ArduPilot on the takeoff sent next)."""
     profile = autopilot(link)
     ready_by = time.monotonic() + ready_timeout_s
     wait_ready(link, ready_timeout_s)
     run = _StartRun(link, profile, takeoff_alt_amsl, climb_timeout_s, retries, ready_by,
-                    on_liftoff or (lambda: None), cancel)
+                    on_liftoff or (lambda: None), cancel, column)
     for step in profile.start_sequence:
         run.check()
         getattr(run, step.action)(step.argument)
@@ -285,6 +289,8 @@ def start_mission(link, takeoff_alt_amsl: float, ready_timeout_s: float = 60.0,
 
 #: wall seconds between arming attempts refused while the vehicle gets ready
 ARM_RETRY_S = 1.0
+#: wall seconds between two looks at whether a vehicle's base column is clear
+COLUMN_POLL_S = 0.1
 #: takeoffs tried when the vehicle disarmed itself on the ground before climbing
 TAKEOFF_ATTEMPTS = 3
 
@@ -293,10 +299,12 @@ class _StartRun:
     """The steps a start sequence is made of (`autopilots.base.Step`)."""
 
     def __init__(self, link, profile, takeoff_alt_amsl, climb_timeout_s, retries,
-                 ready_by=None, on_liftoff=lambda: None, cancel=None):
+                 ready_by=None, on_liftoff=lambda: None, cancel=None, column=None):
         self.link, self.profile = link, profile
         self.on_liftoff = on_liftoff
         self.cancel = cancel
+        self.column = column
+        self.claimed = False                # the column is kept for this vehicle
         self.takeoff_alt_amsl = takeoff_alt_amsl
         self.climb_timeout_s, self.retries = climb_timeout_s, retries
         self.ready_by = ready_by            # until then a refused arming is tried again
@@ -322,18 +330,36 @@ class _StartRun:
     def arm(self, _=None) -> None:
         """Arm; refused (PX4 reports no pre-arm bit, so readiness is its arming
         result: "Arming denied" until its estimator is ready), try again until the
-        ready timeout."""
+        ready timeout. Each attempt waits for its base column (the time waited is
+        added to the ready timeout), which a refused attempt gives back."""
         while True:
+            self._claim_column()
             try:
                 arm(self.link, retries=self.retries)
                 break
             except CommandError as exc:
+                if self.column is not None:
+                    self.column.release()
+                    self.claimed = False
                 self.check()
                 if exc.result is None or self.ready_by is None or \
                         time.monotonic() + ARM_RETRY_S > self.ready_by:
                     raise
                 time.sleep(ARM_RETRY_S)
         self.armed_at = time.monotonic()  # after the ACK (retries on a lossy link included)
+
+    def _claim_column(self) -> None:
+        """Wait for the base column and keep it; once armed it stays kept (an arming
+        again after ArduPilot disarmed itself idle goes at once, as before)."""
+        if self.column is None or self.claimed:
+            return
+        begun = time.monotonic()
+        while not self.column.claim():
+            self.check()
+            time.sleep(COLUMN_POLL_S)
+        self.claimed = True
+        if self.ready_by is not None:
+            self.ready_by += time.monotonic() - begun
 
     def mission_start(self, fallback_mode=None) -> None:
         try:

@@ -20,6 +20,7 @@ from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
 from common.colours import vehicle_colour  # noqa: E402
+from gcs.guard import hold_spans  # noqa: E402
 from gcs.plots import (  # noqa: E402
     _lonlat_km,
     _save,
@@ -211,13 +212,15 @@ def draw_timeline(ax, report, clock) -> None:
     for row, v in enumerate(vehicles):
         y = len(vehicles) - 1 - row
         c = vehicle_colour(v["vehicle"])
-        if v["track"]:
-            tt = clock.track_time(v)
-            end = tt[-1]
-            if v["state"] == "landed" and v.get("landed_at_s") is not None:
-                end = min(end, float(clock.vehicle(v["sysid"], v["landed_at_s"])))
-            ax.plot([tt[0], end], [y, y], "-", color=c, linewidth=5, alpha=0.55,
+        spans = [[float(x) for x in clock.vehicle(v["sysid"], span)]
+                 for span in _airborne(report, v["sysid"])]
+        if spans and v["state"] == "lost" and v["track"]:    # to its last report
+            spans[-1][1] = min(spans[-1][1], float(clock.track_time(v)[-1]))
+        for a, b in spans:
+            ax.plot([a, b], [y, y], "-", color=c, linewidth=5, alpha=0.55,
                     solid_capstyle="butt", zorder=3)
+        for (_, a), (b, _) in zip(spans, spans[1:]):    # down between two sorties
+            ax.plot([a, b], [y, y], "-", color=c, linewidth=1.5, alpha=0.8, zorder=3)
         if v["snapshots"]:
             ts = clock.vehicle(v["sysid"], [s["t_s"] for s in v["snapshots"]])
             ax.plot(ts, np.full(len(ts), y), "|", color="black", markersize=11,
@@ -242,6 +245,8 @@ def draw_timeline(ax, report, clock) -> None:
     ax.grid(axis="x", alpha=0.3)
     ax.set_title("timeline", fontsize=10, loc="left")
     handles = [Line2D([], [], color="grey", linewidth=5, alpha=0.55, label="flying"),
+               Line2D([], [], color="grey", linewidth=1.5, alpha=0.8,
+                      label="on the ground between sorties (battery swap)"),
                Line2D([], [], linestyle="none", marker="|", color="black", markersize=10,
                       label="snapshot taken"),
                Line2D([], [], linestyle="none", marker="X", color="grey",
@@ -256,6 +261,23 @@ def draw_timeline(ax, report, clock) -> None:
                      label="held by the separation guard")]
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, 1.42), ncol=4,
               fontsize=7.5, framealpha=0.9)
+
+
+def _airborne(report, sysid) -> list:
+    """[(from, to)] wall s of each flight of ``sysid``: from its takeoff (sent up,
+    or seen flying in reports older than that event) to its landing or loss."""
+    spans, up = [], None
+    for e in report.get("events", []):
+        if e.get("sysid") != sysid:
+            continue
+        if e["event"] in ("taking off", "flying") and up is None:
+            up = e["t_s"]
+        elif e["event"] in ("landed", "lost") and up is not None:
+            spans.append((up, e["t_s"]))
+            up = None
+    if up is not None:
+        spans.append((up, report.get("duration_s", up)))
+    return spans
 
 
 def _ground_waits(report) -> list:
@@ -273,15 +295,8 @@ def _ground_waits(report) -> list:
 
 def _guard_holds(report) -> list:
     """[(sysid, (from, to))] wall s of each hold by the separation guard."""
-    out, since = [], {}
-    for a in report.get("separation", {}).get("actions", []):
-        if a["action"] == "hold":
-            since[a["sysid"]] = a["t_s"]
-        elif a["sysid"] in since:
-            out.append((a["sysid"], (since.pop(a["sysid"]), a["t_s"])))
-    end = report.get("duration_s", 0.0)
-    out += [(s, (t, end)) for s, t in since.items()]
-    return out
+    return hold_spans(report.get("separation", {}).get("actions", []),
+                      report.get("duration_s", 0.0))
 
 
 def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:

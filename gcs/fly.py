@@ -22,20 +22,22 @@ report's ``outcome`` says whether the flight did its job: the required
 coverage reached, no vehicle lost, none left in the air.
 """
 
+import bisect
 import json
 import math
 import threading
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
+from types import SimpleNamespace
 
 from autopilots import NAMES
 from common.errors import InputError
 from common.fileio import write_text_atomic
 from gcs import commands
 from gcs.clock import FleetClock
-from gcs.guard import SeparationGuard
+from gcs.guard import SeparationGuard, hold_spans
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
 from gcs.monitor import (
@@ -59,14 +61,20 @@ from planner.context import PlanningContext
 from planner.fleet import prove_separated, stop_time
 from planner.plan import PLAN_FILE, Plan
 from planner.replan import coverable_targets, coverage_summary, seen_matrix
+from planner.travel import leg_time
 
 FORMAT = "gcs-flight/1"
 FLIGHT_FILE = "flight.json"
 PLOT_FILE = "flight.png"
 TLOG_PATTERN = "vehicle_{sysid}.tlog"
+#: the plan made from where the vehicles stand (``from_where_they_stand``), in the output
+PLAN_FROM_HERE = "plan-from-where-they-stand"
 LOOP_S = 0.1
 #: after a timeout brought the vehicles home, wait at least this long (wall s) for them
 HOME_WAIT_S = 60.0
+#: a battery failsafe that does one of these stays hidden: straight down from a
+#: hidden point is below the exposure surface (`check_failsafes`)
+HIDDEN_FAILSAFES = ("a warning", "LAND where", "brake where")
 #: how far (m) a vehicle may stand from its launch point when the plan names no track
 #: tolerance (plans older than it)
 LAUNCH_TOLERANCE_M = 5.0
@@ -77,7 +85,7 @@ CALL_OFF_WAIT_S = 10.0
 FRESH_BATTERY_PCT = 95
 #: fleet seconds of a sortie, and % of its battery drawn, before its rate of draw is
 #: trusted by the battery watch
-WATCH_AFTER_S, WATCH_AFTER_PCT = 240.0, 5
+WATCH_AFTER_S, WATCH_AFTER_PCT = 120.0, 8
 #: a battery drawn this many times faster than its rating (the plan's endurance) is
 #: not trusted: the vehicle comes home early and stays down
 FAST_DRAIN = 1.25
@@ -101,6 +109,8 @@ class FlyOptions:
     plot: bool = True
     auto_turnaround: bool = False  # between sorties: a fresh battery reported is enough
                                    # (simulators, SITL); else the operator confirms too
+    from_where_they_stand: bool = False  # a vehicle off its launch point: plan again with
+                                         # its base where it stands (else it is refused)
 
     @property
     def protocol(self) -> dict:
@@ -120,6 +130,18 @@ class Departure:
 
 def _finite_or_none(x):
     return None if x is None or not math.isfinite(x) else round(float(x), 2)
+
+
+def _start(route):
+    """Where a route's vehicle must stand to start it: its launch point, or under its
+    first waypoint when the plan has none (None for a route without waypoints)."""
+    if route.launch is not None:
+        return route.launch
+    return route.waypoints[0] if route.waypoints else None
+
+
+def _start_name(route) -> str:
+    return "the launch point" if route.launch is not None else "under the first waypoint"
 
 
 class FlightError(Exception):
@@ -164,9 +186,15 @@ class Flight:
         self.monitor = Monitor(options.lost_after_s, on_event=self._on_event,
                                track_tolerance_m=self.plan.params.get("track_tolerance_m"))
         self.clock = FleetClock(self.monitor)
+        # a vehicle down between two sorties is still part of the flight: one that goes
+        # silent there is lost (and re-planned for), not waited for
+        self.monitor.awaited = lambda: {s for s, parts in list(self.later.items())
+                                        if parts and self.monitor.vehicles[s].state != LOST}
         self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
         self._departing = {}      # sysid -> (thread, error, cancel) of departures under way
         self._waiting_for = {}    # sysid -> the vehicle its base column waits for
+        self._lifting = {}        # sysid -> launch point of the base column claimed for it
+        self._column_lock = threading.Lock()
         self._lifted = []         # (sysid, launch begun, lifted off): monitor times
         self.latency_s = 0.0      # fleet s from a launch's first command to its liftoff
         self.guard = None
@@ -179,7 +207,12 @@ class Flight:
         self.offset = {}          # sysid -> fleet s of t = 0 of its route's times (a re-plan's)
         self._waiting_battery = {}  # sysid -> the sortie waiting for a fresh battery
         self.swapped = set()      # sysids whose battery swap the operator confirmed
-        self._sortie_began = {}   # sysid -> (fleet s, battery %) at its last liftoff
+        self._route_seen = {}     # sysid -> (route, own clock s, route time s) first seen
+        self._pace = {}           # sysid -> times slower than planned on its route so far
+        self._late = {}           # the same, for those the battery watch brought home
+        self._late_acted = set()  # ... in their sortie now: once a sortie (`_watch_batteries`)
+        self._sortie_began = {}   # sysid -> (monitor s, own clock s, battery %) at its
+                                  # last liftoff
         self.spent = set()        # sysids the battery watch sent home: they stay down
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
         self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
@@ -249,6 +282,7 @@ class Flight:
         except FlightError as exc:
             self.error = str(exc)
             self.monitor.event(None, f"failed: {exc}")
+            self._home_after_failure()
         finally:
             self.monitor.close()
             if self.link is not None:
@@ -275,14 +309,41 @@ class Flight:
         self.stopped = why
         if choice != "home":
             return
-        self.retask(home=True)
-        bound = None if self.options.timeout_s is None else \
-            max(self.options.timeout_s, HOME_WAIT_S, self._home_wall_s())
-        try:
-            self.watch(status, bound)          # bounded again: never forever
+        if self._bring_home(status, bounded=self.options.timeout_s is not None):
             self.stopped = None
+
+    def _bring_home(self, status, bounded: bool) -> bool:
+        """Every vehicle in the air home along hidden paths (never RTL), watched until
+        down; ``bounded``: for no longer than the flights home take, twice over (at
+        least `HOME_WAIT_S`). False when stopped before they all landed."""
+        self.retask(home=True)
+        bound = max(self.options.timeout_s or 0.0, HOME_WAIT_S, self._home_wall_s()) \
+            if bounded else None
+        try:
+            self.watch(status, bound)
+            return True
         except (KeyboardInterrupt, _TimedOut):
             self.monitor.event(None, "stopped while bringing the vehicles home")
+            return False
+
+    def _home_after_failure(self) -> None:
+        """The flight failed (a start refused, an upload that cannot be done) with
+        vehicles in the air: they are not left on their missions with nobody
+        watching (no guard, no re-plan on a loss), but brought home by hidden paths
+        (never RTL) and watched until down, as on a timeout."""
+        m = self.monitor
+        up = [s for s, v in sorted(m.vehicles.items()) if v.airborne and not v.finished]
+        if not up:
+            return
+        m.event(None, "the flight failed: the vehicles in the air are brought home by "
+                      "hidden paths", vehicles=up)
+        self.departures.clear()
+        for parts in self.later.values():
+            parts.clear()
+        try:
+            self._bring_home(None, bounded=True)     # nobody is asked: never forever
+        except FlightError as exc:
+            m.event(None, f"could not bring them all home: {exc}")
 
     def _home_wall_s(self) -> float:
         """Wall seconds the flights home take, twice over: the re-plan's mission time
@@ -326,9 +387,7 @@ class Flight:
             if mission is None:
                 raise FlightError(f"vehicle {sysid}: its autopilot ({link.flavour}) is neither "
                                   f"{' nor '.join(NAMES)}: no mission for it")
-            first, *later = route.sortie_routes()
-            self.monitor.follow(link, route.id, first, mission)
-            self.later[sysid] = [(0.0, part) for part in later]
+            self._follow(link, route, mission)
             self.monitor.event(sysid, "connected", flavour=link.flavour, vehicle=route.id,
                                items=len(mission.items))
 
@@ -377,7 +436,7 @@ class Flight:
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
             resume=self._fly_on,
             travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
-            on_pad=m.on_pad)
+            on_pad=m.on_pad, short=self._short_of_battery)
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self._all(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
@@ -392,21 +451,44 @@ class Flight:
         begun, lifted = m.now(), []
 
         def liftoff():
+            if not lifted:          # sent up: from now a re-plan holds it in the air
+                m.event(sysid, "taking off")
             lifted.append(True)
             self._lifted.append((sysid, begun, m.now()))
-            self._sortie_began[sysid] = (m.now(), m.links[sysid].state.battery_pct)
+            self._sortie_began[sysid] = (m.now(), self._own_clock(sysid),
+                                         m.links[sysid].state.battery_pct)
+            self._late_acted.discard(sysid)
         m.set_state(sysid, STARTING)
         try:
+            # the column is looked at again as it arms: one held on the ground (refused
+            # arming, a late start) may find another vehicle launched into it meanwhile
+            column = SimpleNamespace(claim=lambda: self._claim_column(sysid, route),
+                                     release=lambda: self._lifting.pop(sysid, None))
             commands.start_mission(m.links[sysid], route.waypoints[0].alt_amsl,
                                    ready_timeout_s=self.options.ready_timeout_s,
                                    retries=self.options.protocol_retries,
-                                   on_liftoff=liftoff, cancel=cancel)
+                                   on_liftoff=liftoff, cancel=cancel, column=column)
         except commands.StartCancelled:
+            self._lifting.pop(sysid, None)
             # sent up: the re-plan holds it where it is; never sent up: it stays down
             if not lifted:
-                m.set_state(sysid, WAITING)
+                m.call_off(sysid)
             return
-        m.set_state(sysid, FLYING)
+        except BaseException:
+            self._lifting.pop(sysid, None)
+            if not lifted:
+                m.call_off(sysid)     # still down: not one a re-plan would hold in the air
+            raise
+        m.set_state(sysid, FLYING)  # its column is kept until it is seen airborne
+
+    def _short_of_battery(self, sysid) -> bool:
+        """Sent home by the battery watch on this sortie, or down to the plan's reserve:
+        the separation guard holds the other of a pair first."""
+        if not self.plan.params.get("endurance_min"):
+            return False
+        pct = self.monitor.links[sysid].state.battery_pct
+        return sysid in self.spent or sysid in self._late_acted or \
+            (pct is not None and pct <= float(self.plan.params.get("reserve_pct") or 0.0))
 
     def _call_off_starts(self) -> None:
         """Stop every start sequence under way (a re-plan takes the vehicles over) and
@@ -497,14 +579,34 @@ class Flight:
                 self.clock.start(m.vehicles[sysid].route.takeoff_s + (m.now() - lifted))
             self.latency_s = (lifted - begun) * self.clock.rate()
 
+    def _claim_column(self, sysid, route) -> bool:
+        """`_column_clear`, and if so the column kept for ``sysid`` from its arming
+        until it is seen airborne (then its position keeps it) or its arming is refused:
+        two vehicles whose start sequences overlap (one whose arming was refused for a
+        while) would otherwise both find the column clear while on the ground, arm
+        together and climb it one above the other."""
+        with self._column_lock:
+            if not self._column_clear(sysid, route):
+                return False
+            self._lifting[sysid] = route.launch
+            return True
+
     def _column_clear(self, sysid, route) -> bool:
         """No other airborne vehicle within the separation of the column above its
-        base (from the ground to the separation above its takeoff top)."""
+        base (from the ground to the separation above its takeoff top), and the
+        column claimed by no other vehicle lifting off (`_claim_column`)."""
         m = self.monitor
         sep = float(self.plan.params.get("separation_m", 0.0))
         launch = route.launch
         if sep <= 0 or launch is None:
             return True
+        for other, base in list(self._lifting.items()):
+            v = m.vehicles[other]
+            if v.airborne or v.state in (LOST, LANDED):
+                self._lifting.pop(other, None)      # where it is now speaks for it
+            elif other != sysid and base is not None and \
+                    distance_m(launch.lat, launch.lon, base.lat, base.lon) < sep:
+                return self._wait_for(sysid, other)
         top = route.waypoints[0].alt_amsl + sep
         for other, v in m.vehicles.items():
             s = m.links[other].state
@@ -513,12 +615,16 @@ class Flight:
             h = distance_m(launch.lat, launch.lon, s.lat, s.lon)
             below = max(launch.alt_amsl - s.alt_amsl, 0.0, s.alt_amsl - top)
             if math.hypot(h, below) < sep:
-                if self._waiting_for.get(sysid) != other:
-                    self._waiting_for[sysid] = other
-                    m.event(sysid, f"takeoff waits: vehicle {other} is in its base column")
-                return False
+                return self._wait_for(sysid, other)
         self._waiting_for.pop(sysid, None)
         return True
+
+    def _wait_for(self, sysid, other) -> bool:
+        """False, said once per vehicle waited for."""
+        if self._waiting_for.get(sysid) != other:
+            self._waiting_for[sysid] = other
+            self.monitor.event(sysid, f"takeoff waits: vehicle {other} is in its base column")
+        return False
 
     def locate(self) -> None:
         """Wait for every vehicle's position (ArduPilot reports none before its EKF
@@ -534,46 +640,124 @@ class Flight:
         (its reported position), within the plan's track tolerance, the room its
         takeoff column is proven with (at least `MIN_LAUNCH_TOLERANCE_M`: GNSS on
         the ground). A vehicle elsewhere would climb and fly a first leg nobody
-        proved hidden: FlightError naming each one and how far off it stands.
+        proved hidden: FlightError naming each one and how far off it stands, or
+        with ``from_where_they_stand`` the fleet planned again from where they
+        stand (`plan_from_where_they_stand`).
         (Its home is not compared: ArduPilot and PX4 both set home where they arm.)"""
+        off = self._off_launch()
+        if off and self.options.from_where_they_stand:
+            self.plan_from_where_they_stand(off)
+            off = self._off_launch()          # the new plan's bases: where they stand
+        if off:
+            lines = [f"vehicle {sysid} stands {d:.1f} m from {_start_name(route)} of route "
+                     f"{route.id} ({lat:.7f},{lon:.7f}, not {_start(route).lat:.7f},"
+                     f"{_start(route).lon:.7f})" for sysid, route, d, lat, lon in off]
+            for line in lines:
+                self.monitor.event(None, f"refused: {line}")
+            raise FlightError("; ".join(lines) + f": each must stand within "
+                              f"{self._launch_tolerance():g} m of where its route starts (the "
+                              "plan's track tolerance) before it is armed")
+
+    def _off_launch(self) -> list:
+        """[(sysid, route, metres, lat, lon)] of the vehicles standing farther from their
+        route's launch point (or, for a plan without one, from under its first
+        waypoint: it climbs straight up to it) than the launch tolerance."""
         tolerance = self._launch_tolerance()
         off = []
         for sysid, v in sorted(self.monitor.vehicles.items()):
-            launch, s = v.route.launch, self.monitor.links[sysid].state
+            launch, s = _start(v.route), self.monitor.links[sysid].state
             if launch is None or v.state == LOST or s.lat is None:
                 continue
             d = distance_m(launch.lat, launch.lon, s.lat, s.lon)
             if d > tolerance:
-                off.append(f"vehicle {sysid} stands {d:.1f} m from the launch point of route "
-                           f"{v.route.id} ({s.lat:.7f},{s.lon:.7f}, not "
-                           f"{launch.lat:.7f},{launch.lon:.7f})")
-        if off:
-            for line in off:
-                self.monitor.event(None, f"refused: {line}")
-            raise FlightError("; ".join(off) + f": each must stand within {tolerance:g} m of "
-                              "its launch point (the plan's track tolerance) before it is armed")
+                off.append((sysid, v.route, d, s.lat, s.lon))
+        return off
+
+    def plan_from_where_they_stand(self, off) -> None:
+        """The operator's choice for vehicles off their launch points: the plan's
+        scenario planned again with each such vehicle's base where it stands (the
+        others' where planned), written to ``PLAN_FROM_HERE`` in the output folder and
+        flown instead, every mission and the separation proven again as any plan's.
+        A vehicle standing where no hidden takeoff is possible is refused by name."""
+        from gcs.plan_folder import write_plan_folder
+        from planner.pipeline import allocate, launch_starts
+
+        m = self.monitor
+        here = {sysid for sysid, *_ in off}
+        for sysid, route, d, lat, lon in off:
+            m.event(sysid, f"stands {d:.1f} m from {_start_name(route)} of route "
+                           f"{route.id}: planning again from where it stands")
+
+        def base(sysid, route):      # where it stands, unless it stands where planned
+            at = _start(route) if sysid not in here else None
+            state = m.links[sysid].state
+            return (at.lat, at.lon) if at is not None else (state.lat, state.lon)
+
+        by_route = {v.route.id: base(sysid, v.route) for sysid, v in m.vehicles.items()}
+        launch = [by_route.get(v.id) or (_start(v).lat, _start(v).lon)
+                  for v in self.plan.vehicles]
+        ctx = self.context()
+        for sysid, _, _, lat, lon in off:      # named, before the fleet is planned
+            try:
+                launch_starts(replace(ctx, scenario=replace(ctx.scenario, launch=[(lat, lon)],
+                                                            uavs=1)))
+            except InputError as exc:
+                raise FlightError(f"cannot plan from where the vehicles stand: vehicle "
+                                  f"{sysid}: {exc.problem}") from None
+        ctx = replace(ctx, scenario=replace(ctx.scenario, launch=launch))
+        try:
+            starts = launch_starts(ctx)
+            outcome = allocate(ctx, len(self.plan.vehicles), starts, log=self.log)
+            folder = self.output / PLAN_FROM_HERE
+            write_plan_folder(folder, ctx, outcome)
+        except InputError as exc:
+            raise FlightError(f"cannot plan from where the vehicles stand: {exc}") from None
+        self._fly_instead(folder, ctx)
+        m.event(None, f"flying the plan made from where they stand ({folder}): coverage "
+                      f"time {outcome.plan.metrics['coverage_time_s'] / 60:.1f} min")
+
+    def _fly_instead(self, folder, ctx) -> None:
+        """Fly the plan in ``folder`` (made in memory as ``ctx``) with the vehicles
+        connected now, each on the route of the same number, proven as `prepare` does."""
+        self.plan_dir, self.plan = Path(folder), Plan.load(folder)
+        self.ctx, self.missions = ctx, None
+        self.prepare()
+        routes = {v.id: v for v in self.plan.vehicles}
+        for sysid, v in list(self.monitor.vehicles.items()):
+            link = self.monitor.links[sysid]
+            self._follow(link, routes[v.route.id], self.missions[v.route.id, link.flavour])
+
+    def _follow(self, link, route, mission) -> None:
+        """The monitor follows ``link`` flying ``route``'s first sortie as ``mission``;
+        its later sorties wait their turn (`_next_sorties`)."""
+        first, *later = route.sortie_routes()
+        self.monitor.follow(link, route.id, first, mission)
+        self.later[link.sysid] = [(0.0, part) for part in later]
 
     def check_failsafes(self) -> None:
         """Say, one line per vehicle, what its autopilot does on a low battery
-        (ArduPilot BATT_FS_LOW_ACT, PX4 COM_LOW_BAT_ACT): anything but a warning or
-        a landing flies a path nobody proved hidden, in view of the outposts. The
-        plan's reserve keeps the battery above it; the battery watch acts first."""
+        (ArduPilot BATT_FS_LOW_ACT and BATT_FS_CRT_ACT, PX4 COM_LOW_BAT_ACT): anything
+        but a warning or a landing where it is flies a path nobody proved hidden, in
+        view of the outposts. The plan's reserve keeps the battery above it; the
+        battery watch acts first."""
         m = self.monitor
         for sysid, v in sorted(m.vehicles.items()):
             link = m.links[sysid]
-            name, actions = commands.autopilot(link).battery_failsafe
-            if not name or v.state == LOST:
+            failsafes = commands.autopilot(link).battery_failsafes
+            if not failsafes or v.state == LOST:
                 continue
-            value = commands.read_param(link, name, retries=1)
-            if value is None:
-                m.event(sysid, f"battery failsafe: {name} not answered: what it does on a "
-                               "low battery is unknown")
-                continue
-            does = actions.get(int(value), f"value {int(value)} (see the autopilot's manual)")
-            # straight down from a hidden point stays hidden (below the exposure surface)
-            unproven = "" if does.startswith(("a warning", "LAND where")) else \
-                ": if it fired, that flight is not proven hidden from the outposts"
-            m.event(sysid, f"battery failsafe: {name} = {int(value)}, {does}{unproven}")
+            said, unproven = [], False
+            for name, actions in failsafes:
+                value = commands.read_param(link, name, retries=1)
+                if value is None:
+                    said.append(f"{name} not answered (what it does is unknown)")
+                    continue
+                does = actions.get(int(value), f"value {int(value)} (see the autopilot's manual)")
+                said.append(f"{name} = {int(value)}, {does}")
+                unproven |= not does.startswith(HIDDEN_FAILSAFES)
+            m.event(sysid, "battery failsafe: " + "; ".join(said)
+                    + (": if one fired, that flight is not proven hidden from the outposts"
+                       if unproven else ""))
 
     def _launch_tolerance(self) -> float:
         return max(float(self.plan.params.get("track_tolerance_m", LAUNCH_TOLERANCE_M)),
@@ -582,8 +766,14 @@ class Flight:
     def _all(self, fn, what, expected) -> None:
         """fn on every vehicle at once. A vehicle that fails and then falls silent
         was lost during this stage (the flight goes on); any other failure stops it."""
+        sysids = [s for s, v in sorted(self.monitor.vehicles.items()) if v.state != LOST]
+        self._lost_or_failed(fn, sysids, what, expected)
+
+    def _lost_or_failed(self, fn, sysids, what, expected) -> list:
+        """fn on ``sysids`` at once; those that fell silent meanwhile (now or within
+        ``lost_after_s`` of failing) are lost, returned, and re-tasked for by `watch`;
+        any other failure stops the flight (FlightError for an ``expected`` one)."""
         m = self.monitor
-        sysids = [s for s, v in sorted(m.vehicles.items()) if v.state != LOST]
         errors = _in_parallel(fn, sysids, m)  # a vehicle falling silent is not waited for
         failed = {s: e for s, e in errors.items() if e is not None}
         end = time.monotonic() + self.options.lost_after_s + 1.0
@@ -597,9 +787,10 @@ class Flight:
                     raise FlightError(f"{what} failed: {exc}") from None
                 raise exc
         lost = [s for s in sysids if m.vehicles[s].state == LOST]
-        for sysid in lost:  # re-tasked for once monitoring begins (`watch`)
+        for sysid in lost:
             error = errors.get(sysid)  # none when it fell silent before failing
             m.event(sysid, f"lost during {what}", **({"error": str(error)} if error else {}))
+        return lost
 
     def watch(self, status=None, timeout_s=None) -> None:
         """Monitor until every vehicle has landed or is lost; re-task on each loss.
@@ -614,7 +805,7 @@ class Flight:
                 self.retask()
             self._next_sorties()
             self._watch_batteries()
-            if m.all_finished() and not self.departures and not any(self.later.values()):
+            if m.all_finished() and not self.departures and not m.awaited():
                 break
             self._depart_due()
             if self.guard is not None:
@@ -648,14 +839,20 @@ class Flight:
                 continue
             if not self._battery_ready(sysid, route, state.battery_pct):
                 continue
+            uploaded = {}
+
+            def upload(s, route=route):
+                missions = self.route_missions(route, m.links[s].flavour)
+                uploaded[s] = missions, upload_route(m.links[s], missions, self.options.protocol,
+                                                     limit=self.options.max_items)
+            # the sortie stays awaited while it uploads: a vehicle falling silent on
+            # the ground then is lost (and its work re-planned), not a failed flight
+            if self._lost_or_failed(upload, [sysid], f"vehicle {sysid}'s next sortie upload",
+                                    (InputError, MissionError)):
+                continue
             parts.pop(0)
             self.swapped.discard(sysid)
-            try:
-                missions = self.route_missions(route, m.links[sysid].flavour)
-                mission = upload_route(m.links[sysid], missions, self.options.protocol,
-                                       limit=self.options.max_items)
-            except (InputError, MissionError) as exc:
-                raise FlightError(f"vehicle {sysid}: next sortie: {exc}") from None
+            missions, mission = uploaded[sysid]
             m.new_mission(sysid, route, mission)
             self.segments.fly(sysid, missions)
             m.relaunch(sysid)
@@ -665,39 +862,139 @@ class Flight:
                     items=len(mission), takeoff_s=round(offset + route.takeoff_s, 1))
 
     def _watch_batteries(self) -> None:
-        """A vehicle whose battery draws faster than its rating (`FAST_DRAIN`) and, at
-        the rate it has drawn since takeoff, would eat into more than half the
-        plan's reserve before the end of its sortie is brought home early by its
-        hidden path (the reserve is there for smaller surprises: a headwind, a
-        landing queue) and kept down until the crew has looked at it: the fleet is
-        re-planned without it, its work going to the others."""
+        """A vehicle whose battery will not last the rest of its sortie from where it
+        is (`_left_s`) with half the plan's reserve kept is brought home early by its
+        hidden path, its work re-planned; the reserve is there for smaller surprises
+        (a landing queue). The draw is the rated one (the plan's endurance), or the
+        rate drawn since takeoff where that is `FAST_DRAIN` times faster: such a
+        battery is not trusted, and its vehicle is kept down until the crew has
+        looked at it (its work going to the others). One slowed instead (holds, a
+        headwind) is re-planned on the battery it reports, and flies on after a
+        swap. A vehicle with nothing left to photograph is on its way home already."""
         endurance = self.plan.params.get("endurance_min")
         if not endurance:
             return                    # no battery model to hold the draw against
         rated = 100.0 / (60.0 * endurance)                  # % per fleet s
         m, reserve = self.monitor, float(self.plan.params.get("reserve_pct") or 0.0)
-        now, rate = self.clock.now(), self.clock.rate()     # fleet s, per wall s
-        short = []
-        for sysid, (t0, pct0) in list(self._sortie_began.items()):
-            v, pct = m.vehicles[sysid], m.links[sysid].state.battery_pct
-            flown = (m.now() - t0) * rate
-            if v.state not in (FLYING, HOLDING) or None in (now, pct0, pct) or \
+        rate = self.clock.rate()                            # fleet s per wall s
+        short, untrusted = [], []
+        for sysid, (t0, own0, pct0) in list(self._sortie_began.items()):
+            v, state = m.vehicles[sysid], m.links[sysid].state
+            pct, own = state.battery_pct, self._own_clock(sysid)
+            # on its own clock: a busy machine slows a simulator unevenly, and the
+            # fleet's rate now is not the rate since takeoff (it once read 1.5 x the
+            # rated draw on a vehicle drawing as rated)
+            flown = own - own0 if None not in (own, own0) else (m.now() - t0) * rate
+            if v.state not in (FLYING, HOLDING) or None in (pct0, pct) or \
                     flown < WATCH_AFTER_S or pct0 - pct < WATCH_AFTER_PCT:
                 continue
-            left_s = max(self.offset.get(sysid, 0.0) + v.route.mission_time_s - now, 0.0)
-            drawn = (pct0 - pct) / flown
-            need = drawn * left_s + reserve / 2
-            if pct < need and drawn > FAST_DRAIN * rated:
-                short.append(sysid)
-                m.event(sysid, f"battery {pct} % will not last the rest of its sortie "
-                               f"({need:.0f} % with half the reserve, drawn {drawn / rated:.1f}"
-                               " times faster than rated): brought home early by its hidden "
-                               "path and kept down, its work re-planned")
+            left_s = self._left_s(sysid)
+            # the charge is timed by the vehicle's clock when it came: it comes once a
+            # second, positions more often (at 50 x, a 2 x drain timed by the last
+            # position read as 1.3 x); what it drew since is needed too
+            at = state.battery_boot_s
+            drained_s = at - own0 if None not in (at, own0) else flown
+            if left_s is None or drained_s <= 0:
+                continue
+            drawn = (pct0 - pct) / drained_s
+            fast = drawn > FAST_DRAIN * rated
+            need = (drawn if fast else rated) * (left_s + flown - drained_s) + reserve / 2
+            # a late one is re-planned once a sortie: a re-plan that cannot fit its
+            # battery says so, and would only be made again
+            if pct >= need or (not fast and sysid in self._late_acted):
+                continue
+            if self._homebound(sysid):      # nothing earlier to bring it to: said once
+                if sysid not in self._late_acted:
+                    self._late_acted.add(sysid)
+                    rest = need - reserve / 2
+                    m.event(sysid, f"battery {pct} % on its way home: the rest ({left_s / 60:.1f}"
+                                   f" min at its pace) needs {rest:.0f} %, it will land on "
+                                   f"about {pct - rest:.0f} % (less than half the reserve)")
+                continue
+            short.append(sysid)
+            said = f"battery {pct} % will not last the rest of its sortie from where it is " \
+                   f"({left_s / 60:.1f} min: {need:.0f} % with half the reserve, "
+            if fast:
+                untrusted.append(sysid)
+                m.event(sysid, said + f"drawn {drawn / rated:.1f} times faster than rated): "
+                        "brought home early by its hidden path and kept down, its work "
+                        "re-planned")
+            else:
+                late = self._late[sysid] = self._pace.get(sysid, 1.0)
+                self._late_acted.add(sysid)
+                m.event(sysid, said + f"at the rated draw, {late:.1f} times slower than "
+                        "planned): brought home early by its hidden path, its work "
+                        "re-planned on the battery it has at that pace")
         if short:
-            for sysid in short:
+            for sysid in untrusted:
                 del self._sortie_began[sysid]
-            self.spent.update(short)
+            self.spent.update(untrusted)
             self.retask()
+
+    def _left_s(self, sysid):
+        """Fleet seconds left in a vehicle's sortie from where it is: to the waypoint
+        it flies to (the planner's leg time), then the rest of its route as planned
+        (holds and landing included), stretched by how much slower than planned it
+        has made its way along this route on its own clock (a headwind: never
+        shrunk), the separation guard's holds left out (what they cost is in the
+        battery it reports; a hold early on a route once read as 21 times slower);
+        None past its last waypoint or without a position."""
+        m = self.monitor
+        v, state = m.vehicles[sysid], m.links[sysid].state
+        waypoints = v.route.waypoints
+        n = self._next_waypoint(sysid)
+        own = self._own_clock(sysid)
+        if n >= len(waypoints) or state.lat is None or own is None:
+            return None
+        w = waypoints[n]
+        to_w = leg_time(distance_m(state.lat, state.lon, w.lat, w.lon),
+                        w.alt_amsl - state.alt_amsl, self.ctx.scenario.travel_params())
+        at = w.t_s - float(to_w)                  # where it is, on the route's timeline
+        left = v.route.mission_time_s - at
+        seen = self._route_seen.get(sysid)
+        if seen is None or seen[0] is not v.route:
+            self._route_seen[sysid] = (v.route, own, at)
+            return left
+        _, own0, at0 = seen
+        if own - own0 >= WATCH_AFTER_S and at > at0:
+            flying = own - own0 - self._held_own_s(sysid, own0)
+            self._pace[sysid] = max(1.0, flying / (at - at0))
+            left *= self._pace[sysid]
+        return left
+
+    def _next_waypoint(self, sysid) -> int:
+        done = self.monitor.vehicles[sysid].done
+        return max(done) + 1 if done else 0
+
+    def _homebound(self, sysid) -> bool:
+        """Nothing left to photograph: on its way home, where the watch has nothing
+        earlier to bring it to."""
+        waypoints = self.monitor.vehicles[sysid].route.waypoints
+        return not any(w.snapshot for w in waypoints[self._next_waypoint(sysid):])
+
+    def _held_own_s(self, sysid, since) -> float:
+        """Seconds of the vehicle's own clock after ``since`` that the separation
+        guard held it (its holds are timed on the flight's clock: mapped through the
+        vehicle's position reports)."""
+        end = self.monitor.now()
+        return sum(max(0.0, self._own_at(sysid, b) - max(self._own_at(sysid, a), since))
+                   for s, (a, b) in hold_spans(getattr(self.guard, "actions", []), end)
+                   if s == sysid)
+
+    def _own_at(self, sysid, t_s) -> float:
+        """The vehicle's own clock at flight time ``t_s``, between the position reports
+        around it (a search, not a pass over the track: the watch asks every loop)."""
+        track = self.monitor.vehicles[sysid].track
+        i = bisect.bisect_left(track, t_s, key=lambda p: p[0])
+        if i == 0 or i == len(track):
+            return float(track[min(i, len(track) - 1)][4])
+        (t0, own0), (t1, own1) = (track[i - 1][0], track[i - 1][4]), (track[i][0], track[i][4])
+        return float(own0 + (own1 - own0) * (t_s - t0) / (t1 - t0) if t1 > t0 else own1)
+
+    def _own_clock(self, sysid):
+        """The vehicle's own clock (s since its boot) at its last position report."""
+        track = self.monitor.vehicles[sysid].track
+        return track[-1][4] if track else None
 
     def _battery_ready(self, sysid, route, pct) -> bool:
         """The next sortie may go: the vehicle reports a fresh battery, and the
@@ -710,17 +1007,25 @@ class Flight:
             self._waiting_battery[sysid] = route
             why = [] if fresh else [f"a fresh battery ({pct} % reported)"]
             if not confirmed:
-                why.append(f"the operator's word that it is swapped (type {sysid} and Enter)")
+                why.append(f"the operator's word that it is swapped (type {sysid} and Enter, "
+                           "or 'battery swapped' on the live map)")
             self.monitor.event(sysid, f"sortie {route.waypoints[0].sortie} waits for "
                                + " and ".join(why))
         return False
 
-    def confirm_swap(self, sysid: int) -> None:
+    def confirm_swap(self, sysid: int, where: str = "") -> bool:
         """The operator says vehicle ``sysid``'s battery is swapped (its next sortie may
-        go once the battery it reports is fresh too)."""
-        if sysid in self.monitor.vehicles:
-            self.swapped.add(sysid)
-            self.monitor.event(sysid, "battery swap confirmed by the operator")
+        go once the battery it reports is fresh too); False for no such vehicle."""
+        if sysid not in self.monitor.vehicles:
+            return False
+        self.swapped.add(sysid)
+        self.monitor.event(sysid, "battery swap confirmed by the operator" + where)
+        return True
+
+    def swap_awaited(self, sysid: int) -> bool:
+        """Down between two sorties, waiting for the operator's word on its battery."""
+        return not self.options.auto_turnaround and sysid not in self.swapped and \
+            sysid in self.monitor.awaited() and self.monitor.vehicles[sysid].state == LANDED
 
     def next_segments(self, sysids) -> None:
         """Send ``sysids`` their next segments; a loss meanwhile re-tasks the survivors
@@ -744,9 +1049,11 @@ class Flight:
             self.guard.forget()
         for sysid in list(self.departures):     # the re-plan decides who goes up
             del self.departures[sysid]
+            m.call_off(sysid)   # a next sortie uploaded, its takeoff time not yet come
         self._call_off_starts()
         retasker = Retasker(ctx, m, self.mission_options, self.options.protocol,
-                            segments=self.segments, depart=self.depart, spent=self.spent)
+                            segments=self.segments, depart=self.depart, spent=self.spent,
+                            pace=self._late)
         try:
             record = retasker.retask(home)
         except RetaskError as exc:
@@ -778,6 +1085,8 @@ class Flight:
             "started_utc": datetime.fromtimestamp(self.start_unix, timezone.utc).isoformat(),
             "start_unix": self.start_unix, "duration_s": round(m.now(), 3),
             "lost_after_s": self.options.lost_after_s, "k": int(self.plan.metrics.get("k", 0)),
+            # what of the area of operations the plan's targets are, and its observers
+            "area": self.plan.metrics.get("area"), "outposts": len(self.plan.outposts),
             "outcome": self.outcome(coverage),
             "vehicles": vehicles, "losses": losses,
             "replans": [asdict(r) for r in self.retasks],
@@ -794,7 +1103,10 @@ class Flight:
         m = self.monitor
         lost = [s for s, v in sorted(m.vehicles.items()) if v.state == LOST]
         stranded = [s for s, v in sorted(m.vehicles.items()) if v.state == STRANDED]
-        flying = [s for s, v in sorted(m.vehicles.items()) if not v.finished]
+        # one whose start never came (or was called off) stands on the ground
+        grounded = [s for s, v in sorted(m.vehicles.items()) if v.state == WAITING]
+        flying = [s for s, v in sorted(m.vehicles.items())
+                  if not v.finished and s not in grounded]
         survivors = coverage.get("survivors")
         reached = bool(survivors) and survivors["k_covered"] >= coverage["coverable_targets"]
         problems = []
@@ -828,6 +1140,8 @@ class Flight:
         if flying:
             why = "timed out" if self.timed_out else (self.stopped or "stopped")
             problems.append(f"{why} with vehicle(s) {', '.join(map(str, flying))} in the air")
+        if grounded:
+            problems.append(f"vehicle(s) {', '.join(map(str, grounded))} never took off")
         return {"ok": not problems, "coverage_reached": reached, "lost": lost,
                 "timed_out": self.timed_out, "in_air": sorted(flying + stranded),
                 "stranded": stranded, "problems": problems}

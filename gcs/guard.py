@@ -10,8 +10,9 @@ turns); a held vehicle stays where it is. Where two predictions come closer than
 the separation within the horizon (`Trajectory.first_conflict`, exact), the guard
 holds one of them where it is, in its firmware's hold mode, on its proven leg, so
 hidden: the one of lower priority (the plan's: the later placed on the fleet
-clock), unless standing there would still be in the other's way, then the other;
-both only when neither alone clears it. A held vehicle flies on, highest priority
+clock; before it, a vehicle short of battery, which every second held costs),
+unless standing there would still be in the other's way, then the other; both
+only when neither alone clears it. A held vehicle flies on, highest priority
 first, once its route from where it stands keeps clear of every other's
 prediction (with `RESUME_FACTOR` of room) and no other stands that close now, or,
 where one does (two held in one base column), its route never comes closer to it
@@ -57,16 +58,18 @@ class SeparationGuard:
     way; ``clock``: the flight's `gcs.clock.FleetClock`; ``hold(sysid)`` /
     ``resume(sysid)``: what holding means for the flight (mode and state);
     ``travel``: the plan's speeds (`TravelParams`) and ``stop_s`` per waypoint;
-    ``on_pad(sysid)``: touched down at its base, not yet told landed."""
+    ``on_pad(sysid)``: touched down at its base, not yet told landed;
+    ``short(sysid)``: short of battery (it goes before every other)."""
 
     def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
-                 travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False):
+                 travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False,
+                 short=lambda sysid: False):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.airborne = clock, airborne
         self._hold, self._resume = hold, resume
         self.travel, self.stop_s = travel, float(stop_s)
-        self.on_pad = on_pad
+        self.on_pad, self.short = on_pad, short
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
@@ -104,7 +107,7 @@ class SeparationGuard:
 
     # -- predictions -------------------------------------------------------------------
     def _rank(self, sysid):
-        return self.priority.get(sysid, 99), sysid
+        return not self.short(sysid), self.priority.get(sysid, 99), sysid
 
     def _route(self, frame, sysid) -> Trajectory:
         """Where ``sysid`` flies from now: the rest of its route, its landing included."""
@@ -225,6 +228,19 @@ class SeparationGuard:
                  for (a, b), (d, t) in sorted(self.closest.items())]
         return {"separation_m": self.separation_m, "actions": self.actions, "pairs": pairs,
                 "closest_m": min((p["closest_m"] for p in pairs), default=None)}
+
+
+def hold_spans(actions, end) -> list:
+    """[(sysid, (from, to))] flight seconds of each hold in the guard's ``actions``
+    (`SeparationGuard.actions`, the report's ``separation.actions``), one still on
+    ending at ``end``."""
+    out, since = [], {}
+    for a in actions:
+        if a["action"] == "hold":
+            since[a["sysid"]] = a["t_s"]
+        elif a["sysid"] in since:
+            out.append((a["sysid"], (since.pop(a["sysid"]), a["t_s"])))
+    return out + [(s, (t, end)) for s, t in since.items()]
 
 
 def _parting(frame, ahead, a, b) -> bool:

@@ -82,7 +82,12 @@ class VehicleState:
     landed: bool | None = None               # EXTENDED_SYS_STATE (None: not reported)
     ready: bool = False                      # pre-arm checks / EKF / GPS good
     gps_fix: int = 0                         # GPS_RAW_INT.fix_type
-    battery_pct: int | None = None
+    battery_pct: int | None = None           # remaining: BATTERY_STATUS of the first
+                                             # pack, else SYS_STATUS
+    battery_status: bool = False             # BATTERY_STATUS of the first pack seen
+    battery_boot_s: float | None = None      # the vehicle's clock when battery_pct came
+    boot_s: float | None = None              # the vehicle's clock (s since boot) at its
+                                             # last report that carries it
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
     images: int = 0                          # CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED seen
     statustext: list = field(default_factory=list)   # last (severity, text)
@@ -91,6 +96,9 @@ class VehicleState:
 
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     kind = msg.get_type()
+    boot_ms = getattr(msg, "time_boot_ms", None)
+    if boot_ms:
+        s.boot_s = boot_ms * 1e-3
     if kind == "HEARTBEAT":
         s.last_heartbeat = time.monotonic()
         s.armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
@@ -115,8 +123,14 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         if msg.landed_state != M.MAV_LANDED_STATE_UNDEFINED:
             s.landed = msg.landed_state == M.MAV_LANDED_STATE_ON_GROUND
     elif kind == "SYS_STATUS":
-        s.battery_pct = None if msg.battery_remaining < 0 else msg.battery_remaining
+        if not s.battery_status:
+            s.battery_pct = None if msg.battery_remaining < 0 else msg.battery_remaining
+            s.battery_boot_s = s.boot_s
         s.ready = _prearm_ok(msg, s.gps_fix)
+    elif kind == "BATTERY_STATUS" and msg.id == 0 and msg.battery_remaining >= 0:
+        # the pack's own report (SYS_STATUS may sum or pick among several packs)
+        s.battery_pct, s.battery_status = msg.battery_remaining, True
+        s.battery_boot_s = s.boot_s
     elif kind == "GPS_RAW_INT":
         s.gps_fix = msg.fix_type
     elif kind == "HOME_POSITION":

@@ -110,6 +110,7 @@ class VehicleProgress:
     disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
     disarmed_reports: int = 0  # position reports since
     relaunched: int = 0  # times sent up again after landing
+    grounded: str = WAITING  # its state before the re-launch under way (`call_off`)
     segments: int = 0  # segments sent in flight (a route longer than the vehicle holds)
     uncommanded: list = field(default_factory=list)  # [(t_s, mode)] flown in, not commanded
     proven: object = None  # gcs.corridor.ProvenPath of the route flown now
@@ -193,6 +194,7 @@ class Monitor:
         self.ground = ground
         self.track_tolerance_m = track_tolerance_m
         self.stalls = StallClock()
+        self.awaited = set     # () -> sysids landed with a sortie still to fly (`Flight`)
         self.t0 = time.monotonic()
         self.vehicles = {}  # sysid -> VehicleProgress
         self.links = {}  # sysid -> VehicleLink
@@ -208,13 +210,16 @@ class Monitor:
 
     # -- setting up -----------------------------------------------------------------
     def follow(self, link, vehicle_id: int, route, mission) -> VehicleProgress:
-        """Start following vehicle ``link`` flying ``route`` as ``mission``."""
+        """Start following vehicle ``link`` flying ``route`` as ``mission`` (again, from
+        the start: a vehicle on the ground given another plan)."""
         progress = VehicleProgress(link.sysid, vehicle_id, link.flavour, route, mission)
         progress.proven = ProvenPath(route)
         with self._lock:
+            known = link.sysid in self.links
             self.vehicles[link.sysid] = progress
             self.links[link.sysid] = link
-        self._unsubscribe.append(link.subscribe(lambda msg, s=link.sysid: self._on(s, msg)))
+        if not known:
+            self._unsubscribe.append(link.subscribe(lambda msg, s=link.sysid: self._on(s, msg)))
         return progress
 
     def watch_losses(self, period_s: float = 0.2) -> None:
@@ -288,10 +293,20 @@ class Monitor:
             v = self.vehicles[sysid]
             if v.state not in (LANDED, WAITING):
                 return
-            v.state, v.airborne = STARTING, False
+            v.grounded, v.state, v.airborne = v.state, STARTING, False
             v.disarmed_at_s, v.disarmed_reports = None, 0
             v.relaunched += 1
             self.event(sysid, "re-launching")
+
+    def call_off(self, sysid: int) -> None:
+        """A start called off before the vehicle left the ground (a re-plan takes
+        the fleet over): it is again what it was, down at its base; never a vehicle
+        "flying" there, which a re-plan would hold and send on from the ground."""
+        with self._lock:
+            v = self.vehicles[sysid]
+            if v.state == STARTING and not v.airborne:
+                v.state = v.grounded
+                self.event(sysid, f"start called off: {v.state}")
 
     # -- telemetry (reader threads) ---------------------------------------------------
     def _on(self, sysid: int, msg) -> None:
@@ -472,12 +487,15 @@ class Monitor:
 
     # -- losses (flight loop) ---------------------------------------------------------
     def check_losses(self) -> list:
-        """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock). Each
-        is also kept for `take_losses`, whoever called this."""
+        """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock), in the
+        air or landed with work still to fly (`awaited`: its next sortie). Each is
+        also kept for `take_losses`, whoever called this."""
         lost = []
+        awaited = self.awaited()
         with self._lock:
             for sysid, v in self.vehicles.items():
-                if v.finished and v.state != STRANDED:
+                if v.finished and v.state != STRANDED and \
+                        not (v.state == LANDED and sysid in awaited):
                     if v.state == LOST and v.lost_at_s is not None and not getattr(
                             v, "_reported", False):
                         v._reported = True

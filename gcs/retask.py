@@ -174,7 +174,7 @@ class Retasker:
     """Re-plans and re-uploads the survivors of a flight (see module doc)."""
 
     def __init__(self, ctx, monitor, mission_options: MissionOptions = MissionOptions(),
-                 protocol=None, segments=None, depart=None, spent=()):
+                 protocol=None, segments=None, depart=None, spent=(), pace=None):
         """``segments``: the flight's `gcs.segments.Segments`, told what each re-tasked
         vehicle flies from now on; ``depart(sysid, after_s, kind, route)``: the flight
         sends each on its way at the re-plan's time (the fleet stays separated on it;
@@ -188,6 +188,7 @@ class Retasker:
         self.protocol = protocol or {}  # timeout_s / retries of the mission protocol
         self.later = {}  # sysid -> the re-plan's later sorties of its route (`Flight`)
         self.spent = set(spent)
+        self.pace = dict(pace or {})   # sysid -> times slower than planned (the battery watch's)
         self._retries = self.protocol.get("retries", commands.RETRIES)  # of each command
         self.home = False
 
@@ -249,6 +250,8 @@ class Retasker:
         record = Retask(t_s=round(m.now(), 3), lost=lost)
         for attempt in range(1, MAX_ATTEMPTS + 1):
             record.attempts = attempt
+            # nothing of an attempt cut short by a loss stands
+            record.survivors, record.relaunched, self.later = [], [], {}
             m.take_losses()  # this attempt re-tasks for every loss so far
             sysids = self.flying()
             landed = [] if home else self._relaunchable(sysids)
@@ -259,7 +262,9 @@ class Retasker:
                 self._attempt(record, sysids, landed)
                 record.done_t_s = round(m.now(), 3)
                 if not record.survivors:
-                    m.event(None, "re-plan skipped: every survivor is stranded")
+                    m.event(None, "re-plan skipped: every survivor is stranded"
+                            if record.stranded else "re-plan skipped: it gives no survivor "
+                            "anything left to see")
                     return record
                 m.event(None, "re-tasked", survivors=record.survivors, attempt=attempt,
                         **({"relaunched": record.relaunched} if record.relaunched else {}))
@@ -278,13 +283,16 @@ class Retasker:
         state = self.monitor.links[sysid].state
         position = [launch.lon, launch.lat, launch.alt_amsl] if landed else \
             [state.lon, state.lat, state.alt_amsl]
+        legs = None if landed else points_xyz(ctx, v.route.waypoints)  # it flies now
         return (Survivor(v.vehicle_id, geo_to_xyz(ctx, *position),
                          geo_to_xyz(ctx, launch.lon, launch.lat, launch.alt_amsl),
-                         self._flown_s(sysid), sysid in self.spent), position)
+                         self._flown_s(sysid), sysid in self.spent, legs), position)
 
     def _flown_s(self, sysid) -> float:
         """What a survivor's battery has flown, from the share left it reports
-        (SYS_STATUS): a re-plan with an endurance flies it no further than that allows."""
+        (SYS_STATUS): a re-plan with an endurance flies it no further than that allows.
+        One that makes its way ``pace`` times slower than planned (a headwind) has
+        that much less of the planned flight left in what remains."""
         s = self.ctx.scenario
         if s.endurance_min is None:
             return 0.0
@@ -292,7 +300,8 @@ class Retasker:
         if pct is None:
             self.monitor.event(sysid, "battery not reported: re-planned as if full")
             return 0.0
-        return 60.0 * s.endurance_min * (1.0 - min(pct, 100) / 100.0)
+        full = 60.0 * s.endurance_min
+        return full - full * min(pct, 100) / 100.0 / self.pace.get(sysid, 1.0)
 
     def _attempt(self, record, sysids, landed=()) -> None:
         m, ctx = self.monitor, self.ctx
@@ -333,10 +342,16 @@ class Retasker:
         parts = {s: r.sortie_routes() for s, r in zip(everyone, outcome.plan.vehicles)}
         routes = {s: p[0] for s, p in parts.items()}
         self.later = {s: p[1:] for s, p in parts.items()}
-        # a landed vehicle goes up only if the re-plan gives it something to see
-        up = [s for s in landed if any(w.snapshot for w in routes[s].waypoints)]
+        # a landed vehicle goes up now only if the re-plan gives its first sortie
+        # something to see; one whose battery is spent (just landed, not swapped yet)
+        # gets its work in later sorties, flown as any vehicle's next sortie: once
+        # its battery is fresh (`Flight._next_sorties`)
+        up = [s for s in landed if _sees(routes[s])]
+        for s in landed:
+            self.later[s] = [p for p in self.later[s] if _sees(p)]
+        swapping = [s for s in landed if s not in up and self.later[s]]
         tasked = list(sysids) + up
-        record.survivors, record.relaunched = sorted(tasked), up  # in system-id order
+        record.survivors, record.relaunched = sorted(tasked + swapping), up
         try:
             missions = {s: self._missions(s, routes[s]) for s in tasked}
         except InputError as exc:       # nothing is sent: the vehicles stay held
@@ -452,3 +467,8 @@ class _LostDuring(Exception):
     def __init__(self, sysids, what="lost"):
         self.sysids, self.what = sysids, what
         super().__init__(f"{what} during re-tasking: {sysids}")
+
+
+def _sees(route) -> bool:
+    """Whether a route (a sortie) photographs anything."""
+    return any(w.snapshot for w in route.waypoints)

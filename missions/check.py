@@ -1,7 +1,9 @@
 """Prove a mission before it is written or uploaded: a refused plan is never flown.
 
 Checks, in order: sequence numbers are 0..n-1; no command whose flight is not
-a straight leg (RETURN_TO_LAUNCH, loiter turns, splines, DO_JUMP); every
+a straight leg (RETURN_TO_LAUNCH, loiter turns or circles, splines, DO_JUMP, a
+moved home, any NAV command but waypoints, takeoff, landing, loiters at the
+point, ROI and delay); every
 position is a valid latitude / longitude / finite altitude in MAV_FRAME_GLOBAL
 (absolute, like the exposure surface); and every straight 3-D leg between
 consecutive position items is hidden (`planner.exposure.segments_hidden`), at
@@ -27,6 +29,7 @@ from common.errors import InputError
 from planner.exposure import is_hidden, segments_clear, segments_hidden, segments_under_ceiling
 
 from .items import (
+    DO_CHANGE_SPEED,
     FRAME_GLOBAL,
     GLOBAL_FRAMES,
     NAV_LAND,
@@ -43,7 +46,21 @@ UNPROVABLE = {
     18: "NAV_LOITER_TURNS: its circles are not legs that can be proven hidden",
     82: "NAV_SPLINE_WAYPOINT: its curves are not legs that can be proven hidden",
     177: "DO_JUMP: the legs it adds cannot be proven hidden",
+    179: "DO_SET_HOME: a home moved elsewhere is where a failsafe flies, unproven",
+    186: "DO_CHANGE_ALTITUDE: a climb or descent that is not a proven leg",
+    191: "DO_GO_AROUND: a climb that is not a proven leg",
+    192: "DO_REPOSITION: a flight to a point that is not a proven leg",
 }
+#: NAV commands (MAVLink numbers them up to MAV_CMD_NAV_LAST, 95) whose flight the
+#: check proves: a straight leg to their position, or standing still; any other
+#: moves the vehicle some way the check does not know (NAV_CONTINUE_AND_CHANGE_ALT,
+#: NAV_GUIDED_ENABLE, the VTOL and payload commands, ...) and is refused
+PROVEN_NAV = frozenset({NAV_WAYPOINT, 17, 19, NAV_LAND, NAV_TAKEOFF, 31, 80, 93})
+NAV_LAST = 95
+#: m/s a DO_CHANGE_SPEED may differ from the plan's speed (float32 rounding)
+SPEED_TOLERANCE_MPS = 0.01
+#: loiters and the parameter of their radius: a circle is not a proven leg
+LOITER_RADIUS_PARAM = {17: "param3", 19: "param3", 31: "param2"}
 
 
 def check_mission(mission, surface, clearance_m=None) -> None:
@@ -52,9 +69,10 @@ def check_mission(mission, surface, clearance_m=None) -> None:
                 has_home=profile(mission.firmware).home_item)
 
 
-def check_items(items, surface, clearance_m=None, name="mission", has_home=False) -> None:
+def check_items(items, surface, clearance_m=None, name="mission", has_home=False,
+                speed_mps=None) -> None:
     """`check_mission` for a bare item list (e.g. read from a file)."""
-    check_structure(items, name)
+    check_structure(items, name, speed_mps)
     flown = [it for it in items[1 if has_home else 0:] if it.is_position]
     if not flown:
         return
@@ -86,14 +104,30 @@ def check_items(items, surface, clearance_m=None, name="mission", has_home=False
                                    "(the plan's ceiling_agl_m)")
 
 
-def check_structure(items, name="mission") -> None:
-    """Sequence numbers, frames, coordinates and commands, without the terrain."""
+def check_structure(items, name="mission", speed_mps=None) -> None:
+    """Sequence numbers, frames, coordinates and commands, without the terrain;
+    with ``speed_mps`` (the plan's), no DO_CHANGE_SPEED to another speed: the plan's
+    schedule, and the separation of the fleet kept on it, are timed at that one."""
     for n, it in enumerate(items):
         if int(it.seq) != n:
             raise InputError(name, f"item {n} has sequence number {it.seq}: not contiguous")
         why = UNPROVABLE.get(int(it.command))
         if why:
             raise InputError(name, f"item {n} is {why}")
+        if int(it.command) <= NAV_LAST and int(it.command) not in PROVEN_NAV:
+            raise InputError(name, f"item {n} is {it.name}: a NAV command whose flight is "
+                                   "not a straight leg to a position, which cannot be proven "
+                                   "hidden")
+        if speed_mps and int(it.command) == DO_CHANGE_SPEED and float(it.param2) > 0 and \
+                abs(float(it.param2) - float(speed_mps)) > SPEED_TOLERANCE_MPS:
+            raise InputError(name, f"item {n} is DO_CHANGE_SPEED to {float(it.param2):g} m/s, "
+                                   f"not the plan's {float(speed_mps):g} m/s: the fleet's "
+                                   "schedule and its separation are timed at the plan's speed")
+        radius = getattr(it, LOITER_RADIUS_PARAM.get(int(it.command), ""), 0.0)
+        if radius:
+            raise InputError(name, f"item {n} ({it.name}) loiters on a circle of "
+                                   f"{abs(float(radius)):g} m: a circle is not a leg that can "
+                                   "be proven hidden (0: at the point)")
     for n, it in enumerate(items):
         if int(it.command) not in NAV_POSITION_COMMANDS:
             continue
@@ -195,14 +229,15 @@ class CheckedMission:
                 f"{self.proven})")
 
 
-def checked(mission, surface, clearance_m=None, name=None) -> CheckedMission:
+def checked(mission, surface, clearance_m=None, name=None, speed_mps=None) -> CheckedMission:
     """Prove ``mission`` (a `missions.build.VehicleMission`) hidden and clear
-    against ``surface`` (`check_mission`); InputError naming the item or leg if not."""
+    against ``surface`` (`check_mission`), at the plan's ``speed_mps`` where given;
+    InputError naming the item or leg if not."""
     if surface is None:
         raise TypeError("checked() needs the exposure surface to prove the legs against; "
                         "unproven() is the structure-only check")
     check_items(mission.items, surface, clearance_m, name=name or mission.name,
-                has_home=profile(mission.firmware).home_item)
+                has_home=profile(mission.firmware).home_item, speed_mps=speed_mps)
     return CheckedMission(mission, "structure and legs (hidden, clear)", None, name, _TOKEN)
 
 

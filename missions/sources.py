@@ -48,10 +48,12 @@ class Proof:
     clearance_m: float | None = None
     reason: str | None = None
     plan_dir: Path | None = None
+    speed_mps: float | None = None      # the plan's: its schedule is timed at it
 
     def check(self, mission, name):
         if self.surface is not None:
-            return checked(mission, self.surface, self.clearance_m, name=name)
+            return checked(mission, self.surface, self.clearance_m, name=name,
+                           speed_mps=self.speed_mps)
         return unproven(mission, self.reason, name=name)
 
 
@@ -122,7 +124,7 @@ class _Plans:
                 proof = self._without(f"no {TERRAIN_FILE} in {directory}", what)
             else:
                 proof = Proof(saved_plan_surface(directory, plan), plan.params.get("clearance_m"),
-                              plan_dir=directory)
+                              plan_dir=directory, speed_mps=plan.params.get("speed_mps"))
             self._proofs[key] = (plan, proof)
         return self._proofs[key]
 
@@ -216,8 +218,26 @@ def firmware_mismatch(own: str, wanted: str, vehicle=None) -> str:
     a, b = profile(own), profile(wanted)
     who = f"vehicle {vehicle} runs {b.title}" if vehicle is not None else \
         f"--firmware is {b.name}"
-    return (f"a {a.title} mission, and {who}: write a {b.title} one from its plan with "
-            f"`gcs export PLAN_DIR --firmware {b.name}`")
+    return (f"{_article(a.title)} {a.title} mission, and {who}: write {_article(b.title)} "
+            f"{b.title} one from its plan with `gcs export PLAN_DIR --firmware {b.name}`")
+
+
+def _article(word: str) -> str:
+    return "an" if word[:1].lower() in "aeiou" else "a"
+
+
+def mission_file_firmware(path) -> str | None:
+    """The firmware a mission file says it is for: a ``.plan``'s ``firmwareType``,
+    a ``.waypoints`` file's mark (`missions.wpl.marked_firmware`), else its camera
+    commands; None when it says nothing. InputError for a file that cannot be read."""
+    path = Path(path)
+    if path.suffix.lower() == ".plan":
+        from .qgc import load_plan_file
+
+        return load_plan_file(path).declared
+    from .wpl import read_waypoints
+
+    return _waypoints_firmware(read_waypoints(path))
 
 
 def _file_missions(path: Path, route_id: int) -> tuple:
@@ -244,12 +264,22 @@ def _file_missions(path: Path, route_id: int) -> tuple:
             missions[fw] = VehicleMission(route_id, fw, items, [None] * len(items))
         except InputError as exc:
             missions[fw] = exc
-    return missions, _camera_firmware(lines)
+    return missions, _waypoints_firmware(lines)
+
+
+def _waypoints_firmware(lines) -> str | None:
+    """The firmware a ``.waypoints`` file's lines are for: the mark on its home line
+    (every file gcs writes has one), else for a file without it (another program's,
+    or ours from before the mark) the firmware whose camera commands it uses, else
+    None: such a file goes to a vehicle of either firmware."""
+    from .wpl import marked_firmware
+
+    return marked_firmware(lines) or _camera_firmware(lines)
 
 
 def _camera_firmware(items) -> str | None:
-    """The firmware whose camera command a ``.waypoints`` file uses (the one mark of
-    its firmware such a file carries), None without camera commands."""
+    """The firmware whose camera command a ``.waypoints`` file uses, None without
+    camera commands (or with both firmwares')."""
     from autopilots import profile
 
     commands = {int(it.command) for it in items}

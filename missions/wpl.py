@@ -13,33 +13,69 @@ launch point for the other programs and dropped on reading (the mission is
 lines 1.., renumbered from 0). Files written before this layout, whose line 0
 is the PX4 takeoff (``NAV_TAKEOFF``), are read too: a file whose line 0 is not
 a ``NAV_WAYPOINT`` has no home line.
+
+The format has no header field for the firmware a mission was built for, and
+QGroundControl's loader takes every line after the header for an item of 12
+columns (a ``#`` comment makes it refuse the whole file). So the mark is on the
+home line, which nobody flies (ArduPilot overwrites item 0 with its own home,
+PX4 is not given it, QGroundControl takes only its position for planned home):
+params 1 to 4 are ``0, 0, MAV_AUTOPILOT, 0`` (3 ArduPilot, 12 PX4, the numbers
+of a ``.plan``'s ``firmwareType``). Every file written for a firmware carries it
+(`file_items`); the mission read for a firmware has it cleared again
+(`mission_items`), so what is uploaded is what was built; `marked_firmware`
+reads it. A file without it (another program's, or one of ours from before) has
+none: what it is for is then left to its items (`missions.sources`).
 """
 
 import math
 from dataclasses import replace
 
-from autopilots import profile
+from autopilots import NAMES, profile
 from common.errors import InputError
 from common.fileio import write_text_atomic
 
 from .items import FRAME_GLOBAL, NAV_WAYPOINT, MissionItem, renumber
 
 HEADER = "QGC WPL 110"
+#: MAV_AUTOPILOT number -> firmware name, for the mark on the home line
+_MARKS = {float(profile(name).mav_autopilot): name for name in NAMES}
 
 
 def file_items(items, firmware: str | None = None, home=None) -> list:
     """The lines of a file for mission ``items`` of ``firmware``: as they are where
-    the firmware has a home item (or ``firmware`` is None), else a home line 0
-    first (``home`` (lat, lon, alt AMSL), default the first position item's)."""
+    the firmware has a home item, else a home line 0 first (``home`` (lat, lon,
+    alt AMSL), default the first position item's); line 0 marked as ``firmware``'s
+    either way. ``firmware`` None: the lines as given, unmarked."""
     items = list(items)
-    if firmware is None or profile(firmware).home_item:
+    if firmware is None:
         return items
+    autopilot = profile(firmware)
+    if autopilot.home_item:
+        line0, rest = split_home(items)
+        if line0 is None:               # not a mission of this firmware: nothing to mark
+            return items
+        return [_marked(line0, firmware)] + [_copy(it) for it in rest]
     if home is None:
         first = next((it for it in items if it.is_position), None)
         home = (first.x, first.y, first.z) if first is not None else (0.0, 0.0, 0.0)
     line0 = MissionItem(0, FRAME_GLOBAL, NAV_WAYPOINT, 1, 1, 0.0, 0.0, 0.0, 0.0,
                         float(home[0]), float(home[1]), float(home[2]))
-    return renumber([line0] + [_copy(it) for it in items])
+    return renumber([_marked(line0, firmware)] + [_copy(it) for it in items])
+
+
+def _marked(line0, firmware: str) -> MissionItem:
+    """The home line marked as written for ``firmware`` (params 0, 0, MAV_AUTOPILOT, 0)."""
+    return replace(line0, param1=0.0, param2=0.0,
+                   param3=float(profile(firmware).mav_autopilot), param4=0.0)
+
+
+def marked_firmware(items) -> str | None:
+    """The firmware a file's lines are marked as written for (`file_items`); None
+    when its home line bears no mark (or it has no home line)."""
+    line0, _ = split_home(items)
+    if line0 is None or (line0.param1, line0.param2, line0.param4) != (0.0, 0.0, 0.0):
+        return None
+    return _MARKS.get(line0.param3)
 
 
 def split_home(items) -> tuple:
@@ -61,6 +97,8 @@ def mission_items(items, firmware: str, source="waypoints") -> list:
         if home is None:
             raise InputError(source, f"line 2 is not a home position (a NAV_WAYPOINT): "
                                      f"{autopilot.title} missions start with home")
+        if marked_firmware(items) is not None:      # the file's mark, not the mission's
+            home = replace(home, param3=0.0)
         return renumber([_copy(home)] + [_copy(it) for it in rest])
     return renumber([_copy(it) for it in rest])
 

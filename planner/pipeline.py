@@ -7,6 +7,7 @@ flight calls ``allocate`` again on the same context with the survivors'
 positions and what they have already seen.
 """
 
+import math
 import time
 import warnings
 from contextlib import contextmanager
@@ -172,7 +173,14 @@ def outpost_features(s: Scenario) -> list:
     for f, d in dropped:
         warnings.warn(f"{f.source}: {f.label} left out: {d / 1000:.1f} km from the area, "
                       f"beyond its {f.range_m / 1000:g} km range", stacklevel=3)
-    return kept
+    for f, d in kept:
+        if d > 0:   # the DEM is read wider for it: say why the terrain read grew
+            reach = "unlimited range" if math.isinf(f.range_m) else \
+                f"{f.range_m / 1000:g} km range"
+            warnings.warn(f"{f.source}: {f.label} kept: {d / 1000:.1f} km outside the area, "
+                          f"its {reach} reaches into it (the DEM is read around it too)",
+                          stacklevel=3)
+    return [f for f, _ in kept]
 
 
 def area_of(s: Scenario, terrain, polygons=None):
@@ -361,21 +369,17 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
                                      time_budget_s=s.time_budget_s,
                                      budget_fraction=budget_fraction)
     parts = split.n_parts(len(ctx.viewpoints), s)
-    if parts > 1 and s.endurance_min is not None:
-        raise InputError("plan", f"an endurance (sorties) on an area planned in {parts} parts "
-                                 "is not supported yet: plan the area in smaller pieces, or "
-                                 "without --endurance")
     scale, over = np.ones(2), np.zeros(2)
     for _ in range(BATTERY_TRIES):
         try:
-            problem, allocation, prep = _search(ctx, parts, n_uavs, starts, seen, required,
-                                                method, params, timing, progress, scheduler,
-                                                log, owner, scale)
+            problem, allocation, prep, sortie_of = _search(
+                ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
+                scheduler, log, owner, scale)
         except ValueError as exc:
             raise InputError("plan", str(exc)) from None
         with _stage("routes", timing, progress):
             sorties = _routes(ctx, allocation.routes, starts, _fraction(progress, "routes"),
-                              _sortie_of(prep, allocation.routes) if prep else None)
+                              sortie_of)
             counts = coverage.coverage_counts(problem, allocation)
         with _stage("separation", timing, progress):
             fleet = fleet_clock(ctx, sorties, starts, problem, allocation.routes)
@@ -412,13 +416,14 @@ BATTERY_TRIES = 4
 
 def _search(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
             scheduler, log, owner, scale) -> tuple:
-    """(problem, allocation, prepared problem or None for a plan in parts): the
-    coverage method's search, the battery ``scale``d (`_battery`)."""
+    """(problem, allocation, prepared problem or None for a plan in parts, the
+    sortie of each visit per UAV): the coverage method's search, the battery
+    ``scale``d (`_battery`)."""
     s = ctx.scenario
     if parts > 1:
-        problem, allocation = _in_parts(ctx, parts, n_uavs, starts, seen, required, method,
-                                        params, timing, progress, scheduler, log, owner)
-        return problem, allocation, None
+        problem, joined = _in_parts(ctx, parts, n_uavs, starts, seen, required, method,
+                                    params, timing, progress, scheduler, log, owner, scale)
+        return problem, joined.allocation(problem, method), None, joined.sortie_of
     with _stage("allocation", timing, progress):
         problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
                                    owner=owner, battery_scale=scale)
@@ -426,7 +431,7 @@ def _search(ctx, parts, n_uavs, starts, seen, required, method, params, timing, 
         allocation = coverage.solve(problem, method, params,
                                     progress=(lambda f: progress("allocation", f))
                                     if progress else None, prep=prep)
-    return problem, allocation, prep
+    return problem, allocation, prep, _sortie_of(prep, allocation.routes)
 
 
 def _over_battery(fleet, usable_s, starts) -> np.ndarray:
@@ -453,9 +458,11 @@ def _sortie_of(prep, routes) -> list:
 
 
 def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
-              scheduler, log, owner=None):
+              scheduler, log, owner=None, scale=(1.0, 1.0)):
     """`allocate`'s search for an area planned in ``parts`` parts (`planner.split`):
-    the problem of the whole area (without viewpoint times) and the joined allocation."""
+    the problem of the whole area (without viewpoint times) and the joined routes
+    (`split.Joined`); each part splits its routes into sorties on the battery
+    ``scale``d as `_battery` says."""
     s = ctx.scenario
     for stage in ("travel times", "allocation"):
         if progress:
@@ -463,7 +470,7 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
     start = time.perf_counter()
     with dask_client(scheduler, ctx.terrain.height.size, log) as client:
         problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
-                                   travel=False, owner=owner)
+                                   travel=False, owner=owner, battery_scale=scale)
         pieces = split.make_parts(problem, ctx.viewpoints.xyz[:, :2], parts)
         # one sparse overlay of the whole area: the parts' times go through any viewpoint
         overlay = ctx.viewpoint_overlay(client, _fraction(progress, "travel times"))
@@ -480,7 +487,7 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
     if log is not None:
         log(f"planned in {parts} parts of {', '.join(str(len(g)) for g in joined.groups)} "
             f"UAVs; the join dropped {joined.dropped} visits it made redundant")
-    return problem, joined.allocation(problem, method)
+    return problem, joined
 
 
 @dataclass
@@ -560,6 +567,8 @@ def uav_polylines(sorties, n_uavs) -> list:
 
 #: vertices closer than this (m, horizontally and vertically) are one place
 SAME_PLACE_M = 0.01
+#: a survivor held this close (m, each axis) to its launch point stands on the ground
+GROUND_M = 0.5
 
 
 def _fewest_vertices(ctx, poly, stops) -> tuple:
@@ -649,6 +658,13 @@ class Fleet:
         return float(t.trajectory.end - t.start_s)
 
 
+def _on_ground(start) -> bool:
+    """A re-plan's survivor standing at its base (landed): it takes off, and waits
+    on the ground, not in the air where it would fill its column from the start."""
+    return start.held is not None and start.launch is not None and \
+        bool(np.all(np.abs(np.asarray(start.held) - start.launch) <= GROUND_M))
+
+
 def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
     """Every sortie on the fleet clock with the waits that keep the fleet separated
     (`planner.fleet.schedule`, ``separation_m`` of the scenario), a vehicle's
@@ -659,7 +675,7 @@ def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
         start = starts[f.uav] if starts else None
         profiles.append(Profile.of_route(
             f.poly, ctx.travel_params, launch=None if start is None else start.launch,
-            start=None if start is None or not f.first else start.held,
+            start=None if start is None or not f.first or _on_ground(start) else start.held,
             stop_s=stop_time(vars(s))))
     after = [None if f.first else i - 1 for i, f in enumerate(sorties)]
     need = np.minimum(problem.needs(), achievable(problem))   # as the methods aim at
@@ -669,8 +685,12 @@ def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
         when = [fleet.snapshot_times(r) for r in range(len(routes))]
         return last_needed_sighting(problem, routes, when, need)
 
+    # in the air, the battery most flown goes first (one retired from its battery
+    # flies home before all): a hold draws what it has left
+    urgency = [-math.inf if f.first and starts and starts[f.uav].retired else
+               -(starts[f.uav].flown_s if f.first and starts else 0.0) for f in sorties]
     sched = schedule(profiles, s.separation_m, coverage_time, after,
-                     60.0 * s.turnaround_min, s.usable_s)
+                     60.0 * s.turnaround_min, s.usable_s, urgency)
     return Fleet(sorties, sched, profiles, coverage_time(sched.timings) if sorties else 0.0)
 
 
@@ -752,6 +772,7 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
         return VehicleRoute(id=r + 1, launch=launch, waypoints=[], coverage_time_s=0.0,
                             mission_time_s=0.0, path_length_m=0.0)
     waypoints, rows, sorties = [], [], []
+    base = None if launch is None else [launch.lon, launch.lat, launch.alt_amsl]
     for i in flights:
         f, profile, timing = fleet.sorties[i], fleet.profiles[i], fleet.schedule.timings[i]
         first = profile.route[0]
@@ -759,6 +780,7 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
         snapshot = np.zeros(profile.n, bool)
         snapshot[f.snap + first] = True
         lon, lat = _lonlat(ctx, f.poly)
+        first_waypoint = len(waypoints)
         waypoints += [Waypoint(float(a), float(b), float(z), float(ts), bool(p), float(h),
                                f.number)
                       for a, b, z, ts, p, h in zip(lon, lat, f.poly[:, 2], arrive[first:],
@@ -768,7 +790,8 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
         rows += [[round(float(t), 3), float(a), float(b), float(z)]
                  for t, a, b, z in zip(trajectory.t, tlon, tlat, trajectory.xyz[:, 2])]
         sorties.append({"takeoff_s": _leaves(profile, timing), "landing_s": trajectory.end,
-                        "flight_s": fleet.flight_s(i), "length_m": _length(f.poly)})
+                        "flight_s": fleet.flight_s(i), "length_m": _length(f.poly),
+                        "waypoints": [first_waypoint, len(waypoints)], "base": base})
     shots = fleet.snapshot_times(r)
     return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints,
                         coverage_time_s=float(shots.max()) if len(shots) else 0.0,

@@ -61,7 +61,9 @@ class VehicleRoute:
     trajectory: list = field(default_factory=list)  # [[t_s, lon, lat, alt_amsl], ...]
     priority: int = 1  # right of way in flight: 1 first (the separation guard holds others)
     # one per battery when the route takes more than one: {"takeoff_s", "landing_s"}
-    # (fleet clock), "flight_s" (airborne, holds included), "length_m"; empty: one flight
+    # (fleet clock), "flight_s" (airborne, holds included), "length_m", "waypoints"
+    # ([first, end) of `waypoints`), "base" ([lon, lat, alt_amsl] it takes off from and
+    # lands at); empty: one flight
     sorties: list = field(default_factory=list)
 
     @property
@@ -120,7 +122,7 @@ class Plan:
                     takeoff_s=float(v.get("takeoff_s", 0.0)),
                     trajectory=[list(map(float, row)) for row in v.get("trajectory", [])],
                     priority=int(v.get("priority", v["id"])),
-                    sorties=[{k: float(x) for k, x in s.items()} for s in v.get("sorties", [])],
+                    sorties=[_sortie(s) for s in v.get("sorties", [])],
                 )
                 for v in data["vehicles"]
             ]
@@ -158,3 +160,17 @@ def _finite(value):
     if isinstance(value, (list, tuple)):
         return [_finite(v) for v in value]
     return value
+
+
+def _sortie(entry: dict) -> dict:
+    """A sortie of plan.json: its times and length as floats, its waypoint range as
+    ints, its base as [lon, lat, alt_amsl] (None without a launch point)."""
+    out = {}
+    for key, value in entry.items():
+        if key == "waypoints":
+            out[key] = [int(x) for x in value]
+        elif key == "base":
+            out[key] = None if value is None else [float(x) for x in value]
+        else:
+            out[key] = float(value)
+    return out

@@ -17,12 +17,13 @@ with the planner's own sensor model (`snapshot_sets`).
 """
 
 from dataclasses import dataclass, replace
+from typing import Optional
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from common.errors import InputError
-from planner.exposure import segments_hidden
+from planner.exposure import segments_clear, segments_hidden, segments_under_ceiling
 from planner.travel import CLEARANCE_MARGIN_M, leg_time
 from planner.visibility import Viewpoints, compute_visibility
 
@@ -57,6 +58,7 @@ class Survivor:
     launch: np.ndarray  # ground point it returns to: x, y, ground AMSL
     flown_s: float = 0.0  # of its battery, used already (a plan with an endurance counts it)
     retired: bool = False  # its batteries are not trusted: it only flies home
+    legs: Optional[np.ndarray] = None  # [n, 3] the waypoints of the mission it flies now
 
 
 # --- what has been seen ------------------------------------------------------------------
@@ -161,7 +163,11 @@ def _start_of(ctx: PlanningContext, survivor: Survivor) -> Start:
     passes the planner's strict checks (track tolerance, ceiling); that one
     short leg is then proven on its own (the vehicle is there already) and the
     route starts at that leg's node: routes start with a strict leg otherwise.
-    Last, a vehicle hovering by a node over the edge of a void (`_beside_node`)."""
+    Then a vehicle hovering by a node over the edge of a void (`_beside_node`). Last,
+    one held on a leg of the mission it flies (within the track tolerance the leg is
+    proven with) goes back or on along it to that leg's waypoint, a node of the
+    graph: the way there lies inside the leg's proven tube (a convex set holding
+    both ends), and is checked hidden and clear again (`_along_own_leg`)."""
     graph = ctx.graph
     xyz = np.asarray(survivor.xyz, float)
     launch = np.asarray(survivor.launch, float)
@@ -175,12 +181,50 @@ def _start_of(ctx: PlanningContext, survivor: Survivor) -> Start:
         target = _beside_node(ctx, xyz, node) if strict is None else \
             _nearest_reachable_node(graph, xyz, strict)
         if target is not None:
-            d = target - xyz
-            return Start(target, launch,
-                         float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)),
-                         held=xyz)
+            return _joined_at(ctx, xyz, target, launch)
+    target = _along_own_leg(ctx, xyz, survivor.legs)
+    if target is not None:
+        return _joined_at(ctx, xyz, target, launch)
     raise InputError(f"vehicle {survivor.vehicle_id}",
                      "its position is not joined to the hidden volume by a hidden leg")
+
+
+def _joined_at(ctx, xyz, target, launch) -> Start:
+    """A start at graph point ``target``, reached from ``xyz`` by one straight leg."""
+    d = target - xyz
+    return Start(target, launch, float(leg_time(np.hypot(d[0], d[1]), d[2], ctx.travel_params)),
+                 held=xyz)
+
+
+def _along_own_leg(ctx, xyz, legs):
+    """The graph node at an end of the mission leg ``xyz`` is held on (within the track
+    tolerance of it), the way there hidden and clear; None if there is none. A
+    vehicle the re-plan held mid-leg over ground where no new leg passes the
+    planner's checks (a float32 waypoint a few millimetres off its node, a thin
+    hidden layer) is still on the leg its mission was proven on."""
+    if legs is None or len(legs) < 2:
+        return None
+    graph, room = ctx.graph, ctx.scenario.track_tolerance_m
+    a, b = np.asarray(legs[:-1], float), np.asarray(legs[1:], float)
+    ab = b - a
+    t = np.clip(np.einsum("ij,ij->i", xyz - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab),
+                                                                 1e-12), 0.0, 1.0)
+    off = np.linalg.norm(a + t[:, None] * ab - xyz, axis=1)
+    for k in np.argsort(off):
+        if off[k] > room:
+            break
+        for end in (b[k], a[k]) if t[k] >= 0.5 else (a[k], b[k]):
+            node = _node_under(graph, end)
+            if node < 0 or np.linalg.norm(graph.node_xyz[node] - end) > room:
+                continue
+            target = graph.node_xyz[node]
+            # the tests the mission check proved the leg with (`missions.check`)
+            a_, b_ = xyz[None], target[None]
+            if segments_hidden(ctx.surface, a_, b_)[0] and \
+                    segments_clear(ctx.surface, a_, b_)[0] and \
+                    segments_under_ceiling(ctx.surface, a_, b_)[0]:
+                return target.copy()
+    return None
 
 
 def _climb_at_launch(ctx, xyz, launch):

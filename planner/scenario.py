@@ -127,6 +127,11 @@ class Scenario:
             (0 <= self.reserve_pct < 90, f"reserve_pct must be from 0 to 90, got "
                                          f"{self.reserve_pct:g}"),
             (self.turnaround_min >= 0, "turnaround_min must not be negative"),
+            (self.resolution_m is None or _positive(self.resolution_m),
+             "resolution_m must be a positive number of metres (leave it out: the DEM's own)"),
+            (self.geoid_offset_m is None or (isinstance(self.geoid_offset_m, (int, float))
+                                             and math.isfinite(self.geoid_offset_m)),
+             "geoid_offset_m must be a finite number of metres"),
             (self.endurance_min is None or self.launch, "endurance_min needs launch points "
              "(--launch): a sortie starts and ends at a base"),
         ]

@@ -40,7 +40,7 @@ from scipy.spatial import cKDTree
 from common.errors import InputError
 
 from . import coverage
-from .coverage.insertion import arrival_times
+from .coverage.insertion import walked
 from .coverage.metrics import reach_bound_of
 from .coverage.places import count_with, matched_counts
 from .coverage.problem import CLOSED, achievable, csc_transpose
@@ -229,7 +229,9 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
 
 def _solve_part(method, params, report, n, overlay, chunk):
     """One part solved (on a dask worker or here): its routes in its own viewpoint
-    ids, the arrival time at every snapshot, its coverage time. ``report(fraction)``
+    ids, the arrival time at every snapshot and the sortie of each visit (the
+    battery's split the method planned with; all 0 without an endurance), its
+    coverage time. ``report(fraction)``
     of all ``n`` parts, here. A problem without travel times gets them here, over
     ``overlay``, for its viewpoints ``ids`` (`planner.travel.overlay_rows`)."""
     k, problem, ids = chunk
@@ -238,10 +240,9 @@ def _solve_part(method, params, report, n, overlay, chunk):
     on = (lambda f: report((k + f) / n)) if report is not None else None
     allocation = coverage.solve(problem, method, params, progress=on)
     prep = coverage.prepare(problem)
-    arrivals = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.frames[u],
-                              prep.sorties[u], prep.has_launch)
-                for u, r in enumerate(allocation.routes)]
-    return allocation.routes, arrivals, allocation.coverage_time
+    walks = [walked(np.asarray(r, np.int64), prep.travel, prep.frames[u], prep.sorties[u],
+                    prep.has_launch)[:2] for u, r in enumerate(allocation.routes)]
+    return allocation.routes, walks, allocation.coverage_time
 
 
 @dataclass
@@ -250,6 +251,7 @@ class Joined:
 
     routes: list  # per UAV: global viewpoint ids
     arrivals: list  # per UAV: estimated arrival time at each snapshot (an upper bound)
+    sortie_of: list  # per UAV: the sortie of each visit (`planner.pipeline._routes`)
     groups: list  # per part: its UAV ids
     part_times: list  # per part: its coverage time as solved
     dropped: int  # visits the join made redundant
@@ -308,14 +310,30 @@ def solve_parts(problem, parts: list, method: str, params, matrix, speed_mps: fl
     solved = run_chunks(_solve_part, problems(), (method, params, report, len(index), overlay),
                         client, None if here or not progress else
                         _sub(progress, "allocation", 0, 1), total=len(index), scatter=True)
-    routes, arrivals = [[] for _ in range(problem.n_uavs)], [np.zeros(0)] * problem.n_uavs
-    for i, (part_routes, part_arrivals, _) in zip(index, solved):
-        for u, r, a in zip(groups[i], part_routes, part_arrivals):
+    routes = [[] for _ in range(problem.n_uavs)]
+    arrivals, sortie_of = [np.zeros(0)] * problem.n_uavs, [np.zeros(0, np.int64)] * problem.n_uavs
+    for i, (part_routes, walks, _) in zip(index, solved):
+        for u, r, (a, of) in zip(groups[i], part_routes, walks):
             routes[u] = [int(viewpoints[i][e]) for e in r]
-            arrivals[u] = a
+            arrivals[u], sortie_of[u] = a, of
     times = [t for _, _, t in solved]
-    routes, arrivals, dropped = drop_redundant(problem, routes, arrivals, max(times, default=0))
-    return Joined(routes, arrivals, groups, times, dropped, spent[0])
+    keep = drop_redundant(problem, routes, arrivals, max(times, default=0))
+    kept = [np.asarray(r, np.int64)[k].tolist() for r, k in zip(routes, keep)]
+    in_flight = problem.start_back is not None
+    sortie_of = [_renumbered(of[k], in_flight and problem.start_back[u] > 0)
+                 for u, (of, k) in enumerate(zip(sortie_of, keep))]
+    return Joined(kept, [a[k] for a, k in zip(arrivals, keep)], sortie_of, groups, times,
+                  int(sum((~k).sum() for k in keep)), spent[0])
+
+
+def _renumbered(of, keeps_first: bool) -> np.ndarray:
+    """Sorties numbered 0, 1, ... again once the join emptied some (dropping a
+    visit only shortens its sortie); ``keeps_first``: a vehicle in flight, whose
+    sortie 0 is the flight under way even when none of its visits are left."""
+    values = np.unique(of)
+    if keeps_first and (not len(values) or values[0] != 0):
+        values = np.concatenate([[0], values])
+    return np.searchsorted(values, of).astype(np.int64)
 
 
 def _sub(progress, stage, k, n):
@@ -328,8 +346,8 @@ def _sub(progress, stage, k, n):
 def drop_redundant(problem, routes, arrivals, by: float):
     """Drop every visit whose targets stay seen by their required number of
     distinct UAVs at distinct places by time ``by`` without it; long routes first, early visits
-    first (they delay the most). Returns (routes, arrivals, how many dropped);
-    the arrivals of kept visits are left as upper bounds."""
+    first (they delay the most). Returns per route whether each visit is kept (the
+    arrivals of kept visits stay upper bounds)."""
     uav = np.concatenate([np.full(len(r), u, np.int64) for u, r in enumerate(routes)]
                          + [np.zeros(0, np.int64)])
     vp = np.concatenate([np.asarray(r, np.int64) for r in routes] + [np.zeros(0, np.int64)])
@@ -353,13 +371,7 @@ def drop_redundant(problem, routes, arrivals, by: float):
     need[some] = matched_counts(some, at, tgt_indptr, tgt_indices, seen, need)
     keep = _droppable(uav, vp, when, order, indptr, indices, seen, need, float(by), shared,
                       at, tgt_indptr, tgt_indices)
-    out_routes, out_arrivals, start = [], [], 0
-    for r, a in zip(routes, arrivals):
-        k = keep[start:start + len(r)]
-        out_routes.append([int(e) for e, kept in zip(r, k) if kept])
-        out_arrivals.append(np.asarray(a, float)[k])
-        start += len(r)
-    return out_routes, out_arrivals, int((~keep).sum())
+    return np.split(keep, np.cumsum([len(r) for r in routes])[:-1])
 
 
 @njit(cache=True)

@@ -14,7 +14,8 @@ environment names its binary; the tests start and stop it themselves:
   build, started per vehicle as ``px4 -i i -d -w SCRATCH PX4_SITL_DIR/etc`` with
   the SIH simulator (``PX4_SYS_AUTOSTART=10040 PX4_SIMULATOR=sihsim HEADLESS=1``),
   ``PX4_HOME_LAT/LON/ALT`` at the launch point, ``PX4_SIM_SPEED_FACTOR`` and
-  ``TRIG_MODE 1`` (camera feedback); ``PX4_SITL_DIR`` is the build folder
+  ``TRIG_MODE 1`` (camera feedback), and for a plan with an endurance a simulated
+  battery that lasts it (``SIM_BAT_DRAIN``); ``PX4_SITL_DIR`` is the build folder
   (default: the binary's parent's parent). Instance i talks to the ground
   station from UDP 18570+i to 14550.
 
@@ -315,10 +316,25 @@ class Px4Backend(ProcessBackend):
         env = dict(os.environ, PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", HEADLESS="1",
                    PX4_HOME_LAT=repr(launch.lat), PX4_HOME_LON=repr(launch.lon),
                    PX4_HOME_ALT=repr(launch.alt_amsl), PX4_SIM_SPEED_FACTOR=str(speedup),
-                   PX4_PARAM_TRIG_MODE="1")
+                   PX4_PARAM_TRIG_MODE="1", **self._battery())
         env.pop("PX4_SIM_MODEL", None)
         return self._popen([str(binary), "-i", str(i), "-d", "-w", str(cwd),
                             str(build / "etc")], cwd, env)
+
+    def _battery(self) -> dict:
+        """A plan with an endurance gets a simulated pack that lasts it with
+        `PACK_HEADROOM` to spare, drawn down to empty (PX4's BatterySimulator drains
+        linearly over ``SIM_BAT_DRAIN`` armed seconds, by default 60, and stops at
+        ``SIM_BAT_MIN_PCT``, by default 50 %)."""
+        endurance = self.plan.params.get("endurance_min")
+        if not endurance:
+            return {}
+        return {"PX4_PARAM_SIM_BAT_DRAIN": f"{endurance * 60 * PACK_HEADROOM:.0f}",
+                "PX4_PARAM_SIM_BAT_MIN_PCT": "0"}
+
+    def swap_battery(self, sysid: int) -> None:
+        """Nothing for the crew to do: PX4 SITL's simulated battery is full again
+        whenever the vehicle is disarmed (BatterySimulator), which it is once landed."""
 
     def urls(self) -> list:
         return ["udpin:0.0.0.0:14550"]

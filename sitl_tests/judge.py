@@ -204,11 +204,12 @@ class Judge:
         return (rows[:, 0], rows[:, 1], rows[:, 2], rows[:, 3], list(self.shots), self.home)
 
 
-def closest_airborne(tracks, airborne_m=1.0) -> tuple:
+def closest_airborne(tracks, airborne_m=1.0, near=None) -> tuple:
     """(least distance m, (sysid, sysid), wall t) of two vehicles while both are more
-    than ``airborne_m`` above their homes, from their recorded tracks
-    ({sysid: (wall t, lat, lon, alt, ...,  home)}), on the times of either's
-    samples (linear between them); (inf, None, None) if never two at once."""
+    than ``airborne_m`` above their homes (and, given ``near`` = (lat, lon, radius
+    m), both less than radius from that point across the ground), from their
+    recorded tracks ({sysid: (wall t, lat, lon, alt, ...,  home)}), on the times of
+    either's samples (linear between them); (inf, None, None) if never two at once."""
     import itertools
 
     best = (np.inf, None, None)
@@ -224,6 +225,10 @@ def closest_airborne(tracks, airborne_m=1.0) -> tuple:
         pb = np.column_stack([np.interp(t, tb[0], tb[2]) * k, np.interp(t, tb[0], tb[1]) *
                               6371008.8 * np.pi / 180, np.interp(t, tb[0], tb[3])])
         up = (pa[:, 2] > ta[-1][2] + airborne_m) & (pb[:, 2] > tb[-1][2] + airborne_m)
+        if near is not None:
+            at = np.array([near[1] * k, near[0] * 6371008.8 * np.pi / 180])
+            up &= (np.hypot(*(pa[:, :2] - at).T) < near[2]) & \
+                (np.hypot(*(pb[:, :2] - at).T) < near[2])
         if not up.any():
             continue
         d = np.linalg.norm(pa - pb, axis=1)

@@ -228,9 +228,13 @@ def assert_prompt_loss(result, sysid) -> None:
 
 
 def still_flying(report, sysids, t_s) -> list:
-    """Those of ``sysids`` that had not landed by ``t_s`` (flight time)."""
-    landed = {e["sysid"] for e in report["events"] if e["event"] == "landed" and e["t_s"] <= t_s}
-    return [s for s in sysids if s not in landed]
+    """Those of ``sysids`` up in the air and not landed by ``t_s`` (flight time): sent
+    up ("taking off"), its start done or not. One whose start was under way then
+    without being sent up (waiting for its base column, on a slow link) was not: a
+    re-plan calls its start off and may send it up later."""
+    seen = {(e["sysid"], e["event"]) for e in report["events"] if e["t_s"] <= t_s}
+    return [s for s in sysids if {(s, "flying"), (s, "taking off")} & seen
+            and (s, "landed") not in seen]
 
 
 def assert_one_loss_retasked(planned, result, sysid) -> dict:
@@ -242,11 +246,18 @@ def assert_one_loss_retasked(planned, result, sysid) -> dict:
     survivors = [s for s in tracks if s != sysid]
     replan = report["replans"][0]
     # re-tasked: those in the air, and landed ones sent up again for the lost coverage
-    in_air = [s for s in replan["survivors"] if s not in replan["relaunched"]]
-    # flying when the re-plan began, and every one still flying when it was done (one
+    up = set(replan.get("relaunched", []))
+    in_air = set(replan["survivors"]) - up
+    # re-tasked in the air: flying when the re-plan began; sent up again (relaunched):
+    # down when it was sent (waiting for its takeoff, or landed, perhaps as the
+    # re-plan began); every vehicle flying when it was done was tasked by it (one
     # that lands meanwhile restarts it without, or lands after its last hold check)
-    assert set(still_flying(report, survivors, replan["done_t_s"])) <= set(in_air) \
-        <= set(still_flying(report, survivors, replan["t_s"]))
+    assert in_air <= set(still_flying(report, survivors, replan["t_s"]))
+    for s in up:
+        sent = min(e["t_s"] for e in report["events"] if e.get("sysid") == s
+                   and e["event"] == "re-launching" and e["t_s"] >= replan["t_s"])
+        assert not still_flying(report, [s], sent - 1e-3), s
+    assert set(still_flying(report, survivors, replan["done_t_s"])) <= in_air | up
     assert_hidden_and_clear(planned, tracks)
     assert_landed_at_launch(planned.ctx, tracks, survivors, result["backend"])
     cov = recorded_coverage(planned.ctx, tracks, survivors, k=0)

@@ -8,9 +8,9 @@ few times a second: at 100x a vehicle moves 300 m between two reports).
   re-plan's own schedule: no two airborne vehicles closer than half the
   separation (the guard's room: track error and latency), on both firmwares;
 - a vehicle that takes off late, by the least delay that brings it within the
-  separation of another on the plan's own trajectories: the guard holds one of
-  them, the report says so and the outcome calls it flown off the proven
-  schedule.
+  separation of another on the plan's own trajectories: the one that claims their
+  base column second waits until it is clear; then the guard holds one of them,
+  the report says so and the outcome calls it flown off the proven schedule.
 """
 
 import numpy as np
@@ -79,29 +79,44 @@ def late_start(planned, longest_s=600.0, step_s=10.0) -> tuple:
 
 
 @pytest.mark.parametrize("backend", ["sim", "sim-px4"])
-def test_a_late_start_makes_the_guard_act(planned, backend, tmp_path):
+def test_a_late_start_waits_for_its_column_and_the_guard_acts(planned, backend, tmp_path):
     """A vehicle takes off late by the least delay that, on the plan's own
-    trajectories, would bring it within the separation of another: the guard holds
-    one of them, the report says so, and they stay apart."""
+    trajectories, would bring it within the separation of another: the late one
+    arms as the next one launches. Whichever claims their base column second waits
+    until the other has left it and says so: never two in it at once (from the
+    simulator's true tracks). It then flies close behind the other: the guard
+    holds one of them, the report says so, and they stay apart."""
     p = planned(0, REAL)
     late, delay = late_start(p)
     result = fly_case(p, backend, tmp_path, speedup=SPEEDUP[backend], late=(late, delay))
     report = result["report"]
     sep = report["separation"]
     d, pair, _ = closest_airborne(result["tracks"])
-    print(f"\n[{backend}, vehicle {late} late by {delay:.0f} s] closest "
-          f"{d:.1f} m, guard actions {sep['actions']}")
+    base = p.plan.vehicles[0].launch
+    in_column, _, _ = closest_airborne(result["tracks"],
+                                       near=(base.lat, base.lon, _separation(p)))
+    waits = [e["event"] for e in report["events"] if "takeoff waits" in e["event"]]
+    print(f"\n[{backend}, vehicle {late} late by {delay:.0f} s] closest {d:.1f} m, "
+          f"in the base column {in_column:.1f} m, {waits}, guard actions {sep['actions']}")
+    # before the claim was made as each arming is tried, both armed together and
+    # climbed the column 10.8-18.9 m apart
+    assert waits and in_column >= _separation(p)
     holds = [a for a in sep["actions"] if a["action"] == "hold"]
-    assert holds, "the guard never acted"
+    # the guard acts where they meet; on a machine busy enough the wait for the
+    # column may itself have taken the late one far enough behind (seen once in a
+    # suite run beside three other simulated flights): then they never met
+    assert holds or d >= _separation(p), "they met and the guard never acted"
     assert all(a["predicted_m"] < _separation(p) for a in holds)
-    assert any("separation guard: hold" in e["event"] for e in report["events"])
     # kept apart, never touching: at 20x a wall second the machine spends elsewhere
     # is 20 s of flight, so how far inside the separation the pair came depends on the
     # machine (15-20 m idle, 9.5-14.6 m beside the suite's other tests): what this
     # simulator test holds is that the guard acts, says so, and no two vehicles meet
     assert d >= 5.0
-    assert not report["outcome"]["ok"]
-    assert any("held by the separation guard" in line for line in report["outcome"]["problems"])
+    if holds:
+        assert any("separation guard: hold" in e["event"] for e in report["events"])
+        assert not report["outcome"]["ok"]
+        assert any("held by the separation guard" in line
+                   for line in report["outcome"]["problems"])
     # flown on from where it was held, as the simulator itself records: PX4 goes back
     # to the item before (its camera triggering) unless its current item is set since
     # the hold, and on real PX4 climbs first to that item's altitude where it stands

@@ -1,12 +1,14 @@
-"""Sorties on real ArduPilot SITL (issue 33): each vehicle flies its battery-sized
-sorties one after another, lands at its base after each, waits there for a fresh
-battery (the crew's swap: `fleets.ArduPilotBackend.swap_battery`, sent on the
-judge's link), and goes again. Judged from what the autopilot reported of itself
-on its second link (`judge.Judge`): its takeoffs, the battery it reported, its
-track (hidden and clear), its landings, and the coverage of the snapshots its
-track confirms."""
+"""Sorties on real ArduPilot and PX4 SITL (issue 33): each vehicle flies its
+battery-sized sorties one after another, lands at its base after each, waits
+there for a fresh battery (the crew's swap: on ArduPilot
+`fleets.ArduPilotBackend.swap_battery`, sent on the judge's link; PX4 SITL's
+simulated battery refills itself once disarmed), and goes again. Judged from
+what the autopilot reported of itself on its second link (`judge.Judge`): its
+takeoffs, the battery it reported, its track (hidden and clear), its landings,
+and the coverage of the snapshots its track confirms."""
 
 import numpy as np
+import pytest
 from fleets import Setting, skip_unless_configured
 from test_end_to_end import (
     assert_hidden_and_clear,
@@ -30,16 +32,22 @@ def takeoffs(track) -> list:
     return list(np.asarray(t)[1:][up[1:] & ~up[:-1]])
 
 
-def test_sorties_fly_one_after_another_on_fresh_batteries(planned, tmp_path):
-    skip_unless_configured("ardupilot")
+@pytest.mark.parametrize("backend", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
+    reason="PX4 v1.17 SITL, 2 vehicles, 10-minute battery (2026-11-27): a 90 s (wall, 4x) "
+           "hold of the separation guard outlasted the battery; the battery watch acts only on "
+           "a draw 1.25 x the rating, this one drew as rated, so PX4's own failsafe flew "
+           "AUTO.RTL / AUTO.LAND off the proven legs (51-83 m) and vehicle 2 was lost",
+    strict=False))])
+def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, tmp_path):
+    skip_unless_configured(backend)
     p = planned(0, SORTIES)
-    result = fly_case(p, "ardupilot", tmp_path, crew=True, auto_turnaround=True)
+    result = fly_case(p, backend, tmp_path, crew=True, auto_turnaround=True)
     report, tracks, judges = result["report"], result["tracks"], result["judges"]
     outcome = report["outcome"]
     assert outcome["lost"] == [] and outcome["in_air"] == [] and outcome["coverage_reached"]
     assert_hidden_and_clear(p, tracks)
     sysids = [v.id for v in p.plan.vehicles]
-    assert_landed_at_launch(p.ctx, tracks, sysids, "ardupilot")
+    assert_landed_at_launch(p.ctx, tracks, sysids, backend)
     for v in p.plan.vehicles:
         assert len(v.sorties) >= 2
         ups = takeoffs(tracks[v.id])
@@ -57,7 +65,7 @@ def test_sorties_fly_one_after_another_on_fresh_batteries(planned, tmp_path):
     cov = recorded_coverage(p.ctx, tracks, sysids, k=0)
     short = p.plan.metrics["battery"]["targets_short"]
     assert cov["k_covered"] >= coverable(p.ctx) - short
-    print(f"\nsorties [ardupilot]: wall {result['wall_s']:.0f} s, flight {report['duration_s']:.0f}"
+    print(f"\nsorties [{backend}]: wall {result['wall_s']:.0f} s, flight {report['duration_s']:.0f}"
           f" s, takeoffs {[len(takeoffs(tracks[s])) for s in sysids]}, lowest battery "
           f"{[int(np.min(np.array(judges[s].battery)[:, 1])) for s in sysids]} %, coverage "
           f"{cov['k_covered']}/{coverable(p.ctx)} ({short} beyond one battery)")

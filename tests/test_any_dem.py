@@ -114,7 +114,7 @@ def _hidden_launch(dem, outposts, area, pick):
     return float(lat), float(lon)
 
 
-@settings(max_examples=24, deadline=None, derandomize=True,
+@settings(max_examples=16, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(kind=st.sampled_from(sorted(KINDS)), seed=st.integers(0, 1000),
        method=st.sampled_from(METHODS), k=st.integers(0, 2),

@@ -1,6 +1,9 @@
 """Bad input at the command line: one clear line, exit status 2, nothing half-written."""
 
 import json
+import subprocess
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -177,3 +180,72 @@ def test_warnings_are_one_line_in_the_users_words(tmp_path, capsys):
         "11.7 km from the area, beyond its 7 km range"]
     assert "UserWarning" not in err
     assert not (out / "vehicle-7.plan").exists() and (out / "vehicle-2.plan").exists()
+
+
+# --- option errors come before the heavy imports ------------------------------------------------
+#: what `python -m gcs` runs, then the heavy modules it loaded, on stdout (the
+#: user's stdout is empty on an option error)
+_PROBE = """
+import json, runpy, sys
+sys.argv[0] = "gcs"
+try:
+    runpy.run_module("gcs", run_name="__main__", alter_sys=True)
+except SystemExit as exc:
+    heavy = sorted(m for m in sys.modules if m.split(".")[0] in ("numba", "rasterio", "scipy")
+                   or m.split(".")[:2] in (["planner", "pipeline"], ["planner", "terrain"],
+                                           ["planner", "exposure"], ["planner", "coverage"]))
+    print(json.dumps(heavy))
+    raise
+"""
+
+
+def _gcs_in_a_fresh_process(*argv):
+    """(exit status, stderr lines, heavy modules imported) of ``python -m gcs ARGV``."""
+    done = subprocess.run([sys.executable, "-c", _PROBE, *argv], capture_output=True, text=True,
+                          cwd=Path(__file__).resolve().parents[1], timeout=120)
+    return done.returncode, done.stderr.strip().splitlines(), json.loads(done.stdout)
+
+
+@pytest.mark.parametrize("command", ["exposure", "plan"])
+@pytest.mark.parametrize("bad, message", [
+    (["--ceiling-agl", "-5"], "gcs {}: error: options: ceiling_agl_m must be a positive number"),
+    (["--clearance", "-1"], "gcs {}: error: options: clearance_m must not be negative"),
+    (["--area", "1,2,0,3"], "gcs {}: error: --area: '1,2,0,3': need south < north"),
+    (["--resolution", "-3"], "gcs {}: error: options: resolution_m must be a positive number"),
+    (["--geoid-offset", "nan"], "gcs {}: error: options: geoid_offset_m must be a finite"),
+], ids=["negative-ceiling", "negative-clearance", "empty-area", "negative-resolution",
+        "nan-geoid-offset"])
+def test_a_bad_option_value_is_one_line_before_any_heavy_import(tmp_path, command, bad,
+                                                                 message):
+    status, err, heavy = _gcs_in_a_fresh_process(command, "--sample", *bad,
+                                                 "-o", str(tmp_path / "out"))
+    assert status == 2 and len(err) == 1 and err[0].startswith(message.format(command)), err
+    assert heavy == []
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("bad, message", [
+    (["--bogus"], "unrecognized arguments: --bogus"),
+    (["--k", "3"], "unrecognized arguments: --k"),  # a plan's option, not exposure's
+    (["--ceiling-agl", "abc"], "argument --ceiling-agl: invalid float value: 'abc'"),
+], ids=["unknown", "not-exposures", "not-a-number"])
+def test_an_unknown_option_or_a_non_number_is_refused_before_any_heavy_import(tmp_path, bad,
+                                                                              message):
+    status, err, heavy = _gcs_in_a_fresh_process("exposure", "--sample", *bad,
+                                                 "-o", str(tmp_path / "e.tif"))
+    assert status == 2 and err[-1].startswith("gcs exposure: error: ") and message in err[-1]
+    assert [line for line in err if "error" in line.lower()] == err[-1:]  # argparse's usage
+    assert err[0].startswith("usage: gcs exposure")                       # above, no traceback
+    assert heavy == []
+    assert not (tmp_path / "e.tif").exists()
+
+
+def test_the_probe_sees_heavy_imports(tmp_path):
+    """The check above is not vacuous: an empty outposts file is the reader's to find,
+    after the planner is imported."""
+    posts = tmp_path / "posts.geojson"
+    posts.write_text('{"type": "FeatureCollection", "features": []}')
+    status, err, heavy = _gcs_in_a_fresh_process("exposure", "--sample", "--outposts",
+                                                 str(posts), "-o", str(tmp_path / "e.tif"))
+    assert status == 2 and err[-1].startswith(f"gcs exposure: error: {posts}: no outposts")
+    assert "planner.pipeline" in heavy and "numba" in heavy

@@ -55,12 +55,17 @@ def test_dem_and_outposts_files_with_options(tmp_path, capsys):
             "--ceiling-agl", "100", "--clearance", "20", "--hide-margin", "5",
             "--curvature-coeff", "0", "-o", str(out)]
     assert main(argv) == 0
-    printed = capsys.readouterr().out
-    assert "flyable" in printed and "km2" in printed and "regions" in printed
+    printed = capsys.readouterr()
+    assert "flyable" in printed.out and "km2" in printed.out and "regions" in printed.out
+    # post b has no height_m: the default eye height is said, on one line
+    assert [line for line in printed.err.splitlines() if "warning" in line] == [
+        f"gcs exposure: warning: {posts}: feature 1 (b): no height_m: eye 2 m above ground "
+        "assumed"]
     loaded = load_dem([dem], resolution=45)
     params = ExposureParams(ceiling_agl_m=100, clearance_m=20, hide_margin_m=5,
                             curvature_coeff=0)
-    expected = compute_exposure(loaded, load_outposts(posts, loaded), params).exposure
+    with pytest.warns(UserWarning, match=r"feature 1 \(b\): no height_m"):
+        expected = compute_exposure(loaded, load_outposts(posts, loaded), params).exposure
     data, profile, transform = read_tif(out)
     assert transform.almost_equals(loaded.transform) and transform.a == 45
     np.testing.assert_array_equal(data, expected.astype(np.float32))
@@ -82,7 +87,7 @@ def _bad_cases(tmp_path):
         (["--sample", "--dem", str(dem)], "not both"),
         ([], "no DEM given"),
         (["--sample", "--clearance", "-1"], "clearance_m must not be negative"),
-        (["--sample", "--resolution", "0"], "--resolution"),
+        (["--sample", "--resolution", "0"], "resolution_m must be a positive number"),
         ([*ok, "--area", "north"], "--area"),
         ([*ok, "--area", "1,2,3,4"], "does not overlap"),
     ]

@@ -149,6 +149,49 @@ def test_one_base_one_vehicle_in_its_column_at_a_time():
     assert same[1].start >= same[0].end or same[0].start >= same[1].end   # one path: in turn
 
 
+def test_a_vehicle_in_the_air_goes_before_those_on_the_ground():
+    """A re-plan: one vehicle hovers in the air, its way home crossing the path of
+    another standing at its base with three sorties to fly. The one in the air
+    flies on at once and the other waits on the ground, even where the coverage
+    time would gain from the other order (here the last sortie's end alone
+    counts): a hold draws the battery of the one in the air. (Placed after the
+    ground chain, it held 21 s here; in a re-plan of `gcs fly` it once hovered
+    over the base for all the other's sorties.)"""
+    params = TravelParams()
+    base = np.array([0.0, 0.0, 100.0])
+    out = np.array([[0, 0, 220.0], [900, 0, 220.0], [0, 0, 220.0]])
+    home = np.array([[450, -800, 220.0], [450, 300, 220.0]])
+    held = Profile.of_route(home, params, launch=np.array([450.0, 300.0, 100.0]),
+                            start=np.array([450.0, -840.0, 220.0]))
+    ground = [Profile.of_route(out, params, launch=base) for _ in range(3)]
+    fleet = schedule([held] + ground, 30.0, lambda timings: timings[3].trajectory.end,
+                     after=[None, None, 1, 2], turnaround_s=60.0)
+    assert fleet.order[0] == 0 and fleet.timings[0].wait_s == 0.0
+    assert fleet.timings[1].start_s > 0.0 and fleet.min_separation_m >= 30.0
+
+
+def test_a_vehicle_in_the_air_never_waits_for_anothers_later_sorties():
+    """Two vehicles in the air over one base: B, its battery the more flown, comes
+    home first; A hovers 15 m up in the column. B's two later sorties from that
+    base come after A's flight, not before it (placed with B's whole chain, A
+    hovered 590 s here for them, and in a re-plan of `gcs fly` 8809 s)."""
+    params = TravelParams()
+    base = np.array([0.0, 0.0, 100.0])
+    out = np.array([[0, 0, 220.0], [900, 0, 220.0], [0, 0, 220.0]])
+    short = np.array([[0, 0, 220.0], [0, 300, 220.0], [0, 0, 220.0]])
+    a = Profile.of_route(short, params, launch=base, start=base + [0.0, 0.0, 15.0])
+    b_home = Profile.of_route(np.array([[100, 0, 220.0], [0, 0, 220.0]]), params,
+                              launch=base, start=np.array([100.0, 0.0, 220.0]))
+    b_later = [Profile.of_route(out, params, launch=base) for _ in range(2)]
+    fleet = schedule([a, b_home] + b_later, 30.0, after=[None, None, 1, 2],
+                     urgency=[-10.0, -100.0, 0.0, 0.0])
+    assert fleet.order[:2] == [1, 0] and fleet.timings[1].wait_s == 0.0
+    assert fleet.timings[0].trajectory.end < fleet.timings[2].trajectory.end
+    # (A waits for B to land through the column it hovers in: no order keeps them
+    # apart there, the guard acts in flight)
+    assert fleet.timings[0].wait_s < 120.0
+
+
 # -- every method, on generated terrains ----------------------------------------------
 def _plan(method, k, seed, separation_m=30.0):
     terrain = synthetic_terrain(56, 56, cell=30.0, seed=seed, family="hills")

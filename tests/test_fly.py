@@ -100,6 +100,29 @@ def test_loss_after_silence_not_before(plan_dir):
     assert m.vehicles[1].state == LANDED
 
 
+def test_a_silent_vehicle_down_between_two_sorties_is_lost_not_waited_for(plan_dir):
+    """Landed, it is done, unless it has a sortie still to fly (`Monitor.awaited`):
+    then silence there is a loss (the flight once waited for its battery swap for
+    ever); a vehicle down for good may fall silent."""
+    plan = Plan.load(plan_dir)
+    m = Monitor(lost_after_s=0.2)
+    links = [_FakeLink(1), _FakeLink(2)]
+    for link, route in zip(links, plan.vehicles):
+        m.follow(link, route.id, route, SimpleNamespace(items=[], waypoint_of_item=[]))
+        link.state.relative_alt = 0.5
+        link.beat(armed=False)
+    for link in links:                     # flew, then landed
+        link.report(50.0)
+        link.beat()
+        link.report(0.5)
+        link.beat(armed=False)
+    assert m.vehicles[1].state == m.vehicles[2].state == LANDED
+    m.awaited = lambda: {2}                 # vehicle 2 has a sortie to fly
+    time.sleep(0.4)                         # both silent
+    assert m.check_losses() == [2]
+    assert m.vehicles[1].state == LANDED and m.vehicles[2].state == LOST
+
+
 def test_a_loss_found_while_waiting_on_another_vehicle_is_not_forgotten(plan_dir):
     """Vehicle 2 falls silent while the flight waits on vehicle 1 (a segment switch):
     the loss found there is taken by the flight loop once, for one re-task."""
@@ -220,3 +243,99 @@ def test_an_item_reached_means_every_waypoint_before_it_was(plan_dir):
     assert [s.waypoint for s in m.vehicles[1].snapshots] == snapshots
     reached(9)                           # repeated reports change nothing
     assert len(m.vehicles[1].snapshots) == len(snapshots)
+
+
+def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
+    """The last vehicle due out refuses to arm until its start gives up: the flight
+    fails, and the vehicles already up are not left on their missions with
+    nobody watching: they are brought home by hidden paths and watched down.
+    Judged by the simulator's own tracks: each landed where it took off, long
+    before its mission would have ended, and the one refused never armed."""
+    from gcs.fly import Flight, FlightError, FlyOptions
+    from gcs.sim import fleet_for_plan
+
+    plan = planned.plan
+    last = max(plan.vehicles, key=lambda v: v.takeoff_s).id
+    fleet = fleet_for_plan(plan, speedup=20.0, base_port=free_base_port(10, 3),
+                           track_dir=tmp_path / "tracks")
+    fleet.refuse_arm(last)
+    try:
+        with pytest.raises(FlightError, match="start failed"):
+            Flight(planned.dir, fleet.urls(), FlyOptions(
+                output=tmp_path / "f", lost_after_s=3.0, plot=False, ready_timeout_s=4.0)).run()
+    finally:
+        fleet.stop()
+    report = json.loads((tmp_path / "f" / "flight.json").read_text())
+    assert report["outcome"]["in_air"] == [] and not report["outcome"]["ok"]
+    assert any(e["event"].startswith("the flight failed: the vehicles in the air are "
+                                      "brought home") for e in report["events"])
+    assert report["replans"] and report["replans"][-1]["survivors"]
+    for v in plan.vehicles:
+        track = read_track(track_path(tmp_path / "tracks", v.id))
+        events = [e["event"] for e in track.events]
+        if v.id == last:
+            assert "armed" not in events
+            continue
+        assert "landed" in events and abs(track.alt[-1] - track.home[2]) < 1.0
+        assert track.t[-1] < v.mission_time_s
+
+
+def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
+    """`Flight._left_s`: the rest of a sortie from where the vehicle is (to its next
+    waypoint at the plan's speed, then the route as planned), stretched by how
+    much slower than planned it has made its way along the route on its own
+    clock, never shrunk; on its way home once it has nothing left to photograph
+    (the watch then only says what it will land on); nothing past the end. And a
+    re-plan counts the battery of one that slow as that much shorter
+    (`Retasker._flown_s`). Reference: the route's own times, by hand."""
+    from gcs.fly import WATCH_AFTER_S, Flight
+    from gcs.retask import Retasker
+    from planner.plan import VehicleRoute, Waypoint
+    from planner.travel import TravelParams
+
+    lat0, lon0, m_per_deg = 36.6, -84.2, 111_320.0
+    # a straight route north at 10 m/s: a waypoint every 1000 m, 100 s apart
+    route = VehicleRoute(1, None, [Waypoint(lon0, lat0 + k * 1000.0 / m_per_deg, 700.0,
+                                            100.0 * k, snapshot=k < 3) for k in range(5)],
+                         coverage_time_s=300.0, mission_time_s=460.0, path_length_m=4000.0)
+    state = SimpleNamespace(lat=lat0, lon=lon0, alt_amsl=700.0, battery_pct=50)
+    vehicle = SimpleNamespace(route=route, done={0}, track=[(0, lon0, lat0, 700.0, 1000.0)])
+    travel = TravelParams(speed_mps=10.0, climb_mps=3.0, descent_mps=2.0)
+    guard = SimpleNamespace(actions=[])
+    fake = SimpleNamespace(monitor=SimpleNamespace(vehicles={1: vehicle}, links={1: SimpleNamespace(
+        state=state)}, now=lambda: 100.0), ctx=SimpleNamespace(scenario=SimpleNamespace(
+            travel_params=lambda: travel)), _route_seen={}, _pace={}, guard=guard)
+    fake._own_clock = lambda s: Flight._own_clock(fake, s)
+    fake._held_own_s = lambda s, since: Flight._held_own_s(fake, s, since)
+    fake._own_at = lambda s, t: Flight._own_at(fake, s, t)
+    fake._next_waypoint = lambda s: Flight._next_waypoint(fake, s)
+    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - 0.0, abs=1.0)   # first look
+    # 2 * WATCH_AFTER_S later on its own clock, where the plan is WATCH_AFTER_S after
+    # the start: it makes half the planned pace
+    along = WATCH_AFTER_S * 10.0
+    state.lat = lat0 + along / m_per_deg
+    vehicle.track.append((0, lon0, state.lat, 700.0, 1000.0 + 2 * WATCH_AFTER_S))
+    vehicle.done = {k for k in range(5) if 1000.0 * k <= along}
+    left = Flight._left_s(fake, 1)
+    assert fake._pace[1] == pytest.approx(2.0, rel=0.01)
+    assert left == pytest.approx(2.0 * (460.0 - WATCH_AFTER_S), rel=0.01)
+    # held by the separation guard for half that time (flight clock 0 to 50, its own
+    # clock 1000 to 1000 + WATCH_AFTER_S): it flew at the planned pace
+    vehicle.track[-1] = (100.0, lon0, state.lat, 700.0, 1000.0 + 2 * WATCH_AFTER_S)
+    guard.actions = [{"sysid": 1, "action": "hold", "t_s": 0.0},
+                     {"sysid": 1, "action": "resume", "t_s": 50.0}]
+    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - WATCH_AFTER_S, rel=0.01)
+    assert fake._pace[1] == pytest.approx(1.0, rel=0.01)
+    guard.actions = []
+    assert not Flight._homebound(fake, 1)
+    vehicle.done = {0, 1, 2}           # its last snapshot taken: on its way home, 1800 m
+    assert Flight._homebound(fake, 1)  # from waypoint 3 (planned at 300 s), at half pace
+    assert Flight._left_s(fake, 1) == pytest.approx(2.0 * (460.0 - (300.0 - 180.0)), rel=0.01)
+    vehicle.done = {0, 1, 2, 3, 4}
+    assert Flight._left_s(fake, 1) is None
+    # the re-plan: half its battery left, at half the pace: a quarter of the flight
+    ctx = SimpleNamespace(scenario=SimpleNamespace(endurance_min=12.0))
+    monitor = SimpleNamespace(links={1: SimpleNamespace(state=state)})
+    for pace, flown in ((None, 360.0), ({1: 2.0}, 540.0)):
+        retasker = SimpleNamespace(ctx=ctx, monitor=monitor, pace=pace or {})
+        assert Retasker._flown_s(retasker, 1) == pytest.approx(flown)

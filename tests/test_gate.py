@@ -96,9 +96,16 @@ def do_jump(items):
                      "doJumpId": 99, "params": [1, 3, 0, 0, 0, 0, 0]})
 
 
+def faster(items):
+    speed = next(it for it in items if it["command"] == 178)   # DO_CHANGE_SPEED
+    speed["params"][1] *= 2.0                   # same legs, twice as fast: off the schedule
+
+
 @pytest.mark.parametrize("edit, problem", [(relative_frame, "frame 3"),
                                            (raised, "is not hidden from the outposts"),
-                                           (do_jump, "DO_JUMP")])
+                                           (do_jump, "DO_JUMP"),
+                                           (faster, "DO_CHANGE_SPEED to 24 m/s, not the "
+                                                    "plan's 12 m/s")])
 def test_edited_plan_file_never_reaches_the_vehicle(plan_copy, vehicle, capsys, edit, problem):
     path = plan_copy / "vehicle-1.plan"
     _edit_plan(path, edit)
@@ -175,7 +182,10 @@ def test_upload_over_a_serial_line(planned, plan_copy, capsys):
     try:
         url = fleet.urls()[0]
         assert url.startswith("/dev/") and url.endswith(",57600")
-        export_plan_dir(plan_copy, planned.plan, "px4", formats=("plan",))
+        # the plan folder made PX4's: its mission files and plan.json (a PX4 .plan
+        # beside ArduPilot .waypoints and plan.json is refused)
+        export_plan_dir(plan_copy, Plan.load(plan_copy), "px4", formats=("plan", "waypoints"),
+                        plan_dir=plan_copy)
         path = plan_copy / "vehicle-1.plan"            # the file is PX4's, as the vehicle
         assert main(["upload", str(path), "--connect", url]) == 0
         assert mp.compare(qgc.read_plan_file(path, "px4"), stored(fleet), "px4") == []

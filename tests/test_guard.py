@@ -61,7 +61,7 @@ def _route(x, y):
     return VehicleRoute(1, None, [w], 0.0, 0.0, 0.0)
 
 
-def _guard(vehicles, priority):
+def _guard(vehicles, priority, short=()):
     monitor = Monitor(lost_after_s=5.0)
     for v in vehicles:
         monitor.follow(v, v.sysid, v.route or _route(*v.p[:2]), None)
@@ -70,7 +70,8 @@ def _guard(vehicles, priority):
                             airborne=lambda: [v.sysid for v in vehicles],
                             hold=lambda s: _set(vehicles, s, True),
                             resume=lambda s: _set(vehicles, s, False),
-                            travel=TravelParams(speed_mps=12.0))
+                            travel=TravelParams(speed_mps=12.0),
+                            short=lambda s: s in short)
     return monitor, guard
 
 
@@ -115,6 +116,16 @@ def test_crossing_paths_the_lower_priority_waits_then_flies_on():
     assert report["pairs"][0]["vehicles"] == [1, 2]
     assert report["closest_m"] == pytest.approx(least, abs=13.0)   # sampled every 0.25 s
     assert any("separation guard: hold" in e["event"] for e in monitor.events)
+
+
+def test_a_vehicle_short_of_battery_has_right_of_way():
+    """The crossing above with vehicle 2 short of battery: 1 waits for it."""
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, -240.0), (0.0, 12.0), _route(0, 400))
+    _, guard = _guard([one, two], {1: 1, 2: 2}, short={2})
+    least = _run([one, two], guard, 60.0)
+    assert [(a["sysid"], a["action"]) for a in guard.actions] == [(1, "hold"), (1, "resume")]
+    assert least >= 30.0 and not one.held and one.p[0] > 100.0
 
 
 def test_head_on_both_are_held():

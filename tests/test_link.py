@@ -293,3 +293,23 @@ def test_what_a_real_autopilot_sends_is_read_as_it_means():
                                                            "alt": 477600, "hdg": 65535}),
                   "ardupilot", 2)
     assert (round(s.lat, 7), s.alt_amsl) == (36.551972, 477.6)
+
+
+def test_the_battery_is_read_from_its_own_report_first():
+    """SYS_STATUS's battery_remaining until the pack's BATTERY_STATUS (id 0) is heard,
+    then that one (SYS_STATUS may sum or pick among packs); -1 is unknown."""
+    from gcs.link import VehicleState, _update_state
+
+    s = VehicleState()
+    _update_state(s, build_message("SYS_STATUS", {"battery_remaining": 80}), "px4", 2)
+    assert s.battery_pct == 80
+    _update_state(s, build_message("BATTERY_STATUS", {"id": 1, "battery_remaining": 10}),
+                  "px4", 2)
+    assert s.battery_pct == 80                             # another pack
+    _update_state(s, build_message("BATTERY_STATUS", {"id": 0, "battery_remaining": 60}),
+                  "px4", 2)
+    _update_state(s, build_message("SYS_STATUS", {"battery_remaining": 55}), "px4", 2)
+    assert s.battery_pct == 60
+    _update_state(s, build_message("BATTERY_STATUS", {"id": 0, "battery_remaining": -1}),
+                  "px4", 2)
+    assert s.battery_pct == 60

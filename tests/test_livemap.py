@@ -40,6 +40,17 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
+def _post(url, body, timeout=2.0) -> int:
+    """The HTTP status of a POST of JSON ``body``."""
+    request = urllib.request.Request(url, data=body, method="POST",
+                                     headers={"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(request, timeout=timeout) as r:
+            return r.status
+    except urllib.error.HTTPError as exc:
+        return exc.code
+
+
 def _get(url, timeout=2.0):
     with urllib.request.urlopen(url, timeout=timeout) as r:
         return r.status, r.headers.get("Content-Type"), r.read()
@@ -108,6 +119,11 @@ def test_documents_without_a_browser(plan_dir, tmp_path):
     for bad in ("../__init__.py", "%2e%2e/__init__.py", ".hidden", "nope.js"):
         with pytest.raises(urllib.error.HTTPError):
             _get(fly.url + bad)
+    # the operator's word on a battery: a vehicle of the flight, from this machine
+    assert _post(fly.url + "swap", b'{"sysid": 2}') == 204
+    assert [_post(fly.url + path, body) for path, body in
+            (("swap", b'{"sysid": 99}'), ("swap", b"2"), ("swap", b"{}"),
+             ("other", b'{"sysid": 2}'))] == [404, 400, 400, 404]
     states = []
     while fly.thread.is_alive():
         try:
@@ -118,6 +134,10 @@ def test_documents_without_a_browser(plan_dir, tmp_path):
     code = fly.join()
     report = json.loads((tmp_path / "flight" / "flight.json").read_text())
     assert problems_beside_guard(report) == [] and code == (0 if report["outcome"]["ok"] else 1)
+    said = [e for e in report["events"] if e["event"].startswith("battery swap confirmed")]
+    assert [(e["sysid"], e["event"]) for e in said] == \
+        [(2, "battery swap confirmed by the operator (live map)")]
+    assert not any(v["swap"] for s in states for v in s["vehicles"])    # one battery each
     moving = [s for s in states if any(v["position"] for v in s["vehicles"])]
     assert moving, "no state with positions"
     last = moving[-1]["vehicles"]

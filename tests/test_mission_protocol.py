@@ -204,11 +204,19 @@ def test_upload_to_mavsdk_mission_raw_server(vehicles):
             server.subscribe_incoming_mission(on_mission)
             servers.append((sdk, server, cfg))
         link.wait_vehicles(vehicles, timeout_s=10)
+        # each MAVSDK has heard the ground station before it is sent a mission, and
+        # its transfer gets more time than a vehicle's: four MAVSDK instances in one
+        # process on a busy machine once left vehicle 1's MISSION_COUNT unanswered
+        # through 6 tries 1.5 s apart
+        deadline = time.monotonic() + 20
+        while any(sdk.system_count() == 0 for sdk, _, _ in servers) and \
+                time.monotonic() < deadline:
+            time.sleep(0.1)
         sent = {}
         for sysid, vehicle in link.vehicles.items():
             sent[sysid] = mission_for("px4", sysid).items
-            mp.upload(vehicle, sendable(mission_for("px4", sysid)))
-        assert done.wait(5), f"MissionRawServer got missions from {sorted(received)}"
+            mp.upload(vehicle, sendable(mission_for("px4", sysid)), timeout_s=3.0, retries=10)
+        assert done.wait(15), f"MissionRawServer got missions from {sorted(received)}"
         for sysid, items in sent.items():
             result, got = received[sysid]
             assert result.name == "SUCCESS"
@@ -291,6 +299,34 @@ def test_refused_arming_is_explained(opened):
     text = str(err.value)
     assert "vehicle 1" in text and "MAV_CMD_COMPONENT_ARM_DISARM refused" in text
     assert "MAV_RESULT_FAILED" in text and "PreArm" in text
+
+
+def test_arming_waits_for_its_base_column_and_gives_it_back_when_refused(opened):
+    """Each arming attempt first claims the column (waited for while another is
+    in it), and a refused attempt gives it back: a vehicle held on the ground must
+    not keep the next one due out of the column, nor arm beside it."""
+    fleet, link = opened(fleet_config("ardupilot", 1, speedup=30.0))
+    vehicle = link.vehicles[1]
+    mp.upload(vehicle, sendable(mission_for("ardupilot", 1)))
+    fleet.refuse_arm(1)
+    calls, busy_until = [], time.monotonic() + 1.0
+
+    class Column:
+        def claim(self):
+            free = time.monotonic() > busy_until      # another vehicle in it for 1 s
+            calls.append("claim" if free else "wait")
+            return free
+
+        def release(self):
+            calls.append("release")
+            if calls.count("release") == 2:          # its crew lets it go
+                fleet.refuse_arm(1, False)
+
+    commands.start_mission(vehicle, ALT, ready_timeout_s=10, column=Column())
+    first = calls.index("claim")
+    assert calls[:first] and set(calls[:first]) == {"wait"}
+    # every refused attempt gave the column back; the one that armed kept it
+    assert calls[first:] == ["claim", "release", "claim", "release", "claim"]
 
 
 def test_not_ready_is_a_clear_timeout(opened):

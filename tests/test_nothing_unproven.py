@@ -12,11 +12,13 @@ import sys
 
 import numpy as np
 import pytest
+from flown import problems_beside_guard
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from common.errors import InputError
 from gcs.cli import main
+from gcs.fly import PLAN_FROM_HERE
 from gcs.sim import FleetConfig, SimFleet, free_fleet_ports, read_track, track_path
 from missions import qgc
 from missions.build import MissionOptions, vehicle_mission
@@ -46,6 +48,18 @@ def _fleet(planned, firmware="ardupilot", offset_m=0.0, vehicles=1, **extra):
     cfg = FleetConfig(vehicles=vehicles, firmware=firmware, homes=[home] * vehicles,
                       warmup_s=0.5, no_space_s=0.0, speedup=20.0,
                       **free_fleet_ports(firmware, vehicles), **extra)
+    return SimFleet(cfg).start()
+
+
+def _standing(planned, at, vehicles, track_dir):
+    """Simulated vehicles standing on the plan's terrain at (lat, lon) ``at``."""
+    from gcs.sim import terrain_ground
+
+    ground = terrain_ground(planned.terrain)
+    cfg = FleetConfig(vehicles=vehicles, firmware="ardupilot",
+                      homes=[(*at, ground(*at))] * vehicles, terrain=ground, warmup_s=0.5,
+                      no_space_s=0.0, speedup=20.0, track_dir=track_dir,
+                      **free_fleet_ports("ardupilot", vehicles))
     return SimFleet(cfg).start()
 
 
@@ -89,7 +103,7 @@ def test_a_mission_file_of_the_other_firmware_is_refused(planned, plan_copy, cap
                      "--connect", fleet.urls()[0]]) == 2
         line = _one_line_error(capsys, "upload")
         assert line == (f"gcs upload: error: {path}: a PX4 mission, and vehicle 1 runs "
-                        "ArduPilot: write a ArduPilot one from its plan with `gcs export "
+                        "ArduPilot: write an ArduPilot one from its plan with `gcs export "
                         "PLAN_DIR --firmware ardupilot`")
         assert _stored(fleet) == before                # nothing sent
         # and an explicit --firmware that is not the file's: refused before connecting
@@ -124,7 +138,7 @@ def test_a_vehicle_away_from_its_launch_point_is_refused_before_arming(planned, 
         fleet.stop()
     assert code == 1
     assert re.search(r"vehicle 1 stands 299\.\d m from the launch point of route 1", err)
-    assert "within 5 m of its launch point" in err
+    assert "within 5 m of where its route starts" in err
     report = json.loads((out / "flight.json").read_text())
     assert not report["outcome"]["ok"]
     for sysid in (1, 2, 3):                # the vehicles' own record: never armed, no mission
@@ -132,6 +146,103 @@ def test_a_vehicle_away_from_its_launch_point_is_refused_before_arming(planned, 
         assert "armed" not in events
         assert _stored(fleet, sysid) == 0
 
+
+
+def test_without_launch_points_a_vehicle_away_from_its_first_waypoint_is_refused(
+        planned, tmp_path, capsys):
+    """A plan made without --launch starts each vehicle's climb under its first
+    waypoint: one standing elsewhere was armed where it stood and climbed there."""
+    from dataclasses import replace
+
+    from gcs.plan_folder import write_plan_folder
+    from planner.pipeline import plan_mission
+    from planner.scenario import Scenario
+
+    scenario = replace(Scenario.from_params(planned.plan.params), launch=[],
+                       sample=True).validate()
+    ctx, outcome = plan_mission(scenario, terrain=planned.terrain,
+                                outposts=planned.ctx.outposts)
+    folder = tmp_path / "plan"
+    write_plan_folder(folder, ctx, outcome)
+    first = outcome.plan.vehicles[0].waypoints[0]
+    fleet = _standing(planned, (first.lat - 300.0 / 111_320.0, first.lon), 1,
+                      tmp_path / "tracks")
+    out, empty = tmp_path / "flight", _stored(fleet)
+    try:
+        code = main(["fly", str(folder), "--connect", fleet.urls()[0], "--assign", "1=1",
+                     "--connect-timeout", "30", "-o", str(out)])
+        err = capsys.readouterr().err
+    finally:
+        fleet.stop()
+    assert code == 1
+    assert re.search(r"vehicle 1 stands 29\d\.\d m from under the first waypoint of route 1",
+                     err)
+    events = [e["event"] for e in read_track(track_path(tmp_path / "tracks", 1)).events]
+    assert "armed" not in events and _stored(fleet) == empty
+
+
+def test_from_where_they_stand_the_fleet_is_planned_again_there_and_flies_hidden(
+        planned, saved_surface, tmp_path, capsys):
+    """The same vehicles 300 m from their base, and the operator's
+    --from-where-they-stand: the fleet is planned again with its base where they
+    stand, written beside the flight report and flown. Judged by the simulator's
+    true tracks: each took off and landed where it stood, and every point of every
+    track, sampled 1 m apart, is hidden (exact point test) and above the ground."""
+    lat, lon = planned.launch[0] - 300.0 / 111_320.0, planned.launch[1]
+    fleet = _standing(planned, (lat, lon), 3, tmp_path / "tracks")
+    out = tmp_path / "flight"
+    try:
+        code = main(["fly", str(planned.dir), *[a for u in fleet.urls() for a in ("--connect", u)],
+                     "--connect-timeout", "30", "--from-where-they-stand", "-o", str(out)])
+        err = capsys.readouterr().err
+    finally:
+        fleet.stop()
+    report = json.loads((out / "flight.json").read_text())
+    assert code in (0, 1) and problems_beside_guard(report) == [], err
+    assert report["outcome"]["coverage_reached"] and report["outcome"]["in_air"] == []
+    here = out / PLAN_FROM_HERE
+    assert report["plan"] == str(here)
+    said = [e["sysid"] for e in report["events"] if e["event"].startswith(
+        "stands 299.") and "planning again from where it stands" in e["event"]]
+    assert sorted(said) == [1, 2, 3]
+    terrain = saved_surface.terrain
+    hx, hy = terrain.from_lonlat(lon, lat)
+    for v in Plan.load(here).vehicles:
+        assert np.hypot(*np.subtract(terrain.from_lonlat(v.launch.lon, v.launch.lat),
+                                     (hx, hy))) < 1.0
+    for sysid in (1, 2, 3):
+        track = read_track(track_path(tmp_path / "tracks", sysid))
+        x, y = terrain.from_lonlat(np.asarray(track.lon), np.asarray(track.lat))
+        p = np.stack([x, y, track.alt], axis=1)
+        assert np.hypot(*(p[[0, -1], :2] - (hx, hy)).T).max() < 5.0    # off and back here
+        assert p[:, 2].max() > p[0, 2] + 20.0                         # and it flew
+        up = p[:, 2] > p[0, 2] + 1.0
+        a, b = p[:-1][up[:-1] & up[1:]], p[1:][up[:-1] & up[1:]]
+        n = np.maximum(2, (np.linalg.norm(b - a, axis=1) / 1.0).astype(int) + 1)
+        dense = np.concatenate([a_ + np.linspace(0, 1, k)[:, None] * (b_ - a_)
+                                for a_, b_, k in zip(a, b, n)])
+        assert is_hidden(saved_surface, dense).all(), sysid
+        assert (dense[:, 2] > terrain.ground(dense[:, 0], dense[:, 1], upper=True)).all()
+
+
+def test_from_where_they_stand_no_hidden_takeoff_is_refused_by_name(planned, tmp_path,
+                                                                    capsys):
+    """Standing on the outpost's hill, in its view: no plan can start there."""
+    post = planned.ctx.outposts[0]
+    lon, lat = planned.ctx.terrain.to_lonlat(post.x + 30.0, post.y)   # a cell beside its eye
+    fleet = _standing(planned, (float(lat), float(lon)), 1, tmp_path / "tracks")
+    out, empty = tmp_path / "flight", _stored(fleet)
+    try:
+        code = main(["fly", str(planned.dir), "--connect", fleet.urls()[0], "--assign", "1=1",
+                     "--connect-timeout", "30", "--from-where-they-stand", "-o", str(out)])
+        err = capsys.readouterr().err
+    finally:
+        fleet.stop()
+    assert code == 1
+    assert "cannot plan from where the vehicles stand: vehicle 1: launch point" in err
+    assert not (out / PLAN_FROM_HERE / PLAN_FILE).exists()
+    events = [e["event"] for e in read_track(track_path(tmp_path / "tracks", 1)).events]
+    assert "armed" not in events and _stored(fleet) == empty
 
 # -- planning inputs -----------------------------------------------------------------------
 def _plan(capsys, tmp_path, *argv):
@@ -314,6 +425,33 @@ def test_the_gate_refuses_every_edit_that_leaves_the_proven_volume(planned, save
         return
     if not _inside_by_sampling(surface, items, clearance):
         assert not accepted
+
+
+@pytest.mark.parametrize("command, params, why", [
+    (19, {"param3": 800.0}, "loiters on a circle of 800 m"),          # NAV_LOITER_TIME
+    (31, {"param2": 800.0}, "loiters on a circle of 800 m"),          # NAV_LOITER_TO_ALT
+    (30, {}, "a NAV command whose flight is not a straight leg"),     # CONTINUE_AND_CHANGE_ALT
+    (92, {"param1": 1.0}, "a NAV command whose flight is not a straight leg"),
+    (179, {}, "DO_SET_HOME"), (186, {"param1": 300.0}, "DO_CHANGE_ALTITUDE"),
+    (192, {}, "DO_REPOSITION")])
+def test_the_gate_refuses_commands_that_move_the_vehicle_unproven(planned, saved_surface,
+                                                                  command, params, why):
+    """Found passing the gate as "verified": each inserted after a waypoint of a
+    proven mission moves the vehicle (or its home) some way no leg proof covers."""
+    route = planned.plan.vehicles[0]
+    mission = vehicle_mission(route, "ardupilot", MissionOptions(speed_mps=12.0))
+    items = [MissionItem(**vars(it)) for it in mission.items]
+    n = [k for k, it in enumerate(items) if it.command == NAV_WAYPOINT and k > 0][2]
+    p = items[n]
+    extra = MissionItem(0, FRAME_GLOBAL, command, 0, 1, 0, 0, 0, 0, p.x, p.y, p.z)
+    for key, value in params.items():
+        setattr(extra, key, value)
+    items.insert(n + 1, extra)
+    for k, it in enumerate(items):
+        it.seq = k
+    edited = type(mission)(mission.vehicle_id, "ardupilot", items, [None] * len(items))
+    with pytest.raises(InputError, match=why):
+        checked(edited, saved_surface, planned.plan.params["clearance_m"])
 
 
 def _inside_by_sampling(surface, items, clearance) -> bool:

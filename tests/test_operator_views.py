@@ -206,3 +206,24 @@ def test_one_connect_timeout_for_upload_download_and_fly():
         defaults.add(parser.get_default("connect_timeout"))
     assert defaults == {CONNECT_TIMEOUT_S}
     assert FlyOptions().connect_timeout_s == CONNECT_TIMEOUT_S
+
+
+@pytest.mark.parametrize("outposts", [0, 2])
+def test_the_flight_summary_says_what_of_the_area_its_targets_are(planned, capsys, outposts):
+    """"100 % of targets" is of the plan's targets: the flight's summary says what
+    of the area of operations they are, and that nothing was hidden from anyone
+    when the plan has no observers."""
+    from gcs.cli.views import summary
+
+    report = {"losses": [], "replans": [], "duration_s": 60.0, "k": 1,
+              "area": planned.plan.metrics["area"], "outposts": outposts,
+              "coverage": {"survivors": {"k": 1, "k_covered": 10, "targets": 10,
+                                         "required_uavs": 2, "fraction_k_covered": 1.0}},
+              "outcome": {"ok": True, "problems": []}}
+    summary(report)
+    out = capsys.readouterr()
+    text = " ".join((out.out + out.err).split())
+    a = planned.plan.metrics["area"]
+    assert f"plan: area of operations {a['area_km2']:.2f} km²" in text
+    assert f"{a['planned']['km2']:.2f} km²" in text
+    assert ("plan: no observers: planned with no outposts" in text) == (outposts == 0)

@@ -2,12 +2,14 @@
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
 
 from common.errors import InputError
 from planner.exposure import Outpost, load_outposts, outposts_to_geojson, sample_outposts
+from planner.exposure.outposts import read_outpost_features, sample_outpost_features
 from planner.terrain import sample_terrain, synthetic_terrain
 
 
@@ -39,7 +41,8 @@ def test_load_outposts_positions_defaults_and_names(tmp_path, terrain):
     a, b = lonlat(terrain, 40, 30), lonlat(terrain, 50.5, 5.25)
     path = write(tmp_path, [feature(a, name="hill", height_m=5, range_m=2500),
                             feature(b, range_m=None)])
-    posts = load_outposts(path, terrain)
+    with pytest.warns(UserWarning, match=r"feature 1: no height_m: eye 2 m above ground"):
+        posts = load_outposts(path, terrain)
     assert [p.name for p in posts] == ["hill", "O2"]
     assert posts[0].height_m == 5 and posts[0].range_m == 2500
     assert posts[1].height_m == 2.0 and math.isinf(posts[1].range_m)
@@ -61,6 +64,7 @@ def test_geojson_round_trip(tmp_path, terrain):
     json.dumps(data)  # plain JSON types only
 
 
+@pytest.mark.filterwarnings("ignore:.*no height_m:UserWarning")
 def test_bad_outposts_name_the_file_and_the_feature(tmp_path, terrain):
     good = lonlat(terrain, 30, 30)
     outside = lonlat(terrain, -20, 30)
@@ -114,3 +118,78 @@ def test_sample_outposts_stand_on_high_ground_of_the_sample():
     assert (ground > np.nanpercentile(terrain.height, 67)).all()
     assert all(6000 <= p.range_m <= 10000 for p in posts)
     assert len({p.name for p in posts}) == len(posts)
+
+
+# --- the default eye height is said, never silently taken --------------------------------------
+def test_posts_without_height_are_named_in_one_warning_per_file(tmp_path):
+    """An eye lower than the real one sees less than it does: the 2 m default is
+    said, naming each post it was taken for (a missing range_m, unlimited, is not)."""
+    path = write(tmp_path, [feature((-84.2, 36.5), name="North"),
+                            feature((-84.1, 36.5), name="East", height_m=6),
+                            feature((-84.0, 36.5), range_m=3000),
+                            feature((-84.0, 36.6), name="Ridge", height_m=0)],
+                 "outposts.geojson")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        features = read_outpost_features(path)
+    assert [str(w.message) for w in caught] == [
+        f"{path}: feature 0 (North), feature 2: no height_m: eye 2 m above ground assumed"]
+    assert [f.height_m for f in features] == [2.0, 6.0, 2.0, 0.0]
+
+
+def test_a_null_height_is_no_height(tmp_path):
+    path = write(tmp_path, [feature((-84.2, 36.5), name="Hill post", height_m=None)])
+    with pytest.warns(UserWarning) as caught:
+        read_outpost_features(path)
+    assert [str(w.message) for w in caught] == [
+        f"{path}: feature 0 (Hill post): no height_m: eye 2 m above ground assumed"]
+
+
+def test_no_warning_when_every_post_has_its_height(tmp_path):
+    path = write(tmp_path, [feature((-84.2, 36.5), name="North", height_m=2),
+                            feature((-84.1, 36.5), height_m=12.5)])  # no range_m: unlimited
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        features = read_outpost_features(path)
+    assert [f.range_m for f in features] == [math.inf, math.inf]
+
+
+def test_the_built_in_outposts_have_their_heights():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        features = sample_outpost_features()
+    assert features and all(f.height_m > 0 for f in features)
+
+
+def test_posts_outside_the_area_are_kept_or_left_out_and_either_is_said():
+    """An area of operations with built-in posts outside it: each whose range
+    reaches in is kept and said to be (the DEM is then read around it: the user
+    sees why the terrain read grew), each whose range ends short is left out and
+    said to be; the distances are to the area's nearest point (reference: the
+    great-circle distance from each post to that box, by haversine)."""
+    from planner.pipeline import outpost_features
+    from planner.scenario import Scenario
+
+    area = (36.55, -84.25, 36.62, -84.15)
+    scenario = Scenario(sample=True, area=area).validate()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        kept = outpost_features(scenario)
+    said = [str(w.message) for w in caught]
+
+    def to_box(f):
+        lat, lon = min(max(f.lat, area[0]), area[2]), min(max(f.lon, area[1]), area[3])
+        p1, p2, dl = math.radians(f.lat), math.radians(lat), math.radians(lon - f.lon)
+        h = math.sin((p2 - p1) / 2) ** 2 + math.cos(p1) * math.cos(p2) * math.sin(dl / 2) ** 2
+        return 2 * 6_371_008.8 * math.asin(math.sqrt(h))
+
+    for f in sample_outpost_features():
+        d = to_box(f)
+        mine = [s for s in said if f.label in s]
+        if d <= f.range_m:
+            assert f in kept and len(mine) == (1 if d > 0 else 0), said
+            if d > 0:
+                assert f"kept: {d / 1000:.1f} km outside the area" in mine[0], mine
+        else:
+            assert f not in kept and len(mine) == 1 and "left out" in mine[0], said
+    assert len(kept) == 3 and len(said) == 4

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from hills import central_outpost
 
+from common.errors import InputError
 from planner.context import PlanningContext
 from planner.exposure import segments_clear, segments_hidden
 from planner.pipeline import plan_mission
@@ -211,6 +212,24 @@ def test_survivor_on_its_final_descent_climbs_back(planned):
     assert first.t_s == pytest.approx(climb, rel=0.05)
 
 
+def test_a_landed_survivor_waits_on_the_ground_for_one_above_its_base(planned):
+    """One survivor stands at the base (landed), the other has just taken off from
+    it and hovers 15 m up: the one in the air flies on at once, the landed one
+    takes off after it, separated. (Modelled as held in the air at ground level,
+    the landed one was "airborne" beside the other from the start: no order kept
+    them apart, and the one in the air hovered over the base for 107 min.)"""
+    ctx, outcome = planned
+    launch = _launch_xyz(ctx, outcome.plan.vehicles[0])
+    survivors = [Survivor(1, launch + [1.0, -1.0, 15.0], launch),
+                 Survivor(2, launch.copy(), launch)]
+    new = replan(ctx, survivors, seen_matrix(ctx, [np.zeros((0, 3))] * 2))
+    up, ground = new.plan.vehicles
+    assert up.takeoff_s == 0.0 and ground.takeoff_s > 0.0
+    assert new.plan.metrics["min_separation_m"] >= ctx.scenario.separation_m
+    trajectory = np.array(ground.trajectory)
+    assert trajectory[0, 3] == pytest.approx(launch[2], abs=0.01)     # from the ground
+
+
 def test_nothing_required_goes_straight_home(planned):
     ctx, outcome = planned
     survivor, _ = _midway(ctx, outcome, 0)
@@ -219,6 +238,33 @@ def test_nothing_required_goes_straight_home(planned):
     assert not any(w.snapshot for w in new.plan.vehicles[0].waypoints)
     assert np.allclose(poly[0], survivor.xyz) and np.allclose(poly[-1, :2], survivor.launch[:2])
     assert segments_hidden(ctx.surface, poly[:-1], poly[1:]).all()
+
+
+def test_survivor_held_anywhere_on_its_own_legs_is_joined(planned):
+    """A vehicle the re-plan holds mid-leg, on the leg its mission was proven on:
+    from 24 of 1832 such points (the waypoints as MAVLink rounds them) no new leg
+    passed the planner's checks, and the vehicle was stranded (the flaky battery
+    test of issue 33 held one there). With its mission's legs it goes back or on
+    along the leg to a waypoint's node, by a leg proven hidden and clear again."""
+    ctx, outcome = planned
+    stranded = []
+    for v in outcome.plan.vehicles:
+        x, y = ctx.terrain.from_lonlat(np.array([w.lon for w in v.waypoints]),
+                                       np.array([w.lat for w in v.waypoints]))
+        legs = np.stack([x, y, [w.alt_amsl for w in v.waypoints]], axis=1)
+        for a, b in zip(legs[:-1], legs[1:]):
+            for t in (0.25, 0.5, 0.64, 0.75):
+                here = a + t * (b - a)
+                try:
+                    start = survivor_start(ctx, Survivor(v.id, here, _launch_xyz(ctx, v),
+                                                         legs=legs))
+                except InputError:
+                    stranded.append((v.id, here))
+                    continue
+                way = start.xyz[None], start.held[None]
+                assert segments_hidden(ctx.surface, *way)[0] and \
+                    segments_clear(ctx.surface, *way)[0]
+    assert stranded == []
 
 
 def test_survivor_hovering_at_a_waypoint_on_a_voids_edge_is_joined(planned):

@@ -25,6 +25,14 @@ from gcs.sim import (
     parse_kill,
     read_track,
 )
+from gcs.sim.battery import (
+    CAPACITY_MAH,
+    CLIMB_DRAW_PER_MPS,
+    Battery,
+    Failsafe,
+    ardupilot_levels,
+    px4_levels,
+)
 from gcs.sim.physics import PointMass
 
 os.environ.setdefault("MAVLINK20", "1")     # the vehicles speak MAVLink 2 from the first byte
@@ -448,6 +456,71 @@ def test_ardupilot_flight_track_and_kill_at_item(tmp_path):
     dead = read_track(tmp_path / "vehicle_2.json")
     assert dead.killed_at is not None and [s["seq"] for s in dead.snapshots] == [3]
     assert np.linalg.norm(xyz(dead.lat[-1], dead.lon[-1], dead.alt[-1])[0] - wb) <= 2.0
+
+
+def test_the_battery_draws_more_climbing_and_is_refilled_at_a_swap():
+    b = Battery(capacity_s=600.0)
+    b.draw(60.0, 0.0)
+    assert b.used_s == pytest.approx(60.0)
+    b.draw(60.0, 2.0)                       # a climb at 2 m/s: 16 % more
+    assert b.used_s == pytest.approx(60.0 + 60.0 * (1 + 2 * CLIMB_DRAW_PER_MPS))
+    b.draw(60.0, -3.0)                      # a descent: at the hover draw
+    assert b.remaining_pct == pytest.approx(100 * (1 - (180 + 120 * CLIMB_DRAW_PER_MPS) / 600))
+    assert [f.name for f in b.due([Failsafe("low", 80.0, "RTL")])] == ["low"]
+    assert b.due([Failsafe("low", 80.0, "RTL")]) == []           # once per pack
+    b.swap()
+    assert b.used_s == 0.0 and b.remaining_pct == 100.0 and not b.fired
+
+
+def test_the_failsafe_levels_follow_the_firmware_parameters():
+    ap = ardupilot_levels({"BATT_CAPACITY": 5000, "BATT_LOW_MAH": 1000, "BATT_FS_LOW_ACT": 2,
+                           "BATT_CRT_MAH": 500, "BATT_FS_CRT_ACT": 5})
+    assert [(f.name, f.pct, f.action) for f in ap] == [("low", 20.0, "RTL"),
+                                                         ("critical", 10.0, "fall")]
+    # ArduPilot's failsafes are off while their capacity level is 0 (its default)
+    assert ardupilot_levels({"BATT_CAPACITY": 5000, "BATT_FS_LOW_ACT": 2}) == []
+    px4 = px4_levels({"COM_LOW_BAT_ACT": 3, "BAT_CRIT_THR": 0.07, "BAT_EMERGEN_THR": 0.05})
+    assert [(f.name, f.action) for f in px4] == [("critical", "AUTO.RTL"),
+                                                 ("emergency", "AUTO.LAND")]
+    assert [f.action for f in px4_levels({"COM_LOW_BAT_ACT": 0})] == [None, None]
+
+
+def test_a_low_battery_fires_the_failsafe_its_parameters_set(tmp_path):
+    """A vehicle hovering on a four-minute battery, its low and critical levels set
+    to 20 and 10 % of its capacity (off by default, as the firmware's): below 20 %
+    ArduPilot's BATT_FS_LOW_ACT (2: RTL) takes it over, said in a STATUSTEXT;
+    SYS_STATUS and BATTERY_STATUS report the same charge; the track records the
+    draw."""
+    base = free_base_port(10, 1)
+    config = FleetConfig(vehicles=1, base_port=base, speedup=20, track_dir=tmp_path,
+                         battery_min=4.0, **FAST)
+    with fleet_and_clients(config) as (fleet, (c,)):
+        wait_ready(c)
+        for name, mah in (("BATT_LOW_MAH", 0.2 * CAPACITY_MAH),
+                          ("BATT_CRT_MAH", 0.1 * CAPACITY_MAH)):
+            c.m.mav.param_set_send(1, 1, name.encode(), mah, M.MAV_PARAM_TYPE_REAL32)
+            c.wait("PARAM_VALUE", lambda p, name=name, mah=mah: p.param_id == name
+                   and p.param_value == mah)
+        assert c.command(1, M.MAV_CMD_DO_SET_MODE, 1, 4) == M.MAV_RESULT_ACCEPTED   # GUIDED
+        assert c.command(1, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        assert c.command(1, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 10) == \
+            M.MAV_RESULT_ACCEPTED
+        assert c.said(lambda text: text.startswith("Battery 1 is low"), timeout=30)
+        pack = c.wait("BATTERY_STATUS", timeout=5)
+        status = c.wait("SYS_STATUS", timeout=5)
+        assert pack.battery_remaining < 20 and abs(pack.battery_remaining
+                                                   - status.battery_remaining) <= 1
+        assert pack.current_consumed == pytest.approx(
+            (100 - pack.battery_remaining) / 100 * CAPACITY_MAH, abs=60)
+        c.wait("EXTENDED_SYS_STATE", lambda s: s.landed_state == M.MAV_LANDED_STATE_ON_GROUND,
+               timeout=30)
+    track = read_track(tmp_path / "vehicle_1.json")
+    events = [e["event"] for e in track.events]
+    low = events.index("battery failsafe: low, RTL")
+    assert "landed" in events[low:] and not any("critical" in e for e in events)
+    assert abs(track.alt[-1] - HOME[2]) < 0.01
+    flying = (track.t >= next(e["t"] for e in track.events if e["event"] == "takeoff"))
+    assert np.all(np.diff(track.used[flying]) >= 0) and 0.8 < track.used[-1] < 0.9
 
 
 # -- PX4 flavour ---------------------------------------------------------------------

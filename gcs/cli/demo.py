@@ -101,6 +101,6 @@ def _fly(ctx, plan, plan_dir, flight_dir, args):
              (flight_dir / "flight.png", "recorded tracks, the loss, re-planned routes, coverage")]
     files += [(p, "MAVLink telemetry log (mavlogdump.py reads it)")
               for p in sorted(flight_dir.glob("*.tlog"))]
-    files += [(p, "true track of the simulated vehicle (gcs-sim-track/2)")
+    files += [(p, "true track of the simulated vehicle (gcs-sim-track/3)")
               for p in sorted((flight_dir / "tracks").glob("*.json"))]
     return report, files

@@ -39,7 +39,7 @@ def add_arguments(parser) -> None:
 def run(args) -> int:
     from gcs.progress import console
     from missions.build import MissionOptions
-    from missions.export import export_plan_dir
+    from missions.export import check_folder, export_firmware, export_plan_dir
     from planner.plan import PLAN_FILE, Plan
 
     plan_dir = Path(args.plan_dir)
@@ -52,16 +52,14 @@ def run(args) -> int:
     flag = lambda name: getattr(args, name, False)  # noqa: E731
     options = MissionOptions(camera=not flag("no_camera"), hold_s=args.hold,
                              speed_mps=None if flag("no_speed") else plan.params.get("speed_mps"))
-    surface = None if flag("no_check") else _surface(plan_dir, plan)
     output = Path(getattr(args, "output", plan_dir))
-    firmware = getattr(args, "firmware", None)
+    firmware = export_firmware(plan, getattr(args, "firmware", None))
+    # one truth in the folder written: refused before the (slow) surface is rebuilt;
+    # in place, plan.json is given the firmware written (`export_plan_dir`)
+    check_folder(output, plan, firmware, formats, plan_dir)
+    surface = None if flag("no_check") else _surface(plan_dir, plan)
     written = export_plan_dir(output, plan, firmware, surface, options=options,
-                              formats=formats, fences=not flag("no_fences"))
-    if firmware and firmware != plan.params.get("firmware") and \
-            output.resolve() == plan_dir.resolve():
-        # the plan folder's files are now for this firmware: plan.json says so too
-        plan.params["firmware"] = firmware
-        written.append((plan.save(plan_dir), f"its firmware is now {firmware}"))
+                              formats=formats, fences=not flag("no_fences"), plan_dir=plan_dir)
     for path, what in written:
         console.print(f"  {path}  [dim]{what}[/dim]", highlight=False)
     return 0

@@ -17,6 +17,9 @@ def add_arguments(parser) -> None:
 
 
 def run(args) -> int:
+    scenario = scenario_from_args(args)   # option errors before any heavy import
+    if not scenario.sample and not scenario.outposts:
+        raise InputError("--outposts", "no outposts file given (GeoJSON Points)")
     import numpy as np
     from rich.console import Console
 
@@ -24,9 +27,6 @@ def run(args) -> int:
     from planner.pipeline import exposure_stages
     from planner.terrain import write_grid
 
-    scenario = scenario_from_args(args)
-    if not scenario.sample and not scenario.outposts:
-        raise InputError("--outposts", "no outposts file given (GeoJSON Points)")
     timing = {}
     with stage_progress() as progress:
         surface = exposure_stages(scenario, progress, timing)

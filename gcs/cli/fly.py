@@ -49,6 +49,11 @@ def add_arguments(parser) -> None:
                              "battery, without the operator's word (SITL; --sim always does); "
                              "otherwise type its system id and Enter once its battery is "
                              "swapped")
+    parser.add_argument("--from-where-they-stand", action="store_true",
+                        help="a vehicle not at its route's launch point: plan the fleet again "
+                             "with its base where it stands (its takeoff and first leg "
+                             "proven hidden there), written to the output folder, and fly "
+                             "that; otherwise it is refused before anything is armed")
     view = parser.add_argument_group("watching the flight elsewhere")
     view.add_argument("--forward", action="append", default=[], metavar="URL",
                       help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
@@ -103,7 +108,8 @@ def options_from_args(args):
                       protocol_timeout_s=protocol["timeout_s"],
                       protocol_retries=protocol["retries"], max_items=args.max_items,
                       tlog=not args.no_tlog,
-                      auto_turnaround=bool(args.auto_turnaround or args.sim))
+                      auto_turnaround=bool(args.auto_turnaround or args.sim),
+                      from_where_they_stand=args.from_where_they_stand)
 
 
 def sim_fleet(plan, plan_dir, args, output: Path):

@@ -53,6 +53,10 @@ def add_arguments(parser) -> None:
                          help="mission items a vehicle holds, home included; longer uploads "
                               "are refused with MAV_MISSION_NO_SPACE (default: the "
                               "firmware's: ArduPilot 650, PX4 no limit; 0 = no limit)")
+    vehicle.add_argument("--battery", type=float, default=60.0, metavar="MIN",
+                         help="minutes of hovering on a full battery (climbs draw more; "
+                              "the failsafes act as the firmware's parameters say; a full "
+                              "one is put in a minute after landing) (default: 60)")
     vehicle.add_argument("--auto-disarm", type=float, default=10.0, metavar="S",
                          help="disarm after S mission seconds armed and idle on the ground "
                               "(0 = never)")
@@ -154,6 +158,8 @@ def config_from_args(args):
         plan(sysid, "--refuse-arm").refuse_arm = True
     if args.capacity is not None and args.capacity < 0:
         raise InputError("--capacity", f"must not be negative, got {args.capacity}")
+    if args.battery <= 0:
+        raise InputError("--battery", f"must be positive, got {args.battery:g}")
     if args.warmup is not None and args.warmup < 0:
         raise InputError("--warmup", f"must not be negative, got {args.warmup}")
     limits = Limits(args.speed, args.climb, args.descent, args.accel)
@@ -164,7 +170,7 @@ def config_from_args(args):
         homes=homes, speedup=args.speedup, base_port=args.base_port, gcs_port=args.gcs_port,
         bind_host=args.bind, limits=limits, warmup_s=args.warmup,
         **({} if args.capacity is None else {"mission_capacity": args.capacity or None}),
-        auto_disarm_s=args.auto_disarm, camera=not args.no_camera,
+        auto_disarm_s=args.auto_disarm, camera=not args.no_camera, battery_min=args.battery,
         auto_options=args.auto_options, drop_pct=args.drop, faults=faults,
         track_dir=args.track_dir, seed=args.seed, terrain=terrain,
         transport="pty" if args.pty else None)

@@ -96,19 +96,23 @@ def battery_line(plan) -> str:
 def area_lines(plan) -> list:
     """What of the area of operations the plan sees, in km² and %, and why the rest
     is not seen; and a line when the plan has no observers at all."""
+    return _area_lines(plan.metrics, len(plan.outposts))
+
+
+def _area_lines(metrics, outposts: int) -> list:
     out = []
-    if not plan.outposts:
+    if not outposts:
         out.append("no observers: planned with no outposts, nothing is hidden from anyone "
                    "(the routes keep only the clearance and the ceiling)")
-    voids = plan.metrics.get("filled_voids")
+    voids = metrics.get("filled_voids")
     if voids:
         at = ", ".join(f"{v['lat']:.5f},{v['lon']:.5f} ({v['cells']} cells)" for v in voids["at"])
         out.append(f"DEM voids filled by interpolation at {at}: there the terrain is lowered "
                    f"and the clearance raised by {voids['margin_m']:g} m (voids.tif)")
-    a = plan.metrics.get("area")
+    a = metrics.get("area")
     if not a:
         return out
-    k = plan.metrics.get("k", 0)
+    k = metrics.get("k", 0)
     out.append(f"area of operations {a['area_km2']:.2f} km²: {_part(a['visible'])} seen from "
                f"some reachable hidden viewpoint, {_part(a['planned'])} planned (seen by "
                f"k+1 = {k + 1} UAVs)")
@@ -229,6 +233,11 @@ def summary(report, output=None) -> None:
         console.print(f"k = {cov['k']}: {cov['k_covered']} of {cov['targets']} targets seen by "
                       f"{cov['required_uavs']} surviving vehicle(s) "
                       f"({100 * cov['fraction_k_covered']:.1f} %) in {report['duration_s']:.0f} s")
+    # the targets are the plan's: say what of the area they are, and whether
+    # anything was hidden from anyone at all
+    for line in _area_lines({"area": report.get("area"), "k": report.get("k", 0)},
+                            report.get("outposts", 1)):
+        console.print(f"plan: {line}")
     outcome = report.get("outcome", {})
     if outcome.get("ok"):
         console.print("outcome: required coverage reached, no vehicle lost, all landed")

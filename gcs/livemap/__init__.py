@@ -12,7 +12,9 @@ hidden ceiling, reprojected to Web Mercator). It shows the outposts with their
 names and ranges, the planned routes, the bases, the area polygon when the plan
 has one, and live: each vehicle's position and track, the snapshots taken,
 losses and the re-planned routes as they happen, a status table (altitudes
-AMSL and above home) and the last events.
+AMSL and above home) and the last events. A vehicle down between two sorties
+gets a "battery swapped" button: the operator's word, as on the terminal,
+taken only from a browser on this machine.
 
 The server is the standard library's threaded HTTP server on loopback by
 default (``--map HOST:PORT`` to share it on a network you trust: it has no
@@ -35,6 +37,7 @@ DEFAULT_HOST = "127.0.0.1"
 DEFAULT_PORT = 8750
 TRACK_POINTS = 1500                    # most track points sent per vehicle (decimated)
 EVENTS = 12
+LOOPBACK = frozenset({"127.0.0.1", "::1", "::ffff:127.0.0.1"})
 TYPES = {".html": "text/html; charset=utf-8", ".js": "text/javascript; charset=utf-8",
          ".css": "text/css; charset=utf-8", ".png": "image/png", ".json": "application/json",
          ".txt": "text/plain; charset=utf-8", "": "text/plain; charset=utf-8"}
@@ -62,7 +65,7 @@ class LiveMap:
         plan's area file (`planner.terrain.area.read_area`), drawn when given."""
         from gcs.livemap.base import base_layer, ceiling_scale_png
 
-        self.flight = flight
+        self.flight = flight      # read; written only by the operator's swap (`do_POST`)
         base = base_layer(ctx.terrain, ctx.surface)
         self._files = {"/base.png": (base["png"], TYPES[".png"]),
                        "/ceiling-scale.png": (ceiling_scale_png(base["ceiling_agl_m"][1]),
@@ -121,6 +124,28 @@ class LiveMap:
                 self.send_header("Cache-Control", "no-store")
                 self.end_headers()
                 self.wfile.write(body)
+
+            def do_POST(self):  # noqa: N802 - the standard library's name
+                """``/swap`` with ``{"sysid": N}``: the operator's word that vehicle N's
+                battery is swapped, taken only from this machine (the page has no
+                authentication; a map shared on a network only shows)."""
+                if self.path != "/swap":
+                    self.send_error(404)
+                    return
+                if self.client_address[0] not in LOOPBACK:
+                    self.send_error(403, "confirm a swap on the ground station's machine")
+                    return
+                try:
+                    length = int(self.headers.get("Content-Length", 0))
+                    sysid = int(json.loads(self.rfile.read(min(length, 1024)))["sysid"])
+                except (ValueError, KeyError, TypeError):
+                    self.send_error(400, 'expected {"sysid": N}')
+                    return
+                if not live.flight.confirm_swap(sysid, " (live map)"):
+                    self.send_error(404, f"no vehicle {sysid}")
+                    return
+                self.send_response(204)
+                self.end_headers()
 
             def log_message(self, *args):        # quiet: the flight's own log is the log
                 pass
@@ -205,7 +230,8 @@ def flight_state(flight) -> dict:
                 "track": _decimate(track),
                 "snapshots": [[p.lat, p.lon] for p in v.snapshots],
                 "snapshots_planned": v.snapshot_total, "snapshots_done": v.snapshots_done,
-                "lost_at_s": v.lost_at_s, "lost_reason": v.lost_reason})
+                "lost_at_s": v.lost_at_s, "lost_reason": v.lost_reason,
+                "swap": flight.swap_awaited(sysid)})
         events = list(m.events[-EVENTS:])
         now = m.now()
     replans = []

@@ -11,12 +11,14 @@ never tests a firmware's name.
 """
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilots import ARDUPILOT as ARDUPILOT_NAME
 from autopilots import PX4 as PX4_NAME
 from autopilots import Autopilot, profile
+from gcs.sim.battery import CAPACITY_MAH, ardupilot_levels, px4_levels
 
 # What a mode makes the vehicle do (see vehicle.py).
 MANUAL, GUIDED, AUTO, RTL, LAND, TAKEOFF = "manual", "guided", "auto", "rtl", "land", "takeoff"
@@ -85,6 +87,8 @@ class Flavour:
                                    # else none is sent until then
     params: dict = field(default_factory=dict)
     modes: dict = field(default_factory=dict)    # mode name -> custom_mode (from the profile)
+    #: params -> the battery failsafes they set (`gcs.sim.battery.Failsafe`), highest first
+    battery_levels: Callable = lambda params: []
 
     def __post_init__(self):
         if not self.modes:
@@ -183,7 +187,12 @@ ARDUPILOT = Flavour(
     streams_on_request=True,
     zero_position=True,
     params={"AUTO_OPTIONS": 0.0, "WPNAV_RADIUS": 200.0, "RTL_ALT": 1500.0,
-            "DISARM_DELAY": 10.0, "BATT_FS_LOW_ACT": 2.0},
+            # the failsafes' actions set, their capacity levels off (0) as the
+            # firmware's defaults are: a vehicle sets BATT_LOW_MAH / BATT_CRT_MAH
+            "DISARM_DELAY": 10.0, "BATT_CAPACITY": float(CAPACITY_MAH),
+            "BATT_LOW_MAH": 0.0, "BATT_FS_LOW_ACT": 2.0,
+            "BATT_CRT_MAH": 0.0, "BATT_FS_CRT_ACT": 1.0},
+    battery_levels=ardupilot_levels,
 )
 
 PX4 = Flavour(
@@ -219,7 +228,9 @@ PX4 = Flavour(
     # PX4 v1.17 SIH: HEARTBEAT ~1-2 s after start, arming accepted ~3-7 s
     boot=Boot(gps_s=1.5, origin_s=2.0, ready_s=5.0),
     params={"NAV_ACC_RAD": 2.0, "RTL_RETURN_ALT": 15.0, "COM_DISARM_PRFLT": 10.0,
-            "COM_LOW_BAT_ACT": 3.0},
+            "COM_LOW_BAT_ACT": 3.0, "BAT_LOW_THR": 0.15, "BAT_CRIT_THR": 0.07,
+            "BAT_EMERGEN_THR": 0.05},
+    battery_levels=px4_levels,
 )
 
 FLAVOURS = {f.name: f for f in (ARDUPILOT, PX4)}

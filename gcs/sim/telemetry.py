@@ -9,6 +9,7 @@ import math
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from gcs.sim import flavours as fl
+from gcs.sim.battery import CAPACITY_MAH
 
 # Default wall-clock periods of the streams (s); SET_MESSAGE_INTERVAL changes them.
 STREAMS = {
@@ -17,7 +18,9 @@ STREAMS = {
     M.MAVLINK_MSG_ID_GPS_RAW_INT: 0.5, M.MAVLINK_MSG_ID_VFR_HUD: 0.5,
     M.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: 1.0, M.MAVLINK_MSG_ID_MISSION_CURRENT: 1.0,
     M.MAVLINK_MSG_ID_HOME_POSITION: 5.0, M.MAVLINK_MSG_ID_EKF_STATUS_REPORT: 1.0,
+    M.MAVLINK_MSG_ID_BATTERY_STATUS: 1.0,
 }
+INT16_UNKNOWN = 32767
 ARDUPILOT_ONLY = frozenset({M.MAVLINK_MSG_ID_EKF_STATUS_REPORT})
 
 SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL
@@ -50,11 +53,25 @@ def sys_status(v):
         health |= M.MAV_SYS_STATUS_SENSOR_GPS
     if v.ready:
         health |= M.MAV_SYS_STATUS_AHRS | M.MAV_SYS_STATUS_PREARM_CHECK
-    remaining = max(0, int(round(100 - v.airborne_s / (0.6 * v.cfg.battery_min))))
-    millivolts = 14000 + 28 * remaining
-    centiamps = 50 if v.landed else 1500
+    remaining, millivolts, centiamps = _battery(v)
     return v.mav.sys_status_encode(present, present, health, 200, millivolts, centiamps,
                                    remaining, 0, 0, 0, 0, 0, 0)
+
+
+def _battery(v) -> tuple:
+    """(remaining %, millivolts, centiamps) of the pack: a 4S pack from 16.8 V full
+    to 14.0 V empty; 15 A in the air, 0.5 A on the ground."""
+    remaining = int(round(v.battery.remaining_pct))
+    return remaining, 14000 + 28 * remaining, 50 if v.landed else 1500
+
+
+def battery_status(v):
+    """The pack as BATTERY_STATUS (id 0) reports it: what it holds, what was drawn."""
+    remaining, millivolts, centiamps = _battery(v)
+    cells = [millivolts // 4] * 4 + [65535] * 6
+    drawn_mah = int(round(v.battery.used_fraction * CAPACITY_MAH))
+    return v.mav.battery_status_encode(0, M.MAV_BATTERY_FUNCTION_ALL, M.MAV_BATTERY_TYPE_LIPO,
+                                       INT16_UNKNOWN, cells, centiamps, drawn_mah, -1, remaining)
 
 
 def global_position(v):
@@ -136,6 +153,7 @@ def autopilot_version(v):
 BUILDERS = {
     M.MAVLINK_MSG_ID_HEARTBEAT: heartbeat,
     M.MAVLINK_MSG_ID_SYS_STATUS: sys_status,
+    M.MAVLINK_MSG_ID_BATTERY_STATUS: battery_status,
     M.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: global_position,
     M.MAVLINK_MSG_ID_ATTITUDE: attitude,
     M.MAVLINK_MSG_ID_GPS_RAW_INT: gps_raw,

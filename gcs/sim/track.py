@@ -3,11 +3,12 @@
 File ``vehicle_<sysid>.json`` in the track directory, rewritten atomically every
 couple of wall seconds and when the vehicle stops or is killed::
 
-    {"format": "gcs-sim-track/2", "sysid": 1, "firmware": "ardupilot",
+    {"format": "gcs-sim-track/3", "sysid": 1, "firmware": "ardupilot",
      "home": [lat, lon, alt_amsl],
-     "columns": ["t", "lat", "lon", "alt", "wall"],
-     "samples": [[t, lat, lon, alt, wall], ...],   # mission time s since boot, degrees,
-                                                   # m AMSL, the wall clock (Unix s)
+     "columns": ["t", "lat", "lon", "alt", "wall", "used"],
+     "samples": [[t, lat, lon, alt, wall, used], ...],   # mission time s since boot,
+                                   # degrees, m AMSL, the wall clock (Unix s), the share
+                                   # of a full battery drawn from the pack in it
      "snapshots": [{"t", "lat", "lon", "alt", "seq"}],   # seq: mission item, or null for a command
      "events": [{"t", "event"}],      # boot, armed, takeoff, reached N, landed, killed: ...
      "killed_at": t or null, "complete": bool}     # complete: the file was closed on purpose
@@ -27,7 +28,7 @@ import numpy as np
 
 from common.fileio import write_text_atomic
 
-FORMAT = "gcs-sim-track/2"
+FORMAT = "gcs-sim-track/3"
 SAMPLE_PERIOD_S = 0.1
 
 
@@ -39,19 +40,21 @@ class TrackRecorder:
     def __init__(self, path, sysid: int, firmware: str, home: tuple):
         self.path = Path(path) if path is not None else None
         self._head = {"format": FORMAT, "sysid": sysid, "firmware": firmware,
-                      "home": list(home), "columns": ["t", "lat", "lon", "alt", "wall"]}
+                      "home": list(home),
+                      "columns": ["t", "lat", "lon", "alt", "wall", "used"]}
         self.samples, self.snapshots, self.events = [], [], []
         self.killed_at = None
         self._next_sample = 0.0
         self._dirty = True
 
-    def sample(self, t: float, lat: float, lon: float, alt: float, force=False) -> None:
+    def sample(self, t: float, lat: float, lon: float, alt: float, used: float,
+               force=False) -> None:
         if t + 1e-9 < self._next_sample and not force:
             return
         while self._next_sample <= t + 1e-9:      # stay on the grid: no drift, no gaps
             self._next_sample += SAMPLE_PERIOD_S
         self.samples.append([round(t, 3), round(lat, 9), round(lon, 9), round(alt, 3),
-                             round(time.time(), 4)])
+                             round(time.time(), 4), round(used, 6)])
         self._dirty = True
 
     def snapshot(self, t, lat, lon, alt, seq=None) -> None:
@@ -82,6 +85,7 @@ class Track:
     lon: np.ndarray
     alt: np.ndarray        # m AMSL
     wall: np.ndarray       # Unix s: the clock a fleet's tracks share
+    used: np.ndarray       # share of a full battery drawn from the pack in it
     snapshots: list
     events: list
     killed_at: float | None
@@ -93,6 +97,5 @@ def read_track(path) -> Track:
     if doc.get("format") != FORMAT:
         raise ValueError(f"{path}: not a {FORMAT} track file")
     rows = np.asarray(doc["samples"], dtype=float).reshape(-1, len(doc["columns"]))
-    return Track(doc["sysid"], doc["firmware"], tuple(doc["home"]), rows[:, 0], rows[:, 1],
-                 rows[:, 2], rows[:, 3], rows[:, 4], doc["snapshots"], doc["events"],
-                 doc["killed_at"], doc["complete"])
+    return Track(doc["sysid"], doc["firmware"], tuple(doc["home"]), *rows[:, :6].T,
+                 doc["snapshots"], doc["events"], doc["killed_at"], doc["complete"])

@@ -19,6 +19,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from autopilots import ARDUPILOT
 from gcs.sim import flavours as fl
 from gcs.sim import telemetry
+from gcs.sim.battery import Battery
 from gcs.sim.faults import FaultPlan, LinkFaults
 from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
 from gcs.sim.physics import Limits, LocalFrame, PointMass
@@ -130,7 +131,7 @@ class SimVehicle:
         self._due = {}
         self._clients_seen = 0
         self._images = 0
-        self.airborne_s = 0.0
+        self.battery = Battery(60.0 * cfg.battery_min, drain=self.plan.drain)
         self.ground_s = 0.0               # disarmed on the ground since (mission s)
         self.heading = 0.0
         self._last_dest = None         # destination of the last nav item reached
@@ -287,7 +288,8 @@ class SimVehicle:
             descent = min(descent, LAND_SLOW_MPS)
         self.body.descent_mps = descent
         self.body.step(dt)
-        self.airborne_s += dt * self.plan.drain
+        self.battery.draw(dt, self.body.vel[2])
+        self._battery_failsafes()
         self.ground_s = 0.0
         if math.hypot(self.body.vel[0], self.body.vel[1]) > 0.5:
             self.heading = math.degrees(math.atan2(self.body.vel[0], self.body.vel[1])) % 360
@@ -297,13 +299,34 @@ class SimVehicle:
     def _swap_battery(self, dt: float) -> None:
         """Disarmed on the ground `swap_s` after a flight: a full battery is in."""
         self.ground_s = 0.0 if self.armed else self.ground_s + dt
-        if self.airborne_s > 0 and self.ground_s >= self.cfg.swap_s:
-            self.airborne_s = 0.0
+        if self.battery.used_s > 0 and self.ground_s >= self.cfg.swap_s:
+            self.battery.swap()
             self.track.event(self.t, "battery swapped")
+
+    def _battery_failsafes(self) -> None:
+        """What the firmware does as the charge falls through its failsafe levels (each
+        once per pack). An empty pack is recorded (the track's ``used`` passes 1), not
+        flown into the ground: at a speed-up each wall second the ground station
+        thinks (a re-plan) is that many seconds of hovering, which in the field cost
+        a second."""
+        if not self.armed:                  # falling: motors off already
+            return
+        if self.battery.remaining_pct <= 0.0 and "empty" not in self.battery.fired:
+            self.battery.fired.add("empty")
+            self.track.event(self.t, "battery empty")
+        for level in self.battery.due(self.flavour.battery_levels(self.params)):
+            text = f"Battery 1 is {level.name} {self.battery.remaining_pct:.0f}%"
+            self._say(M.MAV_SEVERITY_CRITICAL, text)
+            self.track.event(self.t, f"battery failsafe: {level.name}, "
+                                     f"{level.action or 'a warning'}")
+            if level.action == "fall":
+                self._disarm(force=True, reason="battery failsafe: terminate")
+            elif level.action is not None and level.action != self.mode:
+                self._set_mode(level.action)
 
     def _sample(self, force=False) -> None:
         lat, lon, alt = self.position()
-        self.track.sample(self.t, lat, lon, alt, force=force)
+        self.track.sample(self.t, lat, lon, alt, self.battery.used_fraction, force=force)
 
     def _scheduled_faults(self, now: float) -> None:
         plan = self.plan

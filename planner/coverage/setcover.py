@@ -9,6 +9,8 @@ to distinct UAVs is left to the assignment (and its repair).
 import numpy as np
 from numba import njit
 
+from .problem import CLOSED
+
 
 @njit(cache=True)
 def greedy_cover(vis_indptr, vis_indices, tgt_indptr, tgt_indices, need, allowed):
@@ -45,11 +47,12 @@ def greedy_cover(vis_indptr, vis_indices, tgt_indptr, tgt_indices, need, allowed
 
 
 def dominating_set(prep, need=None, allowed=None) -> np.ndarray:
-    """Greedy (multi)cover of the targets' remaining requirement."""
+    """Greedy (multi)cover of the targets' remaining requirement, from the viewpoints
+    ``allowed`` that are open (a viewpoint beyond one battery is closed to all)."""
     if need is None:
         need = prep.required - prep.seen0.sum(axis=0)
     need = np.maximum(np.asarray(need, dtype=np.int64), 0)
-    n_vp = prep.problem.n_viewpoints
-    allowed = np.ones(n_vp, dtype=np.bool_) if allowed is None else allowed.copy()
+    open_ = prep.owner0 != CLOSED
+    allowed = open_ if allowed is None else allowed & open_
     return greedy_cover(prep.vis_indptr, prep.vis_indices, prep.tgt_indptr, prep.tgt_indices,
                         need, allowed)

@@ -67,7 +67,8 @@ class PostFeature:
 def load_outposts(path, terrain) -> list:
     """Outposts from a GeoJSON FeatureCollection of Points (lon, lat, WGS 84).
 
-    Feature properties: ``height_m`` eye height above ground (default 2),
+    Feature properties: ``height_m`` eye height above ground (default 2, with a
+    warning naming the posts it was taken for),
     ``range_m`` detection range (absent or null: unlimited), ``name`` (optional);
     anything else but map styling is an error. Positions are converted to the
     terrain's CRS; a post must stand on the terrain, not outside it or on a void.
@@ -114,13 +115,13 @@ def place_outposts(features, terrain) -> list:
 
 
 def reaching(features, area) -> tuple:
-    """(posts whose detection range reaches the area (south, west, north, east),
-    [(post, distance m)] of the others). A post outside the area still sees into
-    it: only one whose range ends short of it can be left out."""
+    """([(post, distance m)] of the posts whose detection range reaches the area
+    (south, west, north, east), the same of the others). A post outside the area
+    still sees into it: only one whose range ends short of it can be left out."""
     kept, dropped = [], []
     for f in features:
         d = _distance_to_box(f.lon, f.lat, area)
-        (kept if d <= f.range_m else dropped).append(f if d <= f.range_m else (f, d))
+        (kept if d <= f.range_m else dropped).append((f, d))
     return kept, dropped
 
 
@@ -169,7 +170,16 @@ def _parse_features(text: str, source) -> list:
         raise InputError(source, "not a GeoJSON FeatureCollection")
     if not data["features"]:
         raise InputError(source, "no outposts (the FeatureCollection is empty)")
-    return [_feature(i, f, source) for i, f in enumerate(data["features"])]
+    features = [_feature(i, f, source) for i, f in enumerate(data["features"])]
+    # an eye lower than the real one sees less than it does (the unsafe side): the
+    # default is said, once per file, naming the posts it was taken for. A missing
+    # range_m is unlimited range, the safe side: not said.
+    unsized = [f.label for f, raw in zip(features, data["features"])
+               if (raw.get("properties") or {}).get("height_m") is None]
+    if unsized:
+        warnings.warn(f"{source}: {', '.join(unsized)}: no height_m: eye "
+                      f"{DEFAULT_HEIGHT_M:g} m above ground assumed", stacklevel=3)
+    return features
 
 
 def _feature(index: int, feature, source) -> PostFeature:

@@ -66,7 +66,7 @@ class FleetSchedule:
 
 
 def schedule(profiles, separation_m: float, score=None, after=None,
-             turnaround_s=0.0, air_s=math.inf) -> FleetSchedule:
+             turnaround_s=0.0, air_s=math.inf, urgency=None) -> FleetSchedule:
     """Time ``profiles`` (`Profile` per flight) so that no two airborne vehicles
     come closer than ``separation_m``. ``score(timings)``: what a schedule costs
     (default: when the last vehicle is done); the best of a few priority orders
@@ -74,14 +74,16 @@ def schedule(profiles, separation_m: float, score=None, after=None,
     must have landed ``turnaround_s`` before flight i takes off (a vehicle's
     earlier sortie; None: none). ``air_s``: the most a flight from the ground may
     be airborne (a battery): a wait in the air that would take it past that is
-    waited on the ground before takeoff instead."""
+    waited on the ground before takeoff instead. ``urgency[i]``: of flights in the
+    air now, those of lower urgency go first whatever the order (a battery nearly
+    spent: default 0 for all)."""
     score = score or (lambda timings: max((t.trajectory.end for t in timings), default=0.0))
     after = after or [None] * len(profiles)
     # kept with a little room: the waypoints are stored to 1e-7 degrees, and a
     # saved plan's trajectories are proven again from them (`prove_separated`)
     room = separation_m + SLACK_M if separation_m > 0 else 0.0
     best = None
-    for order in _orders(profiles, after):
+    for order in _orders(profiles, after, urgency or [0.0] * len(profiles)):
         timings = [None] * len(profiles)
         placed = []
         for i in order:
@@ -110,20 +112,26 @@ def separation(trajectories) -> tuple:
     return best, where
 
 
-def _orders(profiles, after) -> list:
+def _orders(profiles, after, urgency) -> list:
     """Priority orders worth trying: the longest vehicles' flights first (they set
     the makespan; a wait there costs most), the shortest first, and as given; a
-    vehicle's sorties one after the other, in their order."""
+    vehicle's sorties one after the other, in their order. Flights of vehicles
+    in the air now (a re-plan) go before every other, the most urgent first: they
+    cannot wait on the ground, and every hold draws their battery (placed after
+    another vehicle's sorties, one hovering in its base column once waited 107
+    min for five of them to pass through it)."""
     chains = [[i] for i in range(len(profiles)) if after[i] is None]
     for chain in chains:
         while (nxt := [j for j, a in enumerate(after) if a == chain[-1]]):
             chain.append(nxt[0])
     total = [sum(float(profiles[i].duration.sum()) for i in c) for c in chains]
     n = len(chains)
+    airborne = sorted((c[0] for c in chains if not profiles[c[0]].on_ground[0]),
+                      key=lambda i: (urgency[i], i))
     out = []
     for order in (sorted(range(n), key=lambda i: (-total[i], i)),
                   sorted(range(n), key=lambda i: (total[i], i)), list(range(n))):
-        flat = [i for c in order for i in chains[c]]
+        flat = airborne + [i for c in order for i in chains[c] if i not in airborne]
         if flat not in out:
             out.append(flat)
     return out

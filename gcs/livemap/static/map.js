@@ -107,6 +107,23 @@
 
   function cell(text) { const td = document.createElement("td"); td.textContent = text; return td; }
 
+  // down between two sorties: the operator's word that its battery is swapped
+  function swapCell(v) {
+    const td = document.createElement("td");
+    if (!v.swap) return td;
+    const button = document.createElement("button");
+    button.textContent = "battery swapped";
+    button.className = "swap";
+    button.onclick = () => {
+      button.disabled = true;
+      fetch("swap", { method: "POST", headers: { "Content-Type": "application/json" },
+                      body: JSON.stringify({ sysid: v.sysid }) })
+        .then((r) => { if (!r.ok) { button.disabled = false; alert("not taken: " + r.statusText); } });
+    };
+    td.append(button);
+    return td;
+  }
+
   function table(state) {
     const body = document.querySelector("#vehicles tbody");
     body.replaceChildren();
@@ -123,7 +140,8 @@
                 cell(v.snapshots.length + " (" + v.snapshots_done + "/" + v.snapshots_planned + ")"),
                 cell(v.alt_amsl === null ? "-" : v.alt_amsl.toFixed(0) + " m"),
                 cell(v.alt_above_home === null ? "-" : v.alt_above_home.toFixed(0) + " m"),
-                cell(v.heartbeat_s === null ? "-" : v.heartbeat_s.toFixed(1) + " s"));
+                cell(v.heartbeat_s === null ? "-" : v.heartbeat_s.toFixed(1) + " s"),
+                swapCell(v));
       body.append(tr);
     }
     const events = document.getElementById("events");
