@@ -89,6 +89,32 @@ WATCH_AFTER_S, WATCH_AFTER_PCT = 120.0, 8
 #: a battery drawn this many times faster than its rating (the plan's endurance) is
 #: not trusted: the vehicle comes home early and stays down
 FAST_DRAIN = 1.25
+#: hover seconds of battery one metre of climb costs: lifting m g per metre on a hover
+#: power P takes m g / P seconds of it (a 1.5 kg quadcopter hovering on 180 W: 0.08 s;
+#: the simulator's battery draws so). A sortie's first minutes are mostly its takeoff
+#: climb: judged by time alone, batteries drawing as rated read 1.4 times faster.
+CLIMB_S_PER_M = 0.08
+
+
+@dataclass
+class SortieDraw:
+    """What a vehicle's battery was at its liftoff, and the metres it has climbed since
+    (from its position reports, `climbed`)."""
+    t0: float                    # monitor s
+    own0: float | None           # its own clock
+    pct0: int | None             # charge
+    index: int                   # its position reports counted into ``climbed`` so far
+    alt: float | None            # the altitude of the last of them
+    climbed: float = 0.0         # m
+
+    def climb_to(self, track, until_own) -> float:
+        """Metres climbed from liftoff to its own clock ``until_own``."""
+        while self.index < len(track) and track[self.index][4] <= until_own:
+            alt = track[self.index][3]
+            if self.alt is not None:
+                self.climbed += max(0.0, alt - self.alt)
+            self.alt, self.index = alt, self.index + 1
+        return self.climbed
 
 
 @dataclass
@@ -211,8 +237,7 @@ class Flight:
         self._pace = {}           # sysid -> times slower than planned on its route so far
         self._late = {}           # the same, for those the battery watch brought home
         self._late_acted = set()  # ... in their sortie now: once a sortie (`_watch_batteries`)
-        self._sortie_began = {}   # sysid -> (monitor s, own clock s, battery %) at its
-                                  # last liftoff
+        self._sortie_began = {}   # sysid -> SortieDraw since its last liftoff
         self.spent = set()        # sysids the battery watch sent home: they stay down
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
         self.mission_options = MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
@@ -455,8 +480,10 @@ class Flight:
                 m.event(sysid, "taking off")
             lifted.append(True)
             self._lifted.append((sysid, begun, m.now()))
-            self._sortie_began[sysid] = (m.now(), self._own_clock(sysid),
-                                         m.links[sysid].state.battery_pct)
+            track = m.vehicles[sysid].track
+            self._sortie_began[sysid] = SortieDraw(
+                m.now(), self._own_clock(sysid), m.links[sysid].state.battery_pct, len(track),
+                track[-1][3] if track else None)
             self._late_acted.discard(sysid)
         m.set_state(sysid, STARTING)
         try:
@@ -866,7 +893,8 @@ class Flight:
         is (`_left_s`) with half the plan's reserve kept is brought home early by its
         hidden path, its work re-planned; the reserve is there for smaller surprises
         (a landing queue). The draw is the rated one (the plan's endurance), or the
-        rate drawn since takeoff where that is `FAST_DRAIN` times faster: such a
+        rate drawn since takeoff where that is `FAST_DRAIN` times faster (its climbs
+        allowed for, `CLIMB_S_PER_M`): such a
         battery is not trusted, and its vehicle is kept down until the crew has
         looked at it (its work going to the others). One slowed instead (holds, a
         headwind) is re-planned on the battery it reports, and flies on after a
@@ -878,27 +906,33 @@ class Flight:
         m, reserve = self.monitor, float(self.plan.params.get("reserve_pct") or 0.0)
         rate = self.clock.rate()                            # fleet s per wall s
         short, untrusted = [], []
-        for sysid, (t0, own0, pct0) in list(self._sortie_began.items()):
+        for sysid, began in list(self._sortie_began.items()):
             v, state = m.vehicles[sysid], m.links[sysid].state
-            pct, own = state.battery_pct, self._own_clock(sysid)
+            pct, own, own0, pct0 = state.battery_pct, self._own_clock(sysid), began.own0, \
+                began.pct0
             # on its own clock: a busy machine slows a simulator unevenly, and the
             # fleet's rate now is not the rate since takeoff (it once read 1.5 x the
             # rated draw on a vehicle drawing as rated)
-            flown = own - own0 if None not in (own, own0) else (m.now() - t0) * rate
+            flown = own - own0 if None not in (own, own0) else (m.now() - began.t0) * rate
             if v.state not in (FLYING, HOLDING) or None in (pct0, pct) or \
                     flown < WATCH_AFTER_S or pct0 - pct < WATCH_AFTER_PCT:
                 continue
             left_s = self._left_s(sysid)
-            # the charge is timed by the vehicle's clock when it came: it comes once a
-            # second, positions more often (at 50 x, a 2 x drain timed by the last
-            # position read as 1.3 x); what it drew since is needed too
-            at = state.battery_boot_s
-            drained_s = at - own0 if None not in (at, own0) else flown
+            # the charge is timed by the vehicle's clock at the first report after it
+            # (no later than that): it comes once a second, positions more often, and
+            # at 100 x the last position before it can be 20 s older (a 2 x drain
+            # timed by the last position read as 1.3 x, batteries drawing as rated
+            # as 1.25 x); what it drew since is needed too
+            by = state.battery_by_s
+            drained_s = by - own0 if None not in (by, own0) else flown
             if left_s is None or drained_s <= 0:
                 continue
-            drawn = (pct0 - pct) / drained_s
-            fast = drawn > FAST_DRAIN * rated
-            need = (drawn if fast else rated) * (left_s + flown - drained_s) + reserve / 2
+            climbed = began.climb_to(m.vehicles[sysid].track, own0 + drained_s) \
+                if own0 is not None else 0.0
+            drawn = (pct0 - pct) / (rated * (drained_s + CLIMB_S_PER_M * climbed))
+            fast = drawn > FAST_DRAIN
+            since = max(0.0, flown - drained_s)
+            need = rated * (drawn if fast else 1.0) * (left_s + since) + reserve / 2
             # a late one is re-planned once a sortie: a re-plan that cannot fit its
             # battery says so, and would only be made again
             if pct >= need or (not fast and sysid in self._late_acted):
@@ -916,7 +950,7 @@ class Flight:
                    f"({left_s / 60:.1f} min: {need:.0f} % with half the reserve, "
             if fast:
                 untrusted.append(sysid)
-                m.event(sysid, said + f"drawn {drawn / rated:.1f} times faster than rated): "
+                m.event(sysid, said + f"drawn {drawn:.1f} times faster than rated): "
                         "brought home early by its hidden path and kept down, its work "
                         "re-planned")
             else:

@@ -85,7 +85,9 @@ class VehicleState:
     battery_pct: int | None = None           # remaining: BATTERY_STATUS of the first
                                              # pack, else SYS_STATUS
     battery_status: bool = False             # BATTERY_STATUS of the first pack seen
-    battery_boot_s: float | None = None      # the vehicle's clock when battery_pct came
+    battery_by_s: float | None = None        # the vehicle's clock at its first report
+                                             # after battery_pct came (None: none yet):
+                                             # the charge is of that time or earlier
     boot_s: float | None = None              # the vehicle's clock (s since boot) at its
                                              # last report that carries it
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
@@ -99,6 +101,8 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     boot_ms = getattr(msg, "time_boot_ms", None)
     if boot_ms:
         s.boot_s = boot_ms * 1e-3
+        if s.battery_by_s is None:
+            s.battery_by_s = s.boot_s
     if kind == "HEARTBEAT":
         s.last_heartbeat = time.monotonic()
         s.armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
@@ -125,12 +129,12 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     elif kind == "SYS_STATUS":
         if not s.battery_status:
             s.battery_pct = None if msg.battery_remaining < 0 else msg.battery_remaining
-            s.battery_boot_s = s.boot_s
+            s.battery_by_s = None
         s.ready = _prearm_ok(msg, s.gps_fix)
     elif kind == "BATTERY_STATUS" and msg.id == 0 and msg.battery_remaining >= 0:
         # the pack's own report (SYS_STATUS may sum or pick among several packs)
         s.battery_pct, s.battery_status = msg.battery_remaining, True
-        s.battery_boot_s = s.boot_s
+        s.battery_by_s = None
     elif kind == "GPS_RAW_INT":
         s.gps_fix = msg.fix_type
     elif kind == "HOME_POSITION":
