@@ -285,12 +285,16 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     assert code == (0 if report["outcome"]["ok"] else 1)
     assert report["coverage"]["beyond_battery_targets"] == \
         twelve.plan.metrics["battery"]["targets_short"]
+    # as planned, unless a re-plan changed the sorties: a loss, or the battery watch
+    # bringing home a vehicle the separation guard's holds made late (two vehicles
+    # holding each other head-on, turn about, once did)
+    replanned = bool(report["replans"])
     for v in twelve.plan.vehicles:
         if v.id in lost:
             continue
         track = read_track(track_path(out / "tracks", v.id))
         ups = _takeoffs_on_fresh_batteries(track)
-        assert ups == len(v.sorties) if not kill else ups >= 2
+        assert ups == len(v.sorties) if not replanned else ups >= 2
         assert abs(track.alt[-1] - track.home[2]) < 1.0
     # what each autopilot would do on a low battery, said before anything flies
     said = [e for e in report["events"] if e["event"].startswith("battery failsafe: ")]
@@ -300,7 +304,7 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     uploads = [e for e in report["events"] if "uploaded and verified" in e["event"]
                and e["event"].startswith("sortie ")]
     assert len(uploads) >= (sum(len(v.sorties) - 1 for v in twelve.plan.vehicles)
-                            if not kill else 2)
+                            if not replanned else 2)
 
 
 def _battery_used(track, pauses=()) -> list:
@@ -435,6 +439,36 @@ def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve,
     said = [e for e in report["events"] if e["event"].startswith("lost during")]
     assert [e["sysid"] for e in said] == [2] and "next sortie" in said[0]["event"]
     assert report["replans"] and 2 not in report["replans"][-1]["survivors"]
+
+
+def test_a_re_plan_that_must_hold_a_vehicle_in_the_air_keeps_its_sorties_whole(twelve):
+    """Vehicle 3 held in its base column 23 m up as vehicle 2, retired by the battery
+    watch, flies home: the fleet clock holds vehicle 3 there for minutes. Shorter
+    sorties would not shorten that wait, so the sorties are not cut for it (they
+    once were, to one viewpoint each: 32 sorties and 159 min against 9 and 42 with
+    vehicle 3 on the ground); the hold past its battery is reported instead."""
+    from gcs.retask import geo_to_xyz
+    from planner.pipeline import PlanningContext
+    from planner.replan import Survivor, replan
+
+    ctx = PlanningContext.load(twelve.dir, twelve.plan)
+    full = 60.0 * ctx.scenario.endurance_min
+    v1, v2, v3 = twelve.plan.vehicles
+
+    def xyz(p):
+        return geo_to_xyz(ctx, p.lon, p.lat, p.alt_amsl)
+
+    plans = []
+    for up in (23.0, 0.0):
+        plans.append(replan(ctx, [
+            Survivor(v1.id, xyz(v1.waypoints[2]), xyz(v1.launch), 0.1 * full),
+            Survivor(v2.id, xyz(v2.waypoints[4]), xyz(v2.launch), 0.35 * full, retired=True),
+            Survivor(v3.id, xyz(v3.launch) + np.array([0.0, 0.0, up]), xyz(v3.launch))
+        ]).plan.metrics)
+    held, ground = plans
+    assert held["sorties"] <= ground["sorties"] + 2
+    assert held["coverage_time_s"] <= 1.3 * ground["coverage_time_s"], (held, ground)
+    assert held["wait_s"] > 0 and held["battery"].get("over_battery", 0.0) > 1.0
 
 
 def test_a_flight_whose_last_survivors_fall_during_a_re_plan_ends(planned, twelve, tmp_path,
