@@ -370,6 +370,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
                                      budget_fraction=budget_fraction)
     parts = split.n_parts(len(ctx.viewpoints), s)
     scale, over = np.ones(2), np.zeros(2)
+    in_flight = bool(starts and any(st.held is not None for st in starts))
     for _ in range(BATTERY_TRIES):
         try:
             problem, allocation, prep, sortie_of = _search(
@@ -383,19 +384,20 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
             counts = coverage.coverage_counts(problem, allocation)
         with _stage("separation", timing, progress):
             fleet = fleet_clock(ctx, sorties, starts, problem, allocation.routes)
-        over = _over_battery(fleet, s.usable_s, starts, waits=False)
-        if not over.any():
-            break
         # the search's times leave out the slowing at the waypoints: plan again with
         # the sorties (or, where one viewpoint alone is too far, the round trips) that
-        # much shorter. Not for the separation's waits: shorter sorties do not shorten
-        # them (a re-plan whose vehicle held in its base column waited 671 s in the air
-        # was planned again in 32 one-viewpoint sorties, 161 min instead of 42)
+        # much shorter. In flight, not for the separation's waits: a vehicle held in
+        # its base column while another comes home waits whatever its sorties (one
+        # held 671 s was planned again in 32 one-viewpoint sorties, 161 min instead
+        # of 42); the wait past its battery is reported, and the battery watch guards it
+        over = _over_battery(fleet, s.usable_s, starts, waits=not in_flight)
+        if not over.any():
+            break
         scale = np.where(over > 0, scale * 0.98 / np.maximum(over, 1.0), scale)
     else:
         # a re-plan in flight is flown all the same (the vehicles are in the air, and
         # gcs fly's battery watch brings one home early); a plan on the ground is not
-        if not (starts and any(st.held is not None for st in starts)):
+        if not in_flight:
             raise InputError("plan", f"a sortie takes {max(over) * s.usable_s / 60:.1f} min, "
                                      f"more than the {s.usable_s / 60:.1f} min a battery "
                                      f"allows (endurance {s.endurance_min:g} min less "
