@@ -832,7 +832,11 @@ class Flight:
                 self.retask()
             self._next_sorties()
             self._watch_batteries()
-            if m.all_finished() and not self.departures and not m.awaited():
+            # a loss found since (on the ground as its next sortie uploads, or by the
+            # loss thread) is re-tasked for first: the survivors, down already, fly its
+            # work (the flight once ended with it unflown)
+            if m.all_finished() and not self.departures and not m.awaited() and \
+                    not m.losses_waiting():
                 break
             self._depart_due()
             if self.guard is not None:

@@ -542,6 +542,11 @@ class Monitor:
             taken, self._untaken = self._untaken, []
         return taken
 
+    def losses_waiting(self) -> bool:
+        """Losses found that `take_losses` has not handed out yet."""
+        with self._lock:
+            return bool(self._untaken)
+
     def _lose(self, v, reason: str) -> None:
         v.state = LOST
         v.lost_at_s = round(self.now(), 3)
