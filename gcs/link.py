@@ -88,8 +88,6 @@ class VehicleState:
     battery_by_s: float | None = None        # the vehicle's clock at its first report
                                              # after battery_pct came (None: none yet):
                                              # the charge is of that time or earlier
-    boot_s: float | None = None              # the vehicle's clock (s since boot) at its
-                                             # last report that carries it
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
     images: int = 0                          # CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED seen
     statustext: list = field(default_factory=list)   # last (severity, text)
@@ -99,10 +97,8 @@ class VehicleState:
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     kind = msg.get_type()
     boot_ms = getattr(msg, "time_boot_ms", None)
-    if boot_ms:
-        s.boot_s = boot_ms * 1e-3
-        if s.battery_by_s is None:
-            s.battery_by_s = s.boot_s
+    if boot_ms and s.battery_by_s is None:
+        s.battery_by_s = boot_ms * 1e-3
     if kind == "HEARTBEAT":
         s.last_heartbeat = time.monotonic()
         s.armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
