@@ -5,7 +5,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sampled_sight import sampled_lowest
 
-from planner.exposure.los import EARTH_RADIUS_M, lowest_visible_altitude, sees
+from planner.exposure.los import EARTH_RADIUS_M, lowest_visible_altitude, next_patch, sees
 from planner.terrain import bilinear
 
 CELL = 30.0
@@ -53,3 +53,28 @@ def test_curvature_lowers_distant_terrain():
     # the horizon is the curved ground: the target must be above it, seen from 2 m
     assert z > 0.0
     assert z < drop + 2.0
+
+
+anywhere = st.tuples(st.floats(-40, 70), st.floats(-40, 60))
+
+
+@settings(max_examples=200, deadline=None)
+@given(a=anywhere, b=anywhere)
+def test_a_line_is_walked_patch_by_patch_on_and_off_the_grid(a, b):
+    """Each step is the patch (clamped to the grid) holding the step's middle, and
+    a line crosses each grid line once: a point off the grid once made the walk
+    crawl in steps of 1e-9 (minutes for one exact test)."""
+    rows, cols = 24, 30
+    (u0, v0), (u1, v1) = a, b
+    du, dv = u1 - u0, v1 - v0
+    t, steps = 0.0, 0
+    while t < 1.0:
+        i, j, t_next = next_patch(u0, v0, du, dv, t, rows, cols)
+        assert t_next > t
+        mid = (t + t_next) / 2
+        if t_next - t > 1e-6:
+            u, v = u0 + mid * du, v0 + mid * dv
+            assert i == min(max(int(np.floor(u)), 0), cols - 2)
+            assert j == min(max(int(np.floor(v)), 0), rows - 2)
+        t, steps = t_next, steps + 1
+        assert steps <= cols + rows + 2

@@ -385,7 +385,7 @@ def saved_surface(planned):
     return load_surface(planned.dir, planned.plan)
 
 
-@settings(max_examples=40, deadline=None, derandomize=True,
+@settings(max_examples=300, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(edit=st.sampled_from(EDITS), index=st.integers(0, 10 ** 6),
        amount=st.floats(1.0, 400.0))

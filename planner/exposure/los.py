@@ -39,16 +39,21 @@ def next_patch(u0, v0, du, dv, t, n_rows, n_cols):
     """The patch (col i, row j) holding the line (u0, v0) + t (du, dv) just after
     ``t``, and the parameter where the line leaves it (always beyond ``t``)."""
     tm = min(t + 1e-9, 1.0)
-    i = min(max(int(math.floor(u0 + tm * du)), 0), n_cols - 2)
-    j = min(max(int(math.floor(v0 + tm * dv)), 0), n_rows - 2)
+    iu = int(math.floor(u0 + tm * du))
+    jv = int(math.floor(v0 + tm * dv))
+    i = min(max(iu, 0), n_cols - 2)
+    j = min(max(jv, 0), n_rows - 2)
+    # Off the grid the edge patch extends to infinity on its outer side: a line
+    # heading further out never crosses that side (taking it as a crossing once
+    # walked such a line in steps of 1e-9: minutes for one point off the grid)
     t_next = 1.0
-    if du > 0.0:
+    if du > 0.0 and iu <= n_cols - 2:
         t_next = min(t_next, (i + 1 - u0) / du)
-    elif du < 0.0:
+    elif du < 0.0 and iu >= 0:
         t_next = min(t_next, (i - u0) / du)
-    if dv > 0.0:
+    if dv > 0.0 and jv <= n_rows - 2:
         t_next = min(t_next, (j + 1 - v0) / dv)
-    elif dv < 0.0:
+    elif dv < 0.0 and jv >= 0:
         t_next = min(t_next, (j - v0) / dv)
     if t_next <= t:
         t_next = min(1.0, t + 1e-9)
