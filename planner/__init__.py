@@ -1,1 +1,24 @@
 """Pure computation: terrain in, hidden reduced-time coverage routes out."""
+
+import hashlib
+import os
+from pathlib import Path
+
+
+def _kernel_cache_dir() -> Path:
+    """Where numba keeps the compiled kernels: one folder per version of the
+    package's sources. numba re-compiles a cached kernel when its own file
+    changes, not when a function it inlines from another file does: after a fix
+    to `exposure.los.next_patch`, `exposure.kernels.points_hidden` ran the old
+    walk from its cache until the cache was deleted."""
+    digest = hashlib.sha256()
+    for path in sorted(Path(__file__).parent.rglob("*.py")):
+        digest.update(path.read_bytes())
+    home = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+    return home / "gcs-planner" / "kernels" / digest.hexdigest()[:16]
+
+
+# Set before numba is imported (it reads the variable then); a folder given by the
+# user, or by the process that started this one, is kept. numba falls back to
+# __pycache__ where this folder cannot be written.
+os.environ.setdefault("NUMBA_CACHE_DIR", str(_kernel_cache_dir()))

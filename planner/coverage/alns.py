@@ -2,8 +2,10 @@
 
 RT+LS gives the start.  Each iteration then *destroys* part of the routes
 (removes q visits: at random, the most expensive ones, a stretch of the
-longest route, the most expensive ones of the longest route, or a group of
-visits close to each other in travel time) and *repairs* them: visits are
+longest route, the most expensive ones of the longest route, a group of
+visits close to each other in travel time, or on small searches every visit
+of one or two UAVs, which re-splits viewpoints between them) and *repairs*
+them: visits are
 inserted at their cheapest edge-breaking slot until every target is seen by
 its required number of distinct UAVs again, chosen by the paper's M_PTV, by
 targets gained per growth of the makespan, or by regret (the short target
@@ -17,7 +19,10 @@ found a new best, an improvement, or an accepted move (Ropke and Pisinger,
 number of distinct UAVs: a repair only inserts (viewpoint, UAV) pairs that
 give a short target a new distinct viewer, and the removal of a visit is only
 kept if coverage holds.  The best solution is returned, never worse than the
-RT+LS start.
+RT+LS start.  A start that meets the one-UAV-a-viewpoint rule only with a
+viewpoint flown by two UAVs (`places.share`) is first repaired, or rebuilt,
+into one that does not (`_cover`); if none is found it is returned as it is,
+unsearched.
 
 **Budget and determinism.** The budget is given in seconds
 (``CoverageParams.time_budget_s``, ``--time-budget``) but counted in *work
@@ -87,8 +92,15 @@ ORDER_PASSES = 1
 WORSE_START, WORSE_END = 0.01, 0.0001
 #: visits removed per iteration: 1 .. min(Q_MAX, Q_FRACTION x visits)
 Q_MAX, Q_FRACTION = 40, 0.25
+#: whole-route rebuilds tried (`ROUTE_DESTROYS`) to turn a start that needs a shared
+#: viewpoint into one that does not
+COVER_TRIES = 20
 
 DESTROYS = ("random", "worst", "segment", "longest", "related")
+#: whole routes destroyed: one UAV's, or two UAVs' (their viewpoints re-split
+#: between them), only on searches of at most this many visits (on larger ones
+#: a whole route is too much to rebuild in one repair)
+ROUTE_DESTROYS, ROUTE_DESTROY_VISITS = ("route", "routes"), 30
 # (name, mode, lam, noise)
 REPAIRS = (("ptv", PTV_MODE, 0.0, 0.0), ("makespan", MAKESPAN_MODE, 0.1, 0.0),
            ("makespan-noisy", MAKESPAN_MODE, 0.5, 0.25), ("regret", REGRET_MODE, 0.1, 0.0))
@@ -203,6 +215,10 @@ class Alns:
             pick = self.rng.choice(len(rs), q, replace=False)
         elif name == "worst":
             pick = self._pick_ranked(self._savings(), q)
+        elif name in ROUTE_DESTROYS:
+            n_pick = 1 if name == "route" else min(2, len(self.L))
+            gone = self.rng.choice(len(self.L), n_pick, replace=False)
+            pick = np.flatnonzero(np.isin(rs, gone))
         elif name in ("segment", "longest"):
             r = int(np.argmax(self.times))
             on_r = np.flatnonzero(rs == r)
@@ -276,7 +292,7 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
     s = None
     for routes in starts:
         cand = Alns(prep, routes, params, rng, weight)
-        if not cand.covered():
+        if not cand.covered() and not _cover(cand):
             continue       # left short by the one-UAV-a-viewpoint rule: `places.share`'s
         cand.polish(range(len(cand.L)), passes=100)
         if s is None or _key(cand.times) < _key(s.times):
@@ -301,6 +317,29 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
                   start_time, float(s.times.max()))
 
 
+def _cover(s) -> bool:
+    """Make ``s`` cover every target with each viewpoint flown by one UAV, where a
+    start (RT's greedy) painted itself into a corner that only a shared viewpoint
+    gets out of: its short targets repaired; else, on small searches, whole routes
+    rebuilt by each repair in turn, up to `COVER_TRIES` times. False (``s``
+    unchanged) if none covers."""
+    start = s.snapshot()
+    every = np.arange(s.p.problem.n_viewpoints)  # the short targets are anywhere
+    tries = COVER_TRIES if _destroys(s) != DESTROYS else 0
+    for attempt in range(tries + 1):
+        if attempt:
+            s.destroy(ROUTE_DESTROYS[attempt % 2], 0)
+        if s.repair(every, REPAIRS[-1 - (attempt // 2) % len(REPAIRS)]) and s.covered():
+            return True
+        s.restore(start)
+    return False
+
+
+def _destroys(s) -> tuple:
+    small = s.L.sum() <= ROUTE_DESTROY_VISITS
+    return DESTROYS + ROUTE_DESTROYS if small else DESTROYS
+
+
 def _chain(s, units, progress=None):
     """One annealing chain of ``units`` work from ``s``'s state: (best state, its
     key, iterations)."""
@@ -311,9 +350,10 @@ def _chain(s, units, progress=None):
     # temperature: geometric in the budget spent, from WORSE_START to WORSE_END
     t_start = WORSE_START * f_cur / math.log(2)
     t_end = WORSE_END * f_cur / math.log(2)
-    wd = np.ones(len(DESTROYS))
+    destroys = _destroys(s)
+    wd = np.ones(len(destroys))
     wr = np.ones(len(REPAIRS))
-    sd, ud = np.zeros(len(DESTROYS)), np.zeros(len(DESTROYS))
+    sd, ud = np.zeros(len(destroys)), np.zeros(len(destroys))
     sr, ur = np.zeros(len(REPAIRS)), np.zeros(len(REPAIRS))
     q_hi = max(2, min(Q_MAX, int(round(Q_FRACTION * int(s.L.sum())))))
     it = 0
@@ -327,7 +367,7 @@ def _chain(s, units, progress=None):
         q = int(rng.integers(1, q_hi + 1))
         before = s.snapshot()
         s.work += ITERATION_UNITS
-        removed = s.destroy(DESTROYS[d], q)
+        removed = s.destroy(destroys[d], q)
         if not s.repair(removed, REPAIRS[h]):
             s.restore(before)
             continue
