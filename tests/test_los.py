@@ -78,3 +78,34 @@ def test_a_line_is_walked_patch_by_patch_on_and_off_the_grid(a, b):
             assert j == min(max(int(np.floor(v)), 0), rows - 2)
         t, steps = t_next, steps + 1
         assert steps <= cols + rows + 2
+
+
+def test_a_changed_source_gets_kernels_compiled_anew(tmp_path):
+    """numba re-compiles a cached kernel only when its own file changes; a kernel
+    that inlines `next_patch` from this module kept its old code from the cache.
+    The cache folder follows every source of the package, so a change anywhere in
+    it is compiled anew."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import planner
+
+    copy = tmp_path / "planner"
+    shutil.copytree(Path(planner.__file__).parent, copy,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    env.update(PYTHONPATH=str(tmp_path), XDG_CACHE_HOME=str(tmp_path / "cache"))
+    code = "import os, planner, numba; print(numba.config.CACHE_DIR)"
+
+    def folder():
+        return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                              text=True, check=True, cwd=tmp_path).stdout.strip()
+
+    before = folder()
+    assert before.startswith(str(tmp_path / "cache")) and before == folder()
+    los = copy / "exposure" / "los.py"
+    los.write_text(los.read_text() + "\n# changed\n")
+    assert folder() != before
