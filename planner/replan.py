@@ -291,18 +291,37 @@ def taken_viewpoints(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
     (a snapshot within `SNAP_TO_VIEWPOINT_M`), `FREE` for none. Those places are its
     own: another survivor's sighting there would share its fate."""
     owner = np.full(len(ctx.viewpoints), FREE, np.int64)
-    if not len(ctx.viewpoints):
-        return owner
-    tree = cKDTree(ctx.viewpoints.xyz)
-    for r, xyz in enumerate(snapshots_per_uav):
-        xyz = np.asarray(xyz, float).reshape(-1, 3)
-        if not len(xyz):
-            continue
-        d, j = tree.query(np.nan_to_num(xyz, nan=np.inf))
-        for e in j[d <= SNAP_TO_VIEWPOINT_M]:
+    for r, at in enumerate(_snapped(ctx, snapshots_per_uav)):
+        for e in at[at >= 0]:
             if owner[e] == FREE:
                 owner[e] = r
     return owner
+
+
+def _snapped(ctx: PlanningContext, snapshots_per_uav) -> list:
+    """Per survivor, the viewpoint each snapshot was taken at (-1: none within
+    `SNAP_TO_VIEWPOINT_M`)."""
+    tree = cKDTree(ctx.viewpoints.xyz) if len(ctx.viewpoints) else None
+    out = []
+    for xyz in snapshots_per_uav:
+        xyz = np.asarray(xyz, float).reshape(-1, 3)
+        at = np.full(len(xyz), -1, np.int64)
+        if tree is not None and len(xyz):
+            d, j = tree.query(np.nan_to_num(xyz, nan=np.inf))
+            at = np.where(d <= SNAP_TO_VIEWPOINT_M, j, -1)
+        out.append(at)
+    return out
+
+
+def seen_by_place(ctx: PlanningContext, seen, snapshots_per_uav, owner) -> np.ndarray:
+    """``seen`` less what a survivor saw only from a place another survivor owns
+    (`taken_viewpoints`): two sightings from one viewpoint count once, so the second
+    one there is no sighting of its own (counting it let a re-plan of a plan that
+    shared a viewpoint leave targets one sighting short)."""
+    own = [np.asarray(xyz, float).reshape(-1, 3)[(at < 0) | (owner[np.maximum(at, 0)] == r)]
+           for r, (xyz, at) in enumerate(zip(snapshots_per_uav,
+                                             _snapped(ctx, snapshots_per_uav)))]
+    return seen & seen_matrix(ctx, own)
 
 
 def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
@@ -325,6 +344,8 @@ def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
     sub = replace(ctx, scenario=replace(ctx.scenario, k=k, uavs=len(survivors)))
     starts = [survivor_start(ctx, s) for s in survivors]
     owner = None if snapshots is None else taken_viewpoints(ctx, snapshots)
+    if owner is not None and seen is not None:
+        seen = seen_by_place(ctx, seen, snapshots, owner)
     outcome = allocate(sub, len(survivors), starts, seen=seen, required=required,
                        method=method, progress=progress,
                        budget_fraction=REPLAN_BUDGET_FRACTION, strong_bound=False,

@@ -288,3 +288,41 @@ def test_survivor_hovering_at_a_waypoint_on_a_voids_edge_is_joined(planned):
         assert not g.legs_ok(here, node, strict=False)[0]
         start = survivor_start(ctx, Survivor(1, here, launch))
         assert np.array_equal(start.xyz, node) and np.array_equal(start.held, here)
+
+
+def test_two_survivors_that_shot_from_one_place_count_it_once(planned):
+    """Survivor 2 photographed from every place survivor 0 did (a plan that shared
+    viewpoints): those sightings count once, so the re-plan still gives each target
+    two sightings from distinct places where two can be had. Judged by the
+    brute-force matching of `places_reference` over the snapshots' places."""
+    from places_reference import matched
+
+    from planner.replan import SNAP_TO_VIEWPOINT_M
+
+    ctx, outcome = planned
+    (a, shots_a), (b, shots_b) = _midway(ctx, outcome, 0), _midway(ctx, outcome, 2)
+    shots = [shots_a, np.concatenate([shots_b, shots_a])]
+    seen = seen_matrix(ctx, shots)
+    new = replan(ctx, [a, b], seen, snapshots=shots)
+    owner = taken_viewpoints(ctx, shots)
+    vp = ctx.viewpoints.xyz
+    vis = ctx.visibility
+
+    def place(xyz, r, i):
+        d = np.linalg.norm(vp - xyz, axis=1)
+        return int(d.argmin()) if d.min() <= SNAP_TO_VIEWPOINT_M else ("own", r, i)
+
+    found = [set() for _ in range(vis.n_targets)]
+    flown = [list(s) for s in shots]
+    for r, (poly, vehicle) in enumerate(zip(new.polylines, new.plan.vehicles)):
+        flown[r] += [poly[i] for i, w in enumerate(vehicle.waypoints) if w.snapshot]
+    for r, pts in enumerate(flown):
+        for i, (xyz, ids) in enumerate(zip(pts, snapshot_sets(ctx, np.array(pts)))):
+            for t in ids:
+                found[t].add((0.0, r, place(xyz, r, i)))
+    short = 0
+    for t in range(vis.n_targets):
+        seers = vis.target_viewpoints[vis.target_indptr[t]:vis.target_indptr[t + 1]]
+        can = {(0.0, r, int(e)) for e in seers for r in (0, 1) if owner[e] in (-1, r)}
+        short += matched(found[t], 2) < matched(found[t] | can, 2)
+    assert short == 0
