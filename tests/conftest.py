@@ -2,6 +2,7 @@
 one launch point), planned once per session for the tests that fly or upload it;
 and the numba kernels compiled before the first test (`pytest_sessionstart`)."""
 
+import shutil
 import tempfile
 from types import SimpleNamespace
 
@@ -10,7 +11,7 @@ from hills import central_outpost
 
 from gcs.plan_folder import write_plan_folder
 from planner.pipeline import allocate, launch_starts, plan_mission
-from planner.plan import TERRAIN_FILE
+from planner.plan import PLAN_FILE, TERRAIN_FILE
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain, write_terrain
 
@@ -62,3 +63,22 @@ def planned(tmp_path_factory):
 @pytest.fixture
 def plan_dir(planned):
     return planned.dir
+
+
+def copy_plan(planned, folder):
+    """``folder`` made a copy of the session plan (plan.json, terrain.tif: no mission
+    files), to export or edit."""
+    folder.mkdir()
+    for name in (PLAN_FILE, TERRAIN_FILE):
+        shutil.copy(planned.dir / name, folder / name)
+    return folder
+
+
+@pytest.fixture
+def plan_copy(planned, tmp_path):
+    """The session plan copied (plan.json, terrain.tif) with its ArduPilot mission files."""
+    from missions.export import export_plan_dir
+
+    d = copy_plan(planned, tmp_path / "plan")
+    export_plan_dir(d, planned.plan, "ardupilot", formats=("plan", "waypoints"))
+    return d

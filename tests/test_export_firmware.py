@@ -12,6 +12,7 @@ import json
 import shutil
 
 import pytest
+from conftest import copy_plan
 
 from gcs import mission_protocol as mp
 from gcs.cli import main
@@ -21,7 +22,7 @@ from missions import wpl
 from missions.build import MissionOptions, plan_missions, vehicle_mission
 from missions.export import export_plan_dir
 from missions.items import DO_DIGICAM_CONTROL, IMAGE_START_CAPTURE, MissionItem, first_difference
-from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
+from planner.plan import PLAN_FILE, Plan
 
 pytestmark = pytest.mark.timeout(120)
 
@@ -57,10 +58,7 @@ def _one_line_error(capsys, command) -> str:
 @pytest.fixture
 def folder(planned, tmp_path):
     """A plan folder (plan.json, terrain.tif) with its ArduPilot mission files."""
-    d = tmp_path / "plan"
-    d.mkdir()
-    for name in (PLAN_FILE, TERRAIN_FILE):
-        shutil.copy(planned.dir / name, d / name)
+    d = copy_plan(planned, tmp_path / "plan")
     assert Plan.load(d).params["firmware"] == "ardupilot"
     assert main(["export", str(d), "--no-check"]) == 0
     return d
@@ -68,10 +66,7 @@ def folder(planned, tmp_path):
 
 def _firmware_folder(planned, tmp_path, firmware, *extra) -> object:
     """A plan folder exported in place for ``firmware`` with ``extra`` options."""
-    d = tmp_path / f"plan-{firmware}"
-    d.mkdir()
-    for name in (PLAN_FILE, TERRAIN_FILE):
-        shutil.copy(planned.dir / name, d / name)
+    d = copy_plan(planned, tmp_path / f"plan-{firmware}")
     assert main(["export", str(d), "--firmware", firmware, "--no-check", *extra]) == 0
     return d
 

@@ -26,20 +26,9 @@ from missions.build import MissionOptions, vehicle_mission
 from missions.check import CheckedMission, checked
 from missions.export import export_plan_dir
 from missions.items import MissionItem
-from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
+from planner.plan import PLAN_FILE, Plan
 
 pytestmark = pytest.mark.timeout(90)
-
-
-@pytest.fixture
-def plan_copy(planned, tmp_path):
-    """The session plan copied (plan.json, terrain.tif) with its mission files."""
-    d = tmp_path / "plan"
-    d.mkdir()
-    for name in (PLAN_FILE, TERRAIN_FILE):
-        shutil.copy(planned.dir / name, d / name)
-    export_plan_dir(d, planned.plan, "ardupilot", formats=("plan", "waypoints"))
-    return d
 
 
 @pytest.fixture

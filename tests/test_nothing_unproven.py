@@ -6,7 +6,6 @@ leg with the exact point test (`is_hidden`) and the DEM's own surfaces."""
 
 import json
 import re
-import shutil
 import subprocess
 import sys
 
@@ -30,16 +29,6 @@ from planner.exposure import is_hidden
 from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
 
 pytestmark = pytest.mark.timeout(180)
-
-
-@pytest.fixture
-def plan_copy(planned, tmp_path):
-    d = tmp_path / "plan"
-    d.mkdir()
-    for name in (PLAN_FILE, TERRAIN_FILE):
-        shutil.copy(planned.dir / name, d / name)
-    export_plan_dir(d, planned.plan, "ardupilot", formats=("plan", "waypoints"))
-    return d
 
 
 def _fleet(planned, firmware="ardupilot", offset_m=0.0, vehicles=1, **extra):
