@@ -2,16 +2,16 @@
 one launch point), planned once per session for the tests that fly or upload it;
 and the numba kernels compiled before the first test (`pytest_sessionstart`)."""
 
-import shutil
 import tempfile
 from types import SimpleNamespace
 
 import pytest
 from hills import central_outpost
+from saved_plan import copy_plan
 
 from gcs.plan_folder import write_plan_folder
 from planner.pipeline import allocate, launch_starts, plan_mission
-from planner.plan import PLAN_FILE, TERRAIN_FILE
+from planner.plan import TERRAIN_FILE
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain, write_terrain
 
@@ -63,15 +63,6 @@ def planned(tmp_path_factory):
 @pytest.fixture
 def plan_dir(planned):
     return planned.dir
-
-
-def copy_plan(planned, folder):
-    """``folder`` made a copy of the session plan (plan.json, terrain.tif: no mission
-    files), to export or edit."""
-    folder.mkdir()
-    for name in (PLAN_FILE, TERRAIN_FILE):
-        shutil.copy(planned.dir / name, folder / name)
-    return folder
 
 
 @pytest.fixture

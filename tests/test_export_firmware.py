@@ -12,7 +12,7 @@ import json
 import shutil
 
 import pytest
-from conftest import copy_plan
+from saved_plan import copy_plan
 
 from gcs import mission_protocol as mp
 from gcs.cli import main
