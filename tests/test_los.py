@@ -98,7 +98,7 @@ def test_a_changed_source_gets_kernels_compiled_anew(tmp_path):
                     ignore=shutil.ignore_patterns("__pycache__"))
     env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
     env.update(PYTHONPATH=str(tmp_path), XDG_CACHE_HOME=str(tmp_path / "cache"))
-    code = "import os, planner, numba; print(numba.config.CACHE_DIR)"
+    code = "import planner, numba; print(numba.config.CACHE_DIR)"
 
     def folder():
         return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
