@@ -1,10 +1,18 @@
 """Numba kernels of the ALNS (`alns.py`): repair, redundant-visit removal, route order.
 
 Routes are held in a padded matrix ``R[r, :L[r]]`` (viewpoint ids in flying
-order) so that the kernels need no Python lists.  Coverage bookkeeping is
-that of the local search: ``cnt[r, t]`` = how many of r's visits (plus an
-earlier snapshot) see target t, ``dc[t]`` = distinct UAVs with ``cnt > 0``;
-target t is *short* while ``dc[t] < req[t]``.
+order) so that the kernels need no Python lists.  Coverage bookkeeping:
+``cnt[r, t]`` = how many of r's visits (plus an earlier snapshot) see target t,
+``dc[t]`` = distinct UAVs with ``cnt > 0`` (the local search's), ``fly[e]`` =
+UAVs that fly viewpoint e, ``pc[t]`` = distinct places that see t (flown
+viewpoints, and each earlier sighting: a place of its own).  Target t counts
+``min(dc[t], pc[t])`` sightings (`met`) and is *short* while that is below
+``req[t]``.  That is the exact rule of `places` (a matching of UAVs to places)
+wherever it is used: when each viewpoint is flown by one UAV, every UAV has
+places of its own and the count is ``dc``; a viewpoint may be flown by two
+UAVs (``share``) only where no target needs more than two sightings, and a
+matching of size two exists exactly when neither one UAV nor one place holds
+every sighting (König), i.e. when ``min(dc, pc) >= 2``.
 
 Every kernel returns (or adds to) a count of elementary evaluations, the
 *work units* the ALNS budget is measured in (deterministic, unlike a clock).
@@ -58,6 +66,57 @@ def apply_visit(cnt, dc, r, e, delta, vis_indptr, vis_indices):
 
 
 @njit(cache=True, nogil=True)
+def apply_place(pc, fly, e, delta, vis_indptr, vis_indices):
+    """Add (delta = 1) or remove (delta = -1) one UAV's visit of e from the places."""
+    before = fly[e]
+    fly[e] = before + delta
+    if (before == 0 and delta > 0) or (before + delta == 0 and delta < 0):
+        for j in range(vis_indptr[e], vis_indptr[e + 1]):
+            pc[vis_indices[j]] += delta
+
+
+@njit(cache=True, nogil=True)
+def met(dc, pc, t):
+    """Sightings target t counts (see the module doc)."""
+    return min(dc[t], pc[t])
+
+
+@njit(cache=True, nogil=True)
+def _raises(t, r, flown, cnt, dc, pc, req):
+    """Whether a visit by UAV r of a viewpoint seeing short target t, flown by
+    ``flown`` UAVs (not r), gives t one more sighting."""
+    now = min(dc[t], pc[t])
+    if now >= req[t]:
+        return False
+    d = dc[t] + (1 if cnt[r, t] == 0 else 0)
+    p = pc[t] + (1 if flown == 0 else 0)
+    return min(d, p) > now
+
+
+@njit(cache=True, nogil=True)
+def _open(e, r, on, fly, owner0, share):
+    """Whether UAV r may add viewpoint e: not flown by it, nor photographed from
+    before by another UAV, and unflown unless viewpoints may be ``share``d."""
+    if on[r, e] or (owner0[e] != FREE and owner0[e] != r):
+        return False
+    return share or fly[e] == 0
+
+
+@njit(cache=True, nogil=True)
+def _add_gains(t, sign, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
+               tgt_indices):
+    """Add (sign 1) or take away (-1) what target t gives each candidate pair."""
+    n = gain.shape[1]
+    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+        c = cand_of[tgt_indices[i]]
+        if c < 0:
+            continue
+        for r in range(n):
+            if _raises(t, r, fly[cands[c]], cnt, dc, pc, req):
+                gain[c, r] += sign * weight[t]
+
+
+@njit(cache=True, nogil=True)
 def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
     if mode == PTV_MODE:
         return g ** alpha / max(t_r + dt, eps) ** (1.0 - alpha)
@@ -67,15 +126,16 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
 
 
 @njit(cache=True, nogil=True)
-def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tgt_indptr,
-           tgt_indices, travel, frames, sorties, has_launch, mode, alpha, lam, eps, noise,
-           rnd, owner0):
+def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_indices,
+           tgt_indptr, tgt_indices, travel, frames, sorties, has_launch, mode, alpha, lam, eps,
+           noise, rnd, owner0, share):
     """Insert visits until no target in ``short`` (and no other) is short.
 
-    Candidates are the (viewpoint, UAV) pairs that give a short target a new
-    *distinct* viewer, from a viewpoint no other UAV visits (nor photographed
-    from before: ``owner0``, `problem.FREE` where nobody did); each is inserted
-    at its cheapest edge-breaking slot.
+    Candidates are the (viewpoint, UAV) pairs that give a short target one more
+    sighting (`_raises`), from a viewpoint the UAV may add (`_open`: no other UAV
+    flies it unless ``share``, nor photographed from it before: ``owner0``,
+    `problem.FREE` where nobody did); each is inserted at its cheapest
+    edge-breaking slot.
     ``mode``: PTV (the paper's M_PTV on the short targets gained), MAKESPAN
     (targets gained per growth of the makespan plus ``lam`` x the added
     time), REGRET (the short target whose best option is most ahead of its
@@ -87,10 +147,10 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     """
     n = R.shape[0]
     n_vp = travel.shape[0]
-    owner = owner0.copy()
+    on = np.zeros((n, n_vp), np.bool_)
     for r in range(n):
         for i in range(L[r]):
-            owner[R[r, i]] = r
+            on[r, R[r, i]] = True
     cand_of = np.full(n_vp, -1, np.int64)
     cands = np.empty(n_vp, np.int64)
     nc = 0
@@ -106,24 +166,17 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     remaining = 0
     for s in range(len(short)):
         t = short[s]
-        if dc[t] >= req[t]:
+        if met(dc, pc, t) >= req[t]:
             continue
         remaining += 1
-        for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-            c = cand_of[tgt_indices[i]]
-            for r in range(n):
-                if cnt[r, t] == 0:
-                    gain[c, r] += weight[t]
+        _add_gains(t, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
+                   tgt_indices)
     dt = np.full((nc, n), np.inf)
     pos = np.zeros((nc, n), np.int64)
     work = 2 * len(short) + (tgt_indptr[short + 1] - tgt_indptr[short]).sum() * (n + 1)
     for r in range(n):
-        route = R[r, :L[r]]
-        for c in range(nc):
-            if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
-                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r],
-                                                  sorties[r], has_launch)
-                work += L[r] + 1
+        work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, frames,
+                       sorties, has_launch)
     k = 0
     while remaining > 0:
         t_max = times.max()
@@ -132,13 +185,14 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
             best_regret, best_first = -1.0, np.inf
             for s in range(len(short)):
                 t = short[s]
-                if dc[t] >= req[t]:
+                if met(dc, pc, t) >= req[t]:
                     continue
                 c1, c2, o_c, o_r = np.inf, np.inf, -1, -1
                 for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
                     c = cand_of[tgt_indices[i]]
                     for r in range(n):
-                        if cnt[r, t] != 0 or not np.isfinite(dt[c, r]):
+                        if not np.isfinite(dt[c, r]) or \
+                                not _raises(t, r, fly[cands[c]], cnt, dc, pc, req):
                             continue
                         cost = 1.0 / _score(MAKESPAN_MODE, gain[c, r], dt[c, r], times[r],
                                             t_max, alpha, lam, eps)
@@ -180,52 +234,73 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
             R[r, i] = R[r, i - 1]
         R[r, p] = x
         L[r] += 1
-        owner[x] = r
-        for q in range(n):          # closed to the other UAVs from now on
-            if q != r:
-                dt[bc, q] = np.inf
+        on[r, x] = True
         times[r] = time_of(R, L, r, travel, frames, sorties, has_launch)
-        # coverage and gains
-        for j in range(vis_indptr[x], vis_indptr[x + 1]):
+        # coverage and gains: what x's targets gave, taken away, and given again
+        lo, hi = vis_indptr[x], vis_indptr[x + 1]
+        was = np.empty(hi - lo, np.bool_)  # which of x's targets were short
+        for j in range(lo, hi):
             t = vis_indices[j]
-            if cnt[r, t] == 0:
-                dc[t] += 1
-                if dc[t] <= req[t]:  # t was short: r is a new distinct viewer
-                    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-                        c = cand_of[tgt_indices[i]]
-                        if c >= 0:
-                            gain[c, r] -= weight[t]
-                            if dc[t] == req[t]:  # no longer short: nobody gains it
-                                for q in range(n):
-                                    if q != r and cnt[q, t] == 0:
-                                        gain[c, q] -= weight[t]
-                    if dc[t] == req[t]:
-                        remaining -= 1
-                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * (n if dc[t] == req[t] else 1)
-            cnt[r, t] += 1
-        work += vis_indptr[x + 1] - vis_indptr[x] + nc
-        route = R[r, :L[r]]
-        for c in range(nc):
-            if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
-                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r],
-                                                  sorties[r], has_launch)
-                work += L[r] + 1
+            was[j - lo] = met(dc, pc, t) < req[t]
+            if was[j - lo]:
+                _add_gains(t, -1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
+                           tgt_indptr, tgt_indices)
+                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n
+        apply_visit(cnt, dc, r, x, 1, vis_indptr, vis_indices)
+        apply_place(pc, fly, x, 1, vis_indptr, vis_indices)
+        for j in range(lo, hi):
+            t = vis_indices[j]
+            if not was[j - lo]:
+                continue
+            if met(dc, pc, t) < req[t]:
+                _add_gains(t, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
+                           tgt_indptr, tgt_indices)
+                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n
             else:
-                dt[c, r] = np.inf
+                remaining -= 1
+        work += 2 * (hi - lo) + nc
+        if not share:               # closed to the other UAVs from now on
+            for q in range(n):
+                if q != r:
+                    dt[bc, q] = np.inf
+        work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel,
+                       frames, sorties, has_launch)
     return True, work
 
 
 @njit(cache=True, nogil=True)
-def _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
+def _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, frames, sorties,
+           has_launch):
+    """Cheapest insertion of each candidate into route r (``dt``, ``pos``; inf where
+    it may not go). Without ``share`` only the pairs that gain now are costed (a
+    gain never appears later); with it every open pair (a place added elsewhere
+    can make one gain). Returns work."""
+    work = 0
+    route = R[r, :L[r]]
+    for c in range(nc):
+        if (gain[c, r] > 0 or share) and _open(cands[c], r, on, fly, owner0, share):
+            dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r], sorties[r],
+                                              has_launch)
+            work += L[r] + 1
+        else:
+            dt[c, r] = np.inf
+    return work
+
+
+@njit(cache=True, nogil=True)
+def _removable(cnt, dc, pc, fly, req, r, e, vis_indptr, vis_indices):
+    """Whether UAV r's visit of e can go without leaving a target short by it."""
     for j in range(vis_indptr[e], vis_indptr[e + 1]):
         t = vis_indices[j]
-        if cnt[r, t] == 1 and dc[t] <= req[t]:
+        d = dc[t] - (1 if cnt[r, t] == 1 else 0)
+        p = pc[t] - (1 if fly[e] == 1 else 0)
+        if min(d, p) < req[t] and min(d, p) < min(dc[t], pc[t]):
             return False
     return True
 
 
 @njit(cache=True, nogil=True)
-def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, frames,
+def drop_redundant(R, L, times, cnt, dc, pc, fly, req, vis_indptr, vis_indices, travel, frames,
                    sorties, has_launch):
     """Remove visits coverage does not need, largest saving first (the longest
     route's first); returns work."""
@@ -246,7 +321,7 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, f
                     continue
                 e = R[r, i]
                 work += (vis_indptr[e + 1] - vis_indptr[e]) // 4
-                if _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
+                if _removable(cnt, dc, pc, fly, req, r, e, vis_indptr, vis_indices):
                     best, bi, br = key, i, r
         if bi < 0:
             return work
@@ -256,6 +331,7 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, f
         L[br] -= 1
         R[br, L[br]] = -1
         apply_visit(cnt, dc, br, e, -1, vis_indptr, vis_indices)
+        apply_place(pc, fly, e, -1, vis_indptr, vis_indices)
         times[br] = time_of(R, L, br, travel, frames, sorties, has_launch)
 
 
@@ -390,7 +466,7 @@ def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
 
 
 @njit(cache=True, nogil=True)
-def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
+def restore_counts(R, L, R0, L0, cnt, dc, pc, fly, vis_indptr, vis_indices, mark):
     """Coverage counts back to the routes (R0, L0): visits in R but not R0 are
     removed, visits in R0 but not R are added (per UAV; ``mark`` is scratch of
     n_viewpoints zeros, left zero)."""
@@ -403,10 +479,12 @@ def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
                 mark[e] = 2  # in both
             else:
                 apply_visit(cnt, dc, r, e, -1, vis_indptr, vis_indices)
+                apply_place(pc, fly, e, -1, vis_indptr, vis_indices)
         for i in range(L0[r]):
             e = R0[r, i]
             if mark[e] == 1:
                 apply_visit(cnt, dc, r, e, 1, vis_indptr, vis_indices)
+                apply_place(pc, fly, e, 1, vis_indptr, vis_indices)
             mark[e] = 0
 
 
@@ -424,7 +502,7 @@ def savings_all(R, L, travel, frames, sorties, has_launch):
 
 
 @njit(cache=True, nogil=True)
-def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
+def remove_visits(R, L, rs, idx, cnt, dc, pc, fly, vis_indptr, vis_indices, removed):
     """Remove visits (rs[k], idx[k]) (distinct), updating coverage; their
     viewpoints go to ``removed``; returns how many."""
     n = R.shape[0]
@@ -444,6 +522,7 @@ def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
             e = R[r, i]
             if drop[i]:
                 apply_visit(cnt, dc, r, e, -1, vis_indptr, vis_indices)
+                apply_place(pc, fly, e, -1, vis_indptr, vis_indices)
                 removed[k] = e
                 k += 1
             else:
@@ -456,7 +535,7 @@ def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
 
 
 @njit(cache=True, nogil=True)
-def short_targets(removed, dc, req, vis_indptr, vis_indices, mark):
+def short_targets(removed, dc, pc, req, vis_indptr, vis_indices, mark):
     """Targets seen from ``removed`` viewpoints that are now short (``mark``:
     scratch of n_targets zeros, left zero)."""
     total = 0
@@ -467,7 +546,7 @@ def short_targets(removed, dc, req, vis_indptr, vis_indices, mark):
     for e in removed:
         for j in range(vis_indptr[e], vis_indptr[e + 1]):
             t = vis_indices[j]
-            if mark[t] == 0 and dc[t] < req[t]:
+            if mark[t] == 0 and met(dc, pc, t) < req[t]:
                 mark[t] = 1
                 out[k] = t
                 k += 1
