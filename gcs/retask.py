@@ -46,8 +46,10 @@ from planner.replan import (
     coverage_summary,
     replan,
     requirement,
+    seen_by_place,
     seen_matrix,
     survivor_start,
+    taken_viewpoints,
 )
 
 #: wall seconds to let a held vehicle brake before its position is taken
@@ -324,7 +326,10 @@ class Retasker:
         seen = seen_matrix(ctx, shots)
         record.survivors, record.starts = sorted(everyone), positions
         record.required_uavs = int(requirement(ctx, len(everyone))[1][0])
-        record.seen_before = coverage_summary(ctx, seen, ctx.scenario.k)
+        # by place, as the re-plan counts them: a second survivor's sighting from a
+        # viewpoint another one photographed from is no sighting of its own
+        record.seen_before = coverage_summary(
+            ctx, seen_by_place(ctx, seen, shots, taken_viewpoints(ctx, shots)), ctx.scenario.k)
         record.original = original_outlook(ctx, m, everyone, len(record.lost))
         try:
             required = np.zeros(ctx.visibility.n_targets, np.int32) if self.home else None
