@@ -68,9 +68,11 @@ SIM = Setting(4, 100.0, (190, 130, 80), 1000.0)
 #: real SITL: 3 vehicles on a 4 km window with 1 outpost (flights of 10-20 min
 #: of simulated time)
 REAL = Setting(3, 100.0, (215, 130, 40), 1200.0)
-#: one route longer than ArduPilot SITL's 650 items (after merging): a 3 km window
-#: at 50 m, a 150 m sensor, viewpoints 50 m apart: 336 snapshots, about 755 items
-LONG = Setting(1, 50.0, (440, 270, 60), 150.0,
+#: one route longer than ArduPilot SITL's 650 items (after merging): a 4.5 km window
+#: at 50 m, a 100 m sensor, viewpoints 50 m apart: 429 snapshots (2026-11-28; the
+#: 3 km window with a 150 m sensor of before came to 203 snapshots and 375 items
+#: once the search dropped redundant ones, and fitted in one upload)
+LONG = Setting(1, 50.0, (430, 260, 90), 100.0,
                (("viewpoint_spacing_m", 50.0), ("speed_mps", 15.0)))
 VEHICLES = SIM.vehicles
 SPEEDUP = {"sim": 100.0, "sim-px4": 100.0, "ardupilot": 10.0, "px4": 4.0}
