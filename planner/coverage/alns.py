@@ -22,8 +22,8 @@ the removal of a visit is only kept if coverage holds (`alns_kernels`).  Two
 UAVs may fly one viewpoint where targets need two sightings, and on small
 problems wherever they need more (the count is then a matching): the optimal
 plans of 7 of the 8 cases of ``bench_coverage --optimal`` where a search that
-gave each viewpoint to one UAV did worst (up to 16 % above) share viewpoints.  The best solution is
-returned, never worse than the RT+LS start.  A start that meets the rule only
+gave each viewpoint to one UAV did worst (up to 16 % above) share viewpoints.
+The best solution is returned, never worse than the RT+LS start.  A start that meets the rule only
 with a viewpoint flown by two UAVs where that is not allowed (`places.share`)
 is first repaired, or rebuilt, into one that does not (`_cover`); if none is
 found it is returned as it is, unsearched.
@@ -77,10 +77,12 @@ ITERATION_UNITS = 30_000
 #: upper bound grows with the target cells, so that a large area's search is not cut
 #: short (a 2048² plan flies 5.8 % less with 20 s than with 5 s, and a 1024² one 8.6 %;
 #: both stay within the planning-time goals of issue 22)
-#: A small problem gets at least 2 s: on the 90 proven optima, 0.5 s left ALNS at
-#: worst 6.5 % above the optimum (seed 18), 1 s 4.7 % (seed 3), 2 s 2.6 %
+#: A small problem gets at least 0.5 s (0.1 s left seed 9 of test_exact's set 7.7 %
+#: above its optimum). More helps there, at a price: on the 90 tuned-on proven optima
+#: of bench_coverage --optimal the worst is 6.5 % above at 0.5 s, 2.6 % at 2 s, whose
+#: median planning is 3.6 s
 BUDGET_PER_VISIT_S = 0.01
-MIN_BUDGET_S, MAX_BUDGET_S = 2.0, 5.0
+MIN_BUDGET_S, MAX_BUDGET_S = 0.5, 5.0
 BUDGET_PER_MILLION_CELLS_S, LARGE_MAX_BUDGET_S = 5.0, 20.0
 #: RT+LS is a start too (so ALNS is never worse than it) up to this many
 #: viewpoints x UAVs; beyond, its Python local search takes longer than the
@@ -169,7 +171,7 @@ class Alns:
         self.share = need == 2 or (need > 2 and exact)
         early = (prep.seen0[:MASK_UAVS].astype(np.int64)
                  << np.arange(min(n, MASK_UAVS), dtype=np.int64)[:, None]).sum(axis=0)
-        self.ex = (exact, early.astype(np.int64), prep.tgt_indptr, prep.tgt_indices)
+        self.ex = (exact, early, prep.tgt_indptr, prep.tgt_indices)
         self.times = np.array([self._time(r) for r in range(n)])
         nn = nearest_other(prep.travel)
         nn = nn[np.isfinite(nn)]
