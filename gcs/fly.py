@@ -60,7 +60,7 @@ from missions.segments import RouteMissions, fewer_waypoints
 from planner.context import PlanningContext
 from planner.fleet import prove_separated, stop_time
 from planner.plan import PLAN_FILE, Plan
-from planner.replan import coverable_targets, coverage_summary, seen_matrix
+from planner.replan import coverable_targets, coverage_summary
 from planner.travel import leg_time
 
 FORMAT = "gcs-flight/1"
@@ -1212,8 +1212,7 @@ class Flight:
         out = {"coverable_targets": coverable_targets(ctx) - short,
                "beyond_battery_targets": short}
         for name, group in (("survivors", alive), ("all_vehicles", every)):
-            seen = seen_matrix(ctx, [snapshot_xyz(ctx, v) for v in group])
-            out[name] = coverage_summary(ctx, seen, k)
+            out[name] = coverage_summary(ctx, [snapshot_xyz(ctx, v) for v in group], k)
         out["planned"] = {key: self.plan.metrics.get(key) for key in
                           ("targets", "covered", "k_covered", "coverage_time_s")}
         return out

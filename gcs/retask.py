@@ -44,12 +44,10 @@ from planner.replan import (
     Survivor,
     coverable_targets,
     coverage_summary,
+    place_counts,
     replan,
     requirement,
-    seen_by_place,
-    seen_matrix,
     survivor_start,
-    taken_viewpoints,
 )
 
 #: wall seconds to let a held vehicle brake before its position is taken
@@ -130,15 +128,14 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
         now = max((v.route.waypoints[i].t_s for i in v.done), default=0.0)
         if times:
             left = max(left, max(times) - now)
-    seen = seen_matrix(ctx, snaps)
-    summary = coverage_summary(ctx, seen, ctx.scenario.k)
+    summary = coverage_summary(ctx, snaps, ctx.scenario.k)
     summary["meets_requirement"] = summary["k_covered"] >= coverable_targets(ctx)
     # a target seen from fewer than k + 1 places has one sighting per place: one loss
     # can take its only one, which no plan could prevent without two vehicles flying
     # one place (a shared fate)
     places = np.diff(ctx.visibility.target_indptr)
     protected = places >= ctx.scenario.k + 1
-    kept = seen.sum(axis=0) >= max(1, ctx.scenario.k + 1 - n_lost)
+    kept = place_counts(ctx, snaps) >= max(1, ctx.scenario.k + 1 - n_lost)
     summary["tolerated"] = bool(kept[protected].all())
     summary["unprotected_targets"] = int(((places > 0) & ~protected).sum())
     summary["remaining_time_s"] = left
@@ -229,8 +226,8 @@ class Retasker:
             return []
         ctx, m = self.ctx, self.monitor
         everyone = flyers + landed
-        seen = seen_matrix(ctx, [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone])
-        if coverage_summary(ctx, seen, ctx.scenario.k)["k_covered"] >= coverable_targets(ctx):
+        shots = [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone]
+        if coverage_summary(ctx, shots, ctx.scenario.k)["k_covered"] >= coverable_targets(ctx):
             return []
         out = []
         for s in landed:
@@ -323,17 +320,13 @@ class Retasker:
             survivor, positions[s] = self._survivor(s, landed=s in landed)
             survivors.append(survivor)
         shots = [snapshot_xyz(ctx, m.vehicles[s]) for s in everyone]
-        seen = seen_matrix(ctx, shots)
         record.survivors, record.starts = sorted(everyone), positions
         record.required_uavs = int(requirement(ctx, len(everyone))[1][0])
-        # by place, as the re-plan counts them: a second survivor's sighting from a
-        # viewpoint another one photographed from is no sighting of its own
-        record.seen_before = coverage_summary(
-            ctx, seen_by_place(ctx, seen, shots, taken_viewpoints(ctx, shots)), ctx.scenario.k)
+        record.seen_before = coverage_summary(ctx, shots, ctx.scenario.k)  # by place
         record.original = original_outlook(ctx, m, everyone, len(record.lost))
         try:
             required = np.zeros(ctx.visibility.n_targets, np.int32) if self.home else None
-            outcome = replan(ctx, survivors, seen, required=required, snapshots=shots)
+            outcome = replan(ctx, survivors, required=required, snapshots=shots)
         except InputError as exc:
             raise RetaskError(f"re-plan failed: {exc}") from None
         record.planning_s = round(time.perf_counter() - t0, 3)

@@ -296,7 +296,7 @@ class Outcome:
 
 
 def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibility="soft",
-                     seen=None, required=None, travel=True, owner=None,
+                     seen=None, required=None, travel=True, visited=None,
                      battery_scale=(1.0, 1.0)) -> coverage.CoverageProblem:
     """The combinatorial problem: visibility sets, viewpoint times, start/return times
     (``travel`` False: without the viewpoint times, for a plan made in parts), and
@@ -317,7 +317,7 @@ def coverage_problem(ctx: PlanningContext, n_uavs: int, starts=None, k=0, visibi
                 battery = _battery(ctx, starts, out, tops, land, battery_scale)
     return coverage.CoverageProblem(vis.indptr, vis.indices, vis.n_targets,
                                     ctx.travel if travel else None, out, back, n_uavs, k,
-                                    visibility, required, seen, owner, **battery)
+                                    visibility, required, seen, visited=visited, **battery)
 
 
 def _battery(ctx, starts, out, tops, land, scale=(1.0, 1.0)) -> dict:
@@ -354,7 +354,7 @@ def above_launch(ctx, ground_xyz) -> np.ndarray:
 
 def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
              method=None, progress: Progress = None, budget_fraction=None,
-             strong_bound=True, scheduler=None, log=None, owner=None) -> Outcome:
+             strong_bound=True, scheduler=None, log=None, visited=None) -> Outcome:
     """Run the scenario's coverage method from ``starts`` and build hidden routes.
 
     ``budget_fraction`` caps the search budget (`coverage.CoverageParams`);
@@ -375,7 +375,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         try:
             problem, allocation, prep, sortie_of = _search(
                 ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
-                scheduler, log, owner, scale)
+                scheduler, log, visited, scale)
         except ValueError as exc:
             raise InputError("plan", str(exc)) from None
         with _stage("routes", timing, progress):
@@ -420,18 +420,18 @@ BATTERY_TRIES = 4
 
 
 def _search(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
-            scheduler, log, owner, scale) -> tuple:
+            scheduler, log, visited, scale) -> tuple:
     """(problem, allocation, prepared problem or None for a plan in parts, the
     sortie of each visit per UAV): the coverage method's search, the battery
     ``scale``d (`_battery`)."""
     s = ctx.scenario
     if parts > 1:
         problem, joined = _in_parts(ctx, parts, n_uavs, starts, seen, required, method,
-                                    params, timing, progress, scheduler, log, owner, scale)
+                                    params, timing, progress, scheduler, log, visited, scale)
         return problem, joined.allocation(problem, method), None, joined.sortie_of
     with _stage("allocation", timing, progress):
         problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
-                                   owner=owner, battery_scale=scale)
+                                   visited=visited, battery_scale=scale)
         prep = coverage.prepare(problem)  # once: the bounds below share it
         allocation = coverage.solve(problem, method, params,
                                     progress=(lambda f: progress("allocation", f))
@@ -465,7 +465,7 @@ def _sortie_of(prep, routes) -> list:
 
 
 def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
-              scheduler, log, owner=None, scale=(1.0, 1.0)):
+              scheduler, log, visited=None, scale=(1.0, 1.0)):
     """`allocate`'s search for an area planned in ``parts`` parts (`planner.split`):
     the problem of the whole area (without viewpoint times) and the joined routes
     (`split.Joined`); each part splits its routes into sorties on the battery
@@ -477,7 +477,7 @@ def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing
     start = time.perf_counter()
     with dask_client(scheduler, ctx.terrain.height.size, log) as client:
         problem = coverage_problem(ctx, n_uavs, starts, s.k, s.visibility, seen, required,
-                                   travel=False, owner=owner, battery_scale=scale)
+                                   travel=False, visited=visited, battery_scale=scale)
         pieces = split.make_parts(problem, ctx.viewpoints.xyz[:, :2], parts)
         # one sparse overlay of the whole area: the parts' times go through any viewpoint
         overlay = ctx.viewpoint_overlay(client, _fraction(progress, "travel times"))

@@ -28,8 +28,8 @@ from planner.travel import CLEARANCE_MARGIN_M, leg_time
 from planner.visibility import Viewpoints, compute_visibility
 
 from .context import PlanningContext
-from .coverage import required_uavs
-from .coverage.problem import FREE
+from .coverage import CoverageProblem, required_uavs
+from .coverage.metrics import sighting_counts
 from .pipeline import Start, above_launch, allocate
 
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
@@ -127,15 +127,15 @@ def coverable_targets(ctx: PlanningContext) -> int:
     return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
 
 
-def coverage_summary(ctx: PlanningContext, seen: np.ndarray, k: int) -> dict:
-    """How well targets are covered by the UAVs in ``seen`` (distinct UAVs per
-    target): ``k_covered`` counts the targets seen by min(k + 1, UAVs) of them, or
-    by one per place where fewer places see them (sightings count from distinct
-    places: `planner.coverage.places`); ``k_impossible``: how many have fewer
-    places than that."""
-    counts = seen.sum(axis=0) if len(seen) else np.zeros(ctx.visibility.n_targets, int)
+def coverage_summary(ctx: PlanningContext, snapshots_per_uav, k: int) -> dict:
+    """How well targets are covered by the snapshots (xyz arrays, one per UAV):
+    ``k_covered`` counts the targets seen by min(k + 1, UAVs) of them from as many
+    distinct places (`place_counts`), or by one per place where fewer places see
+    them; ``k_impossible``: how many have fewer places than that."""
     n = int(ctx.visibility.n_targets)
-    need = required_uavs(k, len(seen))
+    counts = place_counts(ctx, snapshots_per_uav) if len(snapshots_per_uav) else \
+        np.zeros(n, int)
+    need = required_uavs(k, len(snapshots_per_uav))
     places = np.diff(ctx.visibility.target_indptr)
     wanted = np.minimum(need, places)
     return {"targets": n, "covered": int((counts >= 1).sum()),
@@ -286,16 +286,20 @@ def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
     return min(k, n_survivors - 1), np.full(ctx.visibility.n_targets, need, np.int32)
 
 
-def taken_viewpoints(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
-    """int64 per candidate viewpoint: the survivor (index) that photographed from it
-    (a snapshot within `SNAP_TO_VIEWPOINT_M`), `FREE` for none. Those places are its
-    own: another survivor's sighting there would share its fate."""
-    owner = np.full(len(ctx.viewpoints), FREE, np.int64)
-    for r, at in enumerate(_snapped(ctx, snapshots_per_uav)):
-        for e in at[at >= 0]:
-            if owner[e] == FREE:
-                owner[e] = r
-    return owner
+def earlier_sightings(ctx: PlanningContext, snapshots_per_uav) -> tuple:
+    """What the survivors photographed, by place (`planner.coverage.places`):
+    (visited, seen), bool [n_survivors, n_viewpoints] the candidate viewpoints
+    each took a snapshot at (within `SNAP_TO_VIEWPOINT_M`), and bool
+    [n_survivors, n_targets] what it saw from anywhere else (places of their
+    own). Two survivors' snapshots at one viewpoint are one place: they count
+    once, and a third survivor flying there adds no place either."""
+    snapped = _snapped(ctx, snapshots_per_uav)
+    visited = np.zeros((len(snapped), len(ctx.viewpoints)), bool)
+    elsewhere = []
+    for r, (xyz, at) in enumerate(zip(snapshots_per_uav, snapped)):
+        visited[r, at[at >= 0]] = True
+        elsewhere.append(np.asarray(xyz, float).reshape(-1, 3)[at < 0])
+    return visited, seen_matrix(ctx, elsewhere)
 
 
 def _snapped(ctx: PlanningContext, snapshots_per_uav) -> list:
@@ -313,25 +317,26 @@ def _snapped(ctx: PlanningContext, snapshots_per_uav) -> list:
     return out
 
 
-def seen_by_place(ctx: PlanningContext, seen, snapshots_per_uav, owner) -> np.ndarray:
-    """``seen`` less what a survivor saw only from a place another survivor owns
-    (`taken_viewpoints`): two sightings from one viewpoint count once, so the second
-    one there is no sighting of its own (counting it let a re-plan of a plan that
-    shared a viewpoint leave targets one sighting short)."""
-    own = [np.asarray(xyz, float).reshape(-1, 3)[(at < 0) | (owner[np.maximum(at, 0)] == r)]
-           for r, (xyz, at) in enumerate(zip(snapshots_per_uav,
-                                             _snapped(ctx, snapshots_per_uav)))]
-    return seen & seen_matrix(ctx, own)
+def place_counts(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
+    """Per target, its sightings in ``snapshots_per_uav`` (xyz arrays per UAV) from
+    distinct UAVs at distinct places (`earlier_sightings`, counted by the
+    matching of `planner.coverage.places`)."""
+    visited, seen = earlier_sightings(ctx, snapshots_per_uav)
+    vis = ctx.visibility
+    problem = CoverageProblem(vis.indptr, vis.indices, vis.n_targets, None, None, None,
+                              max(len(visited), 1), seen=seen if len(visited) else None,
+                              visited=visited if len(visited) else None)
+    return sighting_counts(problem, [[] for _ in range(len(visited))])
 
 
 def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
            progress=None, required=None, snapshots=None):
     """Routes for ``survivors`` (list of `Survivor`) from where they are.
 
-    ``seen``: bool [n_survivors, n_targets], what each has photographed so far
-    (`seen_matrix`), None for nothing; ``snapshots``: where (xyz arrays per
-    survivor), so that no other survivor counts a sighting from those places
-    (`taken_viewpoints`). ``required`` overrides the per-target requirement (all
+    ``snapshots``: where each has photographed so far (xyz arrays per survivor),
+    counted by place (`earlier_sightings`); or, without them, ``seen``: bool
+    [n_survivors, n_targets] (`seen_matrix`), each sighting a place of its own;
+    None for nothing. ``required`` overrides the per-target requirement (all
     zeros: straight home along hidden paths). Returns the
     `planner.pipeline.Outcome` with vehicle ids renumbered to the survivors' plan
     ids; each route starts at the survivor's (possibly snapped) position and ends
@@ -343,13 +348,13 @@ def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
     required = need if required is None else np.asarray(required, np.int32)
     sub = replace(ctx, scenario=replace(ctx.scenario, k=k, uavs=len(survivors)))
     starts = [survivor_start(ctx, s) for s in survivors]
-    owner = None if snapshots is None else taken_viewpoints(ctx, snapshots)
-    if owner is not None and seen is not None:
-        seen = seen_by_place(ctx, seen, snapshots, owner)
+    visited = None
+    if snapshots is not None:
+        visited, seen = earlier_sightings(ctx, snapshots)
     outcome = allocate(sub, len(survivors), starts, seen=seen, required=required,
                        method=method, progress=progress,
                        budget_fraction=REPLAN_BUDGET_FRACTION, strong_bound=False,
-                       owner=owner)
+                       visited=visited)
     for r, (vehicle, s) in enumerate(zip(outcome.plan.vehicles, survivors)):
         vehicle.id = int(s.vehicle_id)
     return outcome

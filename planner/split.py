@@ -223,6 +223,7 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
                                     endurance_s=problem.endurance_s,
                                     turnaround_s=problem.turnaround_s,
                                     reach_s=problem.reach_s, base_out=rows(problem.base_out),
+                                    visited=rows(problem.visited),
                                     used_s=per_uav(problem.used_s),
                                     start_back=per_uav(problem.start_back))
 
@@ -352,15 +353,16 @@ def drop_redundant(problem, routes, arrivals, by: float):
                          + [np.zeros(0, np.int64)])
     vp = np.concatenate([np.asarray(r, np.int64) for r in routes] + [np.zeros(0, np.int64)])
     when = np.concatenate([np.asarray(a, float) for a in arrivals] + [np.zeros(0)])
-    seen = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
-            else np.asarray(problem.seen, np.bool_))
+    seen = problem.seen_before()
+    own = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
+           else np.asarray(problem.seen, np.bool_))
     length = np.array([a[-1] if len(a) else 0.0 for a in arrivals])
     pos = np.concatenate([np.arange(len(r)) for r in routes] + [np.zeros(0, np.int64)])
     order = np.lexsort((pos, -length[uav])) if len(uav) else np.zeros(0, np.int64)
     indptr, indices = np.asarray(problem.vis_indptr, np.int64), np.asarray(problem.vis_indices)
     # where two UAVs fly one viewpoint (a share repair) distinct UAVs are not distinct
     # places: what such a viewpoint sees is counted by the exact matching rule
-    at = np.full((problem.n_uavs, problem.n_viewpoints), np.inf)
+    at = np.where(problem.visited_matrix(), 0.0, np.inf)
     np.minimum.at(at, (uav, vp), np.where(when <= by, when, np.inf))
     shared = np.zeros(problem.n_targets, bool)
     for e in np.flatnonzero(np.isfinite(at).sum(axis=0) >= 2):
@@ -368,19 +370,20 @@ def drop_redundant(problem, routes, arrivals, by: float):
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, int(problem.n_targets))
     need = problem.needs()      # a short target keeps all it has
     some = np.flatnonzero(shared)
-    need[some] = matched_counts(some, at, tgt_indptr, tgt_indices, seen, need)
-    keep = _droppable(uav, vp, when, order, indptr, indices, seen, need, float(by), shared,
-                      at, tgt_indptr, tgt_indices)
+    need[some] = matched_counts(some, at, tgt_indptr, tgt_indices, own, need)
+    keep = _droppable(uav, vp, when, order, indptr, indices, seen, own, need, float(by),
+                      shared, at, tgt_indptr, tgt_indices)
     return np.split(keep, np.cumsum([len(r) for r in routes])[:-1])
 
 
 @njit(cache=True)
-def _droppable(uav, vp, when, order, indptr, indices, seen, required, by, shared, at,
+def _droppable(uav, vp, when, order, indptr, indices, seen, own, required, by, shared, at,
                tgt_indptr, tgt_indices):
     """Keep flag per visit (see `drop_redundant`): ``mult[u, t]`` counts u's
-    sightings of t by ``by``, ``count[t]`` the distinct UAVs with one; a
-    ``shared`` target is counted by `places.count_with` on ``at`` (first visit
-    times, kept up to date) instead."""
+    sightings of t by ``by`` (``seen``: before planning), ``count[t]`` the
+    distinct UAVs with one; a ``shared`` target is counted by `places.count_with`
+    on ``at`` (first visit times, kept up to date; ``own``: earlier sightings
+    from places of their own) instead."""
     n_uavs, n_t = seen.shape
     mult = np.zeros((n_uavs, n_t), np.int16)  # a UAV sees a target from few viewpoints
     for u in range(n_uavs):
@@ -411,7 +414,7 @@ def _droppable(uav, vp, when, order, indptr, indices, seen, required, by, shared
             at[u, e] = np.inf
             for j in range(indptr[e], indptr[e + 1]):
                 t = indices[j]
-                if shared[t] and count_with(t, at, tgt_indptr, tgt_indices, seen, -1, -1,
+                if shared[t] and count_with(t, at, tgt_indptr, tgt_indices, own, -1, -1,
                                             required[t]) < required[t]:
                     ok = False
                     break
@@ -435,8 +438,7 @@ def reach_bound(problem) -> float:
     if problem.launch_out is None:
         return 0.0
     rows, of = np.unique(np.asarray(problem.launch_out), axis=0, return_inverse=True)
-    seen = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
-            else np.asarray(problem.seen, np.bool_))
+    seen = problem.seen_before()
     indices = np.asarray(problem.vis_indices)
     need = np.minimum(problem.needs(), achievable(problem))  # as `coverage.prepare` caps it
     return float(reach_bound_of(rows, of.ravel(), np.asarray(problem.vis_indptr, np.int64),

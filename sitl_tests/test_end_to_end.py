@@ -22,7 +22,7 @@ from fleets import LONG, REAL_BACKENDS, SPEEDUP, start_backend
 
 from gcs.fly import Flight, FlyOptions
 from planner.exposure import segments_clear, segments_hidden
-from planner.replan import coverage_summary, seen_matrix
+from planner.replan import coverage_summary
 
 LOST_AFTER_S = 3.0
 #: real SITL on a shared 2-core machine: a starved PX4 (lockstep) or ArduPilot
@@ -201,7 +201,7 @@ def recorded_coverage(ctx, tracks, sysids, k) -> dict:
     for sysid in sysids:
         s = np.asarray(tracks[sysid][4], float).reshape(-1, 3)
         snaps.append(_xyz(ctx, s[:, 0], s[:, 1], s[:, 2]) if len(s) else np.zeros((0, 3)))
-    return coverage_summary(ctx, seen_matrix(ctx, snaps), k)
+    return coverage_summary(ctx, snaps, k)
 
 
 def coverable(ctx) -> int:

@@ -1,7 +1,8 @@
 """Brute-force reference of the fault-tolerance rule, independent of the planner's
 matching: a target's sightings count when they come from distinct UAVs at
-distinct places (a viewpoint; an earlier sighting is a place of its own), found
-by trying every subset of its sightings."""
+distinct places (a viewpoint, also for an earlier photograph taken there:
+``visited``; an earlier sighting from elsewhere, ``seen``, is a place of its
+own), found by trying every subset of its sightings."""
 
 import itertools
 import math
@@ -24,6 +25,10 @@ def sightings(problem, routes, when=None) -> list:
     if problem.seen is not None:
         for r, t in zip(*np.nonzero(problem.seen)):
             out[t].append((0.0, int(r), ("before", int(r))))
+    if problem.visited is not None:
+        for r, e in zip(*np.nonzero(problem.visited)):
+            for t in np.flatnonzero(vis[e]):
+                out[t].append((0.0, int(r), int(e)))
     for r, route in enumerate(routes):
         now = 0.0
         for i, e in enumerate(route):
@@ -57,7 +62,7 @@ def needed_time(found, need) -> float:
     """When the target first has ``need`` counted sightings (inf: never)."""
     if need <= 0:
         return 0.0
-    found = sorted(found)
+    found = sorted(found, key=lambda s: s[0])
     for i in range(len(found)):
         if matched(found[:i + 1], need) >= need:
             return found[i][0]

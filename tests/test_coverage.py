@@ -378,6 +378,42 @@ def test_replanning_counts_earlier_snapshots():
     assert a.routes == [[], [], []] and a.coverage_time == 0.0
 
 
+@pytest.mark.parametrize("k", [1, 2])
+def test_replanning_counts_earlier_photographs_at_their_viewpoints(k):
+    """Earlier photographs from viewpoints (some by two UAVs) are sightings at those
+    places: a UAV flying one of them again adds no place, and another UAV may fly
+    it where only that gives a target its sightings. Judged by the brute-force
+    matching over places, every method."""
+    problem = small(k=k, seed=7, launch=True)
+    rng = np.random.default_rng(3)
+    problem.visited = rng.uniform(size=(problem.n_uavs, problem.n_viewpoints)) < 0.12
+    problem.seen = rng.uniform(size=(problem.n_uavs, problem.n_targets)) < 0.05
+    assert (problem.visited.sum(axis=0) >= 2).any()
+    for method in METHODS:
+        a = solve(problem, method, FAST)
+        assert a.covered, method
+        assert_covers(problem, a)
+        assert_times(problem, a)
+
+
+def test_a_place_one_uav_took_is_flown_by_another_when_the_target_needs_it():
+    """`make demo`'s lost target: seen only from viewpoints 0 and 1, both of which
+    UAV 0 photographed from before; k = 1 needs UAV 1 at one of them, whatever the
+    method (ALNS: at the nearer for it, 1, while UAV 0 flies 2: the optimum)."""
+    travel = np.array([[0.0, 60.0, 30.0], [60.0, 0.0, 30.0], [30.0, 30.0, 0.0]])
+    lo = np.array([[10.0, 10.0, 10.0], [40.0, 20.0, 5.0]])
+    problem = CoverageProblem(np.array([0, 1, 2, 3]), np.array([0, 0, 1]), 2, travel, lo, lo,
+                              2, k=1, visited=np.array([[True, True, False], [False] * 3]))
+    for method in METHODS:
+        a = solve(problem, method, FAST)
+        assert a.covered and a.uncoverable == 1, method     # target 1: one place
+        assert 1 in a.routes[1] or 0 in a.routes[1], method
+        assert_covers(problem, a)
+        assert_times(problem, a)
+    a = solve(problem, "alns", FAST)
+    assert a.routes == [[2], [1]] and a.coverage_time == pytest.approx(20.0)
+
+
 def test_lower_bound_reach_term_with_launch_points():
     """One target: the bound is the (k+1)-th fastest UAV to reach a place seeing it.
     Seen only from viewpoint 1 it has one place, so one sighting counts, k or not;

@@ -8,6 +8,8 @@ import numpy as np
 import places_reference as ref
 import pytest
 from exhaustive import CASES, exhaustive_optimum, tiny
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from planner.coverage import (
     METHODS,
@@ -17,6 +19,7 @@ from planner.coverage import (
     solve,
 )
 from planner.coverage.alns import default_budget_s, search
+from planner.coverage.alns_kernels import _matching
 from planner.coverage.bounds import flow_bound
 from planner.coverage.instances import random_problem
 from planner.coverage.problem import prepare
@@ -48,14 +51,27 @@ def test_alns_keeps_coverage_after_a_loss():
     problem.required = need
     a = solve(problem, "alns", QUICK)
     assert a.covered and ref.shortfall(problem, a.routes) == 0
+    # earlier photographs at viewpoints: places another survivor may fly again
+    problem.seen = rng.uniform(size=(3, problem.n_targets)) < 0.05
+    problem.visited = rng.uniform(size=(3, problem.n_viewpoints)) < 0.15
+    a = solve(problem, "alns", QUICK)
+    assert a.covered and ref.shortfall(problem, a.routes) == 0
 
 
-def test_every_intermediate_alns_solution_covers(monkeypatch):
-    """Each repaired and polished state of the search, not only the returned one, covers."""
+@pytest.mark.parametrize("n_uavs,k,before", [(3, 1, False), (4, 2, True)])
+def test_every_intermediate_alns_solution_covers(monkeypatch, n_uavs, k, before):
+    """Each repaired and polished state of the search, not only the returned one, covers:
+    with two sightings needed (counted as min(UAVs, places)) and with three, where
+    shared viewpoints make the search count a matching, earlier sightings too (at
+    viewpoints and elsewhere)."""
     from planner.coverage import alns as alns_module
 
-    problem = random_problem(n_viewpoints=30, n_targets=200, n_uavs=3, k=1, seed=4,
+    problem = random_problem(n_viewpoints=30, n_targets=200, n_uavs=n_uavs, k=k, seed=4,
                              launch=True, size_m=2000.0, sensor_m=450.0)
+    if before:      # from places of their own, and from viewpoints (some by two UAVs)
+        rng = np.random.default_rng(2)
+        problem.seen = rng.uniform(size=(n_uavs, 200)) < 0.05
+        problem.visited = rng.uniform(size=(n_uavs, 30)) < 0.1
     prep = prepare(problem)
     start = solve(problem, "rt").routes
     checked = []
@@ -70,6 +86,22 @@ def test_every_intermediate_alns_solution_covers(monkeypatch):
     result = search(prep, [start], CoverageParams(seed=3), units=2_000_000)
     assert result.iterations > 10 and len(checked) > 10 and all(checked)
     assert ref.shortfall(problem, result.routes) == 0
+
+
+@settings(max_examples=400, deadline=None, derandomize=True)
+@given(st.integers(1, 6).flatmap(lambda n: st.tuples(
+    st.just(n), st.lists(st.integers(0, 2 ** n - 1), min_size=1, max_size=8),
+    st.integers(0, 2 ** n - 1), st.integers(1, n))))
+def test_the_search_counts_sightings_as_the_brute_force_matching(case):
+    """`_matching` (the count beyond two sightings): UAVs flying shared and own
+    viewpoints, and earlier sightings (a place each), against every subset."""
+    n, masks, early, cap = case
+    fly = np.array([[bin(m).count("1"), m] for m in masks], np.int64)
+    ex = (True, np.array([early], np.int64), np.array([0, len(masks)], np.int64),
+          np.arange(len(masks), dtype=np.int64))
+    found = [(0.0, u, p) for p, m in enumerate(masks) for u in range(n) if m >> u & 1]
+    found += [(0.0, u, ("before", u)) for u in range(n) if early >> u & 1]
+    assert _matching(0, fly, cap, ex) == ref.matched(found, cap)
 
 
 def test_alns_is_deterministic_for_a_seed_and_budget():

@@ -24,7 +24,7 @@ from gcs.monitor import LANDED, LOST, Monitor
 from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
 from gcs.sim.fleet import terrain_ground
 from missions.build import MissionOptions, vehicle_mission
-from planner.replan import coverable_targets, coverage_summary, seen_matrix
+from planner.replan import coverable_targets, coverage_summary
 
 pytestmark = pytest.mark.timeout(150)
 
@@ -227,7 +227,7 @@ def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp
         s = np.array([[p["lon"], p["lat"], p["alt"]] for p in t.snapshots]).reshape(-1, 3)
         x, y = ctx.terrain.from_lonlat(s[:, 0], s[:, 1])
         snaps.append(np.stack([x, y, s[:, 2]], axis=1))
-    cov = coverage_summary(ctx, seen_matrix(ctx, snaps), ctx.scenario.k)
+    cov = coverage_summary(ctx, snaps, ctx.scenario.k)
     assert cov["k_covered"] == coverable_targets(ctx)       # from what they really shot
 
 

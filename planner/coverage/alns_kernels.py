@@ -1,10 +1,23 @@
 """Numba kernels of the ALNS (`alns.py`): repair, redundant-visit removal, route order.
 
 Routes are held in a padded matrix ``R[r, :L[r]]`` (viewpoint ids in flying
-order) so that the kernels need no Python lists.  Coverage bookkeeping is
-that of the local search: ``cnt[r, t]`` = how many of r's visits (plus an
-earlier snapshot) see target t, ``dc[t]`` = distinct UAVs with ``cnt > 0``;
-target t is *short* while ``dc[t] < req[t]``.
+order) so that the kernels need no Python lists.  Coverage bookkeeping:
+``cnt[r, t]`` = how many of r's visits (plus an earlier snapshot) see target t,
+``dc[t]`` = distinct UAVs with ``cnt > 0`` (the local search's), ``fly[e]`` =
+(how many UAVs fly viewpoint e or photographed from it before, the bit set of
+those UAVs), ``pc[t]`` = distinct places that see t (viewpoints so flown, and
+each earlier sighting from no viewpoint: a place of its own).  Target t counts the sightings of `places`: the largest
+matching of UAVs to distinct places that see it (`met`), and is *short* while
+that is below ``req[t]``.  The matching is at most ``min(dc[t], pc[t])`` and
+equal to it up to two (König: a matching of size two exists unless one UAV or
+one place holds every sighting), and equal to ``dc`` while each viewpoint is
+flown by one UAV; only above two, with shared viewpoints, is it computed
+(`_matching`, on the bit sets), which the ``ex`` tuple turns on: (exact,
+``early[t]`` = the bit set of UAVs with an earlier sighting of t from a
+place of its own,
+``tgt_indptr``, ``tgt_indices``).  Two UAVs may fly one viewpoint
+(``share``) where no target needs more than two sightings, or where the
+matching is computed.
 
 Every kernel returns (or adds to) a count of elementary evaluations, the
 *work units* the ALNS budget is measured in (deterministic, unlike a clock).
@@ -20,7 +33,7 @@ from .insertion import (
     route_time,
     walked,
 )
-from .problem import FREE
+from .problem import CLOSED
 
 START = -1  # a route's start: its launch point, or nowhere (free start) without one
 END = -2  # a route's end: free (coverage time stops at the last snapshot)
@@ -57,6 +70,137 @@ def apply_visit(cnt, dc, r, e, delta, vis_indptr, vis_indices):
             dc[t] -= 1
 
 
+#: UAVs a bit set holds (``fly[:, 1]``, ``early``): the matching is computed for
+#: fleets up to this size only
+MASK_UAVS = 62
+
+
+@njit(cache=True, nogil=True)
+def apply_place(pc, fly, r, e, delta, vis_indptr, vis_indices):
+    """Add (delta = 1) or remove (delta = -1) UAV r's visit of e from the places."""
+    before = fly[e, 0]
+    fly[e, 0] = before + delta
+    if r < MASK_UAVS:
+        fly[e, 1] = fly[e, 1] | (1 << r) if delta > 0 else fly[e, 1] & ~(1 << r)
+    if (before == 0 and delta > 0) or (before + delta == 0 and delta < 0):
+        for j in range(vis_indptr[e], vis_indptr[e + 1]):
+            pc[vis_indices[j]] += delta
+
+
+@njit(cache=True, nogil=True)
+def _bits(m):
+    c = 0
+    while m:
+        m &= m - 1
+        c += 1
+    return c
+
+
+@njit(cache=True, nogil=True)
+def _matching(t, fly, cap, ex):
+    """The largest matching of UAVs to distinct places seeing t, up to ``cap``. A
+    UAV with a place of its own (an earlier sighting, a viewpoint only it flies)
+    is matched there (no other UAV wants that place); the rest by augmenting
+    paths over the shared viewpoints."""
+    early, tgt_indptr, tgt_indices = ex[1], ex[2], ex[3]
+    own = early[t]
+    shared = np.empty(tgt_indptr[t + 1] - tgt_indptr[t], np.int64)
+    k = 0
+    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+        m = fly[tgt_indices[i], 1]
+        if m & (m - 1) == 0:
+            own |= m
+        else:
+            shared[k] = m
+            k += 1
+    size = _bits(own)
+    owner = np.full(MASK_UAVS, -1, np.int64)  # UAV -> the shared place it holds
+    back = np.empty(k, np.int64)               # place -> the place it was reached from
+    via = np.empty(k, np.int64)                # place -> the UAV it was reached by
+    queue = np.empty(k, np.int64)
+    for p in range(k):
+        if size >= cap:
+            break
+        back[:] = -2
+        back[p], queue[0], head, tail, seen = -1, p, 0, 1, own
+        while head < tail:
+            q = queue[head]
+            head += 1
+            m = shared[q] & ~seen
+            u = 0
+            while m:
+                if m & 1:
+                    seen |= 1 << u
+                    if owner[u] < 0:            # free: flip the path back to p
+                        while True:
+                            owner[u] = q
+                            if q == p:
+                                break
+                            u, q = via[q], back[q]
+                        size += 1
+                        head = tail
+                        break
+                    nq = owner[u]
+                    if back[nq] == -2:
+                        back[nq], via[nq] = q, u
+                        queue[tail] = nq
+                        tail += 1
+                m >>= 1
+                u += 1
+    return min(size, cap)
+
+
+@njit(cache=True, nogil=True)
+def met(t, dc, pc, fly, req, ex):
+    """Sightings target t counts, up to ``req[t]`` (see the module doc)."""
+    m = min(dc[t], pc[t])
+    if m <= 2 or req[t] <= 2 or not ex[0]:
+        return m
+    return _matching(t, fly, req[t], ex)
+
+
+@njit(cache=True, nogil=True)
+def _raises(t, r, e, cnt, dc, pc, fly, req, ex):
+    """Whether UAV r's visit of viewpoint e (not flown by r) gives short target t
+    one more sighting."""
+    now = met(t, dc, pc, fly, req, ex)
+    if now >= req[t]:
+        return False
+    d = dc[t] + (1 if cnt[r, t] == 0 else 0)
+    p = pc[t] + (1 if fly[e, 0] == 0 else 0)
+    up = min(d, p)
+    if up <= now or up <= 2 or req[t] <= 2 or not ex[0]:
+        return up > now
+    m = fly[e, 1]
+    fly[e, 1] = m | (1 << r)
+    after = _matching(t, fly, req[t], ex)
+    fly[e, 1] = m
+    return after > now
+
+
+@njit(cache=True, nogil=True)
+def _open(e, r, on, fly, owner0, share):
+    """Whether UAV r may add viewpoint e: not flown by it nor `CLOSED`, and, unless
+    viewpoints may be ``share``d, flown by nobody (now or before)."""
+    if on[r, e] or owner0[e] == CLOSED:
+        return False
+    return share or fly[e, 0] == 0
+
+
+@njit(cache=True, nogil=True)
+def _add_gains(t, sign, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
+               tgt_indices, ex):
+    """Add (sign 1) or take away (-1) what target t gives each candidate pair."""
+    n = gain.shape[1]
+    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+        c = cand_of[tgt_indices[i]]
+        if c < 0:
+            continue
+        for r in range(n):
+            if _raises(t, r, cands[c], cnt, dc, pc, fly, req, ex):
+                gain[c, r] += sign * weight[t]
+
+
 @njit(cache=True, nogil=True)
 def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
     if mode == PTV_MODE:
@@ -67,15 +211,16 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
 
 
 @njit(cache=True, nogil=True)
-def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tgt_indptr,
-           tgt_indices, travel, frames, sorties, has_launch, mode, alpha, lam, eps, noise,
-           rnd, owner0):
+def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_indices,
+           tgt_indptr, tgt_indices, travel, frames, sorties, has_launch, mode, alpha, lam, eps,
+           noise, rnd, owner0, share, ex):
     """Insert visits until no target in ``short`` (and no other) is short.
 
-    Candidates are the (viewpoint, UAV) pairs that give a short target a new
-    *distinct* viewer, from a viewpoint no other UAV visits (nor photographed
-    from before: ``owner0``, `problem.FREE` where nobody did); each is inserted
-    at its cheapest edge-breaking slot.
+    Candidates are the (viewpoint, UAV) pairs that give a short target one more
+    sighting (`_raises`), from a viewpoint the UAV may add (`_open`: not
+    `problem.CLOSED` in ``owner0``, and no other UAV flies it or photographed
+    from it before unless ``share``); each is inserted at its cheapest
+    edge-breaking slot.
     ``mode``: PTV (the paper's M_PTV on the short targets gained), MAKESPAN
     (targets gained per growth of the makespan plus ``lam`` x the added
     time), REGRET (the short target whose best option is most ahead of its
@@ -87,10 +232,10 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     """
     n = R.shape[0]
     n_vp = travel.shape[0]
-    owner = owner0.copy()
+    on = np.zeros((n, n_vp), np.bool_)
     for r in range(n):
         for i in range(L[r]):
-            owner[R[r, i]] = r
+            on[r, R[r, i]] = True
     cand_of = np.full(n_vp, -1, np.int64)
     cands = np.empty(n_vp, np.int64)
     nc = 0
@@ -106,24 +251,17 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
     remaining = 0
     for s in range(len(short)):
         t = short[s]
-        if dc[t] >= req[t]:
+        if met(t, dc, pc, fly, req, ex) >= req[t]:
             continue
         remaining += 1
-        for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-            c = cand_of[tgt_indices[i]]
-            for r in range(n):
-                if cnt[r, t] == 0:
-                    gain[c, r] += weight[t]
+        _add_gains(t, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
+                   tgt_indices, ex)
     dt = np.full((nc, n), np.inf)
     pos = np.zeros((nc, n), np.int64)
     work = 2 * len(short) + (tgt_indptr[short + 1] - tgt_indptr[short]).sum() * (n + 1)
     for r in range(n):
-        route = R[r, :L[r]]
-        for c in range(nc):
-            if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
-                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r],
-                                                  sorties[r], has_launch)
-                work += L[r] + 1
+        work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, frames,
+                       sorties, has_launch)
     k = 0
     while remaining > 0:
         t_max = times.max()
@@ -132,13 +270,14 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
             best_regret, best_first = -1.0, np.inf
             for s in range(len(short)):
                 t = short[s]
-                if dc[t] >= req[t]:
+                if met(t, dc, pc, fly, req, ex) >= req[t]:
                     continue
                 c1, c2, o_c, o_r = np.inf, np.inf, -1, -1
                 for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
                     c = cand_of[tgt_indices[i]]
                     for r in range(n):
-                        if cnt[r, t] != 0 or not np.isfinite(dt[c, r]):
+                        if not np.isfinite(dt[c, r]) or \
+                                not _raises(t, r, cands[c], cnt, dc, pc, fly, req, ex):
                             continue
                         cost = 1.0 / _score(MAKESPAN_MODE, gain[c, r], dt[c, r], times[r],
                                             t_max, alpha, lam, eps)
@@ -180,53 +319,80 @@ def repair(R, L, times, cnt, dc, req, weight, short, vis_indptr, vis_indices, tg
             R[r, i] = R[r, i - 1]
         R[r, p] = x
         L[r] += 1
-        owner[x] = r
-        for q in range(n):          # closed to the other UAVs from now on
-            if q != r:
-                dt[bc, q] = np.inf
+        on[r, x] = True
         times[r] = time_of(R, L, r, travel, frames, sorties, has_launch)
-        # coverage and gains
-        for j in range(vis_indptr[x], vis_indptr[x + 1]):
+        # coverage and gains: what x's targets gave, taken away, and given again
+        lo, hi = vis_indptr[x], vis_indptr[x + 1]
+        was = np.empty(hi - lo, np.bool_)  # which of x's targets were short
+        for j in range(lo, hi):
             t = vis_indices[j]
-            if cnt[r, t] == 0:
-                dc[t] += 1
-                if dc[t] <= req[t]:  # t was short: r is a new distinct viewer
-                    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-                        c = cand_of[tgt_indices[i]]
-                        if c >= 0:
-                            gain[c, r] -= weight[t]
-                            if dc[t] == req[t]:  # no longer short: nobody gains it
-                                for q in range(n):
-                                    if q != r and cnt[q, t] == 0:
-                                        gain[c, q] -= weight[t]
-                    if dc[t] == req[t]:
-                        remaining -= 1
-                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * (n if dc[t] == req[t] else 1)
-            cnt[r, t] += 1
-        work += vis_indptr[x + 1] - vis_indptr[x] + nc
-        route = R[r, :L[r]]
-        for c in range(nc):
-            if gain[c, r] > 0 and (owner[cands[c]] == FREE or owner[cands[c]] == r):
-                dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r],
-                                                  sorties[r], has_launch)
-                work += L[r] + 1
+            was[j - lo] = met(t, dc, pc, fly, req, ex) < req[t]
+            if was[j - lo]:
+                _add_gains(t, -1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
+                           tgt_indptr, tgt_indices, ex)
+                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n
+        apply_visit(cnt, dc, r, x, 1, vis_indptr, vis_indices)
+        apply_place(pc, fly, r, x, 1, vis_indptr, vis_indices)
+        for j in range(lo, hi):
+            t = vis_indices[j]
+            if not was[j - lo]:
+                continue
+            if met(t, dc, pc, fly, req, ex) < req[t]:
+                _add_gains(t, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
+                           tgt_indptr, tgt_indices, ex)
+                work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n
             else:
-                dt[c, r] = np.inf
+                remaining -= 1
+        work += 2 * (hi - lo) + nc
+        if not share:               # closed to the other UAVs from now on
+            for q in range(n):
+                if q != r:
+                    dt[bc, q] = np.inf
+        work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel,
+                       frames, sorties, has_launch)
     return True, work
 
 
 @njit(cache=True, nogil=True)
-def _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
+def _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, frames, sorties,
+           has_launch):
+    """Cheapest insertion of each candidate into route r (``dt``, ``pos``; inf where
+    it may not go). Without ``share`` only the pairs that gain now are costed (a
+    gain never appears later); with it every open pair (a place added elsewhere
+    can make one gain). Returns work."""
+    work = 0
+    route = R[r, :L[r]]
+    for c in range(nc):
+        if (gain[c, r] > 0 or share) and _open(cands[c], r, on, fly, owner0, share):
+            dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r], sorties[r],
+                                              has_launch)
+            work += L[r] + 1
+        else:
+            dt[c, r] = np.inf
+    return work
+
+
+@njit(cache=True, nogil=True)
+def _removable(cnt, dc, pc, fly, req, r, e, vis_indptr, vis_indices, ex):
+    """Whether UAV r's visit of e can go without leaving a target short by it."""
     for j in range(vis_indptr[e], vis_indptr[e + 1]):
         t = vis_indices[j]
-        if cnt[r, t] == 1 and dc[t] <= req[t]:
+        d = dc[t] - (1 if cnt[r, t] == 1 else 0)
+        p = pc[t] - (1 if fly[e, 0] == 1 else 0)
+        after = min(d, p)
+        if after > 2 and req[t] > 2 and ex[0]:
+            m = fly[e, 1]
+            fly[e, 1] = m & ~(1 << r)
+            after = _matching(t, fly, req[t], ex)
+            fly[e, 1] = m
+        if after < req[t] and after < met(t, dc, pc, fly, req, ex):
             return False
     return True
 
 
 @njit(cache=True, nogil=True)
-def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, frames,
-                   sorties, has_launch):
+def drop_redundant(R, L, times, cnt, dc, pc, fly, req, vis_indptr, vis_indices, travel, frames,
+                   sorties, has_launch, ex):
     """Remove visits coverage does not need, largest saving first (the longest
     route's first); returns work."""
     n = R.shape[0]
@@ -246,7 +412,7 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, f
                     continue
                 e = R[r, i]
                 work += (vis_indptr[e + 1] - vis_indptr[e]) // 4
-                if _removable(cnt, dc, req, r, e, vis_indptr, vis_indices):
+                if _removable(cnt, dc, pc, fly, req, r, e, vis_indptr, vis_indices, ex):
                     best, bi, br = key, i, r
         if bi < 0:
             return work
@@ -256,6 +422,7 @@ def drop_redundant(R, L, times, cnt, dc, req, vis_indptr, vis_indices, travel, f
         L[br] -= 1
         R[br, L[br]] = -1
         apply_visit(cnt, dc, br, e, -1, vis_indptr, vis_indices)
+        apply_place(pc, fly, br, e, -1, vis_indptr, vis_indices)
         times[br] = time_of(R, L, br, travel, frames, sorties, has_launch)
 
 
@@ -390,7 +557,7 @@ def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
 
 
 @njit(cache=True, nogil=True)
-def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
+def restore_counts(R, L, R0, L0, cnt, dc, pc, fly, vis_indptr, vis_indices, mark):
     """Coverage counts back to the routes (R0, L0): visits in R but not R0 are
     removed, visits in R0 but not R are added (per UAV; ``mark`` is scratch of
     n_viewpoints zeros, left zero)."""
@@ -403,10 +570,12 @@ def restore_counts(R, L, R0, L0, cnt, dc, vis_indptr, vis_indices, mark):
                 mark[e] = 2  # in both
             else:
                 apply_visit(cnt, dc, r, e, -1, vis_indptr, vis_indices)
+                apply_place(pc, fly, r, e, -1, vis_indptr, vis_indices)
         for i in range(L0[r]):
             e = R0[r, i]
             if mark[e] == 1:
                 apply_visit(cnt, dc, r, e, 1, vis_indptr, vis_indices)
+                apply_place(pc, fly, r, e, 1, vis_indptr, vis_indices)
             mark[e] = 0
 
 
@@ -424,7 +593,7 @@ def savings_all(R, L, travel, frames, sorties, has_launch):
 
 
 @njit(cache=True, nogil=True)
-def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
+def remove_visits(R, L, rs, idx, cnt, dc, pc, fly, vis_indptr, vis_indices, removed):
     """Remove visits (rs[k], idx[k]) (distinct), updating coverage; their
     viewpoints go to ``removed``; returns how many."""
     n = R.shape[0]
@@ -444,6 +613,7 @@ def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
             e = R[r, i]
             if drop[i]:
                 apply_visit(cnt, dc, r, e, -1, vis_indptr, vis_indices)
+                apply_place(pc, fly, r, e, -1, vis_indptr, vis_indices)
                 removed[k] = e
                 k += 1
             else:
@@ -456,7 +626,7 @@ def remove_visits(R, L, rs, idx, cnt, dc, vis_indptr, vis_indices, removed):
 
 
 @njit(cache=True, nogil=True)
-def short_targets(removed, dc, req, vis_indptr, vis_indices, mark):
+def short_targets(removed, dc, pc, fly, req, vis_indptr, vis_indices, mark, ex):
     """Targets seen from ``removed`` viewpoints that are now short (``mark``:
     scratch of n_targets zeros, left zero)."""
     total = 0
@@ -467,10 +637,20 @@ def short_targets(removed, dc, req, vis_indptr, vis_indices, mark):
     for e in removed:
         for j in range(vis_indptr[e], vis_indptr[e + 1]):
             t = vis_indices[j]
-            if mark[t] == 0 and dc[t] < req[t]:
+            if mark[t] == 0 and met(t, dc, pc, fly, req, ex) < req[t]:
                 mark[t] = 1
                 out[k] = t
                 k += 1
     for i in range(k):
         mark[out[i]] = 0
     return out[:k]
+
+
+@njit(cache=True, nogil=True)
+def n_short(dc, pc, fly, req, ex):
+    """How many targets are short."""
+    k = 0
+    for t in range(len(req)):
+        if met(t, dc, pc, fly, req, ex) < req[t]:
+            k += 1
+    return k

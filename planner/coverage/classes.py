@@ -87,8 +87,9 @@ def target_classes(prep: Prepared):
     deg = np.diff(prep.tgt_indptr)
     h1, h2 = (_set_hash(hv, prep.tgt_indptr, prep.tgt_indices) for hv in h)
     n = prep.seen0.shape[0]
-    # earlier sightings as a key: bits of the UAVs that saw the target (n < 63)
-    seen_key = (prep.seen0.astype(np.int64) << np.arange(n, dtype=np.int64)[:, None]).sum(axis=0)
+    # earlier sightings as a key: bits of the UAVs that saw the target from a place
+    # of its own (n < 63); those from viewpoints follow from the equal lists
+    seen_key = (prep.own0.astype(np.int64) << np.arange(n, dtype=np.int64)[:, None]).sum(axis=0)
     order = np.lexsort((seen_key, prep.required, h2, h1, deg))
     cls = _class_ids(order, prep.tgt_indptr, prep.tgt_indices, prep.required, seen_key)
     n_c = int(cls.max()) + 1
@@ -104,9 +105,10 @@ def target_classes(prep: Prepared):
     vis_indptr, vis_indices = csc_transpose(c_indptr, c_indices, n_vp)
     problem = replace(prep.problem, vis_indptr=vis_indptr, vis_indices=vis_indices,
                       n_targets=n_c, required=prep.required[rep].copy(),
-                      seen=prep.seen0[:, rep].astype(bool))
+                      seen=prep.own0[:, rep].astype(bool))
     out = replace(prep, problem=problem, vis_indptr=vis_indptr, vis_indices=vis_indices,
                   tgt_indptr=c_indptr, tgt_indices=c_indices.astype(np.int64),
                   seen0=np.ascontiguousarray(prep.seen0[:, rep]),
+                  own0=np.ascontiguousarray(prep.own0[:, rep]),
                   required=prep.required[rep].astype(np.int32))
     return out, weight, cls

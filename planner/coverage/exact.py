@@ -106,8 +106,10 @@ def optimum(problem: CoverageProblem, time_limit_s: float = 60.0, hint=None) -> 
     """The least coverage time of ``problem`` (see module doc). ``hint``: routes
     of a known plan (the first incumbent: the search then only looks below it).
     Raises ValueError for a problem this oracle does not model."""
-    if problem.seen is not None or problem.owner is not None or math.isfinite(problem.endurance_s):
-        raise ValueError("the exact solver takes plain problems: no seen, owner or endurance")
+    if problem.seen is not None or problem.owner is not None or problem.visited is not None \
+            or math.isfinite(problem.endurance_s):
+        raise ValueError("the exact solver takes plain problems: no seen, visited, owner or "
+                         "endurance")
     start = time.perf_counter()
     prep = prepare(problem)
     master = _Master(prep)

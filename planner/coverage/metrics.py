@@ -41,25 +41,28 @@ def needed_times(problem: CoverageProblem, routes, arrivals, need) -> np.ndarray
         return out
     best = np.full((q, problem.n_targets), np.inf)
     first = np.empty(problem.n_targets)
+    before = problem.seen_before() if problem.seen is not None or problem.visited is not None \
+        else None
     for r, route in enumerate(routes):
         first.fill(np.inf)
-        if problem.seen is not None:
-            first[np.asarray(problem.seen[r], bool)] = 0.0
+        if before is not None:
+            first[before[r]] = 0.0
         _first_seen(np.asarray(route, np.int64), np.asarray(arrivals[r], float),
                     problem.vis_indptr, problem.vis_indices, first)
         _keep_earliest(best, first)
     rows = np.clip(need, 1, q) - 1
     out = np.where(need > 0, best[rows, np.arange(len(need))], 0.0)
-    places = Places(problem.n_uavs, problem.n_viewpoints, routes, arrivals)
+    places = Places(problem.n_uavs, problem.n_viewpoints, routes, arrivals, problem.visited)
     if places.shared.any():
-        t_indptr, t_indices, seen0 = _columns(problem)
+        t_indptr, t_indices, own = _columns(problem)
         hit = places.affected(problem.vis_indptr, problem.vis_indices, problem.n_targets)
-        out[hit] = matched_times(hit, places.at, t_indptr, t_indices, seen0, need)
+        out[hit] = matched_times(hit, places.at, t_indptr, t_indices, own, need)
     return out
 
 
 def _columns(problem):
-    """(target -> viewpoints CSC, seen before planning as uint8 [UAVs, targets])."""
+    """(target -> viewpoints CSC, seen before planning from places of their own as
+    uint8 [UAVs, targets])."""
     t_indptr, t_indices = csc_transpose(np.asarray(problem.vis_indptr, np.int64),
                                         np.asarray(problem.vis_indices), problem.n_targets)
     seen0 = (np.zeros((problem.n_uavs, problem.n_targets), np.uint8) if problem.seen is None
@@ -117,18 +120,17 @@ def sighting_counts(problem: CoverageProblem, routes) -> np.ndarray:
     """Per target, its sightings from distinct UAVs at distinct places: the number
     of distinct UAVs, matched where a viewpoint is flown by two (`places`)."""
     indptr, indices = problem.vis_indptr, problem.vis_indices
-    seen = (np.zeros((problem.n_uavs, problem.n_targets), bool) if problem.seen is None
-            else np.array(problem.seen, bool))
+    seen = problem.seen_before()
     for r, route in enumerate(routes):
         if len(route):
             seen[r, np.concatenate([indices[indptr[e]:indptr[e + 1]] for e in route])] = True
     counts = seen.sum(axis=0)
     places = Places(problem.n_uavs, problem.n_viewpoints, routes,
-                    [np.zeros(len(r)) for r in routes])
+                    [np.zeros(len(r)) for r in routes], problem.visited)
     if places.shared.any():
-        t_indptr, t_indices, seen0 = _columns(problem)
+        t_indptr, t_indices, own = _columns(problem)
         hit = places.affected(indptr, indices, problem.n_targets)
-        counts[hit] = matched_counts(hit, places.at, t_indptr, t_indices, seen0,
+        counts[hit] = matched_counts(hit, places.at, t_indptr, t_indices, own,
                                      np.full(problem.n_targets, problem.n_uavs, np.int64))
     return counts
 

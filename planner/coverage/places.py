@@ -5,8 +5,11 @@ viewpoints*: two UAVs photographing it from one place share one fate (one
 outpost that spots the place, one collision), so they count once. What counts
 for target t is therefore a maximum matching between UAVs and the places they
 saw it from (König: with a requirement of 2 it is simply "two UAVs and two
-places"). Sightings before planning (a re-plan's survivors) are places of their
-own.
+places"). Sightings before planning (a re-plan's survivors) are at the
+viewpoint they were taken from (`CoverageProblem.visited`: a visit at time
+zero, so a survivor flying a viewpoint another one photographed from shares
+its place), or, taken anywhere else, at a place of their own
+(`CoverageProblem.seen`).
 
 The methods keep a simpler invariant that implies the rule: each viewpoint is
 flown by one UAV (`problem.owners`), so distinct UAVs are distinct places and
@@ -22,18 +25,21 @@ import numpy as np
 from numba import njit
 
 from .insertion import arrival_times, insert_cost, route_time
-from .problem import FREE
+from .problem import CLOSED
 
 
 class Places:
     """Where and when a plan's UAVs photograph, for the exact rule.
 
     ``routes[r]``: viewpoint ids; ``when[r]``: the time of each visit (None: by
-    the travel model of ``prep``). ``shared``: viewpoints flown by two or more
-    UAVs; ``at``: [n_uavs, n_viewpoints] first visit times (inf: never)."""
+    the travel model of ``prep``); ``visited``: bool [n_uavs, n_viewpoints],
+    visits before planning (at time zero). ``shared``: viewpoints flown by two
+    or more UAVs; ``at``: [n_uavs, n_viewpoints] first visit times (inf: never)."""
 
-    def __init__(self, n_uavs, n_viewpoints, routes, when):
+    def __init__(self, n_uavs, n_viewpoints, routes, when, visited=None):
         self.at = np.full((n_uavs, n_viewpoints), np.inf)
+        if visited is not None:
+            self.at[np.asarray(visited, bool)] = 0.0
         for r, (route, w) in enumerate(zip(routes, when)):
             if len(route):
                 _first_visits(np.asarray(route, np.int64), np.asarray(w, float), self.at[r])
@@ -45,7 +51,8 @@ class Places:
             when = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.frames[u],
                                   prep.sorties[u],
                                   prep.has_launch) for u, r in enumerate(routes)]
-        return cls(prep.problem.n_uavs, prep.problem.n_viewpoints, routes, when)
+        return cls(prep.problem.n_uavs, prep.problem.n_viewpoints, routes, when,
+                   prep.visited0)
 
     def affected(self, vis_indptr, vis_indices, n_targets) -> np.ndarray:
         """Targets seen from a shared viewpoint: the only ones whose count is not the
@@ -107,7 +114,8 @@ def count_with(t, at, tgt_indptr, tgt_indices, seen0, r, e, cap):
 @njit(cache=True)
 def _sightings(t, at, tgt_indptr, tgt_indices, seen0):
     """(uav, place, time) of every sighting of t: a viewpoint's place is its id, an
-    earlier sighting's place is its own (-1 - uav)."""
+    earlier sighting from no viewpoint (``seen0``) is at a place of its own
+    (-1 - uav)."""
     n = at.shape[0]
     m = 0
     for r in range(n):
@@ -187,9 +195,9 @@ def share(prep, routes, counts) -> list:
         for t in short:
             for e in prep.tgt_indices[prep.tgt_indptr[t]:prep.tgt_indptr[t + 1]]:
                 for r in range(n):
-                    if np.isfinite(at[r, e]) or prep.owner0[e] not in (FREE, r):
+                    if np.isfinite(at[r, e]) or prep.owner0[e] == CLOSED:
                         continue
-                    if count_with(t, at, prep.tgt_indptr, prep.tgt_indices, prep.seen0, r, e,
+                    if count_with(t, at, prep.tgt_indptr, prep.tgt_indices, prep.own0, r, e,
                                   prep.required[t]) <= counts[t]:
                         continue
                     dt, pos = insert_cost(routes[r], e, prep.travel, prep.frames[r],
@@ -204,5 +212,5 @@ def share(prep, routes, counts) -> list:
         at = Places.of(prep, routes).at
         touched = prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]].astype(np.int64)
         counts[touched] = np.maximum(counts[touched], matched_counts(
-            touched, at, prep.tgt_indptr, prep.tgt_indices, prep.seen0, prep.required))
+            touched, at, prep.tgt_indptr, prep.tgt_indices, prep.own0, prep.required))
     return [list(map(int, r)) for r in routes]

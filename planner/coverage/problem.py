@@ -27,18 +27,23 @@ def required_uavs(k: int, n_uavs: int) -> int:
 class CoverageProblem:
     """Viewpoints, targets, travel times and the fault-tolerance requirement.
 
-    ``seen`` is the re-planning state: ``seen[r, t]`` is True when UAV r has
-    already photographed target t (the survivors' snapshots so far).  Such a
-    target counts for r's distinct-UAV tally at time zero.  ``required[t]`` is
-    how many distinct UAVs must see t in total (including ``seen``); it
-    defaults to k+1.
+    The re-planning state is what the survivors photographed so far, at time
+    zero: ``visited[r, e]`` is True when UAV r photographed from viewpoint e
+    (its sightings of e's targets are at place e, where another UAV's sighting
+    shares their fate: `places`), ``seen[r, t]`` when r photographed target t
+    from a place that is no viewpoint (a place of its own). ``required[t]`` is
+    how many distinct UAVs at distinct places must see t in total (including
+    those sightings); it defaults to k+1.
 
-    No two UAVs photograph from one viewpoint (a UAV's sightings then come from
-    places of its own: the k+1 sightings of a target are independent fates,
-    never two vehicles on one path). ``owner[e]`` is the UAV that already
-    photographed from viewpoint e (re-planning; `FREE` or None: nobody), closed
-    to the others; `CLOSED`: to every UAV of this problem (a UAV outside it, e.g.
-    of another part of a large area).
+    The methods fly each viewpoint with one UAV (a UAV's sightings then come
+    from places of its own: the k+1 sightings of a target are independent
+    fates, never two vehicles on one path); ``owner[e]`` is the UAV whose
+    viewpoint e already is (re-planning: the first to photograph there; by
+    default from ``visited``; `FREE` or None: nobody), left to it by those
+    methods; a second UAV may still fly it where only that gives a target its
+    sightings (`places.share`, ALNS), counted by the matching. `CLOSED`: closed
+    to every UAV of this problem (a UAV outside it, e.g. of another part of a
+    large area).
     """
 
     vis_indptr: np.ndarray
@@ -53,6 +58,7 @@ class CoverageProblem:
     required: Optional[np.ndarray] = None
     seen: Optional[np.ndarray] = None
     owner: Optional[np.ndarray] = None
+    visited: Optional[np.ndarray] = None
     # sorties (`insertion.walk`; launch points needed): the flight time of one
     # battery, the time on the ground between two sorties, per UAV the times out of
     # its base for a later sortie (default ``launch_out``: it starts at its base),
@@ -71,6 +77,23 @@ class CoverageProblem:
     @property
     def has_launch(self) -> bool:
         return self.launch_out is not None
+
+    def seen_before(self) -> np.ndarray:
+        """bool [n_uavs, n_targets]: what each UAV photographed before planning, from
+        any place (``seen`` and the targets of the viewpoints it ``visited``)."""
+        out = (np.zeros((self.n_uavs, self.n_targets), bool) if self.seen is None
+               else np.array(self.seen, bool))
+        if self.visited is not None:
+            indptr, indices = np.asarray(self.vis_indptr), np.asarray(self.vis_indices)
+            for r, e in zip(*np.nonzero(self.visited)):
+                out[r, indices[indptr[e]:indptr[e + 1]]] = True
+        return out
+
+    def visited_matrix(self) -> np.ndarray:
+        """bool [n_uavs, n_viewpoints]: ``visited``, all False when None."""
+        if self.visited is None:
+            return np.zeros((self.n_uavs, self.n_viewpoints), bool)
+        return np.asarray(self.visited, bool)
 
     def needs(self) -> np.ndarray:
         """int32 per target: how many distinct UAVs must see it, ``required`` or
@@ -163,12 +186,14 @@ class Prepared:
     has_launch: bool
     frames: np.ndarray  # float64 [n_uavs, 3, n_vp]: out from start, out from base, back
     sorties: np.ndarray  # float64 [n_uavs, 4]: `insertion.walk`'s sortie model per UAV
-    seen0: np.ndarray  # uint8 [n_uavs, n_targets]
+    seen0: np.ndarray  # uint8 [n_uavs, n_targets]: seen before, from any place
     required: np.ndarray  # int32 [n_targets], reduced to what is achievable
     uncoverable: int  # targets whose requirement cannot be met at all
     soft: bool
     soft_exp: float
     owner0: np.ndarray  # int64 [n_viewpoints]: UAV that photographed there before, FREE, CLOSED
+    own0: np.ndarray  # uint8 [n_uavs, n_targets]: seen before from places of their own
+    visited0: np.ndarray  # bool [n_uavs, n_viewpoints]: photographed from before
 
     @cached_property
     def classes(self) -> tuple:
@@ -212,12 +237,16 @@ def prepare(problem: CoverageProblem) -> Prepared:
     else:
         lo = np.zeros((n, n_vp))
         lb = np.zeros((n, n_vp))
-    seen0 = np.zeros((n, n_t), dtype=np.uint8)
+    own0 = np.zeros((n, n_t), dtype=np.uint8)
     if problem.seen is not None:
         s = np.asarray(problem.seen, dtype=bool)
         if s.shape != (n, n_t):
             raise ValueError(f"seen must be [{n}, {n_t}]")
-        seen0[s] = 1
+        own0[s] = 1
+    visited0 = problem.visited_matrix()
+    if visited0.shape != (n, n_vp):
+        raise ValueError(f"visited must be [{n}, {n_vp}]")
+    seen0 = problem.seen_before().astype(np.uint8)
     req = problem.needs()
     if req.shape != (n_t,):
         raise ValueError(f"required must have one entry per target ({n_t})")
@@ -225,21 +254,23 @@ def prepare(problem: CoverageProblem) -> Prepared:
         np.asarray(problem.owner, np.int64)
     if owner0.shape != (n_vp,) or owner0.max(initial=FREE) >= n or owner0.min(initial=0) < CLOSED:
         raise ValueError(f"owner must hold one UAV, FREE or CLOSED per viewpoint ({n_vp})")
+    first = np.where(visited0.any(axis=0), visited0.argmax(axis=0), FREE)
+    owner0 = np.where(owner0 == FREE, first, owner0)     # the first visitor's, by default
     frames, sorties = _sortie_model(problem, lo, lb)
     beyond = _beyond_battery(problem, frames)
     owner0 = np.where(beyond.all(axis=0) & (owner0 == FREE), CLOSED, owner0)
     frames[:, :2][np.broadcast_to(beyond[:, None], frames[:, :2].shape)] = np.inf
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
-    # A target seen from fewer places than it needs distinct UAVs (each viewpoint
-    # serves one UAV), or needing more UAVs than exist, is capped at what is
-    # achievable and reported as uncoverable.
-    achievable = _achievable(tgt_indptr, tgt_indices, owner0, seen0.astype(np.bool_), n)
+    # A target seen from fewer places than it needs sightings, or needing more UAVs
+    # than exist, is capped at what is achievable and reported as uncoverable.
+    achievable = _achievable(tgt_indptr, tgt_indices, owner0, own0.astype(np.bool_), n)
     uncoverable = int(np.count_nonzero(req > achievable))
     req = np.minimum(req, achievable).astype(np.int32)
     return Prepared(problem, indptr, indices, tgt_indptr, tgt_indices, travel,
                     np.ascontiguousarray(travel.T), lo, lb,
                     has_launch, frames, sorties, seen0, req, uncoverable,
-                    problem.visibility == "soft", float(n) / k if k > 0 else 1.0, owner0)
+                    problem.visibility == "soft", float(n) / k if k > 0 else 1.0, owner0,
+                    own0, visited0)
 
 
 def _sortie_model(problem: CoverageProblem, lo, lb) -> tuple:
@@ -280,39 +311,39 @@ def beyond_battery(problem: CoverageProblem) -> np.ndarray:
 
 
 def achievable(problem: CoverageProblem) -> np.ndarray:
-    """int32 per target: the most distinct UAVs that can see it (what `prepare`
-    caps the requirement at), without the travel times `prepare` checks."""
+    """int32 per target: the most sightings from distinct UAVs at distinct places
+    it can get (what `prepare` caps the requirement at), without the travel
+    times `prepare` checks."""
     n, n_t = int(problem.n_uavs), int(problem.n_targets)
     indptr, indices = np.asarray(problem.vis_indptr, np.int64), np.asarray(problem.vis_indices)
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
-    seen = (np.zeros((n, n_t), np.bool_) if problem.seen is None
-            else np.asarray(problem.seen, np.bool_))
+    own = (np.zeros((n, n_t), np.bool_) if problem.seen is None
+           else np.asarray(problem.seen, np.bool_))
     owner = (np.full(len(indptr) - 1, FREE, np.int64) if problem.owner is None
              else np.array(problem.owner, np.int64))
     if problem.endurance_s < np.inf:
         far = beyond_battery(problem)
         owner[far[owner[far] == FREE]] = CLOSED
-    return _achievable(tgt_indptr, tgt_indices, owner, seen, n)
+    return _achievable(tgt_indptr, tgt_indices, owner, own, n)
 
 
 @njit(cache=True)
-def _achievable(tgt_indptr, tgt_indices, owner0, seen0, n):
-    """Per target, the most distinct UAVs that can see it: those that saw it before
-    or own a viewpoint seeing it, plus one per free viewpoint seeing it, at most n."""
+def _achievable(tgt_indptr, tgt_indices, owner0, own0, n):
+    """Per target, the most sightings from distinct UAVs at distinct places it can
+    get: one per place, i.e. per UAV that saw it from a place of its own
+    (``own0``) and per viewpoint seeing it that is not `CLOSED` (any UAV may fly
+    one, a second one where another photographed before: `places.share`), at
+    most one per UAV (n)."""
     n_t = len(tgt_indptr) - 1
     out = np.empty(n_t, np.int32)
-    mark = np.zeros(n, np.bool_)
     for t in range(n_t):
+        places = 0
         for r in range(n):
-            mark[r] = seen0[r, t]
-        free = 0
+            places += own0[r, t]
         for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-            o = owner0[tgt_indices[i]]
-            if o == FREE:
-                free += 1
-            elif o >= 0:
-                mark[o] = True
-        out[t] = min(n, mark.sum() + free)
+            if owner0[tgt_indices[i]] != CLOSED:
+                places += 1
+        out[t] = min(n, places)
     return out
 
 

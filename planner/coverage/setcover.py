@@ -9,7 +9,7 @@ to distinct UAVs is left to the assignment (and its repair).
 import numpy as np
 from numba import njit
 
-from .problem import CLOSED
+from .problem import FREE
 
 
 @njit(cache=True)
@@ -48,11 +48,14 @@ def greedy_cover(vis_indptr, vis_indices, tgt_indptr, tgt_indices, need, allowed
 
 def dominating_set(prep, need=None, allowed=None) -> np.ndarray:
     """Greedy (multi)cover of the targets' remaining requirement, from the viewpoints
-    ``allowed`` that are open (a viewpoint beyond one battery is closed to all)."""
+    ``allowed`` that are free: a viewpoint beyond one battery is closed to all, and
+    one photographed from before gives its owner nothing new and the others only a
+    shared place (left to `places.share`), and the routing that follows may give
+    a viewpoint to any UAV."""
     if need is None:
         need = prep.required - prep.seen0.sum(axis=0)
     need = np.maximum(np.asarray(need, dtype=np.int64), 0)
-    open_ = prep.owner0 != CLOSED
+    open_ = prep.owner0 == FREE
     allowed = open_ if allowed is None else allowed & open_
     return greedy_cover(prep.vis_indptr, prep.vis_indices, prep.tgt_indptr, prep.tgt_indices,
                         need, allowed)
