@@ -133,8 +133,7 @@ def coverage_summary(ctx: PlanningContext, snapshots_per_uav, k: int) -> dict:
     distinct places (`place_counts`), or by one per place where fewer places see
     them; ``k_impossible``: how many have fewer places than that."""
     n = int(ctx.visibility.n_targets)
-    counts = place_counts(ctx, snapshots_per_uav) if len(snapshots_per_uav) else \
-        np.zeros(n, int)
+    counts = place_counts(ctx, snapshots_per_uav)
     need = required_uavs(k, len(snapshots_per_uav))
     places = np.diff(ctx.visibility.target_indptr)
     wanted = np.minimum(need, places)
@@ -324,9 +323,8 @@ def place_counts(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
     visited, seen = earlier_sightings(ctx, snapshots_per_uav)
     vis = ctx.visibility
     problem = CoverageProblem(vis.indptr, vis.indices, vis.n_targets, None, None, None,
-                              max(len(visited), 1), seen=seen if len(visited) else None,
-                              visited=visited if len(visited) else None)
-    return sighting_counts(problem, [[] for _ in range(len(visited))])
+                              len(visited), seen=seen, visited=visited)
+    return sighting_counts(problem, [[]] * len(visited))
 
 
 def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
