@@ -81,3 +81,6 @@ def test_refuses_what_it_does_not_model():
     problem.seen = np.zeros((2, 40), bool)
     with pytest.raises(ValueError, match="plain problems"):
         optimum(problem)
+    problem.seen, problem.visited = None, np.zeros((2, 8), bool)
+    with pytest.raises(ValueError, match="plain problems"):
+        optimum(problem)
