@@ -128,14 +128,15 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
         now = max((v.route.waypoints[i].t_s for i in v.done), default=0.0)
         if times:
             left = max(left, max(times) - now)
-    summary = coverage_summary(ctx, snaps, ctx.scenario.k)
+    counts = place_counts(ctx, snaps)
+    summary = coverage_summary(ctx, snaps, ctx.scenario.k, counts)
     summary["meets_requirement"] = summary["k_covered"] >= coverable_targets(ctx)
     # a target seen from fewer than k + 1 places has one sighting per place: one loss
     # can take its only one, which no plan could prevent without two vehicles flying
     # one place (a shared fate)
     places = np.diff(ctx.visibility.target_indptr)
     protected = places >= ctx.scenario.k + 1
-    kept = place_counts(ctx, snaps) >= max(1, ctx.scenario.k + 1 - n_lost)
+    kept = counts >= max(1, ctx.scenario.k + 1 - n_lost)
     summary["tolerated"] = bool(kept[protected].all())
     summary["unprotected_targets"] = int(((places > 0) & ~protected).sum())
     summary["remaining_time_s"] = left

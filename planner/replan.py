@@ -127,13 +127,14 @@ def coverable_targets(ctx: PlanningContext) -> int:
     return int((np.diff(ctx.visibility.target_indptr) > 0).sum())
 
 
-def coverage_summary(ctx: PlanningContext, snapshots_per_uav, k: int) -> dict:
+def coverage_summary(ctx: PlanningContext, snapshots_per_uav, k: int, counts=None) -> dict:
     """How well targets are covered by the snapshots (xyz arrays, one per UAV):
     ``k_covered`` counts the targets seen by min(k + 1, UAVs) of them from as many
-    distinct places (`place_counts`), or by one per place where fewer places see
-    them; ``k_impossible``: how many have fewer places than that."""
+    distinct places (`place_counts`, or ``counts`` where the caller has them), or
+    by one per place where fewer places see them; ``k_impossible``: how many have
+    fewer places than that."""
     n = int(ctx.visibility.n_targets)
-    counts = place_counts(ctx, snapshots_per_uav)
+    counts = place_counts(ctx, snapshots_per_uav) if counts is None else counts
     need = required_uavs(k, len(snapshots_per_uav))
     places = np.diff(ctx.visibility.target_indptr)
     wanted = np.minimum(need, places)

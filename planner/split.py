@@ -354,8 +354,7 @@ def drop_redundant(problem, routes, arrivals, by: float):
     vp = np.concatenate([np.asarray(r, np.int64) for r in routes] + [np.zeros(0, np.int64)])
     when = np.concatenate([np.asarray(a, float) for a in arrivals] + [np.zeros(0)])
     seen = problem.seen_before()
-    own = (np.zeros((problem.n_uavs, problem.n_targets), np.bool_) if problem.seen is None
-           else np.asarray(problem.seen, np.bool_))
+    own = problem.own_matrix()
     length = np.array([a[-1] if len(a) else 0.0 for a in arrivals])
     pos = np.concatenate([np.arange(len(r)) for r in routes] + [np.zeros(0, np.int64)])
     order = np.lexsort((pos, -length[uav])) if len(uav) else np.zeros(0, np.int64)

@@ -65,9 +65,7 @@ def _columns(problem):
     uint8 [UAVs, targets])."""
     t_indptr, t_indices = csc_transpose(np.asarray(problem.vis_indptr, np.int64),
                                         np.asarray(problem.vis_indices), problem.n_targets)
-    seen0 = (np.zeros((problem.n_uavs, problem.n_targets), np.uint8) if problem.seen is None
-             else np.asarray(problem.seen, np.uint8))
-    return t_indptr, t_indices.astype(np.int64), seen0
+    return t_indptr, t_indices.astype(np.int64), problem.own_matrix().astype(np.uint8)
 
 
 @njit(cache=True)

@@ -81,13 +81,19 @@ class CoverageProblem:
     def seen_before(self) -> np.ndarray:
         """bool [n_uavs, n_targets]: what each UAV photographed before planning, from
         any place (``seen`` and the targets of the viewpoints it ``visited``)."""
-        out = (np.zeros((self.n_uavs, self.n_targets), bool) if self.seen is None
-               else np.array(self.seen, bool))
+        out = self.own_matrix().copy()
         if self.visited is not None:
             indptr, indices = np.asarray(self.vis_indptr), np.asarray(self.vis_indices)
             for r, e in zip(*np.nonzero(self.visited)):
                 out[r, indices[indptr[e]:indptr[e + 1]]] = True
         return out
+
+    def own_matrix(self) -> np.ndarray:
+        """bool [n_uavs, n_targets]: ``seen`` (sightings at places of their own), all
+        False when None."""
+        if self.seen is None:
+            return np.zeros((self.n_uavs, self.n_targets), bool)
+        return np.asarray(self.seen, bool)
 
     def visited_matrix(self) -> np.ndarray:
         """bool [n_uavs, n_viewpoints]: ``visited``, all False when None."""
@@ -317,8 +323,7 @@ def achievable(problem: CoverageProblem) -> np.ndarray:
     n, n_t = int(problem.n_uavs), int(problem.n_targets)
     indptr, indices = np.asarray(problem.vis_indptr, np.int64), np.asarray(problem.vis_indices)
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
-    own = (np.zeros((n, n_t), np.bool_) if problem.seen is None
-           else np.asarray(problem.seen, np.bool_))
+    own = problem.own_matrix()
     owner = (np.full(len(indptr) - 1, FREE, np.int64) if problem.owner is None
              else np.array(problem.owner, np.int64))
     if problem.endurance_s < np.inf:
