@@ -74,6 +74,11 @@ class Autopilot:
     #: it was flying to (PX4 re-flies a leg its camera was triggering on), unless its
     #: current item was set since the hold
     resume_rewinds: bool = False
+    #: a mission started in the air more than this many metres below its next
+    #: position item first climbs straight up where the vehicle is, to that item's
+    #: altitude, and then flies level to it; None: it flies the straight leg from
+    #: where it is
+    resume_climbs_above_m: float | None = None
 
     # -- missions -----------------------------------------------------------------
     @property

@@ -97,6 +97,7 @@ PROFILE = PX4(
     guided_mode="AUTO.LOITER",
     mission_end_mode="AUTO.LOITER",
     resume_rewinds=True,    # MissionBase::on_activation, camera triggering: replay
+    resume_climbs_above_m=0.8,  # MissionBase::checkClimbRequired, NAV_MC_ALT_RAD's default
     start_sequence=(Step("set_current"), Step("mission_start", "AUTO.MISSION"), Step("arm"),
                     Step("airborne")),
     request_streams=False,

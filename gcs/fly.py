@@ -539,16 +539,34 @@ class Flight:
 
     def _fly_on(self, sysid) -> None:
         """A vehicle the guard held flies on toward the item it was flying to. Where
-        the firmware would go back to the item before (`resume_rewinds`, PX4), along
-        no proven leg and climbing first to that item's altitude where it stands, its
-        current item is moved away and back first: then the mission starts again
-        from where it is."""
+        the firmware would climb straight up where it holds, that item being higher
+        (`resume_climbs_above_m`, PX4), the rest of its route goes up from where it
+        holds (`Segments.fly_on_here`). Where it would go back to the item before
+        (`resume_rewinds`, PX4), along no proven leg, its current item is moved away
+        and back first: then the mission starts again from where it is."""
         link = self.monitor.links[sysid]
         profile, seq = commands.autopilot(link), link.state.mission_seq
+        if self._climbs_first(sysid, profile, seq) and self.segments.can_fly_on_here(sysid):
+            try:
+                return self.segments.fly_on_here(sysid)
+            except (MissionError, InputError) as exc:     # its mission stands as it was
+                self.monitor.event(sysid, "upload from where it holds failed: flies on as "
+                                          "it is", error=str(exc))
         if profile.resume_rewinds and seq is not None and seq > profile.first_item:
             for item in (seq - 1, seq):
                 commands.set_current(link, item, retries=self.options.protocol_retries)
         self._set_mode(sysid, "mission_mode", FLYING)
+
+    def _climbs_first(self, sysid, profile, seq) -> bool:
+        """Whether ``sysid``, its mission flown on now, would first climb straight up
+        where it is: its next position item is higher than it by more than the
+        firmware allows (`resume_climbs_above_m`)."""
+        climb, alt = profile.resume_climbs_above_m, self.monitor.links[sysid].state.alt_amsl
+        mission = self.monitor.vehicles[sysid].mission
+        if climb is None or seq is None or alt is None or mission is None:
+            return False
+        ahead = next((it for it in mission.items[seq:] if it.is_position), None)
+        return ahead is not None and ahead.z > alt + climb
 
     def depart(self, sysid, after_s, kind, route) -> None:
         """``sysid`` takes off (``kind`` "launch") or flies on ("resume") ``after_s``

@@ -41,6 +41,8 @@ LATENCY_S = 1.0
 RESUME_FACTOR = 1.2
 #: metres a pair standing too close may close in by rounding and still be parting
 PARTING_SLACK_M = 0.5
+#: wall seconds a re-plan waits for a hold or resume under way
+FORGET_WAIT_S = 15.0
 
 
 def closest_ahead(d0, dv, horizon):
@@ -82,11 +84,20 @@ class SeparationGuard:
     def horizon(self) -> float:
         return HORIZON_S + self.clock.rate() * LATENCY_S
 
-    def forget(self) -> None:
-        """A re-plan took over the held vehicles (it holds and resumes them itself)."""
+    def forget(self, wait_s: float = FORGET_WAIT_S) -> None:
+        """A re-plan took over the held vehicles (it holds and resumes them itself):
+        a hold or resume under way is waited for (up to ``wait_s``), so nothing it
+        sends (a resume may upload the rest of a route) comes after the re-plan's."""
+        end = time.monotonic() + wait_s
+        while self._busy and time.monotonic() < end:
+            time.sleep(0.05)
         for sysid, (since, other) in self.held.items():
             self._record("released by a re-plan", sysid, other, None, since)
         self.held = {}
+
+    def hold(self, sysid, other) -> None:
+        """Hold ``sysid`` now, for ``other``: flown on as any hold, once clear."""
+        self._do(sysid, self._hold, "hold", other)
 
     def step(self) -> None:
         if not self.active:

@@ -58,6 +58,9 @@ LAUNCH_RADIUS_M = 10.0
 MIN_LAUNCH_TOLERANCE_M = 1.0
 #: below the terrain + this (m) away from its launch point, a vehicle has hit the ground
 CRASH_MARGIN_M = 2.0
+#: wall seconds a held vehicle is given to brake before its position is taken
+SETTLE_S = 3.0
+SETTLED_MPS = 0.5
 
 
 def distance_m(lat1, lon1, lat2, lon2) -> float:
@@ -73,6 +76,13 @@ def _note_airborne(v, armed: bool, agl) -> None:
     speed-up a heartbeat may come only after the vehicle has dropped below home."""
     if armed and agl is not None and abs(agl) > LANDED_AGL_M:
         v.airborne = True
+
+
+def _speed(state) -> float:
+    """m/s from the last GLOBAL_POSITION_INT (3-D; ground speed where that is all)."""
+    if state.velocity is not None:
+        return math.hypot(*state.velocity)
+    return math.inf if state.groundspeed is None else state.groundspeed
 
 
 @dataclass
@@ -276,14 +286,15 @@ class Monitor:
         with self._lock:
             self.vehicles[sysid].mission = mission
 
-    def next_segment(self, sysid: int, mission) -> None:
-        """The vehicle now flies the next segment of the same route: item numbers
-        start again, the waypoints reached and snapshots taken stay."""
+    def next_segment(self, sysid: int, mission, counted: bool = True) -> None:
+        """The vehicle now flies the next segment of the same route (``counted``), or
+        the rest of its segment uploaded again: item numbers start again, the
+        waypoints reached and snapshots taken stay."""
         with self._lock:
             v = self.vehicles[sysid]
             v.mission = mission
             v.reached = set()
-            v.segments += 1
+            v.segments += 1 if counted else 0
             self.links[sysid].state.mission_seq = None
 
     def relaunch(self, sysid: int) -> None:
@@ -486,6 +497,19 @@ class Monitor:
                  "CAMERA_IMAGE_CAPTURED": _camera}
 
     # -- losses (flight loop) ---------------------------------------------------------
+    def wait_settled(self, sysids, timeout_s: float = SETTLE_S) -> None:
+        """Give held vehicles time to brake before their positions are taken: until
+        each reports moving slower than `SETTLED_MPS` (in 3-D: one still sinking is
+        not where it will stand), ``timeout_s`` wall seconds at most; losses are
+        looked for meanwhile (found by the caller's next step, on time)."""
+        end = time.monotonic() + timeout_s
+        time.sleep(0.3)                 # the hold on its way, and a report after it
+        while time.monotonic() < end:
+            self.check_losses()
+            if all(_speed(self.links[s].state) < SETTLED_MPS for s in sysids):
+                return
+            time.sleep(0.1)
+
     def check_losses(self) -> list:
         """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock), in the
         air or landed with work still to fly (`awaited`: its next sortie). Each is

@@ -50,9 +50,6 @@ from planner.replan import (
     survivor_start,
 )
 
-#: wall seconds to let a held vehicle brake before its position is taken
-SETTLE_S = 3.0
-SETTLED_MPS = 0.5
 MAX_ATTEMPTS = 4
 
 
@@ -308,7 +305,7 @@ class Retasker:
         landed = list(landed)
         if sysids:
             self._step(sysids, self._hold)
-            self._settle(sysids)
+            m.wait_settled(sysids)
             if self.flying() != sysids:     # one touched down before it was held
                 raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
             sysids = self._strand_unjoined(record, sysids)
@@ -433,17 +430,6 @@ class Retasker:
         link = self.monitor.links[sysid]
         commands.set_mode(link, commands.autopilot(link).hold_mode, retries=self._retries)
         self.monitor.set_state(sysid, HOLDING)
-
-    def _settle(self, sysids) -> None:
-        """Give held vehicles time to brake (ground speed from GLOBAL_POSITION_INT)."""
-        end = time.monotonic() + SETTLE_S
-        time.sleep(0.3)
-        while time.monotonic() < end:
-            self.monitor.check_losses()  # found by the next step, on time
-            speeds = [self.monitor.links[s].state.groundspeed for s in sysids]
-            if all(v is not None and v < SETTLED_MPS for v in speeds):
-                return
-            time.sleep(0.1)
 
     def _launch(self, sysid, route) -> None:
         """A landed survivor's start sequence, as at the start of the flight."""

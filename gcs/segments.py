@@ -10,7 +10,9 @@ flight with the same sequence as re-tasking (`gcs.retask`): hold (the
 firmware's hold mode: ArduPilot applies an upload item by item), upload and
 read back, current item = the first flown, the mission mode again. A vehicle
 whose next segment is late waits at the end of its segment, a proven hidden
-waypoint. Every segment is a `missions.check.CheckedMission` (the gate). A loss
+waypoint. The next segment starts where the vehicle holds, on its proven leg
+(`missions.segments`: PX4 would otherwise climb straight up first). Every
+segment is a `missions.check.CheckedMission` (the gate). A loss
 during a segment upload is handled as one during re-tasking: the flight
 re-tasks the survivors, the held vehicle among them.
 """
@@ -35,6 +37,7 @@ class SegmentUpload:
     items: int
     upload_s: float        # upload and read-back, wall s
     held_s: float          # from the hold to the mission mode again, wall s
+    why: str = "next"      # or "from here": the same segment again, from where it held
 
 
 def upload_route(link, missions, protocol=None, on_capacity=None, limit=None):
@@ -121,27 +124,49 @@ class Segments:
 
     def _switch_one(self, sysid) -> None:
         m = self.monitor
-        link, v = m.links[sysid], m.vehicles[sysid]
-        missions = self.routes[sysid]
-        profile = commands.autopilot(link)
         t0 = time.perf_counter()
-        commands.set_mode(link, profile.hold_mode, retries=self._retries)
+        commands.set_mode(m.links[sysid], commands.autopilot(m.links[sysid]).hold_mode,
+                          retries=self._retries)
         m.set_state(sysid, HOLDING)
+        self._from_here(sysid, t0, next_segment=True)
+
+    def can_fly_on_here(self, sysid) -> bool:
+        """Whether `fly_on_here` can: the vehicle holds past its route's first
+        waypoint (before it, its mission's takeoff is flown again as it is)."""
+        start, _ = self.next_start(sysid) if sysid in self.routes else (None, None)
+        return start is not None and start != self.routes[sysid].fly[0]
+
+    def fly_on_here(self, sysid) -> None:
+        """A held vehicle flies on by the rest of its route uploaded from where it
+        holds (the firmware would climb straight up first otherwise: the profile's
+        `resume_climbs_above_m`); it stays the same segment."""
+        self._from_here(sysid, time.perf_counter(), next_segment=False)
+
+    def _from_here(self, sysid, t0, next_segment) -> None:
+        """Upload the held vehicle's route from where it holds (the next segment, or
+        its current one again) and fly it."""
+        m = self.monitor
+        link, v = m.links[sysid], m.vehicles[sysid]
+        profile = commands.autopilot(link)
+        m.wait_settled([sysid])         # where it stands, not a report from before its brake
         start, taken = self.next_start(sysid)
         capacity = _least(known_capacity(link) or len(v.mission), self.limit)
-        mission = missions.segment(capacity, start, v.mission.segment + 1, taken)
+        index = v.mission.segment + (1 if next_segment else 0)
+        mission = self.routes[sysid].segment(capacity, start, index, taken,
+                                             here=_where(link.state))
         t1 = time.perf_counter()
         upload_verified(link, mission, **self.protocol)
         upload_s = time.perf_counter() - t1
-        m.next_segment(sysid, mission)
+        m.next_segment(sysid, mission, counted=next_segment)
         commands.set_current(link, profile.first_item, retries=self._retries)
         commands.set_mode(link, profile.mission_mode, retries=self._retries)
         m.set_state(sysid, FLYING)
-        record = SegmentUpload(round(m.now(), 3), sysid, mission.segment + 1, start,
-                               len(mission), round(upload_s, 3),
-                               round(time.perf_counter() - t0, 3))
+        record = SegmentUpload(round(m.now(), 3), sysid, index + 1, start, len(mission),
+                               round(upload_s, 3), round(time.perf_counter() - t0, 3),
+                               "next" if next_segment else "from here")
         self.uploads.append(record)
-        m.event(sysid, "next segment uploaded",
+        m.event(sysid, "next segment uploaded" if next_segment else
+                "route uploaded from where it holds",
                 **{k: v for k, v in asdict(record).items() if k not in ("t_s", "sysid")})
 
     def next_start(self, sysid) -> tuple:
@@ -172,6 +197,13 @@ class Segments:
 
     def report(self) -> list:
         return [asdict(u) for u in self.uploads]
+
+
+def _where(state):
+    """(lat, lon, alt AMSL) of a vehicle's last position report, None before one."""
+    if state.lat is None or state.alt_amsl is None:
+        return None
+    return state.lat, state.lon, state.alt_amsl
 
 
 def _last_position_seq(mission):

@@ -85,13 +85,15 @@ def vehicle_mission(route, firmware: str, options: MissionOptions = MissionOptio
 
 
 def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=0,
-                shots_before=0, skip_camera=()) -> VehicleMission:
+                shots_before=0, skip_camera=(), here=None) -> VehicleMission:
     """The items of route waypoints ``fly`` (indices): the whole route, or one
     segment of it (`missions.segments`). ``takeoff``: it starts the route (a
     takeoff first when it starts above launch); ``land``: it ends the route (the
     landing when it ends above launch: the last segment); ``shots_before``
     snapshots precede it (PX4 numbers its images); no camera command at the
-    waypoints in ``skip_camera`` (taken already)."""
+    waypoints in ``skip_camera`` (taken already); ``here``: (lat, lon, alt AMSL),
+    a point on the leg into ``fly[0]`` where a vehicle in the air starts it (a
+    waypoint of no route index, flown first)."""
     autopilot = firmware_profile(firmware)
     if not route.waypoints:
         raise InputError(f"vehicle {route.id}", "route has no waypoints")
@@ -108,6 +110,8 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
     if options.speed_mps:
         out.add(_command(DO_CHANGE_SPEED, SPEED_TYPE_GROUND, float(options.speed_mps),
                          NO_THROTTLE_CHANGE, 0.0))
+    if here is not None:
+        out.add(_position(NAV_WAYPOINT, *here, p2=float(options.acceptance_m), p4=yaw))
     shots = shots_before
     for index in fly:
         w = waypoints[index]

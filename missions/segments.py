@@ -14,9 +14,12 @@ segments. A segment is a run of the route's waypoints that fits the vehicle's
 capacity (home, speed, its waypoints and their camera commands; the first one
 takes off, the last one lands). It ends at a waypoint, whose leg was proven,
 so a vehicle whose next segment is late holds there, hidden; the next segment
-starts at the waypoint the vehicle was flying to when it was held (the end of
-the last one at the latest), so the leg from where it is to there is part of a
-proven leg. Every mission made here passes `check` (the mission gate,
+flies on to the waypoint the vehicle was flying to when it was held (the end of
+the last one at the latest), from where it holds: its first item is that place
+on the proven leg (`point_on_leg`), so the leg from there is part of a proven
+one. Without it PX4 would climb straight up where it holds, to the next item's
+altitude, before flying level (MissionBase::checkClimbRequired on every mission
+started in the air), above its proven leg. Every mission made here passes `check` (the mission gate,
 `missions.check.checked`): the whole route once, when made, so every leg of
 every segment is proven before the first is flown, and each segment again.
 """
@@ -31,6 +34,7 @@ from .build import _above_launch, firmware_profile, route_items
 
 #: waypoints closer than this (m, horizontally and vertically) are the same place
 SAME_PLACE_M = 0.01
+EARTH_R = 6371008.8
 
 
 def fewer_waypoints(route, prove=None) -> list:
@@ -60,8 +64,8 @@ def fewer_waypoints(route, prove=None) -> list:
 
 
 def _same_place(a, b) -> bool:
-    dlat = math.radians(b.lat - a.lat) * 6371008.8
-    dlon = math.radians(b.lon - a.lon) * 6371008.8 * math.cos(math.radians(a.lat))
+    dlat = math.radians(b.lat - a.lat) * EARTH_R
+    dlon = math.radians(b.lon - a.lon) * EARTH_R * math.cos(math.radians(a.lat))
     return math.hypot(dlat, dlon) < SAME_PLACE_M and abs(b.alt_amsl - a.alt_amsl) < SAME_PLACE_M
 
 
@@ -77,6 +81,27 @@ def leg_prover(ctx):
         return bool(graph.legs_ok(xyz[:1], xyz[1:])[0])
 
     return prove
+
+
+def point_on_leg(a, b, here):
+    """The point of the straight leg from waypoint ``a`` to waypoint ``b`` nearest
+    ``here`` (lat, lon, alt AMSL), as (lat, lon, alt); None where it is ``b``
+    itself (within `SAME_PLACE_M`) or there is no leg (``a`` None)."""
+    if a is None:
+        return None
+    lat0 = math.radians(a.lat)
+
+    def xyz(lat, lon, alt):
+        return np.array([math.radians(lon - a.lon) * EARTH_R * math.cos(lat0),
+                         math.radians(lat - a.lat) * EARTH_R, alt - a.alt_amsl])
+
+    leg, p = xyz(b.lat, b.lon, b.alt_amsl), xyz(*here)
+    u = float(np.clip(p @ leg / (leg @ leg), 0.0, 1.0)) if leg @ leg > 0 else 1.0
+    if np.linalg.norm((1.0 - u) * leg) < SAME_PLACE_M:
+        return None
+    x, y, alt = u * leg
+    return (a.lat + math.degrees(y / EARTH_R),
+            a.lon + math.degrees(x / (EARTH_R * math.cos(lat0))), float(a.alt_amsl + alt))
 
 
 class RouteMissions:
@@ -104,18 +129,24 @@ class RouteMissions:
         """The mission to upload before takeoff: the whole route if it fits."""
         return self.whole if self.fits(capacity) else self.segment(capacity, self.fly[0], 0)
 
-    def segment(self, capacity: int, start: int, index: int, taken: bool = False):
+    def segment(self, capacity: int, start: int, index: int, taken: bool = False,
+                here=None):
         """Segment ``index``: the checked mission from route waypoint ``start`` (one
         of ``fly``) on, as long as ``capacity`` items allow; ``taken``: the snapshot
-        at ``start`` is taken already (no camera command there)."""
+        at ``start`` is taken already (no camera command there); ``here``: (lat,
+        lon, alt AMSL) where the vehicle holds, flown first as its place on the leg
+        into ``start`` (`point_on_leg`)."""
         if start not in self.fly:
             raise ValueError(f"waypoint {start} is not one the route flies")
         k = self.fly.index(start)
-        fly, land = self._span(k, capacity)
+        if here is not None:
+            here = point_on_leg(self.route.waypoints[self.fly[k - 1]] if k else None,
+                                self.route.waypoints[start], here)
+        fly, land = self._span(k, capacity - (here is not None))
         shots = sum(1 for i in self.fly[:k] if self.route.waypoints[i].snapshot)
         mission = route_items(self.route, self.firmware, self.options, fly,
                               takeoff=k == 0, land=land, segment=index, shots_before=shots,
-                              skip_camera={start} if taken else ())
+                              skip_camera={start} if taken else (), here=here)
         if len(mission.items) > capacity:       # the counting below is wrong: never upload
             raise AssertionError(f"segment of {len(mission.items)} items > {capacity}")
         return self.check(mission)
@@ -145,4 +176,4 @@ class RouteMissions:
         return self.fly[k:end], False
 
 
-__all__ = ["RouteMissions", "fewer_waypoints", "leg_prover"]
+__all__ = ["RouteMissions", "fewer_waypoints", "leg_prover", "point_on_leg"]

@@ -36,7 +36,7 @@ pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collect
 
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
-             capacity=None, late=None, crew=False, **options):
+             capacity=None, late=None, crew=False, held=None, **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
@@ -46,8 +46,10 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     holds; ``late``: (sysid, fleet s) it takes off that much after its planned
     time (its arming refused until then: simulated backends); ``crew``: swap the
     battery of each vehicle waiting on the ground for its next sortie (real SITL:
-    the backend's ``swap_battery``; the simulator's crew does it unasked); ``options``:
-    `FlyOptions` fields to change. Returns a result dict."""
+    the backend's ``swap_battery``; the simulator's crew does it unasked); ``held``:
+    (sysid, other, when): the separation guard holds ``sysid`` for ``other`` as soon
+    as ``when(flight)`` says so, once; ``options``: `FlyOptions` fields to change.
+    Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
     longest = max(v.mission_time_s for v in planned.plan.vehicles)
     be = start_backend(backend, planned.plan, workdir, speedup, capacity)
@@ -104,6 +106,13 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
                         be.swap_battery(sysid)
                 time.sleep(0.1)
         threading.Thread(target=swap_when_waiting, daemon=True).start()
+    if held is not None:
+        def hold_once(sysid, other, when):
+            while not stop.is_set():
+                if flight.guard is not None and when(flight):
+                    return flight.guard.hold(sysid, other)
+                time.sleep(0.02)
+        threading.Thread(target=hold_once, args=held, daemon=True).start()
     if interrupt is not None:  # Ctrl-C: KeyboardInterrupt in the main thread
         threading.Thread(target=when_due, args=(*interrupt, _thread.interrupt_main),
                          daemon=True).start()

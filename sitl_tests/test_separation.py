@@ -19,7 +19,9 @@ from fleets import REAL, skip_unless_configured
 from judge import closest_airborne
 from test_end_to_end import assert_hidden_and_clear, fly_case
 
+from gcs.monitor import FLYING
 from gcs.sim import read_track
+from missions.items import NAV_WAYPOINT
 
 #: slow enough for the guard (wall seconds of telemetry are this many fleet seconds)
 SPEEDUP = {"sim": 20.0, "sim-px4": 20.0, "ardupilot": 10.0, "px4": 4.0}
@@ -125,3 +127,45 @@ def test_a_late_start_waits_for_its_column_and_the_guard_acts(planned, backend, 
     assert recorded and not [e for track in recorded for e in track.events
                              if "resumed at the previous position item" in e["event"]]
     assert report["outcome"]["coverage_reached"] and report["outcome"]["in_air"] == []
+
+
+#: metres below its next waypoint a vehicle is held at (PX4 climbs first beyond 0.8)
+BELOW_M = 4.0
+
+
+def _climbing_mid_leg(sysid):
+    """``when`` for `fly_case`'s ``held``: ``sysid`` flies a waypoint leg past its
+    route's first waypoint, its next waypoint BELOW_M or more above it."""
+    def when(flight):
+        m = flight.monitor
+        v, state = m.vehicles[sysid], m.links[sysid].state
+        if v.state != FLYING or not v.airborne or not v.done or v.mission is None \
+                or state.mission_seq is None or state.alt_amsl is None:
+            return False
+        items = v.mission.items
+        seq = state.mission_seq
+        return 0 <= seq < len(items) and items[seq].command == NAV_WAYPOINT and \
+            items[seq].z >= state.alt_amsl + BELOW_M
+    return when
+
+
+def test_a_hold_on_a_climbing_leg_flies_on_along_it(planned, flown, tmp_path):
+    """The guard holds a vehicle on a leg that climbs to its next waypoint and then
+    flies it on. PX4 (MissionBase::checkClimbRequired) would climb straight up
+    where it holds, above its proven leg, before flying on level: the ground
+    station uploads the rest of its route from where it holds. Judged by the
+    vehicles' own tracks: never off the proven legs, hidden and clear."""
+    p = planned(0, REAL)
+    result = fly_case(p, flown, tmp_path, speedup=SPEEDUP[flown],
+                      held=(1, 2, _climbing_mid_leg(1)))
+    report = result["report"]
+    holds = [a for a in report["separation"]["actions"] if a["sysid"] == 1]
+    print(f"\n[{flown}] vehicle 1's guard actions {holds}, segments {report['segments']}")
+    assert [a["action"] for a in holds[:2]] == ["hold", "resume"]
+    problems = [x for x in report["outcome"]["problems"] if "separation guard" not in x]
+    assert problems == [] and report["losses"] == [], report["outcome"]
+    assert all(v["off_route"] == [] for v in report["vehicles"])
+    if flown in ("sim-px4", "px4"):
+        assert any(u["sysid"] == 1 and u["why"] == "from here" for u in report["segments"])
+    assert_hidden_and_clear(p, result["tracks"])
+    assert report["outcome"]["coverage_reached"]

@@ -105,6 +105,41 @@ def test_segments_fit_and_fly_the_route_in_order(planned, firmware):
         missions.segment(4, missions.fly[0], 0)
 
 
+@pytest.mark.parametrize("firmware", NAMES)
+def test_a_segment_starts_where_the_vehicle_holds_on_its_leg(planned, firmware):
+    """The next segment's first position is the held vehicle's place on the proven
+    leg into the waypoint it flies to (nearest point, by brute force over the
+    leg), within the capacity and through the mission check; a vehicle standing
+    at that waypoint starts there."""
+    route = max(planned.plan.vehicles, key=lambda r: len(r.waypoints))
+    missions = _route_missions(planned, route, firmware)
+    k = len(missions.fly) // 2
+    a, b = (route.waypoints[i] for i in missions.fly[k - 1:k + 1])
+    ctx = planned.ctx
+
+    def xyz(lat, lon, alt):
+        x, y = ctx.terrain.from_lonlat(np.array([lon]), np.array([lat]))
+        return np.array([x[0], y[0], alt])
+
+    pa, pb = xyz(a.lat, a.lon, a.alt_amsl), xyz(b.lat, b.lon, b.alt_amsl)
+    cross = np.cross(pb - pa, [0.0, 0.0, 1.0])
+    held = pa + 0.4 * (pb - pa) + 2.0 * cross / np.linalg.norm(cross) + [0.0, 0.0, -3.0]
+    lon, lat = ctx.terrain.to_lonlat(np.array([held[0]]), np.array([held[1]]))
+    seg = missions.segment(14, missions.fly[k], 3, here=(lat[0], lon[0], held[2]))
+    assert isinstance(seg, CheckedMission) and len(seg) <= 14
+    first = profile(firmware).first_item
+    positions = [i for i, it in enumerate(seg.items) if i >= first and it.command == NAV_WAYPOINT]
+    start = seg.items[positions[0]]
+    assert seg.waypoint_of_item[positions[0]] is None
+    assert seg.waypoint_of_item[positions[1]] == missions.fly[k]
+    leg = pa + np.linspace(0.0, 1.0, 20001)[:, None] * (pb - pa)
+    nearest = leg[np.argmin(np.linalg.norm(leg - held, axis=1))]
+    assert np.linalg.norm(xyz(start.x, start.y, start.z) - nearest) < 0.05 + \
+        np.linalg.norm(pb - pa) / 20000
+    at_b = missions.segment(14, missions.fly[k], 3, here=(b.lat, b.lon, b.alt_amsl))
+    assert at_b.items == missions.segment(14, missions.fly[k], 3).items
+
+
 def test_capacity_learned_from_what_the_vehicle_says_or_by_probing(planned):
     route = max(planned.plan.vehicles, key=lambda r: len(r.waypoints))
     for firmware, capacity, how in (("ardupilot", 650, "said"), ("ardupilot", 20, "said"),
@@ -149,14 +184,18 @@ def test_upload_of_a_mission_too_long_says_so(planned, tmp_path, capsys):
     assert "gcs fly" in err
 
 
-def test_a_flight_in_segments_on_the_simulator(planned, tmp_path):
+@pytest.mark.parametrize("firmware", NAMES)
+def test_a_flight_in_segments_on_the_simulator(planned, tmp_path, firmware):
     """Every route longer than the vehicles hold (24 items): flown in segments
     uploaded in flight, judged by the simulator's own record: every route
-    waypoint reached in order, landed at launch, hidden all along."""
+    waypoint reached in order, landed at launch, hidden all along, never off the
+    proven legs (PX4 climbs straight up where it holds when its next item is
+    higher: each segment starts where the vehicle holds)."""
     base = free_base_port(10, 3)
     out = tmp_path / "flight"
     code = main(["fly", str(planned.dir), "--sim", "3", "--speedup", "25", "--sim-capacity",
-                 "24", "--lost-after", "3", "--sim-base-port", str(base), "-o", str(out)])
+                 "24", "--lost-after", "3", "--sim-base-port", str(base), "-o", str(out),
+                 "--firmware", firmware])
     report = json.loads((out / "flight.json").read_text())
     # each segment's hold is a tenth of a wall second, 3 s of flight at 25x: the fleet
     # may drift off its separated schedule by a few of them, and then the guard acts

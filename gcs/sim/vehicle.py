@@ -138,6 +138,7 @@ class SimVehicle:
         # PX4: the item the mission was left at (AUTO left in the air), and whether a
         # camera item of this mission has run: flown on, it rewinds (`_rewound`)
         self._left_at = None
+        self._resuming = False         # a mission started in the air, its first item next
         self._camera_ran = False
         self._stop = threading.Event()
         self._kill = threading.Event()
@@ -583,6 +584,7 @@ class SimVehicle:
                 self._go_to(self.body.pos)
         elif behaviour == fl.AUTO:
             if flying or (self.armed and self.flavour.arm_in_auto_starts):
+                self._resuming = flying
                 self._run_mission(self._rewound())
         elif behaviour == fl.LAND:
             if flying:
@@ -678,6 +680,10 @@ class SimVehicle:
                 self._takeoff_done(task)
         elif kind == "item":
             self._update_item(task)
+        elif kind == "climb":
+            if abs(self.body.pos[2] - self.body.dest[2]) < TAKEOFF_TOLERANCE_M:
+                self._last_dest = list(self.body.pos)
+                self._start_item(task["item"])
         elif kind == "land" and task["phase"] == "approach":
             if math.dist(self.body.pos[:2], self.body.dest[:2]) <= self.cfg.wp_radius_m:
                 task["phase"] = "descend"
@@ -774,6 +780,7 @@ class SimVehicle:
 
     def _start_item(self, item) -> None:
         cmd = item.command
+        resuming, self._resuming = self._resuming, False
         x, y, z = self.body.pos
         if (item.x, item.y) != (0, 0):
             x, y = self.frame.to_local(item.lat, item.lon)
@@ -793,6 +800,12 @@ class SimVehicle:
             self.track.event(self.t, "takeoff")
         hold = item.param1 if cmd in (M.MAV_CMD_NAV_WAYPOINT, M.MAV_CMD_NAV_LOITER_TIME) \
             else math.inf if cmd == M.MAV_CMD_NAV_LOITER_UNLIM else 0.0
+        climb = self.flavour.profile.resume_climbs_above_m
+        if resuming and climb is not None and z > self.body.pos[2] + climb:
+            # PX4 (MissionBase::checkClimbRequired): straight up first, where it is
+            self.track.event(self.t, f"climbs to {z:.1f} m where it is before item {item.seq}")
+            self.task = {"kind": "climb", "item": item}
+            return self.body.go_to((*self.body.pos[:2], z))
         origin = self._last_dest if self._last_dest is not None else self.body.pos
         self.task = {"kind": "item", "seq": item.seq, "arrived": None, "hold": max(hold, 0.0)}
         self.body.go_to((x, y, z), origin)
