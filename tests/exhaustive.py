@@ -21,9 +21,11 @@ def exhaustive_optimum(problem):
     sequence of distinct viewpoints (revisits add nothing), all combinations,
     two UAVs at one viewpoint included; a target is covered once it has its
     requirement of sightings from distinct UAVs at distinct places, tried
-    over every assignment of UAVs to places."""
-    vis = ref.dense(problem)
+    over every assignment of UAVs to places. Earlier sightings count at time
+    zero: from a viewpoint (``visited``), and from a place of the UAV's own
+    (``seen``: one more place per UAV, only its own)."""
     n_vp, n_t, n = problem.n_viewpoints, problem.n_targets, problem.n_uavs
+    vis = np.vstack([ref.dense(problem), problem.own_matrix().astype(bool)])
     seqs = [s for m in range(n_vp + 1) for s in itertools.permutations(range(n_vp), m)]
     need = ref.requirement(problem)
     visits = []  # per UAV: [n_seqs, n_viewpoints] when it first flies each viewpoint
@@ -37,7 +39,10 @@ def exhaustive_optimum(problem):
                 else:
                     now += problem.travel[s[j - 1], e]
                 f[i, e] = min(f[i, e], now)
-        visits.append(f)
+        f[:, problem.visited_matrix()[r]] = 0.0
+        own = np.full((len(seqs), n), np.inf)
+        own[:, r] = 0.0
+        visits.append(np.hstack([f, own]))
     best = math.inf
     grids = np.meshgrid(*[np.arange(len(seqs))] * n, indexing="ij")
     combo = np.stack([g.ravel() for g in grids], axis=1)

@@ -40,6 +40,8 @@ relative 1e-6 for its tolerances.
 
 Not modelled (kept as relaxations): which UAV flies which leg (targets
 needing k+1 *distinct* UAVs are only counted), and balancing beyond the sum.
+Where at most 16 viewpoints see what is needed, `route_bound` says both (each
+route counts a target once and lasts at most T) and `bounds` takes the larger.
 """
 
 import math
@@ -53,6 +55,7 @@ from scipy.sparse.csgraph import dijkstra
 
 from .metrics import _packing_bound, _reach_bound
 from .problem import CoverageProblem, prepare
+from .route_bound import route_bound
 
 #: legs into each viewpoint kept as LP variables (its nearest in travel time)
 IN_ARCS = 24
@@ -300,9 +303,11 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     """The best lower bound on coverage time we have (seconds): the largest of
     the reach and packing bounds (`metrics.lower_bound`, the "radius bound")
     and, with ``strong``, the first-sighting flow LP (`flow_bound`; a few
-    seconds of HiGHS on the benchmark problems).  The bounds work on target
-    classes (`classes.target_classes`: identical rows, so the same bound at
-    a fraction of the size)."""
+    seconds of HiGHS on the largest problems) and, where at most 16 viewpoints
+    see what is needed, the route-pricing bound (`route_bound.route_bound`,
+    under half a second there).  The bounds work on target classes
+    (`classes.target_classes`: identical rows, so the same bound at a fraction
+    of the size)."""
     return bounds(problem, strong)[1]
 
 
@@ -313,4 +318,6 @@ def bounds(problem: CoverageProblem, strong: bool = True, prep=None) -> tuple:
     cprep = prep.classes[0] if problem.n_targets else prep
     radius = max(_reach_bound(cprep), _packing_bound(cprep))
     best = max(radius, flow_bound(cprep)) if strong else radius
+    if strong:
+        best = max(best, route_bound(cprep, best))
     return float(radius), float(best)

@@ -1,0 +1,296 @@
+"""The route-pricing lower bound on coverage time: near the optimum on small problems.
+
+**Route sets.** Cut every route of an optimal plan after its last snapshot that
+the coverage time counts (as `exact` does): each route then lasts at most OPT,
+and its set S of useful viewpoints (those seeing a target that still needs
+sightings) takes at least ``time_g(S)``, the least time of a path through
+exactly S in the shortest-path closure of travel (and of the launch times) from
+the start of the UAV's launch group g: a walk through S, shortcut in the
+closure, is such a path. `set_times` computes it for all 2^m subsets
+(Held-Karp), so the bound is built only for at most `ROUTE_MAX_VIEWPOINTS`
+useful viewpoints, and not with a battery limit (sorties).
+
+**Rows (W, b).** A viewpoint mask W and "at least b UAVs' routes fly a
+viewpoint of W": for a target with viewers V that needs q more sightings (its
+requirement less the UAVs that saw it before: those give at most one pair each
+of the matching of distinct UAVs at distinct places, `places`), W = V less j of
+them with b = q - j (0 <= j < q): of the q new pairs, at distinct places, at
+most j lie outside W, and the others are distinct UAVs flying W.
+
+**The certificate.** For a time T and any pi >= 0 on the rows, a plan with
+every route within T has ``sum_W b_W pi_W <= sum over its routes of val(S) <=
+sum_g n_g max{val(S) : time_g(S) <= T}``, ``val(S)`` the sum of pi_W over the
+rows W that S hits. So where ``b.pi`` exceeds the right side, no plan has
+makespan <= T, and OPT > T. The maximum is exact (a subset-sum transform over
+all 2^m sets, `RouteMaster.price`); pi comes from column generation on the
+restricted master (routes as columns, least total shortfall): HiGHS only
+proposes pi, and the inequality is checked here, with a margin. This is the
+Dantzig-Wolfe (route) relaxation: each route counts a target once and lasts at
+most T, which the flow LP of `bounds` cannot say (it counts flow, so one route
+passing twice counts twice, and bounds only the sum of the routes' times).
+
+**The bound.** The times T tried are the sets' own times
+(`RouteMaster.candidate_times`): if T is certified, some route of the optimal
+plan has ``time_g(S) > T``, so OPT is at least the next candidate time. The
+least such time the search cannot refute, less a relative 1e-6, is returned.
+
+Measured (``bench_coverage --optimal``, 130 proven optima, 8-16 viewpoints):
+see docs/benchmarks.md. On larger problems it is not built, and the bound is
+the flow LP's.
+"""
+
+import itertools
+import math
+import time
+
+import numpy as np
+from numba import njit
+from scipy.optimize import linprog
+
+#: built when at most this many viewpoints see a target that needs sightings
+#: (2^m subsets are enumerated per launch group)
+ROUTE_MAX_VIEWPOINTS = 16
+#: its time budget (seconds), and the growth of its search for a time it cannot refute
+ROUTE_TIME_LIMIT_S = 4.0
+GROWTH = 1.06
+#: the value is lowered by this relative amount for HiGHS's tolerances (as `bounds`)
+_SAFETY = 1e-6
+
+
+@njit(cache=True)
+def _closure(travel):
+    """Shortest-path closure of ``travel`` (Floyd-Warshall)."""
+    d = travel.copy()
+    n = d.shape[0]
+    for i in range(n):
+        d[i, i] = min(d[i, i], 0.0)
+    for w in range(n):
+        for i in range(n):
+            diw = d[i, w]
+            if not np.isfinite(diw):
+                continue
+            for j in range(n):
+                v = diw + d[w, j]
+                if v < d[i, j]:
+                    d[i, j] = v
+    return d
+
+
+@njit(cache=True)
+def set_times(travel, start, has_start):
+    """Per subset S of the m viewpoints of ``travel`` (bit i: viewpoint i), the
+    least time of a path through exactly S (Held-Karp), from ``start[e]`` (the
+    launch) or, without, from its first viewpoint at 0; inf for the empty set."""
+    m = travel.shape[0]
+    full = 1 << m
+    dp = np.full((full, m), np.inf)
+    for i in range(m):
+        dp[1 << i, i] = start[i] if has_start else 0.0
+    for mask in range(1, full):
+        for i in range(m):
+            here = dp[mask, i]
+            if not (mask >> i) & 1 or not here < np.inf:
+                continue
+            for j in range(m):
+                if (mask >> j) & 1:
+                    continue
+                t = here + travel[i, j]
+                if t < dp[mask | (1 << j), j]:
+                    dp[mask | (1 << j), j] = t
+    out = np.empty(full)
+    out[0] = np.inf
+    for mask in range(1, full):
+        best = np.inf
+        for i in range(m):
+            if dp[mask, i] < best:
+                best = dp[mask, i]
+        out[mask] = best
+    return out
+
+
+@njit(cache=True)
+def _subset_sums(h, m):
+    """In place: h[U] becomes the sum of h[W] over W contained in U (zeta transform)."""
+    full = 1 << m
+    for i in range(m):
+        bit = 1 << i
+        for u in range(full):
+            if u & bit:
+                h[u] += h[u ^ bit]
+
+
+def _still_needed(prep) -> np.ndarray:
+    """Per target, the sightings needed beyond the UAVs that saw it before."""
+    return prep.required.astype(np.int64) - prep.seen0.sum(axis=0)
+
+
+def _useful(prep) -> np.ndarray:
+    """Per viewpoint, whether it sees a target that still needs sightings."""
+    useful = np.zeros(prep.problem.n_viewpoints, bool)
+    needed = np.repeat(_still_needed(prep) > 0, np.diff(prep.tgt_indptr))
+    useful[prep.tgt_indices[needed]] = True
+    return useful
+
+
+def _hit_rows(prep, vps, max_subset_rows=64):
+    """Rows (viewpoint mask W over ``vps``, rhs b) of the route master: every plan
+    has at least b UAVs whose routes visit a viewpoint of W (see `route_bound`)."""
+    local = np.full(prep.problem.n_viewpoints, -1, np.int64)
+    local[vps] = np.arange(len(vps))
+    need = _still_needed(prep)
+    rows = {}
+    for c in np.flatnonzero(need > 0):
+        viewers = local[prep.tgt_indices[prep.tgt_indptr[c]:prep.tgt_indptr[c + 1]]]
+        viewers = viewers[viewers >= 0]
+        if not len(viewers):
+            continue
+        q, deg = int(need[c]), len(viewers)
+        bits = [1 << int(v) for v in viewers]
+        full = sum(bits)
+        rows[full] = max(rows.get(full, 0), q)
+        # W = viewers less j of them (1 <= j < q): at least q - j routes hit W
+        drop = 1
+        while drop < q and math.comb(deg, drop) <= max_subset_rows:
+            for out in itertools.combinations(bits, drop):
+                w = full - sum(out)
+                rows[w] = max(rows.get(w, 0), q - drop)
+            drop += 1
+    masks = np.fromiter(rows.keys(), np.int64, len(rows))
+    rhs = np.fromiter(rows.values(), np.float64, len(rows))
+    return masks, rhs
+
+
+class RouteMaster:
+    """The route-pricing relaxation of a small prepared problem (see `route_bound`)."""
+
+    def __init__(self, prep):
+        p = prep.problem
+        self.prep = prep
+        self.vps = np.flatnonzero(_useful(prep))
+        self.m = len(self.vps)
+        closed = _closure(np.ascontiguousarray(prep.travel))
+        sub = np.ascontiguousarray(closed[np.ix_(self.vps, self.vps)])
+        if prep.has_launch:
+            lo = prep.launch_out[:, None, :] + closed[None, :, :]  # via any viewpoint
+            lo = np.minimum(prep.launch_out, lo.min(axis=1))[:, self.vps]
+            rows, self.count = np.unique(lo, axis=0, return_counts=True)
+        else:
+            rows, self.count = np.zeros((1, self.m)), np.array([p.n_uavs])
+        self.times = [set_times(sub, np.ascontiguousarray(r), prep.has_launch) for r in rows]
+        self.masks, self.rhs = _hit_rows(prep, self.vps)
+        every = np.arange(1 << self.m)
+        self.sizes = sum((every >> i) & 1 for i in range(self.m))   # |S| per subset
+        self.cols = []  # (group, subset): the column pool, kept across times
+
+    def candidate_times(self):
+        t = np.concatenate(self.times)
+        return np.unique(t[np.isfinite(t)])
+
+    def price(self, pi):
+        """Per group, the subsets' values sum of pi[W] over rows W they hit."""
+        h = np.zeros(1 << self.m)
+        np.add.at(h, self.masks, pi)
+        total = float(pi.sum())
+        _subset_sums(h, self.m)
+        full = (1 << self.m) - 1
+        return total - h[full ^ np.arange(1 << self.m)]
+
+    def _add(self, g, s):
+        if (g, s) not in self._have:
+            self._have.add((g, s))
+            self.cols.append((g, s))
+
+    def infeasible(self, t, deadline=math.inf, max_rounds=60, per_group=4):
+        """True when no plan has every route within ``t`` (certified by a dual
+        vector and exact pricing, see `route_bound`); False when the LP is
+        feasible at ``t`` or the rounds run out."""
+        self._have = set(self.cols)
+        ok = [ts <= t for ts in self.times]
+        n_rows, n_g = len(self.rhs), len(self.count)
+        for g in range(n_g):  # a first column per group: its largest set within t
+            if ok[g].any():
+                idx = np.flatnonzero(ok[g])
+                self._add(g, int(idx[np.argmax(self.sizes[idx])]))
+        for _ in range(max_rounds):
+            if time.perf_counter() > deadline:
+                return False
+            cols = [(g, s) for g, s in self.cols if self.times[g][s] <= t]
+            nc = len(cols)
+            gs = np.array([g for g, _ in cols], np.int64)
+            ss = np.array([s for _, s in cols], np.int64)
+            hit = ((self.masks[:, None] & ss[None, :]) != 0).astype(float)
+            # min sum slack: hit lam + slack >= rhs, sum of a group's lam <= its count
+            a_cover = np.hstack([-hit, -np.eye(n_rows)])
+            a_conv = np.zeros((n_g, nc + n_rows))
+            a_conv[gs, np.arange(nc)] = 1.0
+            c = np.r_[np.zeros(nc), np.ones(n_rows)]
+            res = linprog(c, A_ub=np.vstack([a_cover, a_conv]),
+                          b_ub=np.r_[-self.rhs, self.count.astype(float)],
+                          bounds=(0, None), method="highs")
+            if res.status != 0:
+                return False
+            if res.fun <= 1e-7:
+                return False  # the LP has a plan of routes within t
+            pi = np.clip(-res.ineqlin.marginals[:n_rows], 0.0, None)
+            val = self.price(pi)
+            lag = float(self.rhs @ pi)
+            new = []
+            for g in range(n_g):
+                v = np.where(ok[g], val, -np.inf)
+                best = float(v.max())
+                lag -= self.count[g] * max(best, 0.0)
+                mu = max(-res.ineqlin.marginals[n_rows + g], 0.0)
+                if best > mu + 1e-9:
+                    top = (np.argpartition(-v, per_group)[:per_group] if len(v) > per_group
+                           else np.arange(len(v)))
+                    new += [(g, int(s)) for s in top if v[s] > mu + 1e-9]
+            if lag > 1e-6 * max(1.0, float(self.rhs @ pi)):
+                return True  # a certificate: rhs.pi > every plan's sum of values
+            if not new:
+                return False
+            for g, s in new:
+                self._add(g, s)
+        return False
+
+
+def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) -> float:
+    """The route-pricing bound (module doc): the least candidate time the route
+    master cannot refute, searched from ``lower`` (a valid bound) up by
+    `GROWTH` then by bisection to ``rel_tol``; 0 when the problem is too large
+    for it (more than `ROUTE_MAX_VIEWPOINTS` useful viewpoints, or a battery)."""
+    p = prep.problem
+    if p.n_viewpoints == 0 or p.n_targets == 0 or math.isfinite(p.endurance_s):
+        return 0.0
+    useful = _useful(prep)
+    if not useful.any() or useful.sum() > ROUTE_MAX_VIEWPOINTS:
+        return 0.0
+    deadline = time.perf_counter() + time_limit
+    rm = RouteMaster(prep)
+    cand = rm.candidate_times()
+    if not len(cand):
+        return 0.0
+    # cand[i] certified infeasible for i <= lo_i (below ``lower``: no plan is that
+    # quick anyway); not certified at hi_i. The bound is cand[lo_i + 1].
+    lo_i = int(np.searchsorted(cand, lower, side="left")) - 1
+    hi_i = len(cand)
+    base = cand[lo_i + 1] if lo_i + 1 < len(cand) else cand[-1]
+    grow = 0
+    while lo_i + 1 < hi_i and time.perf_counter() < deadline:
+        if hi_i == len(cand):  # grow until a time is not certified
+            i = int(np.searchsorted(cand, base * GROWTH ** grow, side="right")) - 1
+            i = min(max(i, lo_i + 1), len(cand) - 1)
+            grow += 1
+        else:
+            if cand[hi_i] <= cand[lo_i + 1] * (1 + rel_tol):
+                break
+            i = (lo_i + hi_i) // 2
+        if rm.infeasible(float(cand[i]), deadline):
+            lo_i = i
+        else:
+            hi_i = i
+    if lo_i < 0 or lo_i + 1 >= len(cand):
+        return 0.0
+    return float(cand[lo_i + 1]) * (1.0 - _SAFETY)
+
+
+__all__ = ["route_bound"]
