@@ -157,4 +157,7 @@ PROFILE = ArduPilot(
                     "missions: 64 holds about 4,368 items), then reboot",
     battery_failsafes=(("BATT_FS_LOW_ACT", _BATTERY_ACTIONS),
                        ("BATT_FS_CRT_ACT", _BATTERY_ACTIONS)),
+    # the mission's DO_CHANGE_SPEED sets the speed; climbs and descents keep these
+    rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01),
+                 ("WPNAV_SPEED_DN", "descent_mps", 0.01)),     # defaults 2.5, 1.5 m/s
 )

@@ -79,6 +79,10 @@ class Autopilot:
     #: altitude, and then flies level to it; None: it flies the straight leg from
     #: where it is
     resume_climbs_above_m: float | None = None
+    #: (parameter, the plan's rate it caps, its unit in m/s): the autopilot's own
+    #: limits on a mission's speed, climb and descent; below the plan's, every leg
+    #: they cap takes longer than planned
+    rate_limits: tuple = ()
 
     # -- missions -----------------------------------------------------------------
     @property

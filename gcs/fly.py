@@ -75,6 +75,8 @@ HOME_WAIT_S = 60.0
 #: a battery failsafe that does one of these stays hidden: straight down from a
 #: hidden point is below the exposure surface (`check_failsafes`)
 HIDDEN_FAILSAFES = ("a warning", "LAND where", "brake where")
+#: m/s an autopilot's rate limit may fall short of the plan's (float32, unit rounding)
+RATE_SLACK_MPS = 0.01
 #: how far (m) a vehicle may stand from its launch point when the plan names no track
 #: tolerance (plans older than it)
 LAUNCH_TOLERANCE_M = 5.0
@@ -301,6 +303,7 @@ class Flight:
             self.connect()
             self.locate()
             self.check_failsafes()
+            self.check_rates()
             self.upload()
             self.start()
             self._watch_and_answer(status, on_interrupt, on_timeout or (lambda: "home"))
@@ -803,6 +806,32 @@ class Flight:
             m.event(sysid, "battery failsafe: " + "; ".join(said)
                     + (": if one fired, that flight is not proven hidden from the outposts"
                        if unproven else ""))
+
+    def check_rates(self) -> None:
+        """Say, one line per vehicle, where its autopilot's own limits on a mission's
+        speed, climb or descent (the profile's `rate_limits`: ArduPilot
+        WPNAV_SPEED_UP / _DN, PX4 MPC_XY_VEL_MAX, MPC_Z_V_AUTO_UP / _DN) are below the
+        plan's: the legs they cap take longer than planned, and the fleet's
+        schedule, its separation and each sortie's battery were planned on the
+        plan's figures."""
+        m = self.monitor
+        for sysid, v in sorted(m.vehicles.items()):
+            link = m.links[sysid]
+            if v.state == LOST:
+                continue
+            slower = []
+            for name, rate, unit in commands.autopilot(link).rate_limits:
+                planned, value = self.plan.params.get(rate), commands.read_param(link, name,
+                                                                                  retries=1)
+                if planned is not None and value is not None and \
+                        value * unit < float(planned) - RATE_SLACK_MPS:
+                    slower.append(f"{name} = {value:g} ({value * unit:g} m/s, the plan's "
+                                  f"{rate} {float(planned):g})")
+            if slower:
+                m.event(sysid, "slower than planned: " + "; ".join(slower) + ": its legs take "
+                        "longer than the plan's times, on which its schedule, separation and "
+                        "battery were planned; set the parameters to the plan's rates, or "
+                        "plan with the vehicle's")
 
     def _launch_tolerance(self) -> float:
         return max(float(self.plan.params.get("track_tolerance_m", LAUNCH_TOLERANCE_M)),

@@ -33,10 +33,11 @@ def takeoffs(track) -> list:
 
 
 @pytest.mark.parametrize("backend", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    reason="PX4 v1.17 SITL, 2 vehicles, 10-minute battery (2026-11-27): a 90 s (wall, 4x) "
-           "hold of the separation guard outlasted the battery; the battery watch acts only on "
-           "a draw 1.25 x the rating, this one drew as rated, so PX4's own failsafe flew "
-           "AUTO.RTL / AUTO.LAND off the proven legs (51-83 m) and vehicle 2 was lost",
+    reason="PX4 v1.17 SITL, 2 vehicles, 10-minute battery (2026-11-28): every sortie flown "
+           "and landed, none lost, but landings on 18-20 % against the plan's 25 % reserve: PX4 "
+           "flew a 421 s sortie in 548 s, its descents capped at MPC_Z_V_AUTO_DN 1.5 m/s where "
+           "the plan assumes 2.0 (gcs fly says so; plans do not yet take the firmware's rates)."
+           " (2026-11-27: a 90 s guard hold outlasted the battery, PX4's failsafe flew RTL.)",
     strict=False))])
 def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, tmp_path):
     skip_unless_configured(backend)

@@ -106,6 +106,8 @@ class SimVehicle:
         self.link_faults = LinkFaults(cfg.drop_pct, seed=cfg.seed * 7919 + cfg.sysid)
         self.plan = cfg.faults
         self.params = dict(self.flavour.params, SYSID_THISMAV=float(cfg.sysid))
+        for name, rate, unit in self.flavour.profile.rate_limits:   # what it flies by
+            self.params[name] = getattr(cfg.limits, rate) / unit
         if "AUTO_OPTIONS" in self.params:
             self.params["AUTO_OPTIONS"] = float(cfg.auto_options)
         self.track = TrackRecorder(cfg.track_path, cfg.sysid, cfg.firmware, cfg.home)
