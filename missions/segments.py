@@ -19,9 +19,10 @@ the last one at the latest), from where it holds: its first item is that place
 on the proven leg (`point_on_leg`), so the leg from there is part of a proven
 one. Without it PX4 would climb straight up where it holds, to the next item's
 altitude, before flying level (MissionBase::checkClimbRequired on every mission
-started in the air), above its proven leg. Every mission made here passes `check` (the mission gate,
-`missions.check.checked`): the whole route once, when made, so every leg of
-every segment is proven before the first is flown, and each segment again.
+started in the air), above its proven leg. Every mission made here passes
+`check` (the mission gate, `missions.check.checked`): the whole route once,
+when made, so every leg of every segment is proven before the first is flown,
+and each segment again.
 """
 
 import math
