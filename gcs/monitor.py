@@ -78,9 +78,9 @@ def _note_airborne(v, armed: bool, agl) -> None:
         v.airborne = True
 
 
-def _speed(state) -> float:
-    """m/s from the last GLOBAL_POSITION_INT (3-D; ground speed where that is all)."""
-    if state.velocity is not None:
+def _speed(state, vertical: bool) -> float:
+    """m/s from the last GLOBAL_POSITION_INT: ground speed, or 3-D with ``vertical``."""
+    if vertical and state.velocity is not None:
         return math.hypot(*state.velocity)
     return math.inf if state.groundspeed is None else state.groundspeed
 
@@ -497,16 +497,16 @@ class Monitor:
                  "CAMERA_IMAGE_CAPTURED": _camera}
 
     # -- losses (flight loop) ---------------------------------------------------------
-    def wait_settled(self, sysids, timeout_s: float = SETTLE_S) -> None:
+    def wait_settled(self, sysids, vertical: bool = True, timeout_s: float = SETTLE_S) -> None:
         """Give held vehicles time to brake before their positions are taken: until
-        each reports moving slower than `SETTLED_MPS` (in 3-D: one still sinking is
-        not where it will stand), ``timeout_s`` wall seconds at most; losses are
-        looked for meanwhile (found by the caller's next step, on time)."""
+        each reports moving slower than `SETTLED_MPS` (with ``vertical`` in 3-D: one
+        still sinking is not where it will stand), ``timeout_s`` wall seconds at
+        most; losses are looked for meanwhile (found by the caller's next step)."""
         end = time.monotonic() + timeout_s
         time.sleep(0.3)                 # the hold on its way, and a report after it
         while time.monotonic() < end:
             self.check_losses()
-            if all(_speed(self.links[s].state) < SETTLED_MPS for s in sysids):
+            if all(_speed(self.links[s].state, vertical) < SETTLED_MPS for s in sysids):
                 return
             time.sleep(0.1)
 

@@ -305,7 +305,7 @@ class Retasker:
         landed = list(landed)
         if sysids:
             self._step(sysids, self._hold)
-            m.wait_settled(sysids)
+            m.wait_settled(sysids, vertical=False)  # a re-plan starts where they are
             if self.flying() != sysids:     # one touched down before it was held
                 raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
             sysids = self._strand_unjoined(record, sysids)
