@@ -163,10 +163,11 @@ def _hit_rows(prep, vps, max_subset_rows=64):
 class RouteMaster:
     """The route-pricing relaxation of a small prepared problem (see `route_bound`)."""
 
-    def __init__(self, prep):
+    def __init__(self, prep, vps):
+        """``vps``: the useful viewpoints (`_useful`), the only ones priced."""
         p = prep.problem
         self.prep = prep
-        self.vps = np.flatnonzero(_useful(prep))
+        self.vps = vps
         self.m = len(self.vps)
         closed = _closure(np.ascontiguousarray(prep.travel))
         sub = np.ascontiguousarray(closed[np.ix_(self.vps, self.vps)])
@@ -265,7 +266,7 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
     if not useful.any() or useful.sum() > ROUTE_MAX_VIEWPOINTS:
         return 0.0
     deadline = time.perf_counter() + time_limit
-    rm = RouteMaster(prep)
+    rm = RouteMaster(prep, np.flatnonzero(useful))
     cand = rm.candidate_times()
     if not len(cand):
         return 0.0
