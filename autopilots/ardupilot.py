@@ -158,6 +158,7 @@ PROFILE = ArduPilot(
     battery_failsafes=(("BATT_FS_LOW_ACT", _BATTERY_ACTIONS),
                        ("BATT_FS_CRT_ACT", _BATTERY_ACTIONS)),
     # the mission's DO_CHANGE_SPEED sets the speed; climbs and descents keep these
-    rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01),
-                 ("WPNAV_SPEED_DN", "descent_mps", 0.01)),     # defaults 2.5, 1.5 m/s
+    # (defaults 250, 150, 50 cm/s: planner.rates.FIRMWARE_RATES)
+    rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01), ("WPNAV_SPEED_DN", "descent_mps", 0.01),
+                 ("LAND_SPEED", "land_mps", 0.01)),
 )

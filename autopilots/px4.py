@@ -98,8 +98,10 @@ PROFILE = PX4(
     mission_end_mode="AUTO.LOITER",
     resume_rewinds=True,    # MissionBase::on_activation, camera triggering: replay
     resume_climbs_above_m=0.8,  # MissionBase::checkClimbRequired, NAV_MC_ALT_RAD's default
+    # (defaults 12, 3, 1.5, 1.5, 0.7 m/s: planner.rates.FIRMWARE_RATES)
     rate_limits=(("MPC_XY_VEL_MAX", "speed_mps", 1.0), ("MPC_Z_V_AUTO_UP", "climb_mps", 1.0),
-                 ("MPC_Z_V_AUTO_DN", "descent_mps", 1.0)),     # defaults 12, 3, 1.5 m/s
+                 ("MPC_Z_V_AUTO_DN", "descent_mps", 1.0), ("MPC_TKO_SPEED", "takeoff_mps", 1.0),
+                 ("MPC_LAND_SPEED", "land_mps", 1.0)),
     start_sequence=(Step("set_current"), Step("mission_start", "AUTO.MISSION"), Step("arm"),
                     Step("airborne")),
     request_streams=False,

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Optional
 
 from common.errors import InputError
+from planner.rates import FIRMWARE_RATES
 
 FIRMWARES = ("ardupilot", "px4")
 #: the coverage methods, in the order users see them; each registers itself in
@@ -61,8 +62,11 @@ class Scenario:
     uavs: int = 4
     launch: list = field(default_factory=list)  # [(lat, lon)], one for all or one per UAV
     speed_mps: float = 12.0
-    climb_mps: float = 3.0
-    descent_mps: float = 2.0
+    # vertical rates; None: the firmware's at its defaults (`planner.rates.FIRMWARE_RATES`)
+    climb_mps: Optional[float] = None
+    descent_mps: Optional[float] = None
+    takeoff_mps: Optional[float] = None  # the lowest metres of a takeoff (PX4: 10 m)
+    land_mps: Optional[float] = None  # the lowest metres of a landing (ArduPilot: 10 m)
     track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
     separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
     accel_mps2: float = 3.0  # horizontal acceleration: the time a waypoint costs (fleet.stop_time)
@@ -81,6 +85,13 @@ class Scenario:
     time_budget_s: Optional[float] = None  # alns search budget; default scales with the plan
     seed: int = 0
     parts: Optional[int] = None  # planned in this many parts (planner.split); None: by size
+
+    def __post_init__(self):
+        """Rates not given are the firmware's (a plan says which it assumed)."""
+        rates = _firmware_rates(self.firmware)
+        for name in _RATES:
+            if getattr(self, name) is None and rates is not None:
+                setattr(self, name, getattr(rates, name))
 
     def validate(self, source="scenario") -> "Scenario":
         """Raise InputError for values no planner stage could use."""
@@ -114,8 +125,7 @@ class Scenario:
              f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
              f"got {len(self.launch)}"),
         ]
-        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "climb_mps", "descent_mps",
-                    "accel_mps2")
+        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2") + _RATES
         checks += [(_positive(getattr(self, n)), f"{n} must be a positive number")
                    for n in positive]
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
@@ -156,8 +166,10 @@ class Scenario:
 
     def travel_params(self):
         from planner.travel import TravelParams
+        rates = _firmware_rates(self.firmware)
         return TravelParams(self.speed_mps, self.climb_mps, self.descent_mps,
-                            self.track_tolerance_m)
+                            self.track_tolerance_m, self.takeoff_mps, rates.takeoff_band_m,
+                            self.land_mps, rates.land_band_m)
 
     # --- plan.json's "params" --------------------------------------------------------------
     def params(self) -> dict:
@@ -204,6 +216,16 @@ _RENAMED = ("outposts", "launch")
 TARGET_HEIGHT_M = 0.5
 
 
+#: the vertical rates a firmware gives when the scenario does not
+_RATES = ("climb_mps", "descent_mps", "takeoff_mps", "land_mps")
+
+
+def _firmware_rates(name):
+    """The firmware's `planner.rates.Rates`; None for an unknown one (`validate`
+    says so)."""
+    return FIRMWARE_RATES.get(str(name).lower())
+
+
 def _positive(x) -> bool:
     return isinstance(x, (int, float)) and math.isfinite(x) and x > 0
 
@@ -215,7 +237,8 @@ SECTIONS = {
     "outposts": ("outposts", "no_outposts"),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
-    "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
+    "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "takeoff_mps",
+              "land_mps", "track_tolerance_m",
               "separation_m", "accel_mps2", "firmware", "endurance_min", "reserve_pct",
               "turnaround_min"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",

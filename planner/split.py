@@ -43,7 +43,7 @@ from . import coverage
 from .coverage.insertion import walked
 from .coverage.metrics import reach_bound_of
 from .coverage.places import count_with, matched_counts
-from .coverage.problem import CLOSED, achievable, csc_transpose
+from .coverage.problem import CLOSED, achievable, beyond_battery, csc_transpose
 from .coverage.setcover import greedy_cover
 from .parallel import run_chunks
 from .travel import overlay_rows
@@ -86,14 +86,15 @@ def _bisect(xy, idx, parts, first, labels):
 
 
 @njit(cache=True)
-def _shares(vis_indptr, vis_indices, labels, required, parts):
+def _shares(vis_indptr, vis_indices, labels, required, parts, flyable):
     """[n_targets, parts]: the sightings each part's group owes each target. A
     target's k+1 sightings come from distinct places, so no part can owe more
-    than it has viewpoints seeing the target: the part with the most of them owes
-    what it can, the next the rest, and so on (in all, what the area can give)."""
+    than it has viewpoints seeing the target (``flyable`` ones: within a battery):
+    the part with the most of them owes what it can, the next the rest, and so on
+    (in all, what the area can give)."""
     n_t = len(required)
     votes = np.zeros((n_t, parts), np.int32)
-    for e in range(len(vis_indptr) - 1):
+    for e in np.flatnonzero(flyable):
         for j in range(vis_indptr[e], vis_indptr[e + 1]):
             votes[vis_indices[j], labels[e]] += 1
     owed = np.zeros((n_t, parts), np.int32)
@@ -129,7 +130,12 @@ def make_parts(problem, xy: np.ndarray, parts: int) -> list:
     labels = split_viewpoints(xy, parts)
     indptr = np.asarray(problem.vis_indptr, np.int64)
     indices = np.asarray(problem.vis_indices)
-    owed = _shares(indptr, indices, labels, problem.needs(), parts)
+    # a part owing a target only a viewpoint beyond one battery sees in it would
+    # leave it unseen where another part has one within reach
+    flyable = np.ones(len(indptr) - 1, bool)
+    if problem.endurance_s < np.inf:
+        flyable[beyond_battery(problem)] = False
+    owed = _shares(indptr, indices, labels, problem.needs(), parts, flyable)
     out = []
     for p in range(parts):
         vps = np.flatnonzero(labels == p)

@@ -80,11 +80,6 @@ def late_start(planned, longest_s=600.0, step_s=10.0) -> tuple:
                 "closer than the separation")
 
 
-@pytest.mark.xfail(strict=False, reason=(
-    "2026-11-28: failed in 3 of 3 full CI runs since that day's commits (sim and sim-px4: "
-    "29.1 m and 22.9 m apart in the base column against 30 m; a hold predicted beyond the "
-    "separation), passes alone on a quiet machine: under investigation, possibly a "
-    "regression of that day's guard / segment changes"))
 @pytest.mark.parametrize("backend", ["sim", "sim-px4"])
 def test_a_late_start_waits_for_its_column_and_the_guard_acts(planned, backend, tmp_path):
     """A vehicle takes off late by the least delay that, on the plan's own

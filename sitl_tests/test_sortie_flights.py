@@ -32,13 +32,9 @@ def takeoffs(track) -> list:
     return list(np.asarray(t)[1:][up[1:] & ~up[:-1]])
 
 
-@pytest.mark.parametrize("backend", ["ardupilot", pytest.param("px4", marks=pytest.mark.xfail(
-    reason="PX4 v1.17 SITL, 2 vehicles, 10-minute battery (2026-11-28): every sortie flown "
-           "and landed, none lost, but landings on 18-20 % against the plan's 25 % reserve: PX4 "
-           "flew a 421 s sortie in 548 s, its descents capped at MPC_Z_V_AUTO_DN 1.5 m/s where "
-           "the plan assumes 2.0 (gcs fly says so; plans do not yet take the firmware's rates)."
-           " (2026-11-27: a 90 s guard hold outlasted the battery, PX4's failsafe flew RTL.)",
-    strict=False))])
+# PX4 v1.17 SITL landed on 18-20 % against the 25 % reserve while plans assumed a 2.0
+# m/s descent (its MPC_Z_V_AUTO_DN is 1.5); planned with the firmware's rates, on 25-26 %
+@pytest.mark.parametrize("backend", ["ardupilot", "px4"])
 def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, tmp_path):
     skip_unless_configured(backend)
     p = planned(0, SORTIES)

@@ -17,6 +17,7 @@ from gcs.sim.flavours import FLAVOURS
 from missions.build import MissionOptions, vehicle_mission
 from missions.items import FRAME_GLOBAL, MissionItem
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
+from planner.rates import FIRMWARE_RATES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -172,4 +173,4 @@ def test_layering():
             for needle in ('== "ardupilot"', '== "px4"', "== ARDUPILOT", "== PX4",
                            "flavour.name =="):
                 assert needle not in text, f"{path}: {needle}"
-    assert set(PROFILES) == set(NAMES)
+    assert set(PROFILES) == set(NAMES) == set(FIRMWARE_RATES)

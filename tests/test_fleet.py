@@ -17,6 +17,7 @@ from scipy import ndimage
 from planner.fleet import Profile, Trajectory, schedule, separation
 from planner.fleet.schedule import drift_s
 from planner.pipeline import exposure_stages, plan_mission
+from planner.rates import FIRMWARE_RATES
 from planner.scenario import METHODS, Scenario
 from planner.terrain import synthetic_terrain
 from planner.travel import TravelParams
@@ -124,6 +125,42 @@ def test_closest_approach_in_the_classic_encounters(case):
     begin, end = a.first_conflict(b, want + 1.0)
     assert begin <= end and math.isfinite(begin)
     assert not math.isfinite(a.first_conflict(b, want - 0.5)[0])
+
+
+def _vertical_reference(height, band, slow, rate, dt=1e-3):
+    """(times, heights above the ground) of a column flown up from the ground (or
+    down to it, read backwards) at ``slow`` m/s below ``band`` and ``rate`` above,
+    by small steps: the reference the profile's closed form is judged by."""
+    h, t, out = 0.0, 0.0, [(0.0, 0.0)]
+    while h < height:
+        h = min(height, h + dt * (slow if h < band else rate))
+        t += dt
+        out.append((t, h))
+    return np.array(out).T
+
+
+@pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
+def test_a_takeoff_and_a_landing_fly_their_lowest_metres_at_the_firmwares_rates(firmware):
+    """A sortie's takeoff and landing in its profile, against a step-by-step
+    reference of the firmware's rates (PX4: 1.5 m/s for the lowest 10 m of a
+    takeoff; ArduPilot: 0.5 m/s for the lowest 10 m of a landing): the same
+    times to the top and to touchdown, and the same height at every moment."""
+    rates = FIRMWARE_RATES[firmware]
+    params = Scenario(sample=True, firmware=firmware).travel_params()
+    base = np.array([0.0, 0.0, 100.0])
+    poly = np.array([[0, 0, 220.0], [600, 0, 220.0], [0, 0, 220.0]])
+    tr = Profile.of_route(poly, params, launch=base).timed(0.0)
+    up_t, up_h = _vertical_reference(120.0, rates.takeoff_band_m, rates.takeoff_mps,
+                                     rates.climb_mps)
+    down_t, down_h = _vertical_reference(120.0, rates.land_band_m, rates.land_mps,
+                                         rates.descent_mps)
+    at_top = tr.t[tr.xyz[:, 2] == 220.0]
+    assert at_top[0] == pytest.approx(up_t[-1], abs=0.01)
+    assert tr.end - at_top[-1] == pytest.approx(down_t[-1], abs=0.01)
+    assert np.interp(up_t, tr.t, tr.xyz[:, 2]) - 100.0 == pytest.approx(up_h, abs=0.01)
+    landing = tr.end - down_t
+    assert np.interp(landing, tr.t, tr.xyz[:, 2]) - 100.0 == pytest.approx(down_h, abs=0.01)
+    assert tr.xyz[0, 2] == tr.xyz[-1, 2] == 100.0
 
 
 def test_one_base_one_vehicle_in_its_column_at_a_time():

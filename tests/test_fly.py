@@ -345,18 +345,21 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
 def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_path, firmware):
     """The simulated autopilots answer their mission rate limits as each firmware
     names them (ArduPilot WPNAV_SPEED_DN in cm/s, PX4 MPC_Z_V_AUTO_DN in m/s) and
-    fly by them. At the firmwares' default descent of 1.5 m/s the plan's faster
-    descent is said, one line per vehicle, naming the parameter and both rates;
-    vehicles at the plan's rates hear nothing."""
+    fly by them. At a descent of 1 m/s the plan's faster descent is said, one line
+    per vehicle, naming the parameter and both rates; vehicles at the plan's rates
+    hear nothing."""
     from gcs.fly import Flight, FlyOptions
     from gcs.sim import fleet_for_plan
     from gcs.sim.physics import Limits
 
-    planned_rate = planned.plan.params["descent_mps"]
+    params = planned.plan.params
+    planned_rate = params["descent_mps"]
     said = {}
-    for descent in (1.5, planned_rate):
+    for descent in (1.0, planned_rate):
+        limits = Limits(climb_mps=params["climb_mps"], descent_mps=descent,
+                        takeoff_mps=params["takeoff_mps"], land_mps=params["land_mps"])
         fleet = fleet_for_plan(planned.plan, speedup=20.0, base_port=free_base_port(10, 3),
-                               firmware=firmware, limits=Limits(descent_mps=descent))
+                               firmware=firmware, limits=limits)
         flight = Flight(planned.dir, fleet.urls(), FlyOptions(output=tmp_path / str(descent),
                                                               plot=False))
         try:
@@ -367,9 +370,9 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
             flight.link.close()
             fleet.stop()
         said[descent] = [e for e in flight.monitor.events if "slower than planned" in e["event"]]
-    name = {"ardupilot": "WPNAV_SPEED_DN = 150 (1.5 m/s", "px4": "MPC_Z_V_AUTO_DN = 1.5 (1.5 m/s"}
-    assert planned_rate > 1.5
-    assert sorted(e["sysid"] for e in said[1.5]) == sorted(flight.monitor.vehicles)
+    name = {"ardupilot": "WPNAV_SPEED_DN = 100 (1 m/s", "px4": "MPC_Z_V_AUTO_DN = 1 (1 m/s"}
+    assert planned_rate > 1.0
+    assert sorted(e["sysid"] for e in said[1.0]) == sorted(flight.monitor.vehicles)
     assert all(name[firmware] in e["event"] and f"descent_mps {planned_rate:g}" in e["event"]
-               for e in said[1.5])
+               for e in said[1.0])
     assert said[planned_rate] == []

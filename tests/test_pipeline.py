@@ -15,7 +15,7 @@ from planner.fleet import stop_time
 from planner.pipeline import plan_mission
 from planner.scenario import Scenario
 from planner.terrain import bilinear, synthetic_terrain
-from planner.travel import TravelParams, polyline_time
+from planner.travel import polyline_time
 
 N = 96
 
@@ -109,7 +109,7 @@ def test_times_follow_the_travel_model(planned):
     inner waypoint (`stop_time`) and the schedule's holds; a snapshot is taken when
     its waypoint (and hold) is done."""
     ctx, outcome = planned
-    params = TravelParams()
+    params = ctx.scenario.travel_params()
     stop = stop_time(vars(ctx.scenario))
     for poly, vehicle in zip(outcome.polylines, outcome.plan.vehicles):
         w = vehicle.waypoints

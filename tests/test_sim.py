@@ -487,7 +487,7 @@ def test_the_failsafe_levels_follow_the_firmware_parameters():
 
 def test_a_low_battery_fires_the_failsafe_its_parameters_set(tmp_path):
     """A vehicle hovering on a four-minute battery, its low and critical levels set
-    to 20 and 10 % of its capacity (off by default, as the firmware's): below 20 %
+    to 20 and 5 % of its capacity (off by default, as the firmware's): below 20 %
     ArduPilot's BATT_FS_LOW_ACT (2: RTL) takes it over, said in a STATUSTEXT;
     SYS_STATUS and BATTERY_STATUS report the same charge; the track records the
     draw."""
@@ -497,7 +497,7 @@ def test_a_low_battery_fires_the_failsafe_its_parameters_set(tmp_path):
     with fleet_and_clients(config) as (fleet, (c,)):
         wait_ready(c)
         for name, mah in (("BATT_LOW_MAH", 0.2 * CAPACITY_MAH),
-                          ("BATT_CRT_MAH", 0.1 * CAPACITY_MAH)):
+                          ("BATT_CRT_MAH", 0.05 * CAPACITY_MAH)):
             c.m.mav.param_set_send(1, 1, name.encode(), mah, M.MAV_PARAM_TYPE_REAL32)
             c.wait("PARAM_VALUE", lambda p, name=name, mah=mah: p.param_id == name
                    and p.param_value == mah)
@@ -508,8 +508,11 @@ def test_a_low_battery_fires_the_failsafe_its_parameters_set(tmp_path):
         assert c.said(lambda text: text.startswith("Battery 1 is low"), timeout=30)
         pack = c.wait("BATTERY_STATUS", timeout=5)
         status = c.wait("SYS_STATUS", timeout=5)
-        assert pack.battery_remaining < 20 and abs(pack.battery_remaining
-                                                   - status.battery_remaining) <= 1
+        # the two streams are sent apart: at 20x a 4-minute pack drains about 9 % a
+        # wall second (climbing more), so they agree to the charge drawn between them
+        apart_s = abs(status._timestamp - pack._timestamp)
+        assert pack.battery_remaining < 20 and \
+            pack.battery_remaining - status.battery_remaining <= 1 + 12 * apart_s
         assert pack.current_consumed == pytest.approx(
             (100 - pack.battery_remaining) / 100 * CAPACITY_MAH, abs=60)
         c.wait("EXTENDED_SYS_STATE", lambda s: s.landed_state == M.MAV_LANDED_STATE_ON_GROUND,
@@ -520,7 +523,7 @@ def test_a_low_battery_fires_the_failsafe_its_parameters_set(tmp_path):
     assert "landed" in events[low:] and not any("critical" in e for e in events)
     assert abs(track.alt[-1] - HOME[2]) < 0.01
     flying = (track.t >= next(e["t"] for e in track.events if e["event"] == "takeoff"))
-    assert np.all(np.diff(track.used[flying]) >= 0) and 0.8 < track.used[-1] < 0.9
+    assert np.all(np.diff(track.used[flying]) >= 0) and 0.8 < track.used[-1] < 0.95
 
 
 # -- PX4 flavour ---------------------------------------------------------------------

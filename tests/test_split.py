@@ -50,7 +50,8 @@ def test_each_target_owed_by_the_parts_with_most_viewpoints_seeing_it(seed, part
     n_vp, n_t = 25, 40
     indptr, indices = _random_vis(rng, n_vp, n_t)
     labels = rng.integers(0, parts, n_vp)
-    owed = _shares(indptr, indices, labels, np.full(n_t, need, np.int32), parts)
+    owed = _shares(indptr, indices, labels, np.full(n_t, need, np.int32), parts,
+                   np.ones(len(indptr) - 1, bool))
     for t in range(n_t):
         seers = [e for e in range(n_vp) if t in indices[indptr[e]:indptr[e + 1]]]
         votes = np.bincount(labels[seers], minlength=parts) if seers else np.zeros(parts, int)

@@ -31,8 +31,12 @@ HELP = {
                            "(default: from the sensor range)",
     "uavs": "number of UAVs",
     "speed_mps": "horizontal cruise speed, m/s",
-    "climb_mps": "climb rate, m/s",
-    "descent_mps": "descent rate, m/s",
+    "climb_mps": "climb rate, m/s (default: the firmware's, ArduPilot 2.5, PX4 3)",
+    "descent_mps": "descent rate, m/s (default: the firmware's, 1.5)",
+    "takeoff_mps": "climb rate of a takeoff's lowest metres, m/s (default: the firmware's, "
+                   "ArduPilot 2.5, PX4 1.5 below 10 m)",
+    "land_mps": "descent rate of a landing's lowest metres, m/s (default: the firmware's, "
+                "ArduPilot 0.5 below 10 m, PX4 0.7 below 7.5 m)",
     "track_tolerance_m": "how far a vehicle may stray from its planned legs, metres: "
                          "every point that close to a leg is proven hidden too",
     "separation_m": "least distance between two airborne vehicles, metres, proven on their "
@@ -114,7 +118,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
     fields_of = {
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
-        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "track_tolerance_m",
+        "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps",
+                  "track_tolerance_m",
                   "separation_m", "accel_mps2", "endurance_min", "reserve_pct",
                   "turnaround_min"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),

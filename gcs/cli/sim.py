@@ -38,10 +38,10 @@ def add_arguments(parser) -> None:
     defaults = Limits()
     vehicle.add_argument("--speed", type=float, default=defaults.speed_mps, metavar="M/S",
                          help="horizontal speed limit")
-    vehicle.add_argument("--climb", type=float, default=defaults.climb_mps, metavar="M/S",
-                         help="climb rate limit")
-    vehicle.add_argument("--descent", type=float, default=defaults.descent_mps, metavar="M/S",
-                         help="descent rate limit")
+    vehicle.add_argument("--climb", type=float, default=None, metavar="M/S",
+                         help="climb rate limit (default: the firmware's, ArduPilot 2.5, PX4 3)")
+    vehicle.add_argument("--descent", type=float, default=None, metavar="M/S",
+                         help="descent rate limit (default: the firmware's, 1.5)")
     vehicle.add_argument("--accel", type=float, default=defaults.accel_mps2, metavar="M/S2",
                          help="horizontal acceleration limit")
     vehicle.add_argument("--warmup", type=float, default=None, metavar="S",
@@ -163,7 +163,8 @@ def config_from_args(args):
     if args.warmup is not None and args.warmup < 0:
         raise InputError("--warmup", f"must not be negative, got {args.warmup}")
     limits = Limits(args.speed, args.climb, args.descent, args.accel)
-    if min(limits.speed_mps, limits.climb_mps, limits.descent_mps, limits.accel_mps2) <= 0:
+    if min(x for x in (limits.speed_mps, limits.climb_mps, limits.descent_mps,
+                       limits.accel_mps2) if x is not None) <= 0:
         raise InputError("--speed/--climb/--descent/--accel", "limits must be positive")
     return FleetConfig(
         vehicles=args.vehicles, firmware=args.firmware, home=home,

@@ -19,7 +19,7 @@ from pathlib import Path
 from autopilots import ARDUPILOT
 from gcs.sim.faults import FaultPlan
 from gcs.sim.flavours import flavour
-from gcs.sim.physics import DEFAULT_HOME, Limits
+from gcs.sim.physics import DEFAULT_HOME, PLANNED_RATES, Limits
 from gcs.sim.track import track_path
 from gcs.sim.vehicle import FIRMWARE_CAPACITY, SimVehicle, VehicleConfig
 
@@ -196,7 +196,9 @@ class SimFleet:
 
 def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
     """A started fleet for a dry run of ``plan``: one vehicle per route (or
-    ``vehicles``), each at its route's launch point; ``config`` as FleetConfig.
+    ``vehicles``), each at its route's launch point, its autopilot set to the plan's
+    rates (as an operator sets WPNAV_SPEED_UP / _DN or MPC_Z_V_AUTO_UP / _DN, and
+    `gcs fly` checks) unless ``config`` gives ``limits``; ``config`` as FleetConfig.
 
     OSError if an endpoint is taken (nothing is left open)."""
     n = len(plan.vehicles) if vehicles is None else vehicles
@@ -207,6 +209,8 @@ def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
             raise ValueError(f"plan vehicle {route.id} has no launch point to start from")
         homes.append((route.launch.lat, route.launch.lon, route.launch.alt_amsl))
     config.setdefault("firmware", plan.params.get("firmware", ARDUPILOT))
+    config.setdefault("limits", Limits(**{name: plan.params[name] for name in PLANNED_RATES
+                                          if plan.params.get(name) is not None}))
     return SimFleet(FleetConfig(vehicles=n, homes=homes, **config)).start()
 
 

@@ -9,7 +9,7 @@ y north) around the vehicle's home, altitude metres AMSL.
 """
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
 
@@ -18,12 +18,28 @@ _CROSS_GAIN = 1.0      # 1/s: cross-track error -> correcting velocity
 _POS_GAIN = 2.0        # 1/s: linear speed profile close to the destination
 
 
+#: the rates a plan states (plan.json ``params``), by the names `Limits` has too
+PLANNED_RATES = ("speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps")
+
+
 @dataclass(frozen=True)
 class Limits:
+    """What the vehicle flies by; a rate left None is its firmware's at its defaults
+    (`planner.rates.FIRMWARE_RATES`, `of_firmware`): the lowest metres of a takeoff and a
+    landing at their slower rates."""
     speed_mps: float = 12.0
-    climb_mps: float = 3.0
-    descent_mps: float = 2.0
+    climb_mps: float | None = None
+    descent_mps: float | None = None
     accel_mps2: float = 3.0
+    takeoff_mps: float | None = None
+    takeoff_band_m: float | None = None
+    land_mps: float | None = None
+    land_band_m: float | None = None
+
+    def of_firmware(self, rates) -> "Limits":
+        """These limits, each rate not given taken from ``rates``."""
+        return replace(self, **{f.name: getattr(rates, f.name) for f in fields(rates)
+                                if getattr(self, f.name) is None})
 
 
 @dataclass(frozen=True)
@@ -52,7 +68,8 @@ class PointMass:
         self.vel = [0.0, 0.0, 0.0]
         self.limits = limits
         self.speed_mps = limits.speed_mps       # cruise speed, DO_CHANGE_SPEED changes it
-        self.descent_mps = limits.descent_mps   # landing lowers it near the ground
+        self.climb_mps = limits.climb_mps       # a takeoff lowers it near the ground
+        self.descent_mps = limits.descent_mps   # and so does a landing
         self.origin = list(pos)
         self.dest = list(pos)
 
@@ -107,7 +124,7 @@ class PointMass:
         if horizontal > 1e-9:
             cap = self.speed_mps / horizontal
         if u[2] > 1e-9:
-            cap = min(cap, self.limits.climb_mps / u[2])
+            cap = min(cap, self.climb_mps / u[2])
         elif u[2] < -1e-9:
             cap = min(cap, self.descent_mps / -u[2])
         return cap if math.isfinite(cap) else 0.0
@@ -117,5 +134,5 @@ class PointMass:
         h = math.hypot(vx, vy)
         if h > self.speed_mps:
             vx, vy = vx * self.speed_mps / h, vy * self.speed_mps / h
-        vz = min(max(vz, -self.descent_mps), self.limits.climb_mps)
+        vz = min(max(vz, -self.descent_mps), self.climb_mps)
         return [vx, vy, vz]

@@ -25,6 +25,7 @@ from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
 from gcs.sim.physics import Limits, LocalFrame, PointMass
 from gcs.sim.track import TrackRecorder
 from gcs.sim.transport import PtyLink, TcpServerLink, UdpLink
+from planner.rates import FIRMWARE_RATES
 
 M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
@@ -32,8 +33,6 @@ PHYSICS_STEP_S = 0.05    # largest mission-time step of the point mass
 STEP_BUDGET_S = TICK_S   # wall time one tick may spend stepping mission time
 FLUSH_S = 2.0            # wall period of track file writes
 FORCE_DISARM = 21196
-LAND_SLOW_AGL_M = 10.0
-LAND_SLOW_MPS = 1.0
 TAKEOFF_TOLERANCE_M = 0.5
 #: VehicleConfig.mission_capacity: what the firmware's profile says
 FIRMWARE_CAPACITY = "firmware"
@@ -102,12 +101,13 @@ class SimVehicle:
         self.frame = LocalFrame(lat, lon)
         self._home_ground = float(alt)
         self.home = (0.0, 0.0, self._home_ground)    # local x, y, alt
-        self.body = PointMass((0.0, 0.0, self._home_ground), cfg.limits)
+        self.limits = cfg.limits.of_firmware(FIRMWARE_RATES[self.flavour.profile.name])
+        self.body = PointMass((0.0, 0.0, self._home_ground), self.limits)
         self.link_faults = LinkFaults(cfg.drop_pct, seed=cfg.seed * 7919 + cfg.sysid)
         self.plan = cfg.faults
         self.params = dict(self.flavour.params, SYSID_THISMAV=float(cfg.sysid))
         for name, rate, unit in self.flavour.profile.rate_limits:   # what it flies by
-            self.params[name] = getattr(cfg.limits, rate) / unit
+            self.params[name] = getattr(self.limits, rate) / unit
         if "AUTO_OPTIONS" in self.params:
             self.params["AUTO_OPTIONS"] = float(cfg.auto_options)
         self.track = TrackRecorder(cfg.track_path, cfg.sysid, cfg.firmware, cfg.home)
@@ -284,12 +284,15 @@ class SimVehicle:
             self._swap_battery(dt)
             return
         kind = self.task["kind"] if self.task else None
-        descent = self.cfg.limits.descent_mps
+        lim, agl = self.limits, self.body.pos[2] - self.ground
+        climb, descent = lim.climb_mps, lim.descent_mps
         if kind == "fall":
             descent = 10.0
-        elif kind == "land" and self.body.pos[2] - self.ground < LAND_SLOW_AGL_M:
-            descent = min(descent, LAND_SLOW_MPS)
-        self.body.descent_mps = descent
+        elif kind in ("land", "rtl") and agl < lim.land_band_m:
+            descent = min(descent, lim.land_mps)
+        elif kind == "takeoff" and agl < lim.takeoff_band_m:
+            climb = min(climb, lim.takeoff_mps)
+        self.body.climb_mps, self.body.descent_mps = climb, descent
         self.body.step(dt)
         self.battery.draw(dt, self.body.vel[2])
         self._battery_failsafes()

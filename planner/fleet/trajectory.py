@@ -69,22 +69,38 @@ class Profile:
         flight), flown straight to the polyline's first vertex. ``stop_s``: what
         slowing to a stop at a vertex and speeding up again costs (speed / the
         acceleration: a multicopter flying a mission stops at each waypoint),
-        added to each leg that leaves a polyline vertex but the first."""
+        added to each leg that leaves a polyline vertex but the first. The lowest
+        metres of a takeoff and of a landing are flown at the firmware's slower
+        rates (`TravelParams.takeoff_band_m`, ``land_band_m``): a vertex where each
+        band begins."""
         poly = np.asarray(polyline, float).reshape(-1, 3)
-        parts, first = [poly], 0
+        tp = travel_params
         up = launch is not None and start is None
-        if start is not None:
-            parts.insert(0, np.asarray(start, float)[None])
-            first = 1
-        elif up:
-            parts.insert(0, np.asarray(launch, float)[None])
-            first = 1
         down = launch is not None and len(poly) > 0
+        pts, rate = [], []      # vertices; the vertical rate of the leg leaving each
+        if start is not None:
+            pts, rate = [np.asarray(start, float)], [None]
+        elif up:
+            pts, rate = [np.asarray(launch, float)], [None]
+            if len(poly):
+                mid, rate[0] = _slow_band(launch, poly[0], tp.takeoff_band_m, tp.takeoff_mps)
+                if mid is not None:
+                    pts, rate = pts + [mid], rate + [None]
+        first = len(pts)
+        pts, rate = pts + list(poly), rate + [None] * len(poly)
         if down:
-            parts.append(np.asarray(launch, float)[None])
-        xyz = np.vstack(parts)
+            mid, slow = _slow_band(launch, poly[-1], tp.land_band_m, tp.land_mps)
+            if mid is None:
+                rate[-1] = slow
+            else:
+                pts, rate = pts + [mid], rate + [slow]
+            pts, rate = pts + [np.asarray(launch, float)], rate + [None]
+        xyz = np.vstack(pts)
         d = np.diff(xyz, axis=0)
-        duration = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], travel_params).astype(float)
+        duration = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], tp).astype(float)
+        for i, r in enumerate(rate[:-1]):      # the lowest metres of a takeoff or landing
+            if r:
+                duration[i] = abs(d[i, 2]) / r
         last = first + len(poly) - 1
         duration[first + 1:last] += stop_s       # the legs out of inner polyline vertices
         return cls(xyz, duration, (up, down), (first, last))
@@ -154,3 +170,14 @@ def route_trajectory(route, terrain, travel_params, stop_s=0.0) -> Trajectory:
     holds = np.zeros(profile.n)
     holds[profile.route[0]:profile.route[1] + 1] = [p.hold_s for p in route.waypoints]
     return profile.timed(route.takeoff_s, holds)
+
+
+def _slow_band(ground, top, band_m, slow_mps) -> tuple:
+    """(the point ``band_m`` above ``ground`` under ``top``, the rate below it) of a
+    takeoff or landing column whose lowest metres are flown at ``slow_mps``; (None,
+    that rate) when the whole column is in the band; (None, None) without one."""
+    if not slow_mps or band_m <= 0:
+        return None, None
+    if top[2] - ground[2] <= band_m:
+        return None, slow_mps
+    return np.array([top[0], top[1], ground[2] + band_m], float), slow_mps

@@ -10,11 +10,13 @@ from .graph import (
                     TravelGraph,
                     TravelParams,
                     build_travel_graph,
+                    landing_time,
                     leg_time,
                     overlay_rows,
                     polyline_time,
                     raised_terrain,
+                    takeoff_time,
 )
 
-__all__ = ["CLEARANCE_MARGIN_M", "ROUNDING_SLACK_M", "TravelGraph", "TravelParams", "build_travel_graph", "leg_time",
-           "overlay_rows", "polyline_time", "raised_terrain"]
+__all__ = ["CLEARANCE_MARGIN_M", "ROUNDING_SLACK_M", "TravelGraph", "TravelParams", "build_travel_graph",
+           "landing_time", "leg_time", "overlay_rows", "polyline_time", "raised_terrain", "takeoff_time"]

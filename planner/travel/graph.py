@@ -33,6 +33,7 @@ straight leg could pass up to the sight lines where E dips under it.
 """
 
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 from scipy.ndimage import maximum_filter
@@ -87,11 +88,18 @@ class TravelParams:
     #: how far (horizontally) a vehicle may stray from a planned leg and stay hidden and
     #: clear: cross-track error and corner overshoot (the simulator's copter: up to 4 m)
     track_tolerance_m: float = 5.0
+    #: the slower rates of the lowest metres of a takeoff and of a landing (a
+    #: firmware's `planner.rates.Rates`); None: the climb or descent rate throughout
+    takeoff_mps: Optional[float] = None
+    takeoff_band_m: float = 0.0
+    land_mps: Optional[float] = None
+    land_band_m: float = 0.0
 
     def __post_init__(self):
-        for name in ("speed_mps", "climb_mps", "descent_mps"):
-            if not getattr(self, name) > 0:
-                raise InputError(name, f"must be positive, got {getattr(self, name)}")
+        for name in ("speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise InputError(name, f"must be positive, got {value}")
         if not self.track_tolerance_m >= 0:
             raise InputError("track_tolerance_m", f"must not be negative, got "
                                                   f"{self.track_tolerance_m}")
@@ -108,6 +116,25 @@ def leg_time(horizontal_m, dz_m, params=TravelParams()):
     dz_m = np.asarray(dz_m, float)
     vertical = np.where(dz_m > 0, dz_m / params.climb_mps, -dz_m / params.descent_mps)
     return np.maximum(horizontal_m / params.speed_mps, vertical)
+
+
+def takeoff_time(height_m, params=TravelParams()) -> float:
+    """Time of a takeoff ``height_m`` straight up: its lowest ``takeoff_band_m`` at
+    ``takeoff_mps``, the rest at the climb rate."""
+    return _vertical_time(height_m, params.takeoff_band_m, params.takeoff_mps, params.climb_mps)
+
+
+def landing_time(height_m, params=TravelParams()) -> float:
+    """Time of a landing ``height_m`` straight down: its lowest ``land_band_m`` at
+    ``land_mps``, the rest at the descent rate."""
+    return _vertical_time(height_m, params.land_band_m, params.land_mps, params.descent_mps)
+
+
+def _vertical_time(height_m, band_m, slow_mps, rate_mps):
+    h = np.maximum(np.asarray(height_m, float), 0.0)
+    low = np.minimum(h, band_m if slow_mps else 0.0)
+    out = low / (slow_mps or rate_mps) + (h - low) / rate_mps
+    return float(out) if out.ndim == 0 else out
 
 
 def polyline_time(poly, params=TravelParams()) -> float:
