@@ -376,3 +376,23 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
     assert all(name[firmware] in e["event"] and f"descent_mps {planned_rate:g}" in e["event"]
                for e in said[1.0])
     assert said[planned_rate] == []
+
+
+def test_the_plan_summary_says_the_rates_it_assumed(planned):
+    """`gcs plan` says the vertical rates every time of the plan assumes, and
+    whether they are its firmware's defaults (the shared plan climbs and descends
+    faster than ArduPilot's: the operator must set them)."""
+    from dataclasses import replace
+
+    from gcs.cli.views import rates_line
+    from planner.rates import FIRMWARE_RATES
+
+    line = rates_line(planned.plan)
+    assert line.startswith("rates: climb 3, descent 2, takeoff 2.5, landing 0.5 m/s") and \
+        "not all ardupilot's defaults" in line
+    for firmware, rates in FIRMWARE_RATES.items():
+        params = dict(planned.plan.params, firmware=firmware, **{
+            n: getattr(rates, n) for n in ("climb_mps", "descent_mps", "takeoff_mps", "land_mps")})
+        line = rates_line(replace(planned.plan, params=params))
+        assert f"climb {rates.climb_mps:g}, descent {rates.descent_mps:g}" in line and \
+            line.endswith(f"{firmware}'s defaults (gcs fly says where a vehicle is set slower)")

@@ -14,6 +14,7 @@ from rich.table import Table
 from rich.text import Text
 
 from gcs.progress import console
+from planner.rates import FIRMWARE_RATES
 
 
 # -- a plan --------------------------------------------------------------------------------
@@ -47,7 +48,7 @@ def plan_summary(plan) -> Group:
     if impossible:
         targets += (f"; of them {impossible} have fewer places than k+1 (two UAVs at one "
                     "place share one fate): seen once from each of their places")
-    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)),
+    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)), Text(rates_line(plan)),
              Text(battery_line(plan))] + [Text(t) for t in area_lines(plan)]
     return Group(*lines)
 
@@ -63,6 +64,21 @@ def fleet_line(plan) -> str:
         else f"closest approach {closest:.1f} m"
     return (f"takeoffs: {takeoffs}; waits {m.get('wait_s', 0):.0f} s in all; {proven} "
             f"(separation {sep:g} m)")
+
+
+def rates_line(plan) -> str:
+    """The vertical rates every time of the plan assumes, and whether they are its
+    firmware's own (`planner.rates`): a vehicle set slower flies longer."""
+    p = plan.params
+    firmware = str(p.get("firmware", "ardupilot"))
+    own = FIRMWARE_RATES.get(firmware, FIRMWARE_RATES["ardupilot"])
+    rates = {name: p.get(name) or getattr(own, name)      # a plan from before they were said
+             for name in ("climb_mps", "descent_mps", "takeoff_mps", "land_mps")}
+    line = (f"rates: climb {rates['climb_mps']:g}, descent {rates['descent_mps']:g}, "
+            f"takeoff {rates['takeoff_mps']:g}, landing {rates['land_mps']:g} m/s")
+    if all(rates[n] == getattr(own, n) for n in rates):
+        return line + f": {firmware}'s defaults (gcs fly says where a vehicle is set slower)"
+    return line + f": not all {firmware}'s defaults: set each vehicle's to these"
 
 
 #: a flight longer than this (min) is past what many multicopter batteries give
