@@ -20,6 +20,9 @@ class Rates:
     land_band_m: float
 
 
+#: the vertical rates a scenario and plan.json name, each firmware's in `FIRMWARE_RATES`
+VERTICAL_RATES = ("climb_mps", "descent_mps", "takeoff_mps", "land_mps")
+
 FIRMWARE_RATES = {
     # WPNAV_SPEED_UP 250, WPNAV_SPEED_DN 150 cm/s (NAV_TAKEOFF climbs at the first);
     # NAV_LAND descends at LAND_SPEED 50 cm/s below LAND_ALT_LOW 1000 cm
@@ -32,3 +35,15 @@ FIRMWARE_RATES = {
     "px4": Rates(climb_mps=3.0, descent_mps=1.5, takeoff_mps=1.5, takeoff_band_m=10.0,
                  land_mps=0.7, land_band_m=7.5),
 }
+
+
+def defaults_text(name: str) -> str:
+    """Each firmware's default of rate ``name``, for help texts: "ArduPilot 0.5 below
+    10 m, PX4 0.7 below 7.5 m"."""
+    band = {"takeoff_mps": "takeoff_band_m", "land_mps": "land_band_m"}.get(name)
+    out = []
+    for firmware, title in (("ardupilot", "ArduPilot"), ("px4", "PX4")):
+        rates = FIRMWARE_RATES[firmware]
+        below = getattr(rates, band) if band else 0.0
+        out.append(f"{title} {getattr(rates, name):g}" + (f" below {below:g} m" if below else ""))
+    return ", ".join(out)

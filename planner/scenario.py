@@ -12,7 +12,7 @@ from pathlib import Path
 from typing import Optional
 
 from common.errors import InputError
-from planner.rates import FIRMWARE_RATES
+from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
 
 FIRMWARES = ("ardupilot", "px4")
 #: the coverage methods, in the order users see them; each registers itself in
@@ -89,7 +89,7 @@ class Scenario:
     def __post_init__(self):
         """Rates not given are the firmware's (a plan says which it assumed)."""
         rates = _firmware_rates(self.firmware)
-        for name in _RATES:
+        for name in VERTICAL_RATES:
             if getattr(self, name) is None and rates is not None:
                 setattr(self, name, getattr(rates, name))
 
@@ -125,7 +125,7 @@ class Scenario:
              f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
              f"got {len(self.launch)}"),
         ]
-        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2") + _RATES
+        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2") + VERTICAL_RATES
         checks += [(_positive(getattr(self, n)), f"{n} must be a positive number")
                    for n in positive]
         checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
@@ -214,10 +214,6 @@ class Scenario:
 _RENAMED = ("outposts", "launch")
 #: a target is a cell's centre this high above the ground (the sensor model's)
 TARGET_HEIGHT_M = 0.5
-
-
-#: the vertical rates a firmware gives when the scenario does not
-_RATES = ("climb_mps", "descent_mps", "takeoff_mps", "land_mps")
 
 
 def _firmware_rates(name):

@@ -13,6 +13,7 @@ from dataclasses import fields
 
 from autopilots import NAMES as FIRMWARES
 from common.errors import InputError
+from planner.rates import defaults_text
 from planner.scenario import METHODS, Scenario, make_scenario, read_scenario
 
 _DEFAULTS = {f.name: f.default for f in fields(Scenario) if f.default is not f.default_factory}
@@ -31,12 +32,13 @@ HELP = {
                            "(default: from the sensor range)",
     "uavs": "number of UAVs",
     "speed_mps": "horizontal cruise speed, m/s",
-    "climb_mps": "climb rate, m/s (default: the firmware's, ArduPilot 2.5, PX4 3)",
-    "descent_mps": "descent rate, m/s (default: the firmware's, 1.5)",
-    "takeoff_mps": "climb rate of a takeoff's lowest metres, m/s (default: the firmware's, "
-                   "ArduPilot 2.5, PX4 1.5 below 10 m)",
-    "land_mps": "descent rate of a landing's lowest metres, m/s (default: the firmware's, "
-                "ArduPilot 0.5 below 10 m, PX4 0.7 below 7.5 m)",
+    "climb_mps": f"climb rate, m/s (default: the firmware's, {defaults_text('climb_mps')})",
+    "descent_mps": f"descent rate, m/s (default: the firmware's, "
+                   f"{defaults_text('descent_mps')})",
+    "takeoff_mps": f"climb rate of a takeoff's lowest metres, m/s (default: the firmware's, "
+                   f"{defaults_text('takeoff_mps')})",
+    "land_mps": f"descent rate of a landing's lowest metres, m/s (default: the firmware's, "
+                f"{defaults_text('land_mps')})",
     "track_tolerance_m": "how far a vehicle may stray from its planned legs, metres: "
                          "every point that close to a leg is proven hidden too",
     "separation_m": "least distance between two airborne vehicles, metres, proven on their "

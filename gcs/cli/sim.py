@@ -7,6 +7,7 @@ from autopilots import ARDUPILOT, NAMES
 from common.errors import InputError
 from gcs.sim.faults import FaultPlan, parse_cut, parse_kill
 from gcs.sim.physics import DEFAULT_HOME, Limits
+from planner.rates import defaults_text
 
 HELP = "run simulated vehicles (ArduPilot: TCP 5760+10*i; PX4: UDP 18570+i -> 14550)"
 
@@ -39,9 +40,11 @@ def add_arguments(parser) -> None:
     vehicle.add_argument("--speed", type=float, default=defaults.speed_mps, metavar="M/S",
                          help="horizontal speed limit")
     vehicle.add_argument("--climb", type=float, default=None, metavar="M/S",
-                         help="climb rate limit (default: the firmware's, ArduPilot 2.5, PX4 3)")
+                         help=f"climb rate limit (default: the firmware's, "
+                              f"{defaults_text('climb_mps')})")
     vehicle.add_argument("--descent", type=float, default=None, metavar="M/S",
-                         help="descent rate limit (default: the firmware's, 1.5)")
+                         help=f"descent rate limit (default: the firmware's, "
+                              f"{defaults_text('descent_mps')})")
     vehicle.add_argument("--accel", type=float, default=defaults.accel_mps2, metavar="M/S2",
                          help="horizontal acceleration limit")
     vehicle.add_argument("--warmup", type=float, default=None, metavar="S",

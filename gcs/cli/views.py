@@ -14,7 +14,7 @@ from rich.table import Table
 from rich.text import Text
 
 from gcs.progress import console
-from planner.rates import FIRMWARE_RATES
+from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
 
 
 # -- a plan --------------------------------------------------------------------------------
@@ -73,7 +73,7 @@ def rates_line(plan) -> str:
     firmware = str(p.get("firmware", "ardupilot"))
     own = FIRMWARE_RATES.get(firmware, FIRMWARE_RATES["ardupilot"])
     rates = {name: p.get(name) or getattr(own, name)      # a plan from before they were said
-             for name in ("climb_mps", "descent_mps", "takeoff_mps", "land_mps")}
+             for name in VERTICAL_RATES}
     line = (f"rates: climb {rates['climb_mps']:g}, descent {rates['descent_mps']:g}, "
             f"takeoff {rates['takeoff_mps']:g}, landing {rates['land_mps']:g} m/s")
     if all(rates[n] == getattr(own, n) for n in rates):

@@ -11,6 +11,8 @@ y north) around the vehicle's home, altitude metres AMSL.
 import math
 from dataclasses import dataclass, fields, replace
 
+from planner.rates import VERTICAL_RATES
+
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
 
 EARTH_RADIUS_M = 6378137.0
@@ -19,7 +21,7 @@ _POS_GAIN = 2.0        # 1/s: linear speed profile close to the destination
 
 
 #: the rates a plan states (plan.json ``params``), by the names `Limits` has too
-PLANNED_RATES = ("speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps")
+PLANNED_RATES = ("speed_mps",) + VERTICAL_RATES
 
 
 @dataclass(frozen=True)
