@@ -101,7 +101,8 @@ def test_targets_and_optionally_flight_stay_in_the_polygon(hills, tmp_path):
     rings = _west_polygon(terrain)
     path = _geojson(tmp_path / "west.geojson", rings)
     common = dict(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
-                  clearance_m=20.0, hide_margin_m=5.0, launch=[launch])
+                  clearance_m=20.0, hide_margin_m=5.0, launch=[launch],
+                  method="rt+ls")   # the polygon is the point here, not the search
     whole, _ = plan_mission(Scenario(**common).validate(), terrain=terrain, outposts=outposts)
     ctx, outcome = plan_mission(Scenario(**common, area_file=str(path)).validate(),
                                 terrain=terrain, outposts=outposts)

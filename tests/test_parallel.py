@@ -29,7 +29,7 @@ def _problem(n, seed):
         lon, lat = terrain.to_lonlat(x, y)
         outposts.append(Outpost(float(x), float(y), 10.0, float("inf"), float(lon),
                                 float(lat), f"P{k}"))
-    scenario = Scenario(sample=True, uavs=3, sensor_range_m=900.0).validate()
+    scenario = Scenario(sample=True, uavs=3, sensor_range_m=900.0, method="rt+ls").validate()
     return scenario, terrain, outposts
 
 

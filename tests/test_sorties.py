@@ -403,6 +403,7 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
     finally:
         done.set()
         fleet.stop()
+    events = [e["event"] for e in report["events"]]
     later = sum(len(v.sorties) - 1 for v in twelve.plan.vehicles)
     for sysid in (1, 2, 3):     # each later sortie went only after the operator's word
         mine = [e["event"] for e in report["events"] if e.get("sysid") == sysid]
@@ -410,7 +411,10 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
         words = [i for i, e in enumerate(mine) if e == "battery swap confirmed by the operator"]
         assert len(words) == len(ups) and all(w < u for w, u in zip(words, ups)), mine
         later -= len(ups)
-    assert later == 0 and report["outcome"]["coverage_reached"], report["outcome"]
+    # the planned sorties, all flown; unless the flight slipped so far off its plan
+    # (a busy machine at 100x) that the rest was re-planned into other sorties
+    assert later == 0 or "re-planning" in events, (report["outcome"]["problems"], events)
+    assert report["outcome"]["coverage_reached"], (report["outcome"]["problems"], events)
 
 
 def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve, tmp_path,

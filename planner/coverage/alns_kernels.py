@@ -159,13 +159,12 @@ def met(t, dc, pc, fly, req, ex):
     return _matching(t, fly, req[t], ex)
 
 
-@njit(cache=True, nogil=True)
-def _raises(t, r, e, cnt, dc, pc, fly, req, ex):
-    """Whether UAV r's visit of viewpoint e (not flown by r) gives short target t
-    one more sighting."""
-    now = met(t, dc, pc, fly, req, ex)
-    if now >= req[t]:
-        return False
+@njit(cache=True, nogil=True, inline="always")
+def _raises_from(now, t, r, e, cnt, dc, pc, fly, req, ex):
+    """Whether UAV r's visit of viewpoint e (not flown by r) gives short target t,
+    which counts ``now`` sightings (`met`), one more. Inlined, ``now`` hoisted out
+    of the loops over every (viewpoint, UAV) pair: a call per pair (its reference
+    counts) once cost more than the rest of the search."""
     d = dc[t] + (1 if cnt[r, t] == 0 else 0)
     p = pc[t] + (1 if fly[e, 0] == 0 else 0)
     up = min(d, p)
@@ -191,13 +190,16 @@ def _open(e, r, on, fly, owner0, share):
 def _add_gains(t, sign, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
                tgt_indices, ex):
     """Add (sign 1) or take away (-1) what target t gives each candidate pair."""
+    now = met(t, dc, pc, fly, req, ex)
+    if now >= req[t]:
+        return
     n = gain.shape[1]
     for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
         c = cand_of[tgt_indices[i]]
         if c < 0:
             continue
         for r in range(n):
-            if _raises(t, r, cands[c], cnt, dc, pc, fly, req, ex):
+            if _raises_from(now, t, r, cands[c], cnt, dc, pc, fly, req, ex):
                 gain[c, r] += sign * weight[t]
 
 
@@ -217,7 +219,7 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
     """Insert visits until no target in ``short`` (and no other) is short.
 
     Candidates are the (viewpoint, UAV) pairs that give a short target one more
-    sighting (`_raises`), from a viewpoint the UAV may add (`_open`: not
+    sighting (`_raises_from`), from a viewpoint the UAV may add (`_open`: not
     `problem.CLOSED` in ``owner0``, and no other UAV flies it or photographed
     from it before unless ``share``); each is inserted at its cheapest
     edge-breaking slot.
@@ -270,14 +272,15 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
             best_regret, best_first = -1.0, np.inf
             for s in range(len(short)):
                 t = short[s]
-                if met(t, dc, pc, fly, req, ex) >= req[t]:
+                now = met(t, dc, pc, fly, req, ex)
+                if now >= req[t]:
                     continue
                 c1, c2, o_c, o_r = np.inf, np.inf, -1, -1
                 for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
                     c = cand_of[tgt_indices[i]]
                     for r in range(n):
                         if not np.isfinite(dt[c, r]) or \
-                                not _raises(t, r, cands[c], cnt, dc, pc, fly, req, ex):
+                                not _raises_from(now, t, r, cands[c], cnt, dc, pc, fly, req, ex):
                             continue
                         cost = 1.0 / _score(MAKESPAN_MODE, gain[c, r], dt[c, r], times[r],
                                             t_max, alpha, lam, eps)
