@@ -187,12 +187,10 @@ def _open(e, r, on, fly, owner0, share):
 
 
 @njit(cache=True, nogil=True)
-def _add_gains(t, sign, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
+def _add_gains(t, now, sign, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
                tgt_indices, ex):
-    """Add (sign 1) or take away (-1) what target t gives each candidate pair."""
-    now = met(t, dc, pc, fly, req, ex)
-    if now >= req[t]:
-        return
+    """Add (sign 1) or take away (-1) what short target t, which counts ``now``
+    sightings (`met`, its callers' test), gives each candidate pair."""
     n = gain.shape[1]
     for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
         c = cand_of[tgt_indices[i]]
@@ -253,10 +251,11 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
     remaining = 0
     for s in range(len(short)):
         t = short[s]
-        if met(t, dc, pc, fly, req, ex) >= req[t]:
+        now = met(t, dc, pc, fly, req, ex)
+        if now >= req[t]:
             continue
         remaining += 1
-        _add_gains(t, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
+        _add_gains(t, now, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight, tgt_indptr,
                    tgt_indices, ex)
     dt = np.full((nc, n), np.inf)
     pos = np.zeros((nc, n), np.int64)
@@ -329,9 +328,10 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
         was = np.empty(hi - lo, np.bool_)  # which of x's targets were short
         for j in range(lo, hi):
             t = vis_indices[j]
-            was[j - lo] = met(t, dc, pc, fly, req, ex) < req[t]
+            now = met(t, dc, pc, fly, req, ex)
+            was[j - lo] = now < req[t]
             if was[j - lo]:
-                _add_gains(t, -1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
+                _add_gains(t, now, -1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
                            tgt_indptr, tgt_indices, ex)
                 work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n
         apply_visit(cnt, dc, r, x, 1, vis_indptr, vis_indices)
@@ -340,8 +340,9 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
             t = vis_indices[j]
             if not was[j - lo]:
                 continue
-            if met(t, dc, pc, fly, req, ex) < req[t]:
-                _add_gains(t, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
+            now = met(t, dc, pc, fly, req, ex)
+            if now < req[t]:
+                _add_gains(t, now, 1, gain, cand_of, cands, cnt, dc, pc, fly, req, weight,
                            tgt_indptr, tgt_indices, ex)
                 work += (tgt_indptr[t + 1] - tgt_indptr[t]) * n
             else:
