@@ -23,12 +23,10 @@ install: $(STAMP)
 browser:
 	bash .ci/install-browser.sh
 
-# one test process per core and one more (-n): most of the suite's wall time is
-# simulated flights waiting on their clock (one process per core left a core idle
-# 40 % of the time: 17 min, against 14 with one more), and a file's tests stay
-# together (their module fixtures)
+# one test process per core (-n): most of the suite's wall time is simulated flights
+# waiting on the clock, and a file's tests stay together (their module fixtures)
 test: $(STAMP) browser
-	$(BIN)/python -m pytest -q -n $$(( $$(nproc) + 1 )) --dist loadfile
+	$(BIN)/python -m pytest -q -n logical --dist loadfile
 
 # the suite beside a CPU hog on every core, three runs in a row (tests/under_load.py)
 test-under-load: $(STAMP) browser

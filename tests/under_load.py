@@ -17,8 +17,7 @@ import subprocess
 import sys
 import time
 
-PYTEST = [sys.executable, "-m", "pytest", "-q", "-n", str(len(os.sched_getaffinity(0)) + 1),
-          "--dist", "loadfile"]
+PYTEST = [sys.executable, "-m", "pytest", "-q", "-n", "logical", "--dist", "loadfile"]
 
 
 def _spin() -> None:
