@@ -220,6 +220,7 @@ class Flight:
                                         if parts and self.monitor.vehicles[s].state != LOST}
         self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
         self._departing = {}      # sysid -> (thread, error, cancel) of departures under way
+        self._resuming = set()    # of them, vehicles a re-plan held, flying on
         self._waiting_for = {}    # sysid -> the vehicle its base column waits for
         self._lifting = {}        # sysid -> launch point of the base column claimed for it
         self._column_lock = threading.Lock()
@@ -464,7 +465,7 @@ class Flight:
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
             resume=self._fly_on,
             travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
-            on_pad=m.on_pad, short=self._short_of_battery)
+            on_pad=m.on_pad, short=self._short_of_battery, waiting=self._waiting_s)
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self._all(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
@@ -604,15 +605,30 @@ class Flight:
             del self.departures[sysid]
             error, cancel = [], threading.Event()
             run = self._launch if d.kind == "launch" else self._resume
+            if d.kind == "resume":
+                self._resuming.add(sysid)
 
             def go(s=sysid, route=d.route, run=run, error=error, cancel=cancel):
                 try:
                     run(s, route, cancel)
                 except commands.CommandError as exc:
                     error.append(exc)
+                finally:
+                    self._resuming.discard(s)
             thread = threading.Thread(target=go, daemon=True, name=f"depart-{sysid}")
             self._departing[sysid] = (thread, error, cancel)
             thread.start()
+
+    def _waiting_s(self, sysid):
+        """Fleet seconds until a vehicle a re-plan holds flies on (0 while it is
+        being sent on), None when it waits for no re-plan: the separation guard
+        leaves such a vehicle to the re-plan's schedule."""
+        if sysid in self._resuming:
+            return 0.0
+        d = self.departures.get(sysid)
+        if d is None or d.kind != "resume":
+            return None
+        return max(0.0, d.due - (self.clock.now() or 0.0))
 
     def _anchor_clock(self) -> None:
         """The fleet clock reads a vehicle's planned takeoff time when it is seen

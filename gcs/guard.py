@@ -18,6 +18,11 @@ prediction (with `RESUME_FACTOR` of room) and no other stands that close now, or
 where one does (two held in one base column), its route never comes closer to it
 than now (the lower one's descent): a pair that close and parting is no conflict.
 
+A vehicle a re-plan holds until its own time to fly on (`waiting`) is the re-plan's:
+the guard never holds or resumes it (resumed early, it flew its new route ahead of
+time, and its resume at that time then sent it back to the route's first item in a
+straight line, through a hill), and predicts it standing until then.
+
 Every hold and resume is an event, and `report` gives them with the closest
 approach seen between each pair (from telemetry).
 """
@@ -61,17 +66,19 @@ class SeparationGuard:
     ``resume(sysid)``: what holding means for the flight (mode and state);
     ``travel``: the plan's speeds (`TravelParams`) and ``stop_s`` per waypoint;
     ``on_pad(sysid)``: touched down at its base, not yet told landed;
-    ``short(sysid)``: short of battery (it goes before every other)."""
+    ``short(sysid)``: short of battery (it goes before every other);
+    ``waiting(sysid)``: fleet seconds until a re-plan flies it on, None if it does not
+    wait for one."""
 
     def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
                  travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False,
-                 short=lambda sysid: False):
+                 short=lambda sysid: False, waiting=lambda sysid: None):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.airborne = clock, airborne
         self._hold, self._resume = hold, resume
         self.travel, self.stop_s = travel, float(stop_s)
-        self.on_pad, self.short = on_pad, short
+        self.on_pad, self.short, self.waiting = on_pad, short, waiting
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
@@ -107,7 +114,8 @@ class SeparationGuard:
             return
         self._note_closest(frame)
         horizon = self.horizon()
-        ahead = {s: (frame.standing(s, horizon) if s in self.held else self._route(frame, s))
+        ahead = {s: (frame.standing(s, horizon) if s in self.held else
+                     self._route(frame, s, self.waiting(s) or 0.0))
                  for s in frame.here}
         for a, b, begin in self._conflicts(frame, ahead, horizon, self.separation_m):
             self._separate(frame, ahead, a, b, begin, horizon)
@@ -120,8 +128,13 @@ class SeparationGuard:
     def _rank(self, sysid):
         return not self.short(sysid), self.priority.get(sysid, 99), sysid
 
-    def _route(self, frame, sysid) -> Trajectory:
-        """Where ``sysid`` flies from now: the rest of its route, its landing included."""
+    def _fixed(self, sysid) -> bool:
+        """Held by the guard, or by a re-plan until its time: not the guard's to move."""
+        return sysid in self.held or self.waiting(sysid) is not None
+
+    def _route(self, frame, sysid, wait_s=0.0) -> Trajectory:
+        """Where ``sysid`` flies from now, after standing ``wait_s``: the rest of its
+        route, its landing included."""
         v = self.monitor.vehicles[sysid]
         rest = [w for i, w in enumerate(v.route.waypoints) if i not in v.done]
         poly = frame.project([(w.lon, w.lat, w.alt_amsl) for w in rest])
@@ -134,6 +147,7 @@ class SeparationGuard:
                                    stop_s=self.stop_s)
         holds = np.zeros(profile.n)
         holds[profile.route[0]:profile.route[0] + len(rest)] = [w.hold_s for w in rest]
+        holds[0] += wait_s          # vertex 0: where it stands now
         return profile.timed(0.0, holds)
 
     @staticmethod
@@ -153,12 +167,12 @@ class SeparationGuard:
     def _separate(self, frame, ahead, a, b, begin, horizon) -> None:
         """Hold one of a conflicting pair: the lower priority, unless standing where it
         is would still be in the other's way; both when neither alone will do."""
-        if a in self.held and b in self.held:
+        if self._fixed(a) and self._fixed(b):
             return
         low, high = sorted((a, b), key=self._rank)[::-1]
         predicted = ahead[a].closest_approach(ahead[b])
         for target, other in ((low, high), (high, low)):
-            if target in self.held:
+            if self._fixed(target):
                 continue
             still = frame.standing(target, horizon)
             if ahead[other].first_conflict(still, self.separation_m)[0] > horizon:
@@ -166,7 +180,7 @@ class SeparationGuard:
                 self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
                 return
         for target, other in ((low, high), (high, low)):
-            if target not in self.held:
+            if not self._fixed(target):
                 ahead[target] = frame.standing(target, horizon)
                 self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
 

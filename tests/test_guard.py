@@ -61,7 +61,7 @@ def _route(x, y):
     return VehicleRoute(1, None, [w], 0.0, 0.0, 0.0)
 
 
-def _guard(vehicles, priority, short=()):
+def _guard(vehicles, priority, short=(), waiting=lambda s: None):
     monitor = Monitor(lost_after_s=5.0)
     for v in vehicles:
         monitor.follow(v, v.sysid, v.route or _route(*v.p[:2]), None)
@@ -71,7 +71,7 @@ def _guard(vehicles, priority, short=()):
                             hold=lambda s: _set(vehicles, s, True),
                             resume=lambda s: _set(vehicles, s, False),
                             travel=TravelParams(speed_mps=12.0),
-                            short=lambda s: s in short)
+                            short=lambda s: s in short, waiting=waiting)
     return monitor, guard
 
 
@@ -150,6 +150,50 @@ def test_standing_in_the_way_the_other_one_holds():
     first = guard.actions[0]
     assert (first["action"], first["sysid"]) == ("hold", 1)
     assert least >= 30.0 and not one.held and one.p[0] > 100.0   # and 1 went on after
+
+
+def _fly_on_after_replan(one, two, wait_s, seconds, dt=0.25):
+    """2 hovers where a re-plan held it until ``wait_s``, when the re-plan flies it
+    on (the flight's departure); 1 flies. Returns (guard, least distance, where 2
+    stood each step before its time)."""
+    two.held = True
+    clock = {"t": 0.0}
+    _, guard = _guard([one, two], {1: 1, 2: 2},
+                      waiting=lambda s: max(0.0, wait_s - clock["t"])
+                      if s == 2 and clock["t"] < wait_s else None)
+    least, stood = math.inf, []
+    while clock["t"] < seconds:
+        if clock["t"] < wait_s:
+            stood.append(two.p.copy())
+        else:
+            two.held = False
+        least = min(least, _run([one, two], guard, dt))
+        clock["t"] += dt
+    return guard, least, np.array(stood)
+
+
+def test_a_vehicle_waiting_for_its_replan_time_is_left_to_the_replan():
+    """2 waits 60 m off 1's way for its re-plan time, then crosses it. Flying now it
+    would meet 1; standing until its time it does not: nobody is held, and above
+    all 2 is never flown on early (once, it was: its re-plan's resume then sent it
+    back to its route's first item in a straight line, through a hill)."""
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, 60.0), (0.0, -12.0), _route(0, -400))
+    guard, least, stood = _fly_on_after_replan(one, two, 30.0, 45.0)
+    assert guard.actions == []
+    assert np.ptp(stood, axis=0).max() == 0.0 and two.p[1] < -100.0   # then it went
+    assert least >= 30.0
+
+
+def test_waiting_in_the_way_the_other_one_holds():
+    """2 waits on 1's way (1 has right of way): the guard holds 1, never 2, and
+    lets 1 fly on once 2, gone at its time, is clear."""
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, 0.0), (0.0, 12.0), _route(0, 400))
+    guard, least, stood = _fly_on_after_replan(one, two, 30.0, 60.0)
+    assert [(a["sysid"], a["action"]) for a in guard.actions] == [(1, "hold"), (1, "resume")]
+    assert np.ptp(stood, axis=0).max() == 0.0
+    assert least >= 30.0 and not one.held and one.p[0] > 100.0
 
 
 def test_apart_nobody_is_held():
