@@ -436,26 +436,30 @@ def test_ardupilot_flight_track_and_kill_at_item(tmp_path):
         return np.column_stack([np.atleast_1d(x), np.atleast_1d(y), np.atleast_1d(alt)])
 
     flown = xyz(track.lat, track.lon, track.alt)
+    # an item is reached within 2 m (the simulator's WP_RADIUS) on its own flat
+    # frame: on UTM's that reads up to 0.1 % more (2.0024 m seen on a busy machine,
+    # where the last physics step before the item may be a short one)
+    REACHED_M = 2.0 * 1.005
     hx = xyz(HOME[0], HOME[1], HOME[2])[0]
     wa, wb = xyz(a[0], a[1], HOME[2] + 20)[0], xyz(b[0], b[1], HOME[2] + 25)[0]
     planned = np.array([hx, hx + [0, 0, 20], wa, wb, [wb[0], wb[1], HOME[2]]])
     assert _cross_track(flown, planned).max() < 3.0
     for w in (wa, wb):
-        assert np.linalg.norm(flown - w, axis=1).min() <= 2.0
+        assert np.linalg.norm(flown - w, axis=1).min() <= REACHED_M
     assert abs(track.alt[-1] - HOME[2]) < 0.01
-    assert np.linalg.norm(flown[-1, :2] - wb[:2]) <= 2.0
+    assert np.linalg.norm(flown[-1, :2] - wb[:2]) <= REACHED_M
     assert np.max(track.alt) <= HOME[2] + 25 + 1.0
     shots = track.snapshots
     assert [s["seq"] for s in shots] == [3, 5]
     for shot, w in zip(shots, (wa, wb)):
-        assert np.linalg.norm(xyz(shot["lat"], shot["lon"], shot["alt"])[0] - w) <= 2.0
+        assert np.linalg.norm(xyz(shot["lat"], shot["lon"], shot["alt"])[0] - w) <= REACHED_M
     for shot, fb in zip(shots, feedback):
         assert abs(fb.lat * 1e-7 - shot["lat"]) < 1e-6 and abs(fb.lng * 1e-7 - shot["lon"]) < 1e-6
     events = [e["event"] for e in track.events]
     assert "landed" in events and events.index("armed") < events.index("landed")
     dead = read_track(tmp_path / "vehicle_2.json")
     assert dead.killed_at is not None and [s["seq"] for s in dead.snapshots] == [3]
-    assert np.linalg.norm(xyz(dead.lat[-1], dead.lon[-1], dead.alt[-1])[0] - wb) <= 2.0
+    assert np.linalg.norm(xyz(dead.lat[-1], dead.lon[-1], dead.alt[-1])[0] - wb) <= REACHED_M
 
 
 def test_the_battery_draws_more_climbing_and_is_refilled_at_a_swap():
