@@ -48,6 +48,7 @@ from gcs.monitor import (
     MIN_LAUNCH_TOLERANCE_M,
     STARTING,
     STRANDED,
+    SWAP_SILENCE_S,
     WAITING,
     Monitor,
     distance_m,
@@ -139,6 +140,8 @@ class FlyOptions:
                                    # (simulators, SITL); else the operator confirms too
     from_where_they_stand: bool = False  # a vehicle off its launch point: plan again with
                                          # its base where it stands (else it is refused)
+    swap_silence_s: float = SWAP_SILENCE_S  # wall s one down for its battery swap may be
+                                            # silent (powered down) before it is lost
 
     @property
     def protocol(self) -> dict:
@@ -154,6 +157,11 @@ class Departure:
     due: float
     kind: str
     route: object
+
+
+def _fresh(battery_pct) -> bool:
+    """A fresh battery reported, or none reported at all (nothing to wait for)."""
+    return battery_pct is None or battery_pct >= FRESH_BATTERY_PCT
 
 
 def _finite_or_none(x):
@@ -218,6 +226,8 @@ class Flight:
         # silent there is lost (and re-planned for), not waited for
         self.monitor.awaited = lambda: {s for s, parts in list(self.later.items())
                                         if parts and self.monitor.vehicles[s].state != LOST}
+        self.monitor.swapping = self._swapping
+        self.monitor.swap_silence_s = options.swap_silence_s
         self.departures = {}      # sysid -> Departure: takeoffs and resumes yet to come
         self._departing = {}      # sysid -> (thread, error, cancel) of departures under way
         self._resuming = set()    # of them, vehicles a re-plan held, flying on
@@ -1097,10 +1107,17 @@ class Flight:
         track = self.monitor.vehicles[sysid].track
         return track[-1][4] if track else None
 
+    def _swapping(self) -> set:
+        """Down at its base with a sortie to fly, its fresh battery not reported yet:
+        a swap that powers the autopilot down silences it for a while."""
+        m = self.monitor
+        return {s for s in m.awaited() if m.vehicles[s].state == LANDED
+                and not _fresh(m.links[s].state.battery_pct)}
+
     def _battery_ready(self, sysid, route, pct) -> bool:
         """The next sortie may go: the vehicle reports a fresh battery, and the
         operator confirmed the swap (`confirm_swap`) unless ``auto_turnaround``."""
-        fresh = pct is None or pct >= FRESH_BATTERY_PCT
+        fresh = _fresh(pct)
         confirmed = self.options.auto_turnaround or sysid in self.swapped
         if fresh and confirmed:
             return True

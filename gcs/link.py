@@ -43,7 +43,11 @@ STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's d
 #: what a requested stream carries (TIMESYNC, STATUSTEXT flow before any request)
 STREAMED = frozenset({"SYS_STATUS", "GLOBAL_POSITION_INT", "GPS_RAW_INT"})
 STREAM_RETRY_S = 2.0             # streams asked again after this long with HEARTBEATs only
+REBOOT_GAP_S = 3.0               # HEARTBEATs back after a silence this long: maybe rebooted
 POLL_S = 0.05
+#: wall seconds between attempts to connect again to a TCP peer that closed: an
+#: autopilot rebooting (a battery swap powers it down) serves its port again
+RECONNECT_S = 1.0
 QUEUE_DEPTH = 500            # messages kept per type and vehicle for recv()
 STATUSTEXT_KEPT = 20
 # Heartbeats of these are never vehicles: ground stations, cameras, gimbals, companions.
@@ -252,12 +256,9 @@ class Connection:
 
     def __init__(self, url: str, signing_key: bytes | None = None, link_id: int = 0):
         self.url = url
-        device, baud = parse_url(url)
+        self._device = parse_url(url)
         try:
-            self.conn = mavutil.mavlink_connection(
-                device, baud=baud, source_system=GCS_SYSTEM_ID,
-                source_component=GCS_COMPONENT_ID, autoreconnect=False, retries=1,
-                reconnect_delay=0.2)
+            self.conn = self._connect()
         except (OSError, ValueError) as exc:
             raise LinkError(f"{url}: cannot open: {exc}") from exc
         except ImportError as exc:      # pymavlink imports pyserial only for serial links
@@ -267,13 +268,43 @@ class Connection:
             if type(exc).__name__ != "SerialException":   # anything else is a bug
                 raise
             raise LinkError(f"{url}: cannot open: {exc}") from exc
-        self.kind = self._kind(device)
+        self.kind = self._kind(self._device[0])
         self._key, self._link_id = signing_key, link_id
         self._parsers = {}              # sender address -> MAVLink parser
         self.peers = []                 # udpin: every address that sent us anything
         self.closed = False
+        self.shut = False               # closed by us: never opened again
+        self.reconnects = 0             # TCP peers that closed and were connected again
+        self._retry_at = 0.0
         self.rejected = 0               # packets dropped for a missing / bad signature
         self.received = 0
+
+    def _connect(self):
+        device, baud = self._device
+        return mavutil.mavlink_connection(
+            device, baud=baud, source_system=GCS_SYSTEM_ID, source_component=GCS_COMPONENT_ID,
+            autoreconnect=False, retries=1, reconnect_delay=0.2)
+
+    def _reconnect(self) -> bool:
+        """A TCP peer that closed (an autopilot rebooting) connected to again, once
+        every `RECONNECT_S`; a serial or UDP link stays open across a reboot."""
+        now = time.monotonic()
+        if self.shut or not self._device[0].startswith("tcp:") or now < self._retry_at:
+            return False
+        self._retry_at = now + RECONNECT_S
+        try:
+            conn = self._connect()
+        except OSError:
+            return False
+        old, self.conn = self.conn, conn
+        try:
+            old.close()
+        except OSError:
+            pass
+        self._parsers = {}              # a new byte stream
+        self.reconnects += 1
+        self.closed = False
+        return True
 
     @staticmethod
     def _kind(device: str) -> str:
@@ -290,7 +321,7 @@ class Connection:
 
     def read(self, timeout: float) -> list:
         """Wait up to `timeout` s; return [(message, sender address)] that parsed."""
-        if self.closed:
+        if self.closed and not self._reconnect():
             time.sleep(timeout)
             return []
         fd = self.fileno()
@@ -359,7 +390,7 @@ class Connection:
                 self.closed = True
 
     def close(self) -> None:
-        self.closed = True
+        self.closed = self.shut = True
         try:
             self.conn.close()
         except OSError:
@@ -496,6 +527,8 @@ class VehicleLink:
             if from_autopilot:
                 self._route = (conn, addr)
                 self.signs = _is_signed(msg)
+                if msg.get_type() == "HEARTBEAT" and self.heartbeat_age() > REBOOT_GAP_S:
+                    self._streaming = False     # back from a reboot: streams asked anew
                 _update_state(self.state, msg, self.flavour, self.mav_type)
                 ask_again = self._streams_missing(msg)
             if _addressed_to_us(msg):
@@ -513,7 +546,8 @@ class VehicleLink:
         """True on a HEARTBEAT when no telemetry has come yet, STREAM_RETRY_S after
         the last request: that request was lost on the way, as packets are on a
         radio link, and the vehicle streams nothing until asked again. (Once it
-        streams, it goes on: a quiet spell later is not a lost request.)"""
+        streams, it goes on: a quiet spell later is not a lost request, unless it was
+        silent long enough to have rebooted.)"""
         if msg.get_type() in STREAMED:
             self._streaming = True
         if msg.get_type() != "HEARTBEAT":

@@ -58,6 +58,10 @@ LAUNCH_RADIUS_M = 10.0
 MIN_LAUNCH_TOLERANCE_M = 1.0
 #: below the terrain + this (m) away from its launch point, a vehicle has hit the ground
 CRASH_MARGIN_M = 2.0
+#: wall seconds a vehicle down for its battery swap may be silent (most flight
+#: controllers are fed by the pack: a swap powers them down) before it is lost: the
+#: crew's swap and the autopilot's boot (`gcs fly --swap-silence`)
+SWAP_SILENCE_S = 600.0
 #: wall seconds a held vehicle is given to brake before its position is taken
 SETTLE_S = 3.0
 SETTLED_MPS = 0.5
@@ -125,6 +129,7 @@ class VehicleProgress:
     uncommanded: list = field(default_factory=list)  # [(t_s, mode)] flown in, not commanded
     proven: object = None  # gcs.corridor.ProvenPath of the route flown now
     off_route: list = field(default_factory=list)  # [[from t_s, to t_s or None, max m]]
+    powered_down_at_s: float | None = None  # silent at its base for a battery swap since
 
     @property
     def snapshot_total(self) -> int:
@@ -205,6 +210,8 @@ class Monitor:
         self.track_tolerance_m = track_tolerance_m
         self.stalls = StallClock()
         self.awaited = set     # () -> sysids landed with a sortie still to fly (`Flight`)
+        self.swapping = set    # () -> of them, those whose battery swap is not yet seen
+        self.swap_silence_s = SWAP_SILENCE_S
         self.t0 = time.monotonic()
         self.vehicles = {}  # sysid -> VehicleProgress
         self.links = {}  # sysid -> VehicleLink
@@ -512,10 +519,12 @@ class Monitor:
 
     def check_losses(self) -> list:
         """Vehicles newly found lost: silent for ``lost_after_s`` (wall clock), in the
-        air or landed with work still to fly (`awaited`: its next sortie). Each is
-        also kept for `take_losses`, whoever called this."""
+        air or landed with work still to fly (`awaited`: its next sortie); down at
+        its base for a battery swap not yet seen (`swapping`), for ``swap_silence_s``:
+        the swap powers most autopilots down. Each is also kept for `take_losses`,
+        whoever called this."""
         lost = []
-        awaited = self.awaited()
+        awaited, swapping = self.awaited(), self.swapping()
         with self._lock:
             for sysid, v in self.vehicles.items():
                 if v.finished and v.state != STRANDED and \
@@ -526,13 +535,30 @@ class Monitor:
                         lost.append(sysid)
                     continue
                 age, stalled = self._silence(sysid)
-                if age - stalled > self.lost_after_s:
+                swap = v.state == LANDED and sysid in swapping
+                self._note_power(v, age - stalled, swap)
+                if age - stalled > (max(self.swap_silence_s, self.lost_after_s) if swap
+                                    else self.lost_after_s):
                     v.lost_stalled_s = round(stalled, 3)
-                    self._lose(v, f"no HEARTBEAT for {age:.1f} s")
+                    self._lose(v, f"no HEARTBEAT for {age:.1f} s"
+                                  + (" since it landed for its battery swap" if swap else ""))
                     v._reported = True
                     lost.append(sysid)
             self._untaken.extend(lost)
         return lost
+
+    def _note_power(self, v, silent_s, swap) -> None:
+        """Say when a vehicle down for its battery swap falls silent (powered down,
+        not lost yet), and when it is heard again."""
+        if swap and silent_s > self.lost_after_s and v.powered_down_at_s is None:
+            v.powered_down_at_s = round(self.now() - silent_s, 3)
+            self.event(v.sysid, f"silent at its base for {silent_s:.0f} s: taken for its "
+                                f"battery swap powering it down; lost if not heard again "
+                                f"within {self.swap_silence_s:g} s")
+        elif silent_s <= self.lost_after_s and v.powered_down_at_s is not None:
+            self.event(v.sysid, f"heard again after {self.now() - v.powered_down_at_s:.0f} s "
+                                "powered down for its battery swap")
+            v.powered_down_at_s = None
 
     def on_pad(self, sysid) -> bool:
         """Down at its launch point (within `LAUNCH_RADIUS_M`, at home height), whether

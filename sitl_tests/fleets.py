@@ -302,6 +302,12 @@ class ArduPilotBackend(ProcessBackend):
         judge's link, which the ground station never sees."""
         self.judges[sysid].command(M.MAV_CMD_BATTERY_RESET, 1, 100)
 
+    def reboot(self, sysid: int) -> None:
+        """The crew's battery swap with the autopilot powered down, as on a flight
+        controller fed by its pack: SITL rebooted (it runs itself again, its ports
+        closed meanwhile, its battery full; its parameters and mission kept)."""
+        self.judges[sysid].command(M.MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN, 1)
+
 
 class Px4Backend(ProcessBackend):
     name = "px4"

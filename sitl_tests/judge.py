@@ -5,7 +5,9 @@ the autopilot's second link, which gcs never touches, and keeps what the
 autopilot says of itself: its positions (GLOBAL_POSITION_INT), where its
 camera fired (ArduPilot CAMERA_FEEDBACK, PX4 CAMERA_IMAGE_CAPTURED) and the
 battery it reports (SYS_STATUS). On ArduPilot's link it also plays the crew
-that swaps a battery between sorties (`Judge.command`: MAV_CMD_BATTERY_RESET).
+that swaps a battery between sorties (`Judge.command`: MAV_CMD_BATTERY_RESET, or
+MAV_CMD_PREFLIGHT_REBOOT_SHUTDOWN: a swap that powers the autopilot down; the judge
+connects again when it is back).
 
 - ArduPilot SITL instance i: SERIAL1 on TCP 5762 + 10 i, open once its first
   port has a client; it streams what is asked (REQUEST_DATA_STREAM).
@@ -143,23 +145,29 @@ class Judge:
             self._thread.join(timeout=5)
 
     def _run_tcp(self, connect) -> None:
-        try:
-            sock = connect()
-        except (OSError, RuntimeError):
-            return
+        """Read until the link closes; connected to again while the process lives
+        (a reboot closes its ports, and opens them again)."""
+        while not self._stop.is_set():
+            try:
+                sock = connect()
+            except (OSError, RuntimeError):
+                return                                      # the process is gone
+            with sock:
+                self._read_tcp(sock)
+
+    def _read_tcp(self, sock) -> None:
         rest = b""
-        with sock:
-            while not self._stop.is_set():
-                try:
-                    data = sock.recv(65536)
-                except socket.timeout:
-                    continue
-                except OSError:
-                    return
-                if not data:
-                    return                                  # the process is gone
-                found, rest = frames(rest + data)
-                self._keep(found)
+        while not self._stop.is_set():
+            try:
+                data = sock.recv(65536)
+            except socket.timeout:
+                continue
+            except OSError:
+                return
+            if not data:
+                return
+            found, rest = frames(rest + data)
+            self._keep(found)
 
     def _run_udp(self, sock, px4) -> None:
         asked = False

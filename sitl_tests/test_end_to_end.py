@@ -46,7 +46,8 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     holds; ``late``: (sysid, fleet s) it takes off that much after its planned
     time (its arming refused until then: simulated backends); ``crew``: swap the
     battery of each vehicle waiting on the ground for its next sortie (real SITL:
-    the backend's ``swap_battery``; the simulator's crew does it unasked); ``held``:
+    the backend's ``swap_battery``, or with "reboot" its ``reboot``; the simulator's
+    crew does it unasked); ``held``:
     (sysid, other, when): the separation guard holds ``sysid`` for ``other`` as soon
     as ``when(flight)`` says so, once; ``options``: `FlyOptions` fields to change.
     Returns a result dict."""
@@ -97,13 +98,15 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
                 time.sleep(0.01)
         threading.Thread(target=release, daemon=True).start()
     if crew:
+        swap = be.reboot if crew == "reboot" else be.swap_battery
+
         def swap_when_waiting():
             swapped = set()
             while not stop.is_set():
                 for sysid, route in list(flight._waiting_battery.items()):
                     if id(route) not in swapped:
                         swapped.add(id(route))
-                        be.swap_battery(sysid)
+                        swap(sysid)
                 time.sleep(0.1)
         threading.Thread(target=swap_when_waiting, daemon=True).start()
     if held is not None:

@@ -34,11 +34,14 @@ def takeoffs(track) -> list:
 
 # PX4 v1.17 SITL landed on 18-20 % against the 25 % reserve while plans assumed a 2.0
 # m/s descent (its MPC_Z_V_AUTO_DN is 1.5); planned with the firmware's rates, on 25-26 %
-@pytest.mark.parametrize("backend", ["ardupilot", "px4"])
-def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, tmp_path):
+@pytest.mark.parametrize("backend,crew", [("ardupilot", "swap"), ("ardupilot", "reboot"),
+                                          ("px4", "swap")])
+def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, crew, tmp_path):
+    """``crew`` "reboot": each swap reboots the autopilot (a flight controller fed by
+    its pack): silent at its base, its TCP port closed, connected to again."""
     skip_unless_configured(backend)
     p = planned(0, SORTIES)
-    result = fly_case(p, backend, tmp_path, crew=True, auto_turnaround=True)
+    result = fly_case(p, backend, tmp_path, crew=crew, auto_turnaround=True)
     report, tracks, judges = result["report"], result["tracks"], result["judges"]
     outcome = report["outcome"]
     assert outcome["lost"] == [] and outcome["in_air"] == [] and outcome["coverage_reached"]
@@ -62,7 +65,14 @@ def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, tmp_
     cov = recorded_coverage(p.ctx, tracks, sysids, k=0)
     short = p.plan.metrics["battery"]["targets_short"]
     assert cov["k_covered"] >= coverable(p.ctx) - short
-    print(f"\nsorties [{backend}]: wall {result['wall_s']:.0f} s, flight {report['duration_s']:.0f}"
-          f" s, takeoffs {[len(takeoffs(tracks[s])) for s in sysids]}, lowest battery "
+    if crew == "reboot":    # its TCP port closed at each swap, connected to again
+        links = result["flight"].link.connections
+        for v in p.plan.vehicles:
+            assert links[v.id - 1].reconnects >= len(v.sorties) - 1
+            said = [e["event"].split(" ")[0] for e in report["events"]
+                    if e["sysid"] == v.id and e["event"].startswith(("silent at", "heard"))]
+            assert said == ["silent", "heard"] * (len(said) // 2), said
+    print(f"\nsorties [{backend}, {crew}]: wall {result['wall_s']:.0f} s, flight "
+          f"{report['duration_s']:.0f} s, takeoffs {[len(takeoffs(tracks[s])) for s in sysids]}, lowest battery "
           f"{[int(np.min(np.array(judges[s].battery)[:, 1])) for s in sysids]} %, coverage "
           f"{cov['k_covered']}/{coverable(p.ctx)} ({short} beyond one battery)")

@@ -5,6 +5,7 @@ reader, hashlib for MAVProxy's passphrase rule."""
 
 import hashlib
 import socket
+import threading
 import time
 
 import pytest
@@ -123,6 +124,81 @@ def test_open_names_what_is_missing(fleet_of):
         held.bind(("127.0.0.1", 0))     # running beside this one can take the port
         with pytest.raises(LinkError, match="cannot open"):
             GroundLink.open([f"tcp:127.0.0.1:{held.getsockname()[1]}"], timeout_s=0.5)
+
+
+class _Rebooting:
+    """An autopilot on a TCP port, as SITL serves one, sending HEARTBEATs; `reboot`
+    closes its port for a while (a battery swap powering it down), then serves it
+    again. Counts the clients that connected."""
+
+    def __init__(self):
+        self.mav = M.MAVLink(None, srcSystem=7, srcComponent=1)
+        self.clients, self.port, self.up = 0, None, True
+        self._stop = threading.Event()
+        self._listener = self._listen()
+        self._thread = threading.Thread(target=self._serve, daemon=True)
+        self._thread.start()
+
+    def _listen(self, port=0):
+        s = socket.socket()
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        s.bind(("127.0.0.1", port))
+        s.listen(1)
+        s.settimeout(0.1)
+        self.port = s.getsockname()[1]
+        return s
+
+    def _serve(self):
+        client = None
+        while not self._stop.is_set():
+            if not self.up:
+                if client is not None:
+                    client.close()
+                    client = None
+                time.sleep(0.05)
+                continue
+            if client is None:
+                try:
+                    client, _ = self._listener.accept()
+                    self.clients += 1
+                except OSError:
+                    continue
+            beat = self.mav.heartbeat_encode(M.MAV_TYPE_QUADROTOR, M.MAV_AUTOPILOT_ARDUPILOTMEGA,
+                                             0, 0, M.MAV_STATE_STANDBY)
+            try:
+                client.sendall(beat.pack(self.mav))
+            except OSError:
+                client = None
+            time.sleep(0.2)
+
+    def reboot(self, seconds):
+        self.up = False
+        time.sleep(0.2)
+        self._listener.close()
+        time.sleep(seconds)
+        self._listener = self._listen(self.port)
+        self.up = True
+
+    def stop(self):
+        self._stop.set()
+        self._thread.join(2)
+        self._listener.close()
+
+
+def test_a_tcp_autopilot_that_reboots_is_connected_to_again():
+    """An autopilot rebooting (a battery swap) closes its TCP port: the link
+    connects again once it serves it, and hears it; closed by us, never again."""
+    vehicle = _Rebooting()
+    try:
+        with GroundLink.open([f"tcp:127.0.0.1:{vehicle.port}"], expect=1, timeout_s=5) as link:
+            v, conn = link.vehicles[7], link.connections[0]
+            vehicle.reboot(2.5)
+            assert wait_until(lambda: conn.reconnects >= 1 and v.heartbeat_age() < 0.5)
+            assert vehicle.clients == 2
+        time.sleep(2.5)                    # RECONNECT_S and more: nobody came back
+        assert vehicle.clients == 2 and conn.shut
+    finally:
+        vehicle.stop()
 
 
 def test_ground_stations_and_cameras_are_not_vehicles(fleet_of):

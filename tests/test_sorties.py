@@ -276,11 +276,14 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     left, in sorties again: in its first sortie (item 8), or as it goes up for its
     third when the others have landed on spent batteries (1450 s): they go up again
     once swapped (the re-plan once gave their first, empty sortie nothing to see
-    and left them down). Judged by the simulator's own tracks."""
+    and left them down). Judged by the simulator's own tracks. Without a loss, each
+    swap powers the autopilot down for 4 s (a flight controller fed by its pack; the
+    simulator closes its TCP port as SITL rebooting does), longer than --lost-after:
+    silent at its base, not lost; connected to again, it flies its next sortie."""
     out = tmp_path / "flight"
     code = main(["fly", str(twelve.dir), "--sim", "3", "--speedup", "100", "--lost-after",
                  "3", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)]
-                + (["--kill", kill] if kill else []))
+                + (["--kill", kill] if kill else ["--swap-reboot", "4"]))
     report = json.loads((out / "flight.json").read_text())
     lost = [2] if kill else []
     assert report["outcome"]["lost"] == lost and report["outcome"]["coverage_reached"]
@@ -301,6 +304,16 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
         ups = _takeoffs_on_fresh_batteries(track)
         assert ups == len(v.sorties) if not replanned else ups >= 2
         assert abs(track.alt[-1] - track.home[2]) < 1.0
+        if not kill:     # each swap before a sortie powered it down; said, and not lost
+            downs = [e["event"] for e in track.events if e["event"] in ("powered down",
+                                                                         "boot", "takeoff")]
+            last = len(downs) - downs[::-1].index("takeoff")
+            assert downs[:last] == ["boot", "takeoff"] + ["powered down", "boot",
+                                                          "takeoff"] * (ups - 1), downs
+            said = [e["event"].split(" ")[0] for e in report["events"]
+                    if e["sysid"] == v.id and "battery swap" in e["event"]
+                    and e["event"].startswith(("silent", "heard"))]
+            assert said[:2 * (ups - 1)] == ["silent", "heard"] * (ups - 1), said
     # what each autopilot would do on a low battery, said before anything flies
     said = [e for e in report["events"] if e["event"].startswith("battery failsafe: ")]
     assert sorted(e["sysid"] for e in said) == [1, 2, 3]

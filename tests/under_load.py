@@ -2,7 +2,8 @@
 
     python tests/under_load.py [--runs 3] [--hogs N] [-- PYTEST ARGS]
 
-Beside each run of the suite (``make test``'s pytest command), ``--hogs`` CPU
+Beside each run of the suite (pytest with the arguments after ``--``: ``make
+test-under-load`` gives it ``make test``'s), ``--hogs`` CPU
 hogs (default: one per core) spin at the suite's own priority, so every test
 process gets a fraction of a core, as on a laptop that also builds or plans,
 or a CI machine shared with other jobs. A hog is a plain Python busy loop: no
@@ -17,7 +18,7 @@ import subprocess
 import sys
 import time
 
-PYTEST = [sys.executable, "-m", "pytest", "-q", "-n", "logical", "--dist", "loadfile"]
+PYTEST = [sys.executable, "-m", "pytest"]
 
 
 def _spin() -> None:
@@ -30,7 +31,7 @@ def main(argv=None) -> int:
     parser.add_argument("--runs", type=int, default=3, help="consecutive runs of the suite")
     parser.add_argument("--hogs", type=int, default=os.cpu_count() or 1,
                         help="busy processes beside the suite")
-    parser.add_argument("pytest_args", nargs="*", help="more pytest arguments (after --)")
+    parser.add_argument("pytest_args", nargs="*", help="pytest's arguments (after --)")
     args = parser.parse_args(argv)
     results = []
     for run in range(1, args.runs + 1):

@@ -49,6 +49,10 @@ def add_arguments(parser) -> None:
                              "battery, without the operator's word (SITL; --sim always does); "
                              "otherwise type its system id and Enter once its battery is "
                              "swapped")
+    parser.add_argument("--swap-silence", type=float, default=600.0, metavar="S",
+                        help="a vehicle down at its base for its battery swap may be silent "
+                             "this many wall seconds (the swap powers most autopilots down) "
+                             "before it is lost")
     parser.add_argument("--from-where-they-stand", action="store_true",
                         help="a vehicle not at its route's launch point: plan the fleet again "
                              "with its base where it stands (its takeoff and first leg "
@@ -83,6 +87,10 @@ def add_arguments(parser) -> None:
     sim.add_argument("--drain", action="append", default=[], metavar="SYSID@FACTOR",
                      help="a simulated vehicle whose battery empties FACTOR times faster than "
                           "its rating (a cold or worn battery): the battery watch's case")
+    sim.add_argument("--swap-reboot", type=float, default=0.0, metavar="S",
+                     help="each battery swap powers a simulated vehicle down for S wall "
+                          "seconds (its link silent, its TCP port closed), then it boots "
+                          "again; 0 = a hot swap")
     sim.add_argument("--sim-capacity", type=int, metavar="N",
                      help="mission items each simulated vehicle holds (default: the "
                           "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
@@ -94,6 +102,8 @@ def options_from_args(args):
 
     if not args.lost_after > 0:
         raise InputError("--lost-after", f"must be positive, got {args.lost_after}")
+    if not args.swap_silence >= 0:
+        raise InputError("--swap-silence", f"must not be negative, got {args.swap_silence}")
     protocol = protocol_from_args(args)
     if args.max_items is not None and args.max_items < 1:
         raise InputError("--max-items", f"must be at least 1, got {args.max_items}")
@@ -109,7 +119,8 @@ def options_from_args(args):
                       protocol_retries=protocol["retries"], max_items=args.max_items,
                       tlog=not args.no_tlog,
                       auto_turnaround=bool(args.auto_turnaround or args.sim),
-                      from_where_they_stand=args.from_where_they_stand)
+                      from_where_they_stand=args.from_where_they_stand,
+                      swap_silence_s=args.swap_silence)
 
 
 def sim_fleet(plan, plan_dir, args, output: Path):
@@ -124,6 +135,8 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         raise InputError("--sim", "need at least one vehicle")
     if args.speedup <= 0:
         raise InputError("--speedup", "must be positive")
+    if not args.swap_reboot >= 0:
+        raise InputError("--swap-reboot", f"must not be negative, got {args.swap_reboot}")
     if args.sim_capacity is not None and args.sim_capacity < 1:
         raise InputError("--sim-capacity", f"must be at least 1, got {args.sim_capacity}")
     capacity = {} if args.sim_capacity is None else {"mission_capacity": args.sim_capacity}
@@ -142,6 +155,7 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
             "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
             gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
+            swap_reboot_s=args.swap_reboot,
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
     except ValueError as exc:
         raise InputError("--sim", str(exc)) from None

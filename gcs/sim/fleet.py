@@ -66,6 +66,7 @@ class FleetConfig:
     mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
     battery_min: float = 60.0                   # flight time of a full battery
     swap_s: float = 60.0                        # on the ground, disarmed, until it is swapped
+    swap_reboot_s: float = 0.0                  # wall s each swap powers the autopilot down
 
     def vehicle_configs(self) -> list:
         flavour(self.firmware)                  # ValueError naming the choices
@@ -89,7 +90,8 @@ class FleetConfig:
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
                 seed=self.seed, signing_key=self.signing_key, terrain=self.terrain,
                 transport=self.transport, mission_capacity=self.mission_capacity,
-                battery_min=self.battery_min, swap_s=self.swap_s))
+                battery_min=self.battery_min, swap_s=self.swap_s,
+                swap_reboot_s=self.swap_reboot_s))
         return configs
 
 

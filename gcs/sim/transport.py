@@ -11,23 +11,42 @@ serial link, as over a telemetry radio.
 import os
 import select
 import socket
+import time
 
 
 class TcpServerLink:
     def __init__(self, port: int, host: str = "127.0.0.1", banner: bytes = b""):
-        self._listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-        self._listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
-        try:
-            self._listener.bind((host, port))
-        except OSError:
-            self._listener.close()
-            raise
-        self._listener.listen(1)
-        self._listener.setblocking(False)
+        self._address = (host, port)
+        self._listener = self._listen()
         self._client = None
         self._banner = banner
         self.port = port
         self.accepted = 0          # clients so far: a new one gets the streams at once
+
+    def _listen(self) -> socket.socket:
+        listener = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+        listener.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            listener.bind(self._address)
+        except OSError:
+            listener.close()
+            raise
+        listener.listen(1)
+        listener.setblocking(False)
+        return listener
+
+    def power_off(self) -> None:
+        """The autopilot powered down: its client dropped, its port closed."""
+        self.close()
+        self._listener = None
+
+    def power_on(self) -> bool:
+        """Serving the port again; False while it cannot be bound yet."""
+        try:
+            self._listener = self._listen()
+        except OSError:
+            return False
+        return True
 
     @property
     def connected(self) -> bool:
@@ -36,6 +55,9 @@ class TcpServerLink:
     def poll(self, timeout: float) -> list:
         """Wait up to `timeout` s; return the byte chunks that arrived."""
         sock = self._client or self._listener
+        if sock is None:                 # powered down
+            time.sleep(max(timeout, 0.0))
+            return []
         ready, _, _ = select.select([sock], [], [], max(timeout, 0.0))
         if not ready:
             return []
@@ -89,7 +111,8 @@ class TcpServerLink:
     def close(self) -> None:
         if self._client is not None:
             self._drop_client()
-        self._listener.close()
+        if self._listener is not None:
+            self._listener.close()
 
 
 class UdpLink:
@@ -107,6 +130,12 @@ class UdpLink:
 
     connected = True
     accepted = 0
+
+    def power_off(self) -> None:
+        """The autopilot powered down: the port stays (a radio link keeps its line)."""
+
+    def power_on(self) -> bool:
+        return True
 
     def poll(self, timeout: float) -> list:
         ready, _, _ = select.select([self._sock], [], [], max(timeout, 0.0))
@@ -145,6 +174,8 @@ class PtyLink:
         tty.setraw(self._slave)        # no echo, no line editing: bytes pass as they are
         os.set_blocking(self._master, False)
         self.device = os.ttyname(self._slave)   # kept open: the master never reads EOF
+
+    power_off, power_on = UdpLink.power_off, UdpLink.power_on
 
     def poll(self, timeout: float) -> list:
         ready, _, _ = select.select([self._master], [], [], max(timeout, 0.0))

@@ -31,6 +31,10 @@ M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
 PHYSICS_STEP_S = 0.05    # largest mission-time step of the point mass
 STEP_BUDGET_S = TICK_S   # wall time one tick may spend stepping mission time
+#: wall seconds after a landing before a swap may power the autopilot down: a crew
+#: needs that long (at a speed-up, `swap_s` of mission time can be less than the
+#: second between two HEARTBEATs: the ground station would not know it landed)
+CREW_WALL_S = 3.0
 FLUSH_S = 2.0            # wall period of track file writes
 FORCE_DISARM = 21196
 TAKEOFF_TOLERANCE_M = 0.5
@@ -71,6 +75,8 @@ class VehicleConfig:
     battery_min: float = 60.0                  # flight time from a full battery to empty
     swap_s: float = 60.0                       # mission s disarmed on the ground until the
                                                # crew has put in a full battery
+    swap_reboot_s: float = 0.0                 # wall s powered down by each swap (a flight
+                                               # controller fed by its pack); 0: hot swap
 
 
 class _LinkWriter:
@@ -81,7 +87,8 @@ class _LinkWriter:
 
     def write(self, buf: bytes) -> None:
         v = self._v
-        if v.link is not None and not v.dead and v.link_faults.passes(time.monotonic()):
+        if v.link is not None and not v.dead and v.off_until is None and \
+                v.link_faults.passes(time.monotonic()):
             v.link.send(bytes(buf))
 
 
@@ -123,6 +130,7 @@ class SimVehicle:
         self.dead = False
         self.removed = threading.Event()   # set once it is shot down (`killed_at`: when)
         self.boot_wall = None
+        self.off_until = None          # powered down until then (monotonic), by a swap
         self._ready_announced = False
         self._idle_since = None
         self._cuts_done = set()
@@ -135,6 +143,7 @@ class SimVehicle:
         self._images = 0
         self.battery = Battery(60.0 * cfg.battery_min, drain=self.plan.drain)
         self.ground_s = 0.0               # disarmed on the ground since (mission s)
+        self._down_wall = None            # and since then (monotonic)
         self.heading = 0.0
         self._last_dest = None         # destination of the last nav item reached
         # PX4: the item the mission was left at (AUTO left in the air), and whether a
@@ -186,7 +195,7 @@ class SimVehicle:
             self._warm = (boot.gps_s * scale, boot.origin_s * scale, boot.ready_s * scale)
         else:                             # ready after warmup_s, in the same proportions
             self._warm = (warm / 2, warm * min(1.0, boot.origin_s / boot.ready_s), warm)
-        self.track.event(0.0, "boot")
+        self.track.event(self.t, "boot")
         self._sample(force=True)
 
     def run(self) -> None:
@@ -199,6 +208,10 @@ class SimVehicle:
                     break
                 chunks = self.link.poll(max(0.0, next_tick - time.monotonic()))
                 now = time.monotonic()
+                if self.off_until is not None:       # powered down: deaf, mute
+                    chunks = []
+                    if now >= self.off_until:
+                        self._power_on(now)
                 if self.boot_wall is None:           # waiting for the first client
                     if self.link.accepted:
                         self._boot(now)
@@ -296,18 +309,47 @@ class SimVehicle:
         self.body.step(dt)
         self.battery.draw(dt, self.body.vel[2])
         self._battery_failsafes()
-        self.ground_s = 0.0
+        self.ground_s, self._down_wall = 0.0, None
         if math.hypot(self.body.vel[0], self.body.vel[1]) > 0.5:
             self.heading = math.degrees(math.atan2(self.body.vel[0], self.body.vel[1])) % 360
         if self.body.pos[2] <= self.ground:
             self._touch_down()
 
     def _swap_battery(self, dt: float) -> None:
-        """Disarmed on the ground `swap_s` after a flight: a full battery is in."""
-        self.ground_s = 0.0 if self.armed else self.ground_s + dt
+        """Disarmed on the ground `swap_s` after a flight: a full battery is in, the
+        autopilot powered down meanwhile for `swap_reboot_s` wall seconds if set (no
+        sooner than `CREW_WALL_S` after the landing)."""
+        if self.armed:
+            self.ground_s, self._down_wall = 0.0, None
+            return
+        self.ground_s += dt
+        if self._down_wall is None:
+            self._down_wall = time.monotonic()
         if self.battery.used_s > 0 and self.ground_s >= self.cfg.swap_s:
+            if self.cfg.swap_reboot_s > 0 and time.monotonic() - self._down_wall < CREW_WALL_S:
+                return
             self.battery.swap()
             self.track.event(self.t, "battery swapped")
+            if self.cfg.swap_reboot_s > 0:
+                self._power_off()
+
+    def _power_off(self) -> None:
+        """Silent, deaf, its TCP port closed (as SITL rebooting) until `_power_on`."""
+        self.off_until = time.monotonic() + self.cfg.swap_reboot_s
+        self.link.power_off()
+        self.track.event(self.t, "powered down")
+
+    def _power_on(self, now: float) -> None:
+        """Booted again: modes, streams and the GPS and EKF warm-up as after power-up;
+        the mission and parameters kept (as in the autopilot's storage)."""
+        if not self.link.power_on():
+            return                        # the port is not free yet: next tick
+        self.off_until = None
+        self.mode, self.current = self.flavour.initial_mode, self.flavour.first_item
+        self.auto_started, self.task = False, None
+        self._streams_requested, self._ready_announced = False, False
+        self._default_streams()
+        self._boot(now)
 
     def _battery_failsafes(self) -> None:
         """What the firmware does as the charge falls through its failsafe levels (each
