@@ -43,7 +43,6 @@ STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's d
 #: what a requested stream carries (TIMESYNC, STATUSTEXT flow before any request)
 STREAMED = frozenset({"SYS_STATUS", "GLOBAL_POSITION_INT", "GPS_RAW_INT"})
 STREAM_RETRY_S = 2.0             # streams asked again after this long with HEARTBEATs only
-REBOOT_GAP_S = 3.0               # HEARTBEATs back after a silence this long: maybe rebooted
 POLL_S = 0.05
 #: wall seconds between attempts to connect again to a TCP peer that closed: an
 #: autopilot rebooting (a battery swap powers it down) serves its port again
@@ -413,7 +412,7 @@ class VehicleLink:
         self.signs = False            # its packets carry signatures (seen without a key)
         self.mission_capacity = None  # items it holds, once learned (mission_protocol)
         self.mission_fits = 0         # the longest upload it took
-        self._streaming, self._asked_at = False, 0.0   # telemetry seen; last request (monotonic)
+        self._streamed_at, self._asked_at = 0.0, 0.0   # last telemetry, request (monotonic)
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
         self._cond = threading.Condition()
@@ -527,8 +526,6 @@ class VehicleLink:
             if from_autopilot:
                 self._route = (conn, addr)
                 self.signs = _is_signed(msg)
-                if msg.get_type() == "HEARTBEAT" and self.heartbeat_age() > REBOOT_GAP_S:
-                    self._streaming = False     # back from a reboot: streams asked anew
                 _update_state(self.state, msg, self.flavour, self.mav_type)
                 ask_again = self._streams_missing(msg)
             if _addressed_to_us(msg):
@@ -543,16 +540,17 @@ class VehicleLink:
                 pass
 
     def _streams_missing(self, msg) -> bool:
-        """True on a HEARTBEAT when no telemetry has come yet, STREAM_RETRY_S after
-        the last request: that request was lost on the way, as packets are on a
-        radio link, and the vehicle streams nothing until asked again. (Once it
-        streams, it goes on: a quiet spell later is not a lost request, unless it was
-        silent long enough to have rebooted.)"""
+        """True on a HEARTBEAT when no telemetry has come for STREAM_RETRY_S, that
+        long after the last request: that request was lost on the way, as packets
+        are on a radio link, or the autopilot rebooted (a battery swap powers it
+        down; ArduPilot SITL is back within a second at 10x), and it streams
+        nothing until asked again."""
+        now = time.monotonic()
         if msg.get_type() in STREAMED:
-            self._streaming = True
+            self._streamed_at = now
         if msg.get_type() != "HEARTBEAT":
             return False
-        return not self._streaming and time.monotonic() - self._asked_at >= STREAM_RETRY_S
+        return now - max(self._streamed_at, self._asked_at) >= STREAM_RETRY_S
 
 
 def _is_signed(msg) -> bool:

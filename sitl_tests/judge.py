@@ -150,13 +150,16 @@ class Judge:
         while not self._stop.is_set():
             try:
                 sock = connect()
-            except (OSError, RuntimeError):
+            except RuntimeError:
                 return                                      # the process is gone
+            except OSError:                                 # refused: a reboot under way
+                time.sleep(0.2)
+                continue
             with sock:
                 self._read_tcp(sock)
 
-    def _read_tcp(self, sock) -> None:
-        rest = b""
+    def _received(self, sock):
+        """What ``sock`` receives, until the judge stops or the link fails or closes."""
         while not self._stop.is_set():
             try:
                 data = sock.recv(65536)
@@ -166,19 +169,18 @@ class Judge:
                 return
             if not data:
                 return
+            yield data
+
+    def _read_tcp(self, sock) -> None:
+        rest = b""
+        for data in self._received(sock):
             found, rest = frames(rest + data)
             self._keep(found)
 
     def _run_udp(self, sock, px4) -> None:
         asked = False
         with sock:
-            while not self._stop.is_set():
-                try:
-                    data = sock.recv(65536)
-                except socket.timeout:
-                    continue
-                except OSError:
-                    return
+            for data in self._received(sock):
                 if not asked:                               # 10 Hz is plenty
                     ask = self._mav.command_long_encode(
                         self.sysid, 1, M.MAV_CMD_SET_MESSAGE_INTERVAL, 0, POSITION,

@@ -101,11 +101,11 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
         swap = be.reboot if crew == "reboot" else be.swap_battery
 
         def swap_when_waiting():
-            swapped = set()
+            swapped = {}            # id -> route, kept: a freed route's id is reused
             while not stop.is_set():
                 for sysid, route in list(flight._waiting_battery.items()):
                     if id(route) not in swapped:
-                        swapped.add(id(route))
+                        swapped[id(route)] = route
                         swap(sysid)
                 time.sleep(0.1)
         threading.Thread(target=swap_when_waiting, daemon=True).start()

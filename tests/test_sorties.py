@@ -404,11 +404,11 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
         done = threading.Event()
 
         def confirm_when_asked():       # once per sortie waiting, as an operator would
-            answered = set()
+            answered = {}           # id -> route, kept: a freed route's id is reused
             while not done.is_set():
                 for sysid, route in list(flight._waiting_battery.items()):
                     if id(route) not in answered:
-                        answered.add(id(route))
+                        answered[id(route)] = route
                         flight.confirm_swap(sysid)
                 time.sleep(0.2)
         threading.Thread(target=confirm_when_asked, daemon=True).start()
