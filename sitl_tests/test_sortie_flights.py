@@ -7,6 +7,8 @@ what the autopilot reported of itself on its second link (`judge.Judge`): its
 takeoffs, the battery it reported, its track (hidden and clear), its landings,
 and the coverage of the snapshots its track confirms."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from fleets import Setting, skip_unless_configured
@@ -22,6 +24,10 @@ from test_end_to_end import (
 #: about 33 min of fleet time (3.3 min of wall time at 10x)
 SORTIES = Setting(2, 100.0, (215, 130, 40), 1200.0,
                   (("endurance_min", 10.0), ("turnaround_min", 2.0)))
+#: planned for the firmware flown, at its own rates (PX4 takes off at 1.5 m/s below
+#: 10 m and climbs at 3.0: planned at ArduPilot's, it warns "slower than planned")
+FOR_FIRMWARE = {fw: replace(SORTIES, extra=SORTIES.extra + (("firmware", fw),))
+                for fw in ("ardupilot", "px4")}
 AIRBORNE_M = 10.0   # above its home: a takeoff counts once the vehicle is this high
 
 
@@ -34,13 +40,15 @@ def takeoffs(track) -> list:
 
 # PX4 v1.17 SITL landed on 18-20 % against the 25 % reserve while plans assumed a 2.0
 # m/s descent (its MPC_Z_V_AUTO_DN is 1.5); planned with the firmware's rates, on 25-26 %
+# (2026-11-28), on 24 % (2026-11-29: its sorties took 1.2-1.26 times their planned
+# flight time, judged by wall time at its speed-up; open)
 @pytest.mark.parametrize("backend,crew", [("ardupilot", "swap"), ("ardupilot", "reboot"),
                                           ("px4", "swap")])
 def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, crew, tmp_path):
     """``crew`` "reboot": each swap reboots the autopilot (a flight controller fed by
     its pack): silent at its base, its TCP port closed, connected to again."""
     skip_unless_configured(backend)
-    p = planned(0, SORTIES)
+    p = planned(0, FOR_FIRMWARE[backend])
     result = fly_case(p, backend, tmp_path, crew=crew, auto_turnaround=True)
     report, tracks, judges = result["report"], result["tracks"], result["judges"]
     outcome = report["outcome"]
