@@ -210,7 +210,7 @@ class Monitor:
         self.track_tolerance_m = track_tolerance_m
         self.stalls = StallClock()
         self.awaited = set     # () -> sysids landed with a sortie still to fly (`Flight`)
-        self.swapping = set    # () -> of them, those whose battery swap is not yet seen
+        self.swapping = set    # () -> of them, down at base, their battery swap not yet seen
         self.swap_silence_s = SWAP_SILENCE_S
         self.t0 = time.monotonic()
         self.vehicles = {}  # sysid -> VehicleProgress
@@ -535,7 +535,7 @@ class Monitor:
                         lost.append(sysid)
                     continue
                 age, stalled = self._silence(sysid)
-                swap = v.state == LANDED and sysid in swapping
+                swap = sysid in swapping
                 self._note_power(v, age - stalled, swap)
                 if age - stalled > (max(self.swap_silence_s, self.lost_after_s) if swap
                                     else self.lost_after_s):

@@ -115,7 +115,17 @@ class TcpServerLink:
             self._listener.close()
 
 
-class UdpLink:
+class _KeepsItsLine:
+    """A link that outlives the autopilot's power: a UDP port, a serial line."""
+
+    def power_off(self) -> None:
+        """The autopilot powered down: the line stays (a radio keeps its link)."""
+
+    def power_on(self) -> bool:
+        return True
+
+
+class UdpLink(_KeepsItsLine):
     def __init__(self, port: int, target: tuple = ("127.0.0.1", 14550),
                  host: str = "127.0.0.1"):
         self._sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
@@ -130,12 +140,6 @@ class UdpLink:
 
     connected = True
     accepted = 0
-
-    def power_off(self) -> None:
-        """The autopilot powered down: the port stays (a radio link keeps its line)."""
-
-    def power_on(self) -> bool:
-        return True
 
     def poll(self, timeout: float) -> list:
         ready, _, _ = select.select([self._sock], [], [], max(timeout, 0.0))
@@ -159,7 +163,7 @@ class UdpLink:
         self._sock.close()
 
 
-class PtyLink:
+class PtyLink(_KeepsItsLine):
     """A serial line: the vehicle holds the master side of a pseudo-terminal and a
     ground station opens its slave device as a serial port (``DEVICE,BAUD``, e.g.
     ``/dev/pts/5,57600``), as it would a telemetry radio or a USB cable."""
@@ -174,8 +178,6 @@ class PtyLink:
         tty.setraw(self._slave)        # no echo, no line editing: bytes pass as they are
         os.set_blocking(self._master, False)
         self.device = os.ttyname(self._slave)   # kept open: the master never reads EOF
-
-    power_off, power_on = UdpLink.power_off, UdpLink.power_on
 
     def poll(self, timeout: float) -> list:
         ready, _, _ = select.select([self._master], [], [], max(timeout, 0.0))
