@@ -534,6 +534,8 @@ def test_a_flight_whose_last_survivors_fall_during_a_re_plan_ends(planned, twelv
     assert not any("timed out" in e["event"] for e in report["events"])
 
 
+
+
 def test_a_vehicle_slower_than_its_plan_is_told_what_it_lands_on(planned, twelve, tmp_path):
     """An airframe slower than its plan (PX4 SITL's SIH quad, drag limited, cruised
     9-10 m/s on missions asking 12, and its sorties took 1.2 times their planned
