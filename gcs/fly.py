@@ -92,10 +92,6 @@ WATCH_AFTER_S, WATCH_AFTER_PCT = 120.0, 8
 #: a battery drawn this many times faster than its rating (the plan's endurance) is
 #: not trusted: the vehicle comes home early and stays down
 FAST_DRAIN = 1.25
-#: a vehicle making its way this many times slower than planned (its airframe slower
-#: than the plan's speed, a headwind, its autopilot's stops at waypoints) is told
-#: once a sortie, with the battery it lands on at that pace
-SLOW_PACE = 1.15
 #: hover seconds of battery one metre of climb costs: lifting m g per metre on a hover
 #: power P takes m g / P seconds of it (a 1.5 kg quadcopter hovering on 180 W: 0.08 s;
 #: the simulator's battery draws so). A sortie's first minutes are mostly its takeoff
@@ -254,7 +250,6 @@ class Flight:
         self._pace = {}           # sysid -> times slower than planned on its route so far
         self._late = {}           # the same, for those the battery watch brought home
         self._late_acted = set()  # ... in their sortie now: once a sortie (`_watch_batteries`)
-        self._pace_told = set()   # ... and those told slower than planned (`_tell_pace`)
         self._sortie_began = {}   # sysid -> SortieDraw since its last liftoff
         self.spent = set()        # sysids the battery watch sent home: they stay down
         # fly at the speed the plan's times assume, as `gcs plan` writes the files
@@ -480,8 +475,7 @@ class Flight:
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
             resume=self._fly_on,
             travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
-            on_pad=m.on_pad, short=self._short_of_battery, waiting=self._waiting_s,
-            pace=lambda s: self._pace.get(s, 1.0))
+            on_pad=m.on_pad, short=self._short_of_battery, waiting=self._waiting_s)
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self._all(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
@@ -505,7 +499,6 @@ class Flight:
                 m.now(), self._own_clock(sysid), m.links[sysid].state.battery_pct, len(track),
                 track[-1][3] if track else None)
             self._late_acted.discard(sysid)
-            self._pace_told.discard(sysid)
         m.set_state(sysid, STARTING)
         try:
             # the column is looked at again as it arms: one held on the ground (refused
@@ -1017,7 +1010,6 @@ class Flight:
             fast = drawn > FAST_DRAIN
             since = max(0.0, flown - drained_s)
             need = rated * (drawn if fast else 1.0) * (left_s + since) + reserve / 2
-            self._tell_pace(sysid, pct - (need - reserve / 2), reserve)
             # a late one is re-planned once a sortie: a re-plan that cannot fit its
             # battery says so, and would only be made again
             if pct >= need or (not fast and sysid in self._late_acted):
@@ -1071,11 +1063,8 @@ class Flight:
         at = w.t_s - float(to_w)                  # where it is, on the route's timeline
         left = v.route.mission_time_s - at
         seen = self._route_seen.get(sysid)
-        if seen is None or seen[0] is not v.route or self._waiting_s(sysid) is not None:
-            # its pace is timed from where it flies this route: not while a re-plan
-            # holds it until its time (one held so read 6.8 times slower)
+        if seen is None or seen[0] is not v.route:
             self._route_seen[sysid] = (v.route, own, at)
-            self._pace.pop(sysid, None)
             return left
         _, own0, at0 = seen
         if own - own0 >= WATCH_AFTER_S and at > at0:
@@ -1083,19 +1072,6 @@ class Flight:
             self._pace[sysid] = max(1.0, flying / (at - at0))
             left *= self._pace[sysid]
         return left
-
-    def _tell_pace(self, sysid, lands_pct, reserve) -> None:
-        """Say once a sortie that a vehicle makes its way `SLOW_PACE` times slower than
-        planned or more (`_left_s`), and what it lands on at that pace: the plan's
-        times and its reserve are then not what this airframe flies."""
-        pace = self._pace.get(sysid, 1.0)
-        if pace < SLOW_PACE or sysid in self._pace_told:
-            return
-        self._pace_told.add(sysid)
-        self.monitor.event(sysid, f"makes its way {pace:.2f} times slower than planned (its "
-                                  f"own clock, holds left out): at that pace it lands on "
-                                  f"about {lands_pct:.0f} % (reserve {reserve:g} %)",
-                           pace=round(pace, 3), lands_pct=round(lands_pct, 1))
 
     def _next_waypoint(self, sysid) -> int:
         done = self.monitor.vehicles[sysid].done

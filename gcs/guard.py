@@ -30,7 +30,6 @@ approach seen between each pair (from telemetry).
 import math
 import threading
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -69,20 +68,17 @@ class SeparationGuard:
     ``on_pad(sysid)``: touched down at its base, not yet told landed;
     ``short(sysid)``: short of battery (it goes before every other);
     ``waiting(sysid)``: fleet seconds until a re-plan flies it on, None if it does not
-    wait for one; ``pace(sysid)``: how many times slower than planned it makes its
-    way (an airframe slower than its plan: predicted at the plan's speeds, it was
-    held and resumed again and again as each prediction missed)."""
+    wait for one."""
 
     def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
                  travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False,
-                 short=lambda sysid: False, waiting=lambda sysid: None,
-                 pace=lambda sysid: 1.0):
+                 short=lambda sysid: False, waiting=lambda sysid: None):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.airborne = clock, airborne
         self._hold, self._resume = hold, resume
         self.travel, self.stop_s = travel, float(stop_s)
-        self.on_pad, self.short, self.waiting, self.pace = on_pad, short, waiting, pace
+        self.on_pad, self.short, self.waiting = on_pad, short, waiting
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
@@ -149,7 +145,6 @@ class SeparationGuard:
             poly = frame.position(sysid)[None]
         profile = Profile.of_route(poly, self.travel, launch=ground, start=frame.position(sysid),
                                    stop_s=self.stop_s)
-        profile = replace(profile, duration=profile.duration * self.pace(sysid))
         holds = np.zeros(profile.n)
         holds[profile.route[0]:profile.route[0] + len(rest)] = [w.hold_s for w in rest]
         holds[0] += wait_s          # vertex 0: where it stands now

@@ -309,7 +309,6 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
     fake._held_own_s = lambda s, since: Flight._held_own_s(fake, s, since)
     fake._own_at = lambda s, t: Flight._own_at(fake, s, t)
     fake._next_waypoint = lambda s: Flight._next_waypoint(fake, s)
-    fake._waiting_s = lambda s: None
     assert Flight._left_s(fake, 1) == pytest.approx(460.0 - 0.0, abs=1.0)   # first look
     # 2 * WATCH_AFTER_S later on its own clock, where the plan is WATCH_AFTER_S after
     # the start: it makes half the planned pace

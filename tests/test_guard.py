@@ -61,7 +61,7 @@ def _route(x, y):
     return VehicleRoute(1, None, [w], 0.0, 0.0, 0.0)
 
 
-def _guard(vehicles, priority, short=(), waiting=lambda s: None, pace=lambda s: 1.0):
+def _guard(vehicles, priority, short=(), waiting=lambda s: None):
     monitor = Monitor(lost_after_s=5.0)
     for v in vehicles:
         monitor.follow(v, v.sysid, v.route or _route(*v.p[:2]), None)
@@ -71,7 +71,7 @@ def _guard(vehicles, priority, short=(), waiting=lambda s: None, pace=lambda s: 
                             hold=lambda s: _set(vehicles, s, True),
                             resume=lambda s: _set(vehicles, s, False),
                             travel=TravelParams(speed_mps=12.0),
-                            short=lambda s: s in short, waiting=waiting, pace=pace)
+                            short=lambda s: s in short, waiting=waiting)
     return monitor, guard
 
 
@@ -116,22 +116,6 @@ def test_crossing_paths_the_lower_priority_waits_then_flies_on():
     assert report["pairs"][0]["vehicles"] == [1, 2]
     assert report["closest_m"] == pytest.approx(least, abs=13.0)   # sampled every 0.25 s
     assert any("separation guard: hold" in e["event"] for e in monitor.events)
-
-
-def test_a_vehicle_slower_than_planned_is_predicted_at_its_pace():
-    """Vehicle 1 makes its way east at 8 m/s on a plan of 12 (an airframe slower than
-    its plan), 2 north at 12, each 150 m from the crossing: at their true speeds they
-    never come closer than 41.6 m; at the plan's they would meet there. Predicted at
-    the plan's speed, 1 is held for nothing; at its pace (1.5 times slower), never."""
-    held = {}
-    for pace in (1.0, 1.5):
-        one = Scripted(1, (-150.0, 0.0), (8.0, 0.0), _route(400, 0))
-        two = Scripted(2, (0.0, -150.0), (0.0, 12.0), _route(0, 400))
-        _, guard = _guard([one, two], {1: 2, 2: 1}, pace=lambda s, p=pace: p if s == 1 else 1.0)
-        least = _run([one, two], guard, 40.0)
-        held[pace] = [(a["sysid"], a["action"]) for a in guard.actions]
-    assert held[1.0][:1] == [(1, "hold")] and held[1.5] == []
-    assert least == pytest.approx(41.6, abs=1.0)         # the run at its pace: as it flew
 
 
 def test_a_vehicle_short_of_battery_has_right_of_way():

@@ -31,7 +31,6 @@ from planner.scenario import METHODS, Scenario
 pytestmark = pytest.mark.timeout(300)
 
 ENDURANCE_MIN = 8.0
-SLOWER = 0.8
 
 
 @pytest.fixture(scope="module")
@@ -258,18 +257,6 @@ def twelve(planned, tmp_path_factory):
     return SimpleNamespace(dir=d, plan=outcome.plan)
 
 
-def _flown(twelve, fleet, tmp_path) -> dict:
-    """The report of ``twelve`` flown on ``fleet`` (stopped after), swaps unasked."""
-    from gcs.fly import Flight, FlyOptions
-
-    try:
-        return Flight(twelve.dir, fleet.urls(),
-                      FlyOptions(output=tmp_path / "f", lost_after_s=3.0, plot=False,
-                                 auto_turnaround=True)).run()
-    finally:
-        fleet.stop()
-
-
 def _takeoffs_on_fresh_batteries(track) -> int:
     """Takeoffs in a simulator's track, asserting that each after the first came
     after a landing and a battery swap (the simulator's crew's)."""
@@ -382,8 +369,6 @@ def test_a_battery_that_drains_fast_is_brought_home_early(twelve, tmp_path):
     watched = [e for e in report["events"] if "will not last the rest of its sortie" in
                e["event"]]
     fast = [e for e in watched if "times faster than rated" in e["event"]]
-    # flown at the plan's rates: none is told it makes its way slower than planned
-    assert not [e for e in report["events"] if e["event"].startswith("makes its way")]
     assert [e["sysid"] for e in fast] == [2], watched
     # the draw measured from the battery it reports: twice the rating, within the
     # whole percents it reports and the fleet clock's estimate of the speed-up
@@ -452,6 +437,7 @@ def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve,
     awaited while it uploaded (once it was taken off the list first, the vehicle
     could not be lost, and the flight stopped on the upload's error)."""
     import gcs.fly
+    from gcs.fly import Flight, FlyOptions
 
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks", battery_min=12.0,
@@ -464,7 +450,12 @@ def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve,
             fleet.kill(2)
         return real(link, missions, *args, **kwargs)
     monkeypatch.setattr(gcs.fly, "upload_route", upload_route)
-    report = _flown(twelve, fleet, tmp_path)
+    try:
+        report = Flight(twelve.dir, fleet.urls(),
+                        FlyOptions(output=tmp_path / "f", lost_after_s=3.0, plot=False,
+                                   auto_turnaround=True)).run()
+    finally:
+        fleet.stop()
     assert calls.count(2) == 2
     assert report["outcome"]["lost"] == [2] and report["outcome"]["coverage_reached"]
     said = [e for e in report["events"] if e["event"].startswith("lost during")]
@@ -534,32 +525,3 @@ def test_a_flight_whose_last_survivors_fall_during_a_re_plan_ends(planned, twelv
     assert not any("timed out" in e["event"] for e in report["events"])
 
 
-
-
-def test_a_vehicle_slower_than_its_plan_is_told_what_it_lands_on(planned, twelve, tmp_path):
-    """An airframe slower than its plan (PX4 SITL's SIH quad, drag limited, cruised
-    9-10 m/s on missions asking 12, and its sorties took 1.2 times their planned
-    time): each vehicle is told once a sortie that it makes its way slower than
-    planned, by how much, and what it lands on at that pace; the battery watch
-    counts with that pace. Reference: the simulator's limits, every rate `SLOWER`
-    times the plan's: a pace of 1 / SLOWER, within 10 % (its stops at waypoints
-    and its braking for the guard's holds are not slowed alike)."""
-    from gcs.fly import SLOW_PACE
-    from gcs.sim.physics import PLANNED_RATES, Limits
-
-    params = twelve.plan.params
-    limits = Limits(**{n: SLOWER * params[n] for n in PLANNED_RATES
-                       if params.get(n) is not None})
-    fleet = fleet_for_plan(twelve.plan, speedup=50.0, base_port=free_base_port(10, 3),
-                           track_dir=tmp_path / "tracks", limits=limits, battery_min=12.0,
-                           terrain=terrain_ground(planned.terrain))
-    report = _flown(twelve, fleet, tmp_path)
-    told = [e for e in report["events"] if e["event"].startswith("makes its way")]
-    assert sorted({e["sysid"] for e in told}) == [1, 2, 3], told
-    for e in told:
-        assert SLOW_PACE <= e["pace"] <= 1.1 / SLOWER, e
-    for sysid in (1, 2, 3):     # once a sortie at most
-        ups = read_track(track_path(tmp_path / "tracks", sysid)).events
-        takeoffs = sum(u["event"] == "takeoff" for u in ups)
-        assert sum(e["sysid"] == sysid for e in told) <= takeoffs
-    assert report["outcome"]["coverage_reached"], report["outcome"]["problems"]
