@@ -97,6 +97,9 @@ FAST_DRAIN = 1.25
 #: the simulator's battery draws so). A sortie's first minutes are mostly its takeoff
 #: climb: judged by time alone, batteries drawing as rated read 1.4 times faster.
 CLIMB_S_PER_M = 0.08
+#: how near (m) a vehicle stands to a waypoint it holds at: there it spends the hold
+#: its plan gives it (autopilots hold within their 2 m acceptance radius by default)
+AT_WAYPOINT_M = 5.0
 
 
 @dataclass
@@ -157,6 +160,12 @@ class Departure:
     due: float
     kind: str
     route: object
+
+
+def _at_waypoint(w, lat, lon, alt_amsl) -> bool:
+    """A vehicle at (lat, lon, alt_amsl) stands at waypoint ``w``."""
+    return abs(w.alt_amsl - alt_amsl) < AT_WAYPOINT_M and \
+        distance_m(lat, lon, w.lat, w.lon) < AT_WAYPOINT_M
 
 
 def _fresh(battery_pct) -> bool:
@@ -248,6 +257,7 @@ class Flight:
         self.swapped = set()      # sysids whose battery swap the operator confirmed
         self._route_seen = {}     # sysid -> (route, own clock s, route time s) first seen
         self._pace = {}           # sysid -> times slower than planned on its route so far
+        self.paces = {}           # sysid -> {sortie: its pace when last timed} (the report's)
         self._late = {}           # the same, for those the battery watch brought home
         self._late_acted = set()  # ... in their sortie now: once a sortie (`_watch_batteries`)
         self._sortie_began = {}   # sysid -> SortieDraw since its last liftoff
@@ -1043,35 +1053,67 @@ class Flight:
             self.retask()
 
     def _left_s(self, sysid):
-        """Fleet seconds left in a vehicle's sortie from where it is: to the waypoint
-        it flies to (the planner's leg time), then the rest of its route as planned
-        (holds and landing included), stretched by how much slower than planned it
-        has made its way along this route on its own clock (a headwind: never
-        shrunk), the separation guard's holds left out (what they cost is in the
-        battery it reports; a hold early on a route once read as 21 times slower);
-        None past its last waypoint or without a position."""
+        """Fleet seconds left in a vehicle's sortie from where it is (`_on_timeline`),
+        stretched by how much slower than planned it has made its way along this
+        route on its own clock (a headwind: never shrunk), the separation guard's
+        holds left out (what they cost is in the battery it reports; a hold early on
+        a route once read as 21 times slower); None past its last waypoint or without
+        a position."""
         m = self.monitor
-        v, state = m.vehicles[sysid], m.links[sysid].state
-        waypoints = v.route.waypoints
-        n = self._next_waypoint(sysid)
+        v = m.vehicles[sysid]
         own = self._own_clock(sysid)
-        if n >= len(waypoints) or state.lat is None or own is None:
+        at = self._on_timeline(sysid, own)
+        if at is None:
             return None
-        w = waypoints[n]
-        to_w = leg_time(distance_m(state.lat, state.lon, w.lat, w.lon),
-                        w.alt_amsl - state.alt_amsl, self.ctx.scenario.travel_params())
-        at = w.t_s - float(to_w)                  # where it is, on the route's timeline
         left = v.route.mission_time_s - at
         seen = self._route_seen.get(sysid)
-        if seen is None or seen[0] is not v.route:
+        if seen is None or seen[0] is not v.route or self._waiting_s(sysid) is not None:
+            # its pace is timed from where it flies this route: not while a re-plan
+            # holds it until its time (one so held read 6.8 times slower)
             self._route_seen[sysid] = (v.route, own, at)
+            self._pace.pop(sysid, None)
             return left
         _, own0, at0 = seen
         if own - own0 >= WATCH_AFTER_S and at > at0:
             flying = own - own0 - self._held_own_s(sysid, own0)
             self._pace[sysid] = max(1.0, flying / (at - at0))
             left *= self._pace[sysid]
+            self.paces.setdefault(sysid, {})[v.route.waypoints[0].sortie] = \
+                round(self._pace[sysid], 3)
         return left
+
+    def _on_timeline(self, sysid, own):
+        """Where a vehicle is on its route's timeline (fleet s), None past its last
+        waypoint or without a position: flying to its next waypoint, that one's
+        planned arrival less the planner's leg time from here; standing at one its
+        plan holds it at (the one it flies to or the one before: ArduPilot says it
+        reached a waypoint before its hold, PX4 after), the arrival plus the time it
+        has stood there, up to the hold (read as flying to the next, a 63 s hold
+        timed a vehicle flying as planned 1.34 times slower)."""
+        m = self.monitor
+        v, state = m.vehicles[sysid], m.links[sysid].state
+        waypoints = v.route.waypoints
+        n = self._next_waypoint(sysid)
+        if n >= len(waypoints) or state.lat is None or own is None:
+            return None
+        for w in (waypoints[i] for i in sorted({max(n - 1, 0), n})):
+            if w.hold_s > 0 and _at_waypoint(w, state.lat, state.lon, state.alt_amsl):
+                return w.t_s + min(w.hold_s, self._stood_s(sysid, w))
+        w = waypoints[n]
+        to_w = leg_time(distance_m(state.lat, state.lon, w.lat, w.lon),
+                        w.alt_amsl - state.alt_amsl, self.ctx.scenario.travel_params())
+        return w.t_s - float(to_w)
+
+    def _stood_s(self, sysid, w) -> float:
+        """Own-clock seconds the vehicle has stood at waypoint ``w``: back along its
+        position reports to the first there."""
+        track = self.monitor.vehicles[sysid].track
+        since = track[-1][4]
+        for _, lon, lat, alt, own in reversed(track):
+            if not _at_waypoint(w, lat, lon, alt):
+                break
+            since = own
+        return track[-1][4] - since
 
     def _next_waypoint(self, sysid) -> int:
         done = self.monitor.vehicles[sysid].done
@@ -1275,6 +1317,7 @@ class Flight:
             "snapshots": [asdict(s) for s in v.snapshots],
             "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],
             "off_route": [list(e) for e in v.off_route],
+            "pace": {str(j): p for j, p in self.paces.get(v.sysid, {}).items()},
         }
 
     def coverage(self) -> dict:

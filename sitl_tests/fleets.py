@@ -144,12 +144,14 @@ class SimBackend:
 
     def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None):
         from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
+        from gcs.sim.physics import Limits
 
         homes = [(v.launch.lat, v.launch.lon, v.launch.alt_amsl) for v in plan.vehicles]
         self.track_dir = workdir / "tracks"
         self.fleet = SimFleet(FleetConfig(
             vehicles=len(homes), firmware=self.firmware, homes=homes, speedup=speedup,
             track_dir=self.track_dir, warmup_s=1.0, auto_disarm_s=50.0 * speedup,
+            limits=Limits(speed_mps=plan.params["speed_mps"]),   # the firmware's vertical rates
             **({} if capacity is None else {"mission_capacity": capacity}),
             **free_fleet_ports(self.firmware, len(homes)))).start()
         # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be

@@ -90,6 +90,7 @@ class Judge:
         self.samples = []                  # (wall t, lat, lon, alt AMSL)
         self.shots = []                    # (lat, lon, alt AMSL)
         self.battery = []                  # (wall t, % remaining)
+        self.clock = []                    # (wall t, the autopilot's own s since boot)
         self._sock = None                  # ArduPilot's link, once connected
         self._mav = M.MAVLink(None, srcSystem=JUDGE_SYSID, srcComponent=190)
         self._mav.robust_parsing = True
@@ -200,6 +201,7 @@ class Judge:
                     if msg.lat or msg.lon:                  # 0, 0: no EKF origin yet
                         self.samples.append((now, msg.lat * 1e-7, msg.lon * 1e-7,
                                              msg.alt * 1e-3))
+                        self.clock.append((now, msg.time_boot_ms * 1e-3))
                 elif kind == "SYS_STATUS":
                     if msg.battery_remaining >= 0:
                         self.battery.append((now, msg.battery_remaining))

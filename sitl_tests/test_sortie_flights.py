@@ -25,23 +25,63 @@ from test_end_to_end import (
 SORTIES = Setting(2, 100.0, (215, 130, 40), 1200.0,
                   (("endurance_min", 10.0), ("turnaround_min", 2.0)))
 #: planned for the firmware flown, at its own rates (PX4 takes off at 1.5 m/s below
-#: 10 m and climbs at 3.0: planned at ArduPilot's, it warns "slower than planned")
-FOR_FIRMWARE = {fw: replace(SORTIES, extra=SORTIES.extra + (("firmware", fw),))
+#: 10 m and climbs at 3.0: planned at ArduPilot's, it warns "slower than planned"),
+#: and at a speed both SITL airframes fly: asked 12 m/s, ArduPilot's cruised about 10
+#: and PX4's SIH quad (drag limited) 9-10, their sorties 1.03-1.2 and 1.16-1.22 times
+#: their planned time, PX4's landing on 24-25 % against the 25 % reserve (2026-11-29)
+FOR_FIRMWARE = {fw: replace(SORTIES, extra=SORTIES.extra + (("firmware", fw),
+                                                            ("speed_mps", 8.0)))
                 for fw in ("ardupilot", "px4")}
+#: a sortie flown, takeoff to landing on the autopilot's own clock, takes at most
+#: this many times its planned time (the guard's holds included). At 8 m/s ArduPilot
+#: flew 1.02-1.06 times it, PX4 1.08-1.12: PX4 slows to a near stop at each turn
+#: (jerk limited: about 3 s a waypoint where the plan counts 0.9) and takes ~12 s
+#: more before each landing (2026-11-29; its own model of a waypoint: open)
+FLOWN_OVER_PLANNED = {"ardupilot": 1.1, "px4": 1.15}
+#: the pace the battery watch times a sortie at (flight.json's) is this near to the
+#: sortie's time over its planned time on the autopilot's own clock: read 1.0-1.03
+#: (ArduPilot) and 1.06-1.11 (PX4) of sorties flown 1.02-1.06 and 1.07-1.11 times
+#: their plan (2026-11-29; timed to the next waypoint through a 63 s planned hold,
+#: the simulator's vehicles were once read 1.34 times slower)
+PACE_OFF = 0.1
 AIRBORNE_M = 10.0   # above its home: a takeoff counts once the vehicle is this high
 
 
-def takeoffs(track) -> list:
-    """Wall times at which a judged track rose through AIRBORNE_M above its home."""
+def takeoffs(track, down=False) -> list:
+    """Wall times at which a judged track rose through AIRBORNE_M above its home
+    (``down``: came down through it)."""
     t, lat, lon, alt, _, home = track
     up = np.asarray(alt) > home[2] + AIRBORNE_M
+    if down:
+        up = ~up
     return list(np.asarray(t)[1:][up[1:] & ~up[:-1]])
 
 
+def planned_s(route) -> list:
+    """Each sortie's planned time from AIRBORNE_M up to AIRBORNE_M down (`flown_s`'s
+    span), on the plan's trajectory (piecewise linear: read every 0.1 s)."""
+    t, z = np.asarray(route.trajectory, float)[:, [0, 3]].T
+    out = []
+    for s in route.sorties:
+        at = np.arange(s["takeoff_s"], s["landing_s"], 0.1)
+        up = at[np.interp(at, t, z) > route.launch.alt_amsl + AIRBORNE_M]
+        out.append(float(up[-1] - up[0]))
+    return out
+
+
+def flown_s(track, judge) -> list:
+    """Each sortie's time from AIRBORNE_M up to AIRBORNE_M down, on the autopilot's
+    own clock (its time since boot: a simulator slower than its speed-up does not
+    count; a reboot restarts it, so each end is read at its own side)."""
+    wall, own = np.array(judge.clock, float).reshape(-1, 2).T
+    ups, downs = takeoffs(track), takeoffs(track, down=True)
+    return [float(np.interp(b, wall, own) - np.interp(a, wall, own))
+            for a, b in zip(ups, [d for d in downs if d > ups[0]])]
+
+
 # PX4 v1.17 SITL landed on 18-20 % against the 25 % reserve while plans assumed a 2.0
-# m/s descent (its MPC_Z_V_AUTO_DN is 1.5); planned with the firmware's rates, on 25-26 %
-# (2026-11-28), on 24 % (2026-11-29: its sorties took 1.2-1.26 times their planned
-# flight time, judged by wall time at its speed-up; open)
+# m/s descent (its MPC_Z_V_AUTO_DN is 1.5); planned with the firmware's rates, on 24-26 %
+# (2026-11-28/29: at 12 m/s, which its SIH quad does not fly); at 8 m/s on 28 %
 @pytest.mark.parametrize("backend,crew", [("ardupilot", "swap"), ("ardupilot", "reboot"),
                                           ("px4", "swap")])
 def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, crew, tmp_path):
@@ -84,3 +124,14 @@ def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, crew
           f"{report['duration_s']:.0f} s, takeoffs {[len(takeoffs(tracks[s])) for s in sysids]}, lowest battery "
           f"{[int(np.min(np.array(judges[s].battery)[:, 1])) for s in sysids]} %, coverage "
           f"{cov['k_covered']}/{coverable(p.ctx)} ({short} beyond one battery)")
+    for v in p.plan.vehicles:
+        planned, flown = planned_s(v), flown_s(tracks[v.id], judges[v.id])
+        pace = next(r["pace"] for r in report["vehicles"] if r["vehicle"] == v.id)
+        print(f"vehicle {v.id}: sorties planned {[round(s) for s in planned]} s, flown "
+              f"{[round(f) for f in flown]} s by its clock ({AIRBORNE_M:g} m up to "
+              f"{AIRBORNE_M:g} m down), paces timed {pace}")
+        assert max(np.divide(flown, planned)) <= FLOWN_OVER_PLANNED[backend], \
+            (v.id, planned, flown)
+        # the battery watch's pace within PACE_OFF of the autopilot's own clock's
+        for j, (a, b) in enumerate(zip(planned, flown), start=1):
+            assert abs(pace.get(str(j), 1.0) - max(1.0, b / a)) <= PACE_OFF, (v.id, j, pace)

@@ -280,6 +280,44 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
         assert track.t[-1] < v.mission_time_s
 
 
+LAT0, LON0, M_PER_DEG = 36.6, -84.2, 111_320.0
+
+
+def _watched(holds=(), waiting=None):
+    """A vehicle as `Flight._left_s` sees it, on a straight route north at 10 m/s, a
+    waypoint every 1000 m and 100 s apart (``holds``: {waypoint: s}, the later
+    ones that much later), standing at the first on its own clock 1000 s; the
+    flight's methods it calls, its own; ``waiting``: a re-plan's wait (s)."""
+    from gcs.fly import Flight
+    from planner.plan import VehicleRoute, Waypoint
+    from planner.travel import TravelParams
+
+    holds, t, waypoints = dict(holds), 0.0, []
+    for k in range(5):
+        waypoints.append(Waypoint(LON0, LAT0 + k * 1000.0 / M_PER_DEG, 700.0, t,
+                                  snapshot=k < 3, hold_s=holds.get(k, 0.0)))
+        t += holds.get(k, 0.0) + 100.0
+    route = VehicleRoute(1, None, waypoints, coverage_time_s=waypoints[2].t_s,
+                         mission_time_s=waypoints[-1].t_s + 60.0, path_length_m=4000.0)
+    state = SimpleNamespace(lat=LAT0, lon=LON0, alt_amsl=700.0, battery_pct=50)
+    vehicle = SimpleNamespace(route=route, done={0}, track=[(0, LON0, LAT0, 700.0, 1000.0)])
+    travel = TravelParams(speed_mps=10.0, climb_mps=3.0, descent_mps=2.0)
+    fake = SimpleNamespace(monitor=SimpleNamespace(vehicles={1: vehicle}, links={1: SimpleNamespace(
+        state=state)}, now=lambda: 100.0), ctx=SimpleNamespace(scenario=SimpleNamespace(
+            travel_params=lambda: travel)), _route_seen={}, _pace={}, paces={},
+        guard=SimpleNamespace(actions=[]), _waiting_s=lambda s: waiting)
+    for name in ("_own_clock", "_held_own_s", "_own_at", "_next_waypoint", "_on_timeline",
+                 "_stood_s"):
+        setattr(fake, name, getattr(Flight, name).__get__(fake))
+    return fake, vehicle, state
+
+
+def _stand(vehicle, state, north_m, own_s, t_s=0.0) -> None:
+    """The vehicle reports itself ``north_m`` along its route at its own clock ``own_s``."""
+    state.lat = LAT0 + north_m / M_PER_DEG
+    vehicle.track.append((t_s, LON0, state.lat, 700.0, own_s))
+
+
 def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
     """`Flight._left_s`: the rest of a sortie from where the vehicle is (to its next
     waypoint at the plan's speed, then the route as planned), stretched by how
@@ -290,38 +328,22 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
     (`Retasker._flown_s`). Reference: the route's own times, by hand."""
     from gcs.fly import WATCH_AFTER_S, Flight
     from gcs.retask import Retasker
-    from planner.plan import VehicleRoute, Waypoint
-    from planner.travel import TravelParams
 
-    lat0, lon0, m_per_deg = 36.6, -84.2, 111_320.0
-    # a straight route north at 10 m/s: a waypoint every 1000 m, 100 s apart
-    route = VehicleRoute(1, None, [Waypoint(lon0, lat0 + k * 1000.0 / m_per_deg, 700.0,
-                                            100.0 * k, snapshot=k < 3) for k in range(5)],
-                         coverage_time_s=300.0, mission_time_s=460.0, path_length_m=4000.0)
-    state = SimpleNamespace(lat=lat0, lon=lon0, alt_amsl=700.0, battery_pct=50)
-    vehicle = SimpleNamespace(route=route, done={0}, track=[(0, lon0, lat0, 700.0, 1000.0)])
-    travel = TravelParams(speed_mps=10.0, climb_mps=3.0, descent_mps=2.0)
-    guard = SimpleNamespace(actions=[])
-    fake = SimpleNamespace(monitor=SimpleNamespace(vehicles={1: vehicle}, links={1: SimpleNamespace(
-        state=state)}, now=lambda: 100.0), ctx=SimpleNamespace(scenario=SimpleNamespace(
-            travel_params=lambda: travel)), _route_seen={}, _pace={}, guard=guard)
-    fake._own_clock = lambda s: Flight._own_clock(fake, s)
-    fake._held_own_s = lambda s, since: Flight._held_own_s(fake, s, since)
-    fake._own_at = lambda s, t: Flight._own_at(fake, s, t)
-    fake._next_waypoint = lambda s: Flight._next_waypoint(fake, s)
+    fake, vehicle, state = _watched()
+    guard = fake.guard
     assert Flight._left_s(fake, 1) == pytest.approx(460.0 - 0.0, abs=1.0)   # first look
     # 2 * WATCH_AFTER_S later on its own clock, where the plan is WATCH_AFTER_S after
     # the start: it makes half the planned pace
     along = WATCH_AFTER_S * 10.0
-    state.lat = lat0 + along / m_per_deg
-    vehicle.track.append((0, lon0, state.lat, 700.0, 1000.0 + 2 * WATCH_AFTER_S))
+    _stand(vehicle, state, along, 1000.0 + 2 * WATCH_AFTER_S)
     vehicle.done = {k for k in range(5) if 1000.0 * k <= along}
     left = Flight._left_s(fake, 1)
     assert fake._pace[1] == pytest.approx(2.0, rel=0.01)
+    assert fake.paces == {1: {1: pytest.approx(2.0, rel=0.01)}}   # flight.json's, by sortie
     assert left == pytest.approx(2.0 * (460.0 - WATCH_AFTER_S), rel=0.01)
     # held by the separation guard for half that time (flight clock 0 to 50, its own
     # clock 1000 to 1000 + WATCH_AFTER_S): it flew at the planned pace
-    vehicle.track[-1] = (100.0, lon0, state.lat, 700.0, 1000.0 + 2 * WATCH_AFTER_S)
+    vehicle.track[-1] = (100.0, LON0, state.lat, 700.0, 1000.0 + 2 * WATCH_AFTER_S)
     guard.actions = [{"sysid": 1, "action": "hold", "t_s": 0.0},
                      {"sysid": 1, "action": "resume", "t_s": 50.0}]
     assert Flight._left_s(fake, 1) == pytest.approx(460.0 - WATCH_AFTER_S, rel=0.01)
@@ -333,12 +355,42 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
     assert Flight._left_s(fake, 1) == pytest.approx(2.0 * (460.0 - (300.0 - 180.0)), rel=0.01)
     vehicle.done = {0, 1, 2, 3, 4}
     assert Flight._left_s(fake, 1) is None
+    # held by a re-plan until its time: its pace is timed afresh from where it flies
+    # on (one so held read 6.8 times slower)
+    vehicle.done, fake._waiting_s = {0, 1, 2}, lambda s: 30.0
+    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - (300.0 - 180.0), rel=0.01)
+    assert 1 not in fake._pace and fake._route_seen[1][1] == 1000.0 + 2 * WATCH_AFTER_S
     # the re-plan: half its battery left, at half the pace: a quarter of the flight
     ctx = SimpleNamespace(scenario=SimpleNamespace(endurance_min=12.0))
     monitor = SimpleNamespace(links={1: SimpleNamespace(state=state)})
     for pace, flown in ((None, 360.0), ({1: 2.0}, 540.0)):
         retasker = SimpleNamespace(ctx=ctx, monitor=monitor, pace=pace or {})
         assert Retasker._flown_s(retasker, 1) == pytest.approx(flown)
+
+
+@pytest.mark.parametrize("reached", ["on arrival", "after the hold"])
+def test_a_vehicle_standing_out_its_planned_hold_is_on_time(reached):
+    """A hold the plan gives a waypoint (a separation wait: 63 s on a sortie of the
+    shared plan) is spent as planned: `Flight._left_s` counts the time the vehicle
+    has stood there, on its own clock, up to the hold, and its pace stays the
+    plan's. ArduPilot says it reached the waypoint on arrival, PX4 (and the
+    simulator) after the hold. Read as flying to the next waypoint, a vehicle of the
+    shared plan flying as planned was timed 1.34 times slower, and the battery
+    watch brought it home early. Reference: the route's own times, by hand."""
+    from gcs.fly import Flight
+
+    fake, vehicle, state = _watched(holds={2: 60.0})     # waypoint 2: 200 s to 260 s
+    assert vehicle.route.mission_time_s == 520.0
+    assert Flight._left_s(fake, 1) == pytest.approx(520.0, abs=1.0)   # first look
+    vehicle.done = {0, 1, 2} if reached == "on arrival" else {0, 1}
+    for stood in (0.0, 50.0, 60.0):     # arrived on time, at 1200 s on its own clock
+        _stand(vehicle, state, 2000.0, 1200.0 + stood)
+        assert Flight._left_s(fake, 1) == pytest.approx(520.0 - 200.0 - stood, abs=1.0)
+        assert fake._pace[1] == pytest.approx(1.0, abs=0.01)
+    vehicle.done = {0, 1, 2}            # left on time: 100 m on to waypoint 3 at 1270 s
+    _stand(vehicle, state, 2100.0, 1270.0)
+    assert Flight._left_s(fake, 1) == pytest.approx(520.0 - 270.0, abs=1.0)
+    assert fake._pace[1] == pytest.approx(1.0, abs=0.01)
 
 
 @pytest.mark.parametrize("firmware", ["ardupilot", "px4"])

@@ -38,7 +38,8 @@ def add_arguments(parser) -> None:
     vehicle = parser.add_argument_group("vehicle")
     defaults = Limits()
     vehicle.add_argument("--speed", type=float, default=defaults.speed_mps, metavar="M/S",
-                         help="horizontal speed limit")
+                         help="the airframe's top horizontal speed: a mission asking more "
+                              "(DO_CHANGE_SPEED) flies this")
     vehicle.add_argument("--climb", type=float, default=None, metavar="M/S",
                          help=f"climb rate limit (default: the firmware's, "
                               f"{defaults_text('climb_mps')})")

@@ -542,7 +542,7 @@ class SimVehicle:
         if math.isfinite(p[6]):
             z = self._alt(p[6], frame if frame is not None else M.MAV_FRAME_GLOBAL)
         if p[0] > 0:
-            self.body.speed_mps = p[0]
+            self.body.set_speed(p[0])
         self._go_to((x, y, z))
         return M.MAV_RESULT_ACCEPTED
 
@@ -568,7 +568,7 @@ class SimVehicle:
 
     def _cmd_change_speed(self, p, frame) -> int:
         if p[1] > 0:
-            self.body.speed_mps = p[1]
+            self.body.set_speed(p[1])
         return M.MAV_RESULT_ACCEPTED
 
     _COMMANDS = {
@@ -896,7 +896,7 @@ class SimVehicle:
 
     def _do(self, item) -> None:
         if item.command == M.MAV_CMD_DO_CHANGE_SPEED and item.param2 > 0:
-            self.body.speed_mps = item.param2
+            self.body.set_speed(item.param2)
         elif item.command == M.MAV_CMD_DO_DIGICAM_CONTROL and item.param5 == 1:
             self._snapshot(item.seq)
         elif item.command == M.MAV_CMD_IMAGE_START_CAPTURE:
