@@ -863,11 +863,25 @@ class Flight:
                         value * unit < float(planned) - RATE_SLACK_MPS:
                     slower.append(f"{name} = {value:g} ({value * unit:g} m/s, the plan's "
                                   f"{rate} {float(planned):g})")
+            stops = self._stop_said(commands.autopilot(link).name)
+            if stops:
+                slower.append(stops)
             if slower:
                 m.event(sysid, "slower than planned: " + "; ".join(slower) + ": its legs take "
                         "longer than the plan's times, on which its schedule, separation and "
                         "battery were planned; set the parameters to the plan's rates, or "
                         "plan with the vehicle's")
+
+    def _stop_said(self, firmware):
+        """What a vehicle of ``firmware`` loses at a waypoint beyond what the plan
+        counts, said; None when no more (a PX4 vehicle flying a plan made for
+        ArduPilot stops at each: 2.7 s more a waypoint at 12 m/s)."""
+        planned = stop_time(self.plan.params)
+        own = stop_time(dict(self.plan.params, firmware=firmware))
+        if own <= planned + 1e-6:
+            return None
+        return (f"each waypoint {own:.1f} s ({firmware} stops at each) where the plan counts "
+                f"{planned:.1f} s (planned for {self.plan.params.get('firmware') or 'ardupilot'})")
 
     def _launch_tolerance(self) -> float:
         return max(float(self.plan.params.get("track_tolerance_m", LAUNCH_TOLERANCE_M)),

@@ -399,10 +399,12 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
     names them (ArduPilot WPNAV_SPEED_DN in cm/s, PX4 MPC_Z_V_AUTO_DN in m/s) and
     fly by them. At a descent of 1 m/s the plan's faster descent is said, one line
     per vehicle, naming the parameter and both rates; vehicles at the plan's rates
-    hear nothing."""
+    hear nothing, but that PX4 stops at each waypoint of a plan made for ArduPilot
+    (what it costs there: `planner.rates.waypoint_stop_s`)."""
     from gcs.fly import Flight, FlyOptions
     from gcs.sim import fleet_for_plan
     from gcs.sim.physics import Limits
+    from planner.rates import waypoint_stop_s
 
     params = planned.plan.params
     planned_rate = params["descent_mps"]
@@ -427,7 +429,13 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
     assert sorted(e["sysid"] for e in said[1.0]) == sorted(flight.monitor.vehicles)
     assert all(name[firmware] in e["event"] and f"descent_mps {planned_rate:g}" in e["event"]
                for e in said[1.0])
-    assert said[planned_rate] == []
+    stops = [e for e in said[planned_rate] if "(px4 stops at each)" in e["event"]]
+    assert params.get("firmware", "ardupilot") == "ardupilot"
+    assert said[planned_rate] == stops and len(stops) == (len(said[1.0]) if firmware == "px4"
+                                                          else 0)
+    px4_stop = waypoint_stop_s(params["speed_mps"], params["accel_mps2"], 4.0)
+    assert all(f"each waypoint {px4_stop:.1f} s (px4 stops at each)" in e["event"]
+               for e in stops)
 
 
 def test_the_plan_summary_says_the_rates_it_assumed(planned):

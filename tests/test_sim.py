@@ -191,6 +191,53 @@ def test_point_mass_respects_limits_and_flies_straight():
     assert np.abs(cross).max() < 1e-6           # from rest, the path is the segment itself
 
 
+def _stop_and_go_s(v, a, j, dt=1e-5) -> float:
+    """Time lost by braking from ``v`` to a stop and speeding up again at most ``a``,
+    the acceleration ramped at jerk ``j``: integrated step by step (braking eases
+    off as the speed left to lose comes to what easing off takes, a² / 2j); the
+    speeding up mirrors the braking."""
+    t = x = acc = 0.0
+    speed = v
+    while speed > 0.0:
+        easing = speed <= acc * acc / (2.0 * j)
+        acc = max(acc - j * dt, j * dt) if easing else min(acc + j * dt, a)
+        speed -= acc * dt
+        x += max(speed, 0.0) * dt
+        t += dt
+    return 2.0 * (t - x / v)
+
+
+@pytest.mark.parametrize("jerk", [None, 4.0])
+@pytest.mark.parametrize("speed", [8.0, 12.0])
+def test_a_waypoint_costs_what_the_plan_counts(speed, jerk):
+    """What a waypoint costs (`planner.rates.waypoint_stop_s`, the plan's times) is
+    what a vehicle loses there. Without a jerk (ArduPilot): the simulator's point
+    mass, flying on once within the 2 m acceptance radius, timed on two legs against
+    one. With PX4's jerk (MPC_JERK_AUTO 4): a full stop and start, integrated
+    (`_stop_and_go_s`); the PX4 simulator stands at the waypoint for what that
+    costs beyond the point mass's."""
+    from gcs.sim.physics import Limits, PointMass
+    from planner.rates import ACCEPT_RADIUS_M, waypoint_stop_s
+
+    accel = 3.0
+    if jerk:
+        assert waypoint_stop_s(speed, accel, jerk) == pytest.approx(
+            _stop_and_go_s(speed, accel, jerk), abs=0.01)
+        return
+    limits = Limits(speed_mps=speed, climb_mps=3.0, descent_mps=2.0, accel_mps2=accel)
+    times = []
+    for legs in ([1000.0], [500.0, 1000.0]):
+        body, dt, t = PointMass((0.0, 0.0, 100.0), limits), 0.002, 0.0
+        for i, x in enumerate(legs):
+            body.go_to((x, 0.0, 100.0))
+            radius = ACCEPT_RADIUS_M if i < len(legs) - 1 else 0.5
+            while body.distance_to_dest() > radius:
+                body.step(dt)
+                t += dt
+        times.append(t)
+    assert times[1] - times[0] == pytest.approx(waypoint_stop_s(speed, accel), abs=0.02)
+
+
 def test_fault_and_cli_parsing():
     assert parse_kill("2@300s") == (2, 300.0, None)
     assert parse_kill("3@item12") == (3, None, 12)

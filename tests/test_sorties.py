@@ -279,11 +279,15 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     and left them down). Judged by the simulator's own tracks. Without a loss, each
     swap powers the autopilot down for 4 s (a flight controller fed by its pack; the
     simulator closes its TCP port as SITL rebooting does), longer than --lost-after:
-    silent at its base, not lost; connected to again, it flies its next sortie."""
+    silent at its base, not lost; connected to again, it flies its next sortie. A
+    kill that finds vehicle 2 down waiting for its swap (a busy machine once delayed
+    it so) is such a silence: lost after --swap-silence, 10 wall s here (1000 s of
+    mission time; the default 600 wall s outlasted the test)."""
     out = tmp_path / "flight"
     code = main(["fly", str(twelve.dir), "--sim", "3", "--speedup", "100", "--lost-after",
                  "3", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)]
-                + (["--kill", kill] if kill else ["--swap-reboot", "4"]))
+                + (["--kill", kill, "--swap-silence", "10"] if kill
+                   else ["--swap-reboot", "4"]))
     report = json.loads((out / "flight.json").read_text())
     lost = [2] if kill else []
     assert report["outcome"]["lost"] == lost and report["outcome"]["coverage_reached"]

@@ -45,7 +45,7 @@ HELP = {
                     "trajectories and kept by waits (0: vehicles are not kept apart)",
     "accel_mps2": "horizontal acceleration, m/s²: a vehicle slows at each waypoint, which "
                   "the schedule counts",
-    "firmware": "mission flavour of the exported files",
+    "firmware": "the firmware flown: its missions, rates and stops at waypoints",
     "endurance_min": "flight time of one battery, takeoff to touchdown, minutes: routes "
                      "longer than it are flown in sorties from the base (default: unlimited, "
                      "said in every summary)",

@@ -37,6 +37,7 @@ class Limits:
     takeoff_band_m: float | None = None
     land_mps: float | None = None
     land_band_m: float | None = None
+    jerk_mps3: float | None = None      # a jerk-limited stop at each waypoint (PX4)
 
     def of_firmware(self, rates) -> "Limits":
         """These limits, each rate not given taken from ``rates``."""

@@ -25,7 +25,7 @@ from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
 from gcs.sim.physics import Limits, LocalFrame, PointMass
 from gcs.sim.track import TrackRecorder
 from gcs.sim.transport import PtyLink, TcpServerLink, UdpLink
-from planner.rates import FIRMWARE_RATES
+from planner.rates import FIRMWARE_RATES, waypoint_stop_s
 
 M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
@@ -864,9 +864,20 @@ class SimVehicle:
             if self._kill_at_item(task["seq"]):
                 return
             task["arrived"] = self.t
+            task["hold"] += self._stop_beyond_s()
         if self.t - task["arrived"] >= task["hold"]:
             self._last_dest = list(self.body.dest)
             self._item_complete(task["seq"], killed_checked=True)
+
+    def _stop_beyond_s(self) -> float:
+        """What the firmware's way of passing a waypoint costs beyond the point
+        mass's, stood at the waypoint: PX4's jerk-limited stop (`Limits.jerk_mps3`),
+        as `planner.rates.waypoint_stop_s` counts it; nothing for ArduPilot."""
+        jerk = self.limits.jerk_mps3
+        if not jerk:
+            return 0.0
+        v, a = self.body.speed_mps, self.limits.accel_mps2
+        return waypoint_stop_s(v, a, jerk) - waypoint_stop_s(v, a)
 
     def _item_complete(self, seq: int, killed_checked=False) -> None:
         if not killed_checked and self._kill_at_item(seq):

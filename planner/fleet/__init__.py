@@ -13,6 +13,8 @@ the clock), kernels (closest approach of two trajectories, numba), schedule (the
 waits: `schedule`, `separation`).
 """
 
+from planner.rates import FIRMWARE_RATES, waypoint_stop_s
+
 from .schedule import FleetSchedule, Timing, schedule, separation
 from .trajectory import Profile, Trajectory, doing_at, route_profile, route_trajectory
 
@@ -20,22 +22,13 @@ __all__ = ["FleetSchedule", "Profile", "Timing", "Trajectory", "doing_at", "prov
            "route_profile", "route_trajectory", "schedule", "separation", "stop_time"]
 
 
-#: a waypoint counts as reached this close (m): ArduPilot's WPNAV_RADIUS and PX4's
-#: NAV_ACC_RAD defaults, and the built-in simulator's
-ACCEPT_RADIUS_M = 2.0
-
-
 def stop_time(params: dict) -> float:
-    """What flying through a waypoint costs beyond cruising past it, s: a vehicle
-    slows from cruise speed v to what lets it stop within the acceptance radius r,
-    sqrt(2 a r), and speeds up again (acceleration a), losing (v - sqrt(2 a r))² /
-    (a v) (`Profile.of_route`). From a scenario's or a plan's parameters."""
-    accel = params.get("accel_mps2") or 0.0
-    if accel <= 0:
-        return 0.0
-    v = float(params["speed_mps"])
-    slow = min(v, (2.0 * accel * ACCEPT_RADIUS_M) ** 0.5)
-    return (v - slow) ** 2 / (accel * v)
+    """What flying through a waypoint costs beyond cruising past it, s
+    (`waypoint_stop_s` at the firmware's way of passing one, `Profile.of_route`).
+    From a scenario's or a plan's parameters (a plan naming no firmware: ArduPilot's)."""
+    rates = FIRMWARE_RATES.get(params.get("firmware") or "ardupilot")
+    return waypoint_stop_s(float(params["speed_mps"]), params.get("accel_mps2") or 0.0,
+                           rates.jerk_mps3 if rates is not None else None)
 
 
 def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:
