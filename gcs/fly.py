@@ -57,11 +57,12 @@ from gcs.retask import Retasker, RetaskError, _in_parallel, snapshot_xyz
 from gcs.segments import Segments, upload_route
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
+from missions.items import NAV_LAND
 from missions.segments import RouteMissions, fewer_waypoints
 from planner.context import PlanningContext
 from planner.fleet import prove_separated, stop_time
 from planner.plan import PLAN_FILE, Plan
-from planner.replan import coverable_targets, coverage_summary
+from planner.replan import LAUNCH_COLUMN_M, coverable_targets, coverage_summary
 from planner.travel import leg_time
 
 FORMAT = "gcs-flight/1"
@@ -485,7 +486,8 @@ class Flight:
             hold=lambda s: self._set_mode(s, "hold_mode", HOLDING),
             resume=self._fly_on,
             travel=self.ctx.scenario.travel_params(), stop_s=stop_time(self.plan.params),
-            on_pad=m.on_pad, short=self._short_of_battery, waiting=self._waiting_s)
+            on_pad=m.on_pad, short=self._short_of_battery, waiting=self._waiting_s,
+            lands_here=self._lands_here, land=self._land_here)
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self._all(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
@@ -579,6 +581,39 @@ class Flight:
         if profile.resume_rewinds and seq is not None and seq > profile.first_item:
             for item in (seq - 1, seq):
                 commands.set_current(link, item, retries=self.options.protocol_retries)
+        self._set_mode(sysid, "mission_mode", FLYING)
+
+    def _lands_here(self, sysid) -> bool:
+        """In its base column (within `LAUNCH_COLUMN_M` of it) with nothing left to
+        photograph and only the column's top before the landing its mission ends
+        with: landing from where it is flies the rest of its route's proven column
+        (hidden because its top is), without the climb to the top."""
+        v, state = self.monitor.vehicles[sysid], self.monitor.links[sysid].state
+        launch = v.route.launch
+        if launch is None or state.lat is None or not self._homebound(sysid) or \
+                self._land_item(sysid) is None:
+            return False
+        rest = v.route.waypoints[self._next_waypoint(sysid):]
+        return all(distance_m(p.lat, p.lon, launch.lat, launch.lon) <= LAUNCH_COLUMN_M
+                   for p in [state, *rest])
+
+    def _land_item(self, sysid):
+        """The sequence number of the landing its mission ends with, None without one."""
+        mission = self.monitor.vehicles[sysid].mission
+        items = mission.items if mission is not None else []
+        return items[-1].seq if items and int(items[-1].command) == NAV_LAND else None
+
+    def _land_here(self, sysid) -> None:
+        """Its mission flown on from its landing (`_lands_here`); where the firmware
+        would go back to the item before first (`resume_rewinds`), its current item
+        is moved there and on, as `_fly_on` does (a mission changed since without
+        one: flown on as it is)."""
+        link = self.monitor.links[sysid]
+        land = self._land_item(sysid)
+        if land is None:
+            return self._fly_on(sysid)
+        for item in (land - 1, land) if commands.autopilot(link).resume_rewinds else (land,):
+            commands.set_current(link, item, retries=self.options.protocol_retries)
         self._set_mode(sysid, "mission_mode", FLYING)
 
     def _climbs_first(self, sysid, profile, seq) -> bool:

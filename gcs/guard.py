@@ -17,6 +17,10 @@ first, once its route from where it stands keeps clear of every other's
 prediction (with `RESUME_FACTOR` of room) and no other stands that close now, or,
 where one does (two held in one base column), its route never comes closer to it
 than now (the lower one's descent): a pair that close and parting is no conflict.
+A held vehicle in its base column with nothing left to photograph, only the
+column's top before its landing (`lands_here`: a re-plan that brought it home as it
+took off), is flown on by landing from where it stands: up to the top it would
+climb through the one descending above it, each waiting on the other for good.
 
 A vehicle a re-plan holds until its own time to fly on (`waiting`) is the re-plan's:
 the guard never holds or resumes it (resumed early, it flew its new route ahead of
@@ -68,18 +72,22 @@ class SeparationGuard:
     ``on_pad(sysid)``: touched down at its base, not yet told landed;
     ``short(sysid)``: short of battery (it goes before every other);
     ``waiting(sysid)``: fleet seconds until a re-plan flies it on, None if it does not
-    wait for one."""
+    wait for one; ``lands_here(sysid)``: it may land from where it is, and ``land(sysid)``
+    lands it so."""
 
     def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
                  travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False,
-                 short=lambda sysid: False, waiting=lambda sysid: None):
+                 short=lambda sysid: False, waiting=lambda sysid: None,
+                 lands_here=lambda sysid: False, land=None):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.airborne = clock, airborne
         self._hold, self._resume = hold, resume
         self.travel, self.stop_s = travel, float(stop_s)
         self.on_pad, self.short, self.waiting = on_pad, short, waiting
+        self.lands_here, self._land = lands_here, land
         self.held = {}            # sysid -> (since t_s, other sysid)
+        self.landing = set()      # flown on by landing where they stand
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
         self._busy = set()        # a command in flight for these
@@ -100,7 +108,7 @@ class SeparationGuard:
             time.sleep(0.05)
         for sysid, (since, other) in self.held.items():
             self._record("released by a re-plan", sysid, other, None, since)
-        self.held = {}
+        self.held, self.landing = {}, set()
 
     def hold(self, sysid, other) -> None:
         """Hold ``sysid`` now, for ``other``: flown on as any hold, once clear."""
@@ -113,16 +121,24 @@ class SeparationGuard:
         if not frame.here:
             return
         self._note_closest(frame)
+        self.landing &= set(frame.here)
         horizon = self.horizon()
         ahead = {s: (frame.standing(s, horizon) if s in self.held else
-                     self._route(frame, s, self.waiting(s) or 0.0))
+                     self._route(frame, s, self.waiting(s) or 0.0, s in self.landing))
                  for s in frame.here}
         for a, b, begin in self._conflicts(frame, ahead, horizon, self.separation_m):
             self._separate(frame, ahead, a, b, begin, horizon)
         for sysid in sorted(self.held, key=self._rank):
-            if sysid in frame.here and self._may_go(frame, ahead, sysid, horizon):
-                ahead[sysid] = self._route(frame, sysid)
-                self._do(sysid, self._resume, "resume", other=self.held[sysid][1])
+            if sysid not in frame.here:
+                continue
+            land = self._land is not None and self.lands_here(sysid)
+            go = self._route(frame, sysid, land=land)
+            if self._may_go(frame, ahead, sysid, go, horizon):
+                ahead[sysid] = go
+                if land:
+                    self.landing.add(sysid)
+                self._do(sysid, self._land if land else self._resume,
+                         "land here" if land else "resume", other=self.held[sysid][1])
 
     # -- predictions -------------------------------------------------------------------
     def _rank(self, sysid):
@@ -132,11 +148,11 @@ class SeparationGuard:
         """Held by the guard, or by a re-plan until its time: not the guard's to move."""
         return sysid in self.held or self.waiting(sysid) is not None
 
-    def _route(self, frame, sysid, wait_s=0.0) -> Trajectory:
+    def _route(self, frame, sysid, wait_s=0.0, land=False) -> Trajectory:
         """Where ``sysid`` flies from now, after standing ``wait_s``: the rest of its
-        route, its landing included."""
+        route, its landing included (``land``: only its landing, from where it is)."""
         v = self.monitor.vehicles[sysid]
-        rest = [w for i, w in enumerate(v.route.waypoints) if i not in v.done]
+        rest = [] if land else [w for i, w in enumerate(v.route.waypoints) if i not in v.done]
         poly = frame.project([(w.lon, w.lat, w.alt_amsl) for w in rest])
         launch = v.route.launch
         ground = None if launch is None else \
@@ -184,11 +200,11 @@ class SeparationGuard:
                 ahead[target] = frame.standing(target, horizon)
                 self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
 
-    def _may_go(self, frame, ahead, sysid, horizon) -> bool:
-        """Whether ``sysid``'s route from here keeps ``RESUME_FACTOR`` separations
-        clear of every other; from closer than that (two held in one base column)
-        only a route that never comes closer than now, the lower one's descent."""
-        go = self._route(frame, sysid)
+    def _may_go(self, frame, ahead, sysid, go, horizon) -> bool:
+        """Whether ``sysid``'s route from here (``go``) keeps ``RESUME_FACTOR``
+        separations clear of every other; from closer than that (two held in one
+        base column) only a route that never comes closer than now, the lower one's
+        descent."""
         room = self.separation_m * RESUME_FACTOR
         for other in frame.here:
             if other == sysid:

@@ -245,6 +245,63 @@ class Descending(Scripted):
             self.report()
 
 
+class InColumn(Descending):
+    """Low in its base column, its route going up to the column's top first: unless
+    held it climbs there, or descends once told to land where it is."""
+
+    def __init__(self, sysid, alt, ground, top):
+        self.top, self.landing = top, False
+        super().__init__(sysid, alt, ground)
+
+    def advance(self, dt):
+        self.v[2] = -2.0 if self.landing else (2.0 if self.p[2] < self.top else 0.0)
+        super().advance(dt)
+
+
+def test_held_low_in_a_shared_column_with_only_its_top_left_it_lands_from_there():
+    """As a sped-up flight left them (a re-plan brought 3 home as it took off): 1
+    held on its final descent 38 m above 3, which is held low in the same column,
+    its route climbing to the column's top before landing. Each route passes
+    through the other; flown on as routed, each waited on the other until a
+    battery ran out. 3 lands from where it stands (`lands_here`), then 1."""
+    base = GeoPoint(LON0, LAT0, ALT - 140.0)
+    top = Waypoint(LON0, LAT0, ALT, 0.0)
+    one = Descending(1, ALT - 16.0, base.alt_amsl)
+    three = InColumn(3, ALT - 54.0, base.alt_amsl, ALT)
+    monitor, guard = _guard([one, three], {1: 1, 3: 2})
+    for v in (one, three):
+        monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0, 0.0, 0.0)
+        v.held = True
+        guard.held[v.sysid] = (0.0, 4 - v.sysid)
+    monitor.vehicles[1].done.add(0)                 # on its final descent
+    guard.lands_here = lambda s: s == 3
+
+    def land(sysid):
+        three.landing = True
+        _set([one, three], sysid, False)
+    guard._land = land
+    least = math.inf
+    for _ in range(400):
+        _run([one, three], guard, 0.25)
+        if three.p[2] > base.alt_amsl:                # both in the air
+            least = min(least, one.p[2] - three.p[2])
+    acts = [(a["sysid"], a["action"]) for a in guard.actions]
+    assert acts[0] == (3, "land here") and (1, "resume") in acts, acts
+    assert one.p[2] == base.alt_amsl and three.p[2] == base.alt_amsl    # both landed
+    assert least >= 38.0 - 0.5                       # never closer than they stood
+    # routed as it was, it is left standing: no way out for either
+    one.p[2], three.p[2], three.landing = ALT - 16.0, ALT - 54.0, False
+    _, stuck = _guard([one, three], {1: 1, 3: 2})
+    for v in (one, three):
+        stuck.monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0,
+                                                             0.0, 0.0)
+        v.held = True
+        stuck.held[v.sysid] = (0.0, 4 - v.sysid)
+    stuck.monitor.vehicles[1].done.add(0)
+    _run([one, three], stuck, 30.0)
+    assert stuck.actions == [] and one.held and three.held
+
+
 def test_closest_approach_counts_no_vehicle_touched_down_on_its_pad():
     """One down on the base pad (its landing not yet told: the disarm comes seconds
     later), the next descending the column 12 m above it: no approach in the air."""

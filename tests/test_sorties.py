@@ -29,6 +29,9 @@ from planner.plan import Plan
 from planner.scenario import METHODS, Scenario
 
 pytestmark = pytest.mark.timeout(300)
+#: a simulated flight of the twelve plan's sorties: 1-1.5 min alone, 3-4 beside four
+#: others and three CPU hogs on 2 cores (its re-plans 3-4 times slower)
+FLIGHT_TIMEOUT = pytest.mark.timeout(600)
 
 ENDURANCE_MIN = 8.0
 
@@ -268,6 +271,7 @@ def _takeoffs_on_fresh_batteries(track) -> int:
     return len(ups)
 
 
+@FLIGHT_TIMEOUT
 @pytest.mark.parametrize("kill", [None, "2@item8", "2@1450s"])
 def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     """`gcs fly` of a plan of several sorties: each vehicle lands at its base, the
@@ -277,9 +281,11 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     third when the others have landed on spent batteries (1450 s): they go up again
     once swapped (the re-plan once gave their first, empty sortie nothing to see
     and left them down). Judged by the simulator's own tracks. Without a loss, each
-    swap powers the autopilot down for 4 s (a flight controller fed by its pack; the
-    simulator closes its TCP port as SITL rebooting does), longer than --lost-after:
-    silent at its base, not lost; connected to again, it flies its next sortie. A
+    swap powers the autopilot down for 6 s (a flight controller fed by its pack; the
+    simulator closes its TCP port as SITL rebooting does), twice --lost-after:
+    silent at its base, not lost; connected to again, it flies its next sortie (at
+    4 s, a loaded machine's stalls, which the ground station leaves out of a
+    silence, twice kept one of the silences under --lost-after: never said). A
     kill that finds vehicle 2 down waiting for its swap (a busy machine once delayed
     it so) is such a silence: lost after --swap-silence, 10 wall s here (1000 s of
     mission time; the default 600 wall s outlasted the test)."""
@@ -287,7 +293,7 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     code = main(["fly", str(twelve.dir), "--sim", "3", "--speedup", "100", "--lost-after",
                  "3", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)]
                 + (["--kill", kill, "--swap-silence", "10"] if kill
-                   else ["--swap-reboot", "4"]))
+                   else ["--swap-reboot", "6"]))
     report = json.loads((out / "flight.json").read_text())
     lost = [2] if kill else []
     assert report["outcome"]["lost"] == lost and report["outcome"]["coverage_reached"]
@@ -335,13 +341,37 @@ def _assert_paces_as_flown(report, route, track) -> None:
     """The pace the battery watch timed each sortie at (flight.json's, a 63 s hold
     the plan gives once read as 1.34 times slower) is within 0.1 of what the
     simulator's own record says: the sortie's time takeoff to landing over its
-    planned time (the simulator at the plan's rates: 0.94-1.02)."""
+    planned time (the simulator at the plan's rates: 0.94-1.02), the separation
+    guard's holds of it left out as the watch leaves them out (a CI machine's load
+    once made them 15 % of a sortie)."""
     ups = [e["t"] for e in track.events if e["event"] == "takeoff"]
     downs = [e["t"] for e in track.events if e["event"] == "landed"]
     pace = next(r["pace"] for r in report["vehicles"] if r["vehicle"] == route.id)
+    held = _guard_holds(report, route.id)
     for j, (s, up, down) in enumerate(zip(route.sorties, ups, downs), start=1):
-        flown = (down - up) / (s["landing_s"] - s["takeoff_s"])
+        dt, paused = _steps(track, up, down, held)
+        flown = dt[~paused].sum() / (s["landing_s"] - s["takeoff_s"])
         assert abs(pace.get(str(j), 1.0) - max(1.0, flown)) <= 0.1, (route.id, j, pace, flown)
+
+
+def _guard_holds(report, sysid, also=()) -> list:
+    """Wall-clock windows the separation guard held vehicle ``sysid`` (and ``also``:
+    windows on the flight's clock, such as re-plans)."""
+    holds = hold_spans(report["separation"].get("actions", []), report["duration_s"])
+    spans = list(also) + [span for s, span in holds if s == sysid]
+    return [(report["start_unix"] + a, report["start_unix"] + b) for a, b in spans]
+
+
+def _steps(track, up, down, pauses):
+    """A simulated vehicle's record from ``up`` to ``down`` (its own clock): each
+    step's length, and whether it fell in one of the wall-clock windows ``pauses``."""
+    inside = (track.t >= up) & (track.t <= down)
+    t, wall = track.t[inside], track.wall[inside]
+    mid = (wall[1:] + wall[:-1]) / 2
+    paused = np.zeros(len(mid), bool)
+    for a, b in pauses:
+        paused |= (mid >= a) & (mid <= b)
+    return np.diff(t), paused
 
 
 def _battery_used(track, pauses=()) -> list:
@@ -355,17 +385,14 @@ def _battery_used(track, pauses=()) -> list:
         if e["event"] == "takeoff":
             up = e["t"]
         elif e["event"] == "landed" and up is not None:
-            inside = (track.t >= up) & (track.t <= e["t"])
-            used, wall = track.used[inside], track.wall[inside]
-            mid = (wall[1:] + wall[:-1]) / 2
-            paused = np.zeros(len(mid), bool)
-            for a, b in pauses:
-                paused |= (mid >= a) & (mid <= b)
+            _, paused = _steps(track, up, e["t"], pauses)
+            used = track.used[(track.t >= up) & (track.t <= e["t"])]
             out.append(float(np.diff(used)[~paused].sum()))
             up = None
     return out
 
 
+@FLIGHT_TIMEOUT
 def test_a_battery_that_drains_fast_is_brought_home_early(twelve, tmp_path):
     """Vehicle 2's battery empties twice as fast as its rating (a simulator fault):
     the battery watch sees it from the draw, brings it home by its hidden path
@@ -396,12 +423,9 @@ def test_a_battery_that_drains_fast_is_brought_home_early(twelve, tmp_path):
     reserve = twelve.plan.params["reserve_pct"]
     assert int(fast[0]["event"].split("battery ")[1].split(" %")[0]) > reserve / 2
     replans = [(r["t_s"], r["done_t_s"]) for r in report["replans"]]
-    holds = hold_spans(report["separation"].get("actions", []), report["duration_s"])
     for sysid in (1, 2, 3):
         track = read_track(track_path(out / "tracks", sysid))
-        pauses = [(report["start_unix"] + a, report["start_unix"] + b)
-                  for a, b in replans + [span for s, span in holds if s == sysid]]
-        used = _battery_used(track, pauses)
+        used = _battery_used(track, _guard_holds(report, sysid, replans))
         assert used and max(used) <= 1.0 - reserve / 200.0, (sysid, used)
         assert abs(track.alt[-1] - track.home[2]) < 1.0            # at its base
         ups = _takeoffs_on_fresh_batteries(track)
