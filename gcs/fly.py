@@ -579,9 +579,17 @@ class Flight:
                 self.monitor.event(sysid, "upload from where it holds failed: flies on as "
                                           "it is", error=str(exc))
         if profile.resume_rewinds and seq is not None and seq > profile.first_item:
-            for item in (seq - 1, seq):
-                commands.set_current(link, item, retries=self.options.protocol_retries)
+            self._set_current(sysid, seq)
         self._set_mode(sysid, "mission_mode", FLYING)
+
+    def _set_current(self, sysid, seq) -> None:
+        """Its mission's current item ``seq``; where the firmware would go back to the
+        item before (`resume_rewinds`), moved there and on: then the mission starts
+        again from where it is."""
+        link = self.monitor.links[sysid]
+        rewinds = commands.autopilot(link).resume_rewinds
+        for item in (seq - 1, seq) if rewinds else (seq,):
+            commands.set_current(link, item, retries=self.options.protocol_retries)
 
     def _lands_here(self, sysid) -> bool:
         """In its base column (within `LAUNCH_COLUMN_M` of it) with nothing left to
@@ -604,16 +612,12 @@ class Flight:
         return items[-1].seq if items and int(items[-1].command) == NAV_LAND else None
 
     def _land_here(self, sysid) -> None:
-        """Its mission flown on from its landing (`_lands_here`); where the firmware
-        would go back to the item before first (`resume_rewinds`), its current item
-        is moved there and on, as `_fly_on` does (a mission changed since without
-        one: flown on as it is)."""
-        link = self.monitor.links[sysid]
+        """Its mission flown on from its landing (`_lands_here`; a mission changed
+        since without one: flown on as it is)."""
         land = self._land_item(sysid)
         if land is None:
             return self._fly_on(sysid)
-        for item in (land - 1, land) if commands.autopilot(link).resume_rewinds else (land,):
-            commands.set_current(link, item, retries=self.options.protocol_retries)
+        self._set_current(sysid, land)
         self._set_mode(sysid, "mission_mode", FLYING)
 
     def _climbs_first(self, sysid, profile, seq) -> bool:
