@@ -181,14 +181,27 @@ def _assert_proven(ctx, poly):
     assert segments_clear(ctx.surface, poly[:-1], poly[1:]).all()
 
 
+def _off_the_graph(ctx, outcome):
+    """A survivor half-way along a route, moved off its node: 0.45 of a cell aside
+    and 1 m down, where that is still hidden and clear (the first route's such
+    place came below the clearance once its plan changed: no start is right there)."""
+    for r in range(len(outcome.polylines)):
+        survivor, _ = _midway(ctx, outcome, r)
+        low = survivor.xyz.copy()
+        row, col = ctx.terrain.rowcol(low[0], low[1])
+        low[:2] = ctx.terrain.xy(np.rint(row) + 0.45, np.rint(col) + 0.45)
+        low[2] -= 1.0
+        here = (np.array([low]), np.array([low + [0.0, 0.0, 0.01]]))
+        if segments_hidden(ctx.surface, *here).all() and segments_clear(ctx.surface, *here).all():
+            return Survivor(1, low, survivor.launch)
+    pytest.fail("no route's half-way place stays hidden and clear 0.45 of a cell aside")
+
+
 def test_position_off_the_graph_is_snapped(planned):
     ctx, outcome = planned
-    survivor, _ = _midway(ctx, outcome, 0)
-    low = survivor.xyz.copy()
-    row, col = ctx.terrain.rowcol(low[0], low[1])
-    low[:2] = ctx.terrain.xy(np.rint(row) + 0.45, np.rint(col) + 0.45)
-    low[2] -= 1.0
-    start = survivor_start(ctx, Survivor(1, low, survivor.launch))
+    off = _off_the_graph(ctx, outcome)
+    low = off.xyz
+    start = survivor_start(ctx, off)
     assert start.xyz[2] <= np.nanmax(ctx.surface.ceiling)
     assert ctx.graph.legs_ok(low, start.xyz)[0]
 
