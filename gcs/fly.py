@@ -112,7 +112,10 @@ class SortieDraw:
     pct0: int | None             # charge
     index: int                   # its position reports counted into ``climbed`` so far
     alt: float | None            # the altitude of the last of them
+    sortie: int = 1              # which of its route's sorties
+    flight_s: float = 0.0        # the sortie's planned time, takeoff to landing
     climbed: float = 0.0         # m
+    forecast: bool = False       # its landing charge said (`Flight._forecast`)
 
     def climb_to(self, track, until_own) -> float:
         """Metres climbed from liftoff to its own clock ``until_own``."""
@@ -509,7 +512,8 @@ class Flight:
             track = m.vehicles[sysid].track
             self._sortie_began[sysid] = SortieDraw(
                 m.now(), self._own_clock(sysid), m.links[sysid].state.battery_pct, len(track),
-                track[-1][3] if track else None)
+                track[-1][3] if track else None, route.waypoints[0].sortie,
+                route.mission_time_s - route.takeoff_s)
             self._late_acted.discard(sysid)
         m.set_state(sysid, STARTING)
         try:
@@ -1072,7 +1076,11 @@ class Flight:
             drawn = (pct0 - pct) / (rated * (drained_s + CLIMB_S_PER_M * climbed))
             fast = drawn > FAST_DRAIN
             since = max(0.0, flown - drained_s)
-            need = rated * (drawn if fast else 1.0) * (left_s + since) + reserve / 2
+            rest = rated * (drawn if fast else 1.0) * (left_s + since)  # % the rest needs
+            need = rest + reserve / 2
+            if not began.forecast:
+                began.forecast = True
+                self._forecast(sysid, began, rest, drawn if fast else None, flown)
             # a late one is re-planned once a sortie: a re-plan that cannot fit its
             # battery says so, and would only be made again
             if pct >= need or (not fast and sysid in self._late_acted):
@@ -1080,7 +1088,6 @@ class Flight:
             if self._homebound(sysid):      # nothing earlier to bring it to: said once
                 if sysid not in self._late_acted:
                     self._late_acted.add(sysid)
-                    rest = need - reserve / 2
                     m.event(sysid, f"battery {pct} % on its way home: the rest ({left_s / 60:.1f}"
                                    f" min at its pace) needs {rest:.0f} %, it will land on "
                                    f"about {pct - rest:.0f} % (less than half the reserve)")
@@ -1104,6 +1111,21 @@ class Flight:
                 del self._sortie_began[sysid]
             self.spent.update(untrusted)
             self.retask()
+
+    def _forecast(self, sysid, began, rest, drawn, flown) -> None:
+        """Say once a sortie, when its draw is first trusted, what the vehicle will land
+        on at that draw from where it is (``rest``: % the rest of its sortie needs),
+        beside what its plan said from the charge it took off with: the operator sees
+        a battery that will not last before the watch has to act on it."""
+        pct = self.monitor.links[sysid].state.battery_pct
+        params = self.plan.params
+        planned = began.pct0 - 100.0 * began.flight_s / (60.0 * params["endurance_min"])
+        at = "the rated draw" if drawn is None else f"{drawn:.1f} times the rated draw"
+        self.monitor.event(
+            sysid, f"battery {pct} % after {flown / 60:.1f} min of sortie {began.sortie}: it "
+                   f"will land on about {pct - rest:.0f} % at {at} (planned {planned:.0f} "
+                   f"%, reserve {float(params.get('reserve_pct') or 0.0):.0f} %)",
+            landing_pct=round(pct - rest, 1), planned_pct=round(planned, 1))
 
     def _left_s(self, sysid):
         """Fleet seconds left in a vehicle's sortie from where it is (`_on_timeline`),

@@ -386,7 +386,7 @@ class Monitor:
                                  f"({where} of {final} reached)")
         v.state = LANDED
         v.landed_at_s = round(self.now(), 3)
-        self.event(v.sysid, LANDED)
+        self.event(v.sysid, LANDED, battery_pct=s.battery_pct)
 
     def _height(self, s):
         """Height (m) above the plan's terrain, None when unknown."""
