@@ -1080,7 +1080,8 @@ class Flight:
             need = rest + reserve / 2
             if not began.forecast:
                 began.forecast = True
-                self._forecast(sysid, began, rest, drawn if fast else None, flown)
+                self._forecast(sysid, began, pct, pct0 - rated * began.flight_s, rest,
+                               reserve, drawn if fast else None, flown)
             # a late one is re-planned once a sortie: a re-plan that cannot fit its
             # battery says so, and would only be made again
             if pct >= need or (not fast and sysid in self._late_acted):
@@ -1112,19 +1113,16 @@ class Flight:
             self.spent.update(untrusted)
             self.retask()
 
-    def _forecast(self, sysid, began, rest, drawn, flown) -> None:
+    def _forecast(self, sysid, began, pct, planned, rest, reserve, drawn, flown) -> None:
         """Say once a sortie, when its draw is first trusted, what the vehicle will land
         on at that draw from where it is (``rest``: % the rest of its sortie needs),
-        beside what its plan said from the charge it took off with: the operator sees
-        a battery that will not last before the watch has to act on it."""
-        pct = self.monitor.links[sysid].state.battery_pct
-        params = self.plan.params
-        planned = began.pct0 - 100.0 * began.flight_s / (60.0 * params["endurance_min"])
+        beside what its plan said (``planned``, from the charge it took off with): the
+        operator sees a battery that will not last before the watch has to act on it."""
         at = "the rated draw" if drawn is None else f"{drawn:.1f} times the rated draw"
         self.monitor.event(
             sysid, f"battery {pct} % after {flown / 60:.1f} min of sortie {began.sortie}: it "
                    f"will land on about {pct - rest:.0f} % at {at} (planned {planned:.0f} "
-                   f"%, reserve {float(params.get('reserve_pct') or 0.0):.0f} %)",
+                   f"%, reserve {reserve:.0f} %)",
             landing_pct=round(pct - rest, 1), planned_pct=round(planned, 1))
 
     def _left_s(self, sysid):

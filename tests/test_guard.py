@@ -258,6 +258,18 @@ class InColumn(Descending):
         super().advance(dt)
 
 
+def _held_in_one_column(one, three, base, top):
+    """A guard holding 1 and 3, both routed to the column's top over ``base`` and
+    down, 1 past the top already (on its final descent)."""
+    monitor, guard = _guard([one, three], {1: 1, 3: 2})
+    for v in (one, three):
+        monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0, 0.0, 0.0)
+        v.held = True
+        guard.held[v.sysid] = (0.0, 4 - v.sysid)
+    monitor.vehicles[1].done.add(0)
+    return guard
+
+
 def test_held_low_in_a_shared_column_with_only_its_top_left_it_lands_from_there():
     """As a sped-up flight left them (a re-plan brought 3 home as it took off): 1
     held on its final descent 38 m above 3, which is held low in the same column,
@@ -268,12 +280,7 @@ def test_held_low_in_a_shared_column_with_only_its_top_left_it_lands_from_there(
     top = Waypoint(LON0, LAT0, ALT, 0.0)
     one = Descending(1, ALT - 16.0, base.alt_amsl)
     three = InColumn(3, ALT - 54.0, base.alt_amsl, ALT)
-    monitor, guard = _guard([one, three], {1: 1, 3: 2})
-    for v in (one, three):
-        monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0, 0.0, 0.0)
-        v.held = True
-        guard.held[v.sysid] = (0.0, 4 - v.sysid)
-    monitor.vehicles[1].done.add(0)                 # on its final descent
+    guard = _held_in_one_column(one, three, base, top)
     guard.lands_here = lambda s: s == 3
 
     def land(sysid):
@@ -291,13 +298,7 @@ def test_held_low_in_a_shared_column_with_only_its_top_left_it_lands_from_there(
     assert least >= 38.0 - 0.5                       # never closer than they stood
     # routed as it was, it is left standing: no way out for either
     one.p[2], three.p[2], three.landing = ALT - 16.0, ALT - 54.0, False
-    _, stuck = _guard([one, three], {1: 1, 3: 2})
-    for v in (one, three):
-        stuck.monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0,
-                                                             0.0, 0.0)
-        v.held = True
-        stuck.held[v.sysid] = (0.0, 4 - v.sysid)
-    stuck.monitor.vehicles[1].done.add(0)
+    stuck = _held_in_one_column(one, three, base, top)
     _run([one, three], stuck, 30.0)
     assert stuck.actions == [] and one.held and three.held
 

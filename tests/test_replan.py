@@ -12,7 +12,7 @@ from places_reference import matched
 
 from common.errors import InputError
 from planner.context import PlanningContext
-from planner.exposure import segments_clear, segments_hidden
+from planner.exposure import is_hidden, segment_clear, segments_clear, segments_hidden
 from planner.pipeline import plan_mission
 from planner.plan import TERRAIN_FILE
 from planner.replan import (
@@ -191,8 +191,7 @@ def _off_the_graph(ctx, outcome):
         row, col = ctx.terrain.rowcol(low[0], low[1])
         low[:2] = ctx.terrain.xy(np.rint(row) + 0.45, np.rint(col) + 0.45)
         low[2] -= 1.0
-        here = (np.array([low]), np.array([low + [0.0, 0.0, 0.01]]))
-        if segments_hidden(ctx.surface, *here).all() and segments_clear(ctx.surface, *here).all():
+        if is_hidden(ctx.surface, low)[0] and segment_clear(ctx.surface, low, low):
             return Survivor(1, low, survivor.launch)
     pytest.fail("no route's half-way place stays hidden and clear 0.45 of a cell aside")
 
