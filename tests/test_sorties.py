@@ -329,7 +329,7 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
             assert said[:2 * (ups - 1)] == ["silent", "heard"] * (ups - 1), said
         if not replanned:   # the pace the battery watch timed, against the track's
             _assert_paces_as_flown(report, v, track, SPEEDUP)
-            _assert_landings_as_forecast(report, v.id, ups)
+            _assert_landings_as_forecast(report, v.id, track)
     # what each autopilot would do on a low battery, said before anything flies
     said = [e for e in report["events"] if e["event"].startswith("battery failsafe: ")]
     assert sorted(e["sysid"] for e in said) == [1, 2, 3]
@@ -367,23 +367,27 @@ def _assert_paces_as_flown(report, route, track, speedup) -> None:
             (route.id, j, pace, flown, edges)
 
 
-def _assert_landings_as_forecast(report, sysid, sorties) -> None:
-    """Each sortie's landing charge is said once, while it flies, and is what the
-    vehicle reports as it lands (its `landed` event) within 12 points: measured on
-    the simulator, 2 below to 10 above (the forecast is the rest of the sortie at
-    the rated draw and never quicker than planned). A sortie
-    the separation guard held after its forecast is not judged (what a hold costs
-    is nobody's forecast)."""
+def _assert_landings_as_forecast(report, sysid, track) -> None:
+    """Each sortie's landing charge is said once, while it flies, and is the charge
+    the simulator's own battery has at its touchdown within 8 points: measured,
+    5.3 below to 1.0 above over 22 sorties (climbs draw more than the rated draw
+    the forecast counts the rest at). Not the charge in the `landed` event: that
+    is the vehicle's last report, once a wall second, which at 100 times is up to
+    100 s of battery old (14 points above the forecast once). A sortie the
+    separation guard held after its forecast is not judged (what a hold costs is
+    nobody's forecast)."""
     said = [e for e in report["events"] if e["sysid"] == sysid and
             ("landing_pct" in e or e["event"] == "landed")]
+    downs = [e["t"] for e in track.events if e["event"] == "landed"]
     kinds = ["landed" if e["event"] == "landed" else "forecast" for e in said]
-    assert kinds == ["forecast", "landed"] * sorties, kinds
+    assert kinds == ["forecast", "landed"] * len(downs), kinds
     held = [span for s, span in hold_spans(report["separation"].get("actions", []),
                                            report["duration_s"]) if s == sysid]
-    for told, landed in zip(said[::2], said[1::2]):
+    for told, landed, down in zip(said[::2], said[1::2], downs):
         if any(a < landed["t_s"] and b > told["t_s"] for a, b in held):
             continue
-        assert abs(landed["battery_pct"] - told["landing_pct"]) <= 12, (told, landed)
+        charge = 100.0 * (1.0 - track.used[np.searchsorted(track.t, down)])
+        assert abs(charge - told["landing_pct"]) <= 8, (told, charge)
 
 
 def _guard_holds(report, sysid, also=()) -> list:
