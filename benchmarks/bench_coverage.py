@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_coverage.py [--quick] [--best-known] [--synthetic]
                                                   [--budgets] [--large] [--sweep]
-                                                  [--optimal [N]]
+                                                  [--optimal [N]] [--bound]
 
 **Suite** (default): three synthetic terrain families (hills, ridges, peaks;
 208 x 208 cells of 30 m, three outposts, one launch point in the hidden
@@ -30,12 +30,17 @@ seconds the deconfliction took.
 **Optimality** (``--optimal [N]``, alone): every method and the best bound
 against the proven optima of N small generated problems (benchmarks/optimality.py).
 
+**Bound** (``--bound``, alone): the flow bound with its target rows generated
+against the same bound with the LP whole (scipy's HiGHS, every row, as before
+2026-11-29), on seeded problems of 150-800 viewpoints: values and seconds.
+
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
 (planner.coverage.instances), ``--sweep`` the step-cap (th_ra) sweep,
 ``--large`` RT and ALNS on a 3,000-viewpoint x 50,000-target x 8-UAV problem.
 """
 
 import argparse
+import importlib
 import json
 import math
 import sys
@@ -49,6 +54,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks import optimality  # noqa: E402
 from planner.coverage import METHODS, CoverageParams, lower_bound, solve  # noqa: E402
+
+bounds_mod = importlib.import_module("planner.coverage.bounds")  # the package's `bounds` is its function
 from planner.coverage.instances import FAMILIES, random_problem  # noqa: E402
 
 
@@ -181,6 +188,74 @@ def large():
     t0 = time.perf_counter()
     lb = lower_bound(p)
     print(f"  lower bound {lb:.1f} s ({time.perf_counter() - t0:.2f} s)")
+
+
+def _whole_lp(lp, allowed=None, time_limit=bounds_mod.LP_TIME_LIMIT_S):
+    """The reference for `bound_rows`: the flow LP with every target row, solved from
+    scratch by scipy's HiGHS (`FlowLP.solve` before its rows were generated)."""
+    from scipy.optimize import linprog
+    from scipy.sparse import coo_matrix, vstack
+
+    n_legs, n_vp, nx = len(lp.heads), lp.prep.problem.n_viewpoints, len(lp.heads) + 1
+    ub = np.full(n_legs, np.inf)
+    if allowed is not None:
+        ok_any = allowed.any(axis=0)
+        ok = ok_any[lp.heads] & np.where(lp.tails >= 0, ok_any[np.maximum(lp.tails, 0)], True)
+        st = lp.tails < 0
+        ok[st] &= allowed[-1 - lp.tails[st], lp.heads[st]]
+        ub[~ok] = 0.0
+    cover = coo_matrix((-np.ones(len(lp.cover_rows)), (lp.cover_rows, lp.cover_cols)),
+                       shape=(len(lp.tids), nx))
+    vp = np.flatnonzero(lp.tails >= 0)
+    flow = coo_matrix((np.r_[np.ones(len(vp)), -np.ones(n_legs)],
+                       (np.r_[lp.tails[vp], lp.heads], np.r_[vp, np.arange(n_legs)])),
+                      shape=(n_vp, nx))
+    st = np.flatnonzero(lp.tails < 0)
+    starts = coo_matrix((np.ones(len(st)), (-1 - lp.tails[st], st)), shape=(lp.n, nx))
+    time_row = coo_matrix((np.r_[lp.times, -float(lp.n)], (np.zeros(nx, int), np.arange(nx))),
+                          shape=(1, nx))
+    res = linprog(np.r_[np.zeros(n_legs), 1.0],
+                  A_ub=vstack([cover, flow, starts, time_row]).tocsr(),
+                  b_ub=np.r_[-lp.need, np.zeros(n_vp), np.ones(lp.n), 0.0],
+                  bounds=np.column_stack([np.zeros(nx), np.r_[ub, np.inf]]), method="highs",
+                  options={"time_limit": max(time_limit, 0.01)})
+    if res.status == 2:
+        return math.inf
+    return float(res.fun) * (1.0 - bounds_mod._SAFETY) if res.status == 0 else None
+
+
+def bound_rows(quick):
+    """The flow bound with its target rows generated (`FlowLP.solve`) against the same
+    bound with the LP whole (`_whole_lp`), on seeded problems of 150-800 viewpoints,
+    with and without launch points: the values and the seconds of each."""
+    from planner.coverage.problem import prepare
+
+    sizes = (150, 400) if quick else (150, 400, 800)
+    rows = []
+    for n_vp in sizes:
+        for family in FAMILIES:
+            for launch in (False, True):
+                p = random_problem(n_viewpoints=n_vp, n_targets=10 * n_vp, n_uavs=4,
+                                   k=n_vp % 3, family=family, seed=n_vp, launch=launch)
+                prep = prepare(p).classes[0]
+                timed, generated = [], bounds_mod.FlowLP.solve
+                try:
+                    for solve_lp in (_whole_lp, generated):
+                        bounds_mod.FlowLP.solve = solve_lp
+                        t0 = time.perf_counter()
+                        timed.append((bounds_mod.flow_bound(prep), time.perf_counter() - t0))
+                finally:
+                    bounds_mod.FlowLP.solve = generated
+                rows.append((n_vp, family, launch, *timed[0], *timed[1]))
+    print("\nFlow bound, target rows generated vs the LP whole (same run, same bisection)")
+    print(f"{'viewpoints':>10} {'family':>10} {'launch':>6} | {'whole s':>8} {'bound':>9} | "
+          f"{'generated s':>11} {'bound':>9} {'ratio':>7}")
+    for n_vp, family, launch, whole, whole_s, gen, gen_s in rows:
+        ratio = gen / whole if whole else math.nan
+        print(f"{n_vp:>10} {family:>10} {launch!s:>6} | {whole_s:8.2f} {whole:9.1f} | "
+              f"{gen_s:11.2f} {gen:9.1f} {ratio:7.4f}")
+    print(f"total seconds: whole {sum(r[4] for r in rows):.1f}, generated "
+          f"{sum(r[6] for r in rows):.1f} (x {sum(r[4] for r in rows) / sum(r[6] for r in rows):.1f})")
 
 
 # -- the terrain suite ------------------------------------------------------------------
@@ -441,10 +516,16 @@ def main(argv=None):
                          "130 the settings were tuned on, 100 held out)")
     ap.add_argument("--optimal-limit", type=float, default=60.0, metavar="S",
                     help="the exact solver's time per instance not yet in the cache")
+    ap.add_argument("--bound", action="store_true",
+                    help="only the flow bound with its rows generated against the LP whole")
     ap.add_argument("--separation", action="store_true",
                     help="only the separation table (coverage at --separation 0 vs default)")
     args, _ = ap.parse_known_args(argv)  # options of other benchmarks run with it
     t0 = time.perf_counter()
+    if args.bound:
+        bound_rows(args.quick)
+        print(f"\n(total {time.perf_counter() - t0:.0f} s)")
+        return 0
     if args.optimal:
         optimality.run(args.optimal, args.optimal_limit)
         print(f"\n(total {time.perf_counter() - t0:.0f} s)")

@@ -21,7 +21,7 @@ from planner.coverage import (
 )
 from planner.coverage.alns import default_budget_s, search
 from planner.coverage.alns_kernels import _matching
-from planner.coverage.bounds import flow_bound
+from planner.coverage.bounds import FlowLP, flow_bound
 from planner.coverage.instances import random_problem
 from planner.coverage.problem import prepare
 from planner.coverage.route_bound import route_bound
@@ -192,6 +192,25 @@ def test_route_bound_is_near_the_exhaustive_optimum():
             flow.append(flow_bound(prep) / opt)
     assert max(ratios) <= 1 + 1e-9
     assert np.median(ratios) >= 0.95 > np.median(flow), (np.median(ratios), np.median(flow))
+
+
+def test_the_flow_lp_with_its_rows_generated_has_the_whole_lps_value():
+    """`FlowLP.solve` starts from the hardest targets' rows and adds those its solution
+    leaves short: its value is the LP's with every row given at once, with launch
+    points and the bisection's prunings too, from fewer rows. (Before the rows were
+    generated, the whole LP took 2.5 times as long on `bench_coverage --bound`.)"""
+    for seed, launch in itertools.product((0, 1), (False, True)):
+        prep = prepare(random_problem(150, 1500, 4, k=seed, seed=seed, launch=launch)).classes[0]
+        generated, whole = FlowLP(prep), FlowLP(prep)
+        whole._h = whole._model()
+        whole._add_rows(whole._h, np.arange(len(whole.tids)))
+        prunings = [None]
+        if launch:
+            rho, base = generated.reach(), generated.solve()
+            prunings += [rho <= base * f for f in (1.05, 1.15, 1.3)]
+        for allowed in prunings:
+            assert generated.solve(allowed) == pytest.approx(whole.solve(allowed), rel=1e-6)
+        assert generated.in_lp.sum() < len(generated.tids) == whole.in_lp.sum()
 
 
 @pytest.mark.slow
