@@ -22,7 +22,6 @@ report's ``outcome`` says whether the flight did its job: the required
 coverage reached, no vehicle lost, none left in the air.
 """
 
-import bisect
 import json
 import math
 import threading
@@ -37,7 +36,7 @@ from common.errors import InputError
 from common.fileio import write_text_atomic
 from gcs import commands
 from gcs.clock import FleetClock
-from gcs.guard import SeparationGuard, hold_spans
+from gcs.guard import SeparationGuard
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
 from gcs.monitor import (
@@ -1128,10 +1127,14 @@ class Flight:
     def _left_s(self, sysid):
         """Fleet seconds left in a vehicle's sortie from where it is (`_on_timeline`),
         stretched by how much slower than planned it has made its way along this
-        route on its own clock (a headwind: never shrunk), the separation guard's
-        holds left out (what they cost is in the battery it reports; a hold early on
-        a route once read as 21 times slower); None past its last waypoint or without
-        a position."""
+        route on its own clock (a headwind: never shrunk) since it last flew on from a
+        hold (what a hold costs is in the battery it reports; a hold early on a route
+        once read as 21 times slower; with the holds' spans taken out of its time
+        instead, a simulated vehicle held at 100 x was once said to need 25.5 min,
+        221 % of a battery, for the way home: a span's ends are known to a loop of
+        the ground station, 10 s of its clock there, and its braking and speeding
+        up again are in none); None past its last waypoint or without a
+        position."""
         m = self.monitor
         v = m.vehicles[sysid]
         own = self._own_clock(sysid)
@@ -1140,16 +1143,17 @@ class Flight:
             return None
         left = v.route.mission_time_s - at
         seen = self._route_seen.get(sysid)
-        if seen is None or seen[0] is not v.route or self._waiting_s(sysid) is not None:
+        if seen is None or seen[0] is not v.route or v.state == HOLDING or \
+                self._waiting_s(sysid) is not None:
             # its pace is timed from where it flies this route: not while a re-plan
-            # holds it until its time (one so held read 6.8 times slower)
+            # holds it until its time (one so held read 6.8 times slower), nor while
+            # the separation guard holds it
             self._route_seen[sysid] = (v.route, own, at)
             self._pace.pop(sysid, None)
             return left
         _, own0, at0 = seen
         if own - own0 >= WATCH_AFTER_S and at > at0:
-            flying = own - own0 - self._held_own_s(sysid, own0)
-            self._pace[sysid] = max(1.0, flying / (at - at0))
+            self._pace[sysid] = max(1.0, (own - own0) / (at - at0))
             left *= self._pace[sysid]
             self.paces.setdefault(sysid, {})[v.route.waypoints[0].sortie] = \
                 round(self._pace[sysid], 3)
@@ -1197,25 +1201,6 @@ class Flight:
         earlier to bring it to."""
         waypoints = self.monitor.vehicles[sysid].route.waypoints
         return not any(w.snapshot for w in waypoints[self._next_waypoint(sysid):])
-
-    def _held_own_s(self, sysid, since) -> float:
-        """Seconds of the vehicle's own clock after ``since`` that the separation
-        guard held it (its holds are timed on the flight's clock: mapped through the
-        vehicle's position reports)."""
-        end = self.monitor.now()
-        return sum(max(0.0, self._own_at(sysid, b) - max(self._own_at(sysid, a), since))
-                   for s, (a, b) in hold_spans(getattr(self.guard, "actions", []), end)
-                   if s == sysid)
-
-    def _own_at(self, sysid, t_s) -> float:
-        """The vehicle's own clock at flight time ``t_s``, between the position reports
-        around it (a search, not a pass over the track: the watch asks every loop)."""
-        track = self.monitor.vehicles[sysid].track
-        i = bisect.bisect_left(track, t_s, key=lambda p: p[0])
-        if i == 0 or i == len(track):
-            return float(track[min(i, len(track) - 1)][4])
-        (t0, own0), (t1, own1) = (track[i - 1][0], track[i - 1][4]), (track[i][0], track[i][4])
-        return float(own0 + (own1 - own0) * (t_s - t0) / (t1 - t0) if t1 > t0 else own1)
 
     def _own_clock(self, sysid):
         """The vehicle's own clock (s since its boot) at its last position report."""

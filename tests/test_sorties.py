@@ -346,9 +346,9 @@ def _assert_paces_as_flown(report, route, track, speedup) -> None:
     the plan gives once read as 1.34 times slower) is within 0.1 of what the
     simulator's own record says: the sortie's time takeoff to landing over its
     planned time (the simulator at the plan's rates: 0.94-1.02), the separation
-    guard's holds of it left out as the watch leaves them out (on a loaded CI
-    machine a sortie of 1.15 times its plan, timed whole, failed against a pace
-    of 1.0). Each hold's start and end are known to the ground station within
+    guard's holds of it left out (the watch times it afresh after each; on a
+    loaded CI machine a sortie of 1.15 times its plan, timed whole, failed
+    against a pace of 1.0). Each hold's start and end are known to the ground station within
     its loop (`LOOP_S`, wall seconds: ``speedup`` times that of the vehicle's
     clock), so each widens the bound by that much: a sortie the guard held 5
     times (9 edges in it) read 1.148 against 0.99."""
