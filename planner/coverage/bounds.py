@@ -69,16 +69,16 @@ MAX_TARGETS = 1500
 #: bisection steps on T with launch points
 BISECTION_STEPS = 4
 #: the LP is given up (the other bounds remain) beyond this size, or beyond
-#: this many viewpoints (its legs and their certification take 2 s on the whole
-#: sample's 3,175; beyond, longer than the plan)
-MAX_NONZEROS = 4_000_000
-FLOW_MAX_VIEWPOINTS = 4000
+#: this many viewpoints. At 4,000 and 4 M it ran on the whole sample's 3,175 (2 s
+#: to build, its 8 s of HiGHS: 122 min where the other bounds say 76), 9 s more
+#: on a 16 s plan, and the suite, which plans the sample often, went 805 -> 888 s
+MAX_NONZEROS = 1_500_000
+FLOW_MAX_VIEWPOINTS = 1500
 #: HiGHS time for the whole bound (base LP and bisection), seconds: a step
 #: that does not finish in what is left is dropped and the bound proven so
 #: far stands, and a solve out of time with rows still to add gives the value
 #: of the rows it has (so only on problems that large can the value depend on
-#: the machine; it is a valid bound either way: on the whole sample 102 min at
-#: 2 s, 122 min at 8 s, where the other bounds say 76 min)
+#: the machine; it is a valid bound either way)
 LP_TIME_LIMIT_S = 8.0
 #: cover rows the LP starts with, and added at most per round (`FlowLP.solve`): a
 #: few hundred of 1,500 decide the value (`bench_coverage --bound`: the same values
