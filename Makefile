@@ -4,6 +4,7 @@ VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 DOCS_STAMP := $(VENV)/.installed-docs
+WARM    := $(VENV)/warm-up
 OUT     ?= demo-out
 
 .PHONY: install browser test test-under-load demo bench docs figures clean
@@ -11,9 +12,16 @@ OUT     ?= demo-out
 $(BIN)/python:
 	$(PY) -m venv $(VENV)
 
+# numba compiles the planner's kernels on their first use (1.5-3 minutes on 2 cores) and
+# keeps them in ~/.cache/gcs-planner/kernels/: two plans compile them here, so that a first
+# plan after install (the demo's, the whole sample's) and the test processes find them
 $(STAMP): pyproject.toml | $(BIN)/python
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[test]'
+	@echo "compiling the planner's kernels: two plans on the built-in terrain (log: $(WARM).log)"
+	$(BIN)/gcs plan gcs/data/demo.toml -o $(WARM) > $(WARM).log 2>&1 || (cat $(WARM).log; false)
+	$(BIN)/gcs plan --sample --uavs 4 --k 1 -o $(WARM) >> $(WARM).log 2>&1 || (cat $(WARM).log; false)
+	rm -rf $(WARM)
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -24,7 +24,7 @@ at the end.
 """
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 #: the sortie model of a UAV whose battery does not limit it
 UNLIMITED = np.array([np.inf, 0.0, 0.0, 0.0])
@@ -217,7 +217,12 @@ def middle_costs_all(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos)
                 mid_pos[e] = s
 
 
-@njit(cache=True, parallel=True)
+# combine_ends and update_middle_costs run once per insertion, thousands of times a
+# plan, on well under a millisecond of work each: on one core. As numba parallel loops they
+# waited on their threads at every call, and on a busy machine (one other job on
+# one of 2 cores) the whole sample's plan took 59 s instead of 32 s, 15 s of it
+# in each of the two.
+@njit(cache=True)
 def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos, cost, pos):
     """Edge-breaking rule: the cheapest of front, best edge and back (with sorties:
     `_sortie_slots`)."""
@@ -227,11 +232,11 @@ def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos,
         arrive, sortie, flown = walked(route, travel, fr, so, True)
         dur = sortie_durations(route, sortie, flown, fr)
         starts = np.flatnonzero(np.diff(sortie)) + 1
-        for e in prange(travel.shape[0]):
+        for e in range(travel.shape[0]):
             cost[e], pos[e] = _sortie_slots(route, e, travel, fr, so, sortie, flown, dur,
                                             starts, mid_cost[e], mid_pos[e])
         return
-    for e in prange(travel.shape[0]):
+    for e in range(travel.shape[0]):
         c, p = slot_cost(route, 0, e, travel, travel_t, lo, has_launch), 0
         if mid_cost[e] < c:
             c, p = mid_cost[e], mid_pos[e]
@@ -286,14 +291,13 @@ def _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, mid_c, m
     return best, pos
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True)
 def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mid_pos):
     """Refresh edge insertions after route[s] was inserted (``route`` is the new route).
 
     Front or back insertions only add one edge; a middle insertion splits
     edge s into s and s+1 and shifts later ones, and only the viewpoints whose
-    best edge was s need a rescan. Each viewpoint's entry depends on it alone,
-    so the viewpoints are shared among the cores.
+    best edge was s need a rescan.
     """
     n_vp = travel.shape[0]
     m = len(route)
@@ -301,7 +305,7 @@ def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mi
         return
     if s == 0 or s == m - 1:
         new_edge = 1 if s == 0 else m - 1
-        for e in prange(n_vp):
+        for e in range(n_vp):
             if s == 0 and mid_pos[e] >= 1:
                 mid_pos[e] += 1
             c = slot_cost(route, new_edge, e, travel, travel_t, lo, has_launch)
@@ -312,7 +316,7 @@ def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mi
     edge = np.empty(m - 1)
     for q in range(1, m):
         edge[q - 1] = travel[route[q - 1], route[q]]
-    for e in prange(n_vp):
+    for e in range(n_vp):
         if mid_pos[e] == s:  # its edge was split: rescan (rows e stay in cache)
             best, best_q = np.inf, -1
             for q in range(1, m):

@@ -228,7 +228,9 @@ def prepare(problem: CoverageProblem) -> Prepared:
     if indices.dtype not in (np.int32, np.int64):
         indices = indices.astype(np.int64)
     n_vp, n_t = len(indptr) - 1, int(problem.n_targets)
-    travel = np.asarray(problem.travel, dtype=np.float64)
+    # C order whatever the caller's layout: the kernels are compiled for one layout
+    # (a transposed matrix would compile every kernel again on first use)
+    travel = np.ascontiguousarray(problem.travel, dtype=np.float64)
     if travel.shape != (n_vp, n_vp):
         raise ValueError(f"travel must be [{n_vp}, {n_vp}], got {travel.shape}")
     if len(indices) and (indices.min() < 0 or indices.max() >= n_t):

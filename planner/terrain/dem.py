@@ -492,7 +492,8 @@ def _warp(g: _Grid, crs: str, transform: Affine, shape):
         row[r0:r0 + len(rows)], col[r0:r0 + len(rows)] = v - 0.5, u - 0.5
     inside = (row >= 0) & (row <= src_rows - 1) & (col >= 0) & (col <= src_cols - 1)
     value = np.where(inside, bilinear(g.height, row, col), np.nan)
-    above, below = dem_kernels.resampling_error(g.height, row, col, value)
+    # contiguous, as every grid the kernel sees: one compiled variant, not one per layout
+    above, below = dem_kernels.resampling_error(np.ascontiguousarray(g.height), row, col, value)
     return value - _around_vertices(above), value + _around_vertices(below)
 
 
