@@ -29,6 +29,17 @@ STAGE_TEXT = {
 }
 
 
+def note_first_compile() -> None:
+    """Say why the first plan after an install is slow (numba compiling), once per
+    version of the planner's sources."""
+    import planner
+
+    if not planner.kernels_compiled():
+        console.print("first plan with this version of the planner: numba compiles its "
+                      "kernels (1.5-3 min on 2 cores, once; make install does it ahead)",
+                      markup=False)
+
+
 @contextlib.contextmanager
 def stage_progress(enabled=None):
     """Yield ``progress(stage, fraction)``; draws bars on a terminal, quiet lines otherwise."""

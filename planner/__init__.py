@@ -22,3 +22,9 @@ def _kernel_cache_dir() -> Path:
 # user, or by the process that started this one, is kept. numba falls back to
 # __pycache__ where this folder cannot be written.
 os.environ.setdefault("NUMBA_CACHE_DIR", str(_kernel_cache_dir()))
+
+
+def kernels_compiled() -> bool:
+    """Whether numba's cache holds compiled kernels for these sources (False before
+    the first plan after an install or a change: that plan compiles them)."""
+    return any(Path(os.environ["NUMBA_CACHE_DIR"]).rglob("*.nbi"))

@@ -192,3 +192,18 @@ def test_allocation_and_routes_report_progress_as_they_go(terrain):
         assert seen[0] == 0.0 and seen[-1] == 1.0
         assert len([f for f in seen if 0.0 < f < 1.0]) >= 3, (stage, seen)
         assert all(b >= a for a, b in zip(seen, seen[1:])), (stage, seen)
+
+
+def test_the_first_plan_after_an_install_says_it_compiles(tmp_path, monkeypatch, capsys):
+    """An empty kernel cache (a fresh install, or new sources): `gcs plan` and `gcs
+    demo` say why their first plan takes minutes; once numba has cached a kernel
+    there, they do not."""
+    from gcs.progress import note_first_compile
+
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path))
+    note_first_compile()
+    assert "numba compiles its kernels" in capsys.readouterr().err
+    (tmp_path / "coverage_x").mkdir()
+    (tmp_path / "coverage_x" / "insertion.walk-1.py311.nbi").write_bytes(b"")
+    note_first_compile()
+    assert capsys.readouterr().err == ""

@@ -42,7 +42,7 @@ def run(args) -> int:
     check_output_dir(out)  # files in it are replaced, never the folder wiped
     from gcs.cli.views import plan_summary
     from gcs.plan_folder import write_plan_folder
-    from gcs.progress import console, stage_progress
+    from gcs.progress import console, note_first_compile, stage_progress
     from planner.pipeline import plan_mission
     from planner.scenario import make_scenario, read_scenario
 
@@ -52,6 +52,7 @@ def run(args) -> int:
         scenario = make_scenario(read_scenario(path), {"firmware": args.firmware},
                                  source=f"built-in {SCENARIO}")
     console.rule("1. plan: hidden reduced-time routes, k = 1")
+    note_first_compile()
     with stage_progress() as progress:
         ctx, outcome = plan_mission(scenario, progress)
         written = write_plan_folder(plan_dir, ctx, outcome)

@@ -20,9 +20,10 @@ def run(args) -> int:
     check_output_dir(args.output)
     from gcs.cli.views import plan_summary
     from gcs.plan_folder import write_plan_folder
-    from gcs.progress import console, stage_progress
+    from gcs.progress import console, note_first_compile, stage_progress
     from planner.pipeline import plan_mission
 
+    note_first_compile()
     with stage_progress() as progress:
         ctx, outcome = plan_mission(scenario, progress, scheduler=args.scheduler or "auto",
                                     log=lambda text: console.print(text, markup=False))
