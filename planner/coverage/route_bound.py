@@ -7,8 +7,14 @@ sightings) takes at least ``time_g(S)``, the least time of a path through
 exactly S in the shortest-path closure of travel (and of the launch times) from
 the start of the UAV's launch group g: a walk through S, shortcut in the
 closure, is such a path. `set_times` computes it for all 2^m subsets
-(Held-Karp), so the bound is built only for at most `ROUTE_MAX_VIEWPOINTS`
-useful viewpoints, and not with a battery limit (sorties).
+(Held-Karp), so the bound is built on at most `ROUTE_MAX_VIEWPOINTS` useful
+viewpoints, and not with a battery limit (sorties).
+
+**Subsets.** With more useful viewpoints (up to `SUBSET_MAX_VIEWPOINTS`) it is
+built on subsets U of that size (`_subsets`) and the best is kept: a route
+through S takes at least ``time_g(S & U)`` (shortcut again), and a target's q
+pairs at distinct places have at most one at each of its viewers outside U, so
+its rows ask q less that many of U.
 
 **Rows (W, b).** A viewpoint mask W and "at least b UAVs' routes fly a
 viewpoint of W": for a target with viewers V that needs q more sightings (its
@@ -34,9 +40,9 @@ passing twice counts twice, and bounds only the sum of the routes' times).
 plan has ``time_g(S) > T``, so OPT is at least the next candidate time. The
 least such time the search cannot refute, less a relative 1e-6, is returned.
 
-Measured (``bench_coverage --optimal``, 130 proven optima, 8-16 viewpoints):
-see docs/benchmarks.md. On larger problems it is not built, and the bound is
-the flow LP's.
+Measured (``bench_coverage --optimal``, 230 proven optima of 8-16 viewpoints;
+``--optimal-mid``, 17-30): see docs/benchmarks.md. On larger problems it is
+not built, and the bound is the flow LP's.
 """
 
 import itertools
@@ -48,8 +54,10 @@ from numba import njit
 from scipy.optimize import linprog
 
 #: built when at most this many viewpoints see a target that needs sightings
-#: (2^m subsets are enumerated per launch group)
+#: (2^m subsets are enumerated per launch group); up to SUBSET_MAX_VIEWPOINTS, on
+#: subsets of them
 ROUTE_MAX_VIEWPOINTS = 16
+SUBSET_MAX_VIEWPOINTS = 40
 #: its time budget (seconds), and the growth of its search for a time it cannot refute
 ROUTE_TIME_LIMIT_S = 4.0
 GROWTH = 1.06
@@ -58,22 +66,31 @@ _SAFETY = 1e-6
 
 
 @njit(cache=True)
-def _closure(travel):
-    """Shortest-path closure of ``travel`` (Floyd-Warshall)."""
-    d = travel.copy()
-    n = d.shape[0]
-    for i in range(n):
-        d[i, i] = min(d[i, i], 0.0)
-    for w in range(n):
-        for i in range(n):
-            diw = d[i, w]
-            if not np.isfinite(diw):
-                continue
-            for j in range(n):
-                v = diw + d[w, j]
-                if v < d[i, j]:
-                    d[i, j] = v
-    return d
+def _times_into(travel_t, vps):
+    """[n, len(vps)]: the shortest time from every viewpoint to each of ``vps``
+    over ``travel`` (given transposed), through any viewpoint: a dense Dijkstra
+    per viewpoint of ``vps`` (the shortest-path closure, only the columns needed:
+    a re-plan's problem may hold thousands of viewpoints and few useful ones)."""
+    n = travel_t.shape[0]
+    out = np.empty((n, len(vps)))
+    for j in range(len(vps)):
+        d = np.full(n, np.inf)
+        done = np.zeros(n, np.bool_)
+        d[vps[j]] = 0.0
+        for _ in range(n):
+            u, du = -1, np.inf
+            for w in range(n):
+                if not done[w] and d[w] < du:
+                    u, du = w, d[w]
+            if u < 0:
+                break
+            done[u] = True
+            for w in range(n):
+                v = du + travel_t[u, w]
+                if v < d[w]:
+                    d[w] = v
+        out[:, j] = d
+    return out
 
 
 @njit(cache=True)
@@ -141,10 +158,12 @@ def _hit_rows(prep, vps, max_subset_rows=64):
     rows = {}
     for c in np.flatnonzero(need > 0):
         viewers = local[prep.tgt_indices[prep.tgt_indptr[c]:prep.tgt_indptr[c + 1]]]
+        # a viewer left out of ``vps`` gives at most one of the q pairs (distinct places)
+        q = int(need[c]) - int(np.count_nonzero(viewers < 0))
         viewers = viewers[viewers >= 0]
-        if not len(viewers):
+        if not len(viewers) or q <= 0:
             continue
-        q, deg = int(need[c]), len(viewers)
+        deg = len(viewers)
         bits = [1 << int(v) for v in viewers]
         full = sum(bits)
         rows[full] = max(rows.get(full, 0), q)
@@ -169,11 +188,10 @@ class RouteMaster:
         self.prep = prep
         self.vps = vps
         self.m = len(self.vps)
-        closed = _closure(np.ascontiguousarray(prep.travel))
-        sub = np.ascontiguousarray(closed[np.ix_(self.vps, self.vps)])
-        if prep.has_launch:
-            lo = prep.launch_out[:, None, :] + closed[None, :, :]  # via any viewpoint
-            lo = np.minimum(prep.launch_out, lo.min(axis=1))[:, self.vps]
+        into = _times_into(prep.travel_t, self.vps)
+        sub = np.ascontiguousarray(into[self.vps])
+        if prep.has_launch:  # via any viewpoint
+            lo = (prep.launch_out[:, :, None] + into[None, :, :]).min(axis=1)
             rows, self.count = np.unique(lo, axis=0, return_counts=True)
         else:
             rows, self.count = np.zeros((1, self.m)), np.array([p.n_uavs])
@@ -257,22 +275,60 @@ class RouteMaster:
 def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) -> float:
     """The route-pricing bound (module doc): the least candidate time the route
     master cannot refute, searched from ``lower`` (a valid bound) up by
-    `GROWTH` then by bisection to ``rel_tol``; 0 when the problem is too large
-    for it (more than `ROUTE_MAX_VIEWPOINTS` useful viewpoints, or a battery)."""
+    `GROWTH` then by bisection to ``rel_tol``. Over `ROUTE_MAX_VIEWPOINTS` useful
+    viewpoints (up to `SUBSET_MAX_VIEWPOINTS`) the best of the bounds of a few
+    subsets of that size (`_subsets`). 0 when the problem is too large for it, or
+    has a battery."""
     p = prep.problem
     if p.n_viewpoints == 0 or p.n_targets == 0 or math.isfinite(p.endurance_s):
         return 0.0
-    useful = _useful(prep)
-    if not useful.any() or useful.sum() > ROUTE_MAX_VIEWPOINTS:
+    useful = np.flatnonzero(_useful(prep))
+    if not len(useful) or len(useful) > SUBSET_MAX_VIEWPOINTS:
         return 0.0
     deadline = time.perf_counter() + time_limit
-    rm = RouteMaster(prep, np.flatnonzero(useful))
+    best = 0.0
+    for vps in _subsets(prep, useful):
+        if time.perf_counter() >= deadline:
+            break
+        best = max(best, _refute(RouteMaster(prep, vps), max(lower, best), rel_tol, deadline))
+    return best
+
+
+def _subsets(prep, useful):
+    """The viewpoint sets to price: the useful ones if they are few enough; else, of
+    `ROUTE_MAX_VIEWPOINTS` each, the viewers of the targets that need the most
+    sightings from the fewest viewers (first), and the viewpoints farthest from the
+    bases (or from each other). Any subset U gives a valid bound: a plan's pairs
+    for a target at viewpoints outside U are at most one per such viewpoint
+    (`_hit_rows`), and a route's time through S is at least its time through the
+    part of S in U (shortcut in the closure)."""
+    size = ROUTE_MAX_VIEWPOINTS
+    if len(useful) <= size:
+        return [useful]
+    need = _still_needed(prep)
+    degree = np.diff(prep.tgt_indptr)
+    hard = []
+    for c in np.lexsort((degree - need, -need)):
+        if need[c] <= 0 or len(hard) >= size:
+            break
+        viewers = prep.tgt_indices[prep.tgt_indptr[c]:prep.tgt_indptr[c + 1]]
+        hard += [int(v) for v in viewers if int(v) not in hard][:size - len(hard)]
+    far = (prep.launch_out.min(axis=0)[useful] if prep.has_launch
+           else _times_into(prep.travel_t, useful)[useful].max(axis=0))
+    return [np.sort(np.array(hard, np.int64)), np.sort(useful[np.argsort(-far)[:size]])]
+
+
+def _refute(rm, lower, rel_tol, deadline) -> float:
+    """The least candidate time of ``rm`` it cannot certify infeasible, searched
+    from ``lower`` (see `route_bound`); 0 when none is certified."""
     cand = rm.candidate_times()
     if not len(cand):
         return 0.0
     # cand[i] certified infeasible for i <= lo_i (below ``lower``: no plan is that
-    # quick anyway); not certified at hi_i. The bound is cand[lo_i + 1].
-    lo_i = int(np.searchsorted(cand, lower, side="left")) - 1
+    # quick anyway); not certified at hi_i. The bound is cand[lo_i + 1] once a
+    # time is certified: ``lower`` alone says nothing of the candidate after it (a
+    # subset's times need not include the optimum).
+    lo_i = first = int(np.searchsorted(cand, lower, side="left")) - 1
     hi_i = len(cand)
     base = cand[lo_i + 1] if lo_i + 1 < len(cand) else cand[-1]
     grow = 0
@@ -289,7 +345,7 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
             lo_i = i
         else:
             hi_i = i
-    if lo_i < 0 or lo_i + 1 >= len(cand):
+    if lo_i == first or lo_i + 1 >= len(cand):
         return 0.0
     return float(cand[lo_i + 1]) * (1.0 - _SAFETY)
 
