@@ -42,7 +42,7 @@ value is lowered by a relative 1e-6 for its tolerances.
 
 Not modelled (kept as relaxations): which UAV flies which leg (targets
 needing k+1 *distinct* UAVs are only counted), and balancing beyond the sum.
-Where at most 40 viewpoints see what is needed, `route_bound` says both (each
+Where at most 30 viewpoints see what is needed, `route_bound` says both (each
 route counts a target once and lasts at most T; beyond 16 on subsets of them)
 and `bounds` takes the larger.
 """
@@ -385,7 +385,7 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     """The best lower bound on coverage time we have (seconds): the largest of
     the reach and packing bounds (`metrics.lower_bound`, the "radius bound")
     and, with ``strong``, the first-sighting flow LP (`flow_bound`; a few
-    seconds of HiGHS on the largest problems) and, where at most 40 viewpoints
+    seconds of HiGHS on the largest problems) and, where at most 30 viewpoints
     see what is needed, the route-pricing bound (`route_bound.route_bound`,
     under half a second there; beyond 16 on subsets of 16).  The bounds work on target classes
     (`classes.target_classes`: identical rows, so the same bound at a fraction

@@ -55,9 +55,9 @@ from scipy.optimize import linprog
 
 #: built when at most this many viewpoints see a target that needs sightings
 #: (2^m subsets are enumerated per launch group); up to SUBSET_MAX_VIEWPOINTS, on
-#: subsets of them
+#: subsets of them (on 31-40, measured, two subsets of 16 raised no bound)
 ROUTE_MAX_VIEWPOINTS = 16
-SUBSET_MAX_VIEWPOINTS = 40
+SUBSET_MAX_VIEWPOINTS = 30
 #: its time budget (seconds), and the growth of its search for a time it cannot refute
 ROUTE_TIME_LIMIT_S = 4.0
 GROWTH = 1.06
