@@ -193,31 +193,18 @@ def large():
 
 def _whole_lp(lp, allowed=None, time_limit=bounds_mod.LP_TIME_LIMIT_S):
     """The reference for `bound_rows`: the flow LP with every target row, solved from
-    scratch by scipy's HiGHS (`FlowLP.solve` before its rows were generated)."""
+    scratch by scipy's HiGHS (`FlowLP.solve` before its rows were generated; its
+    other rows and the pruning are `FlowLP`'s own)."""
     from scipy.optimize import linprog
     from scipy.sparse import coo_matrix, vstack
 
-    n_legs, n_vp, nx = len(lp.heads), lp.prep.problem.n_viewpoints, len(lp.heads) + 1
-    ub = np.full(n_legs, np.inf)
-    if allowed is not None:
-        ok_any = allowed.any(axis=0)
-        ok = ok_any[lp.heads] & np.where(lp.tails >= 0, ok_any[np.maximum(lp.tails, 0)], True)
-        st = lp.tails < 0
-        ok[st] &= allowed[-1 - lp.tails[st], lp.heads[st]]
-        ub[~ok] = 0.0
+    n_legs, nx = len(lp.heads), len(lp.heads) + 1
+    ub = np.where(lp.legs_allowed(allowed), np.inf, 0.0)
     cover = coo_matrix((-np.ones(len(lp.cover_rows)), (lp.cover_rows, lp.cover_cols)),
                        shape=(len(lp.tids), nx))
-    vp = np.flatnonzero(lp.tails >= 0)
-    flow = coo_matrix((np.r_[np.ones(len(vp)), -np.ones(n_legs)],
-                       (np.r_[lp.tails[vp], lp.heads], np.r_[vp, np.arange(n_legs)])),
-                      shape=(n_vp, nx))
-    st = np.flatnonzero(lp.tails < 0)
-    starts = coo_matrix((np.ones(len(st)), (-1 - lp.tails[st], st)), shape=(lp.n, nx))
-    time_row = coo_matrix((np.r_[lp.times, -float(lp.n)], (np.zeros(nx, int), np.arange(nx))),
-                          shape=(1, nx))
-    res = linprog(np.r_[np.zeros(n_legs), 1.0],
-                  A_ub=vstack([cover, flow, starts, time_row]).tocsr(),
-                  b_ub=np.r_[-lp.need, np.zeros(n_vp), np.ones(lp.n), 0.0],
+    base, upper = lp.base_rows()
+    res = linprog(np.r_[np.zeros(n_legs), 1.0], A_ub=vstack([cover, base]).tocsr(),
+                  b_ub=np.r_[-lp.need, upper],
                   bounds=np.column_stack([np.zeros(nx), np.r_[ub, np.inf]]), method="highs",
                   options={"time_limit": max(time_limit, 0.01)})
     if res.status == 2:

@@ -26,5 +26,14 @@ os.environ.setdefault("NUMBA_CACHE_DIR", str(_kernel_cache_dir()))
 
 def kernels_compiled() -> bool:
     """Whether numba's cache holds compiled kernels for these sources (False before
-    the first plan after an install or a change: that plan compiles them)."""
-    return any(Path(os.environ["NUMBA_CACHE_DIR"]).rglob("*.nbi"))
+    the first plan after an install or a change: that plan compiles them). True
+    where that folder cannot be written: numba keeps them beside the sources then,
+    out of this function's sight, and nothing is claimed."""
+    folder = Path(os.environ["NUMBA_CACHE_DIR"])
+    if any(folder.rglob("*.nbi")):
+        return True
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError:
+        return True
+    return not os.access(folder, os.W_OK)

@@ -207,3 +207,7 @@ def test_the_first_plan_after_an_install_says_it_compiles(tmp_path, monkeypatch,
     (tmp_path / "coverage_x" / "insertion.walk-1.py311.nbi").write_bytes(b"")
     note_first_compile()
     assert capsys.readouterr().err == ""
+    # a folder numba cannot write (it compiles into __pycache__ then): nothing claimed
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "/proc/no-such-folder")
+    note_first_compile()
+    assert capsys.readouterr().err == ""

@@ -265,8 +265,10 @@ class FlowLP:
         return rho
 
     # -- the LP, its cover rows generated (`FIRST_ROWS`, `ADD_ROWS`) ------------------
-    def _model(self):
-        """HiGHS holding the LP without its cover rows: the path and time rows."""
+    def base_rows(self) -> tuple:
+        """(A, upper): the LP's rows but its cover rows, A x <= upper over x = (legs,
+        T): the path rows (into a viewpoint no more than out of it), a start per UAV,
+        and the time row (the legs' time no more than n T)."""
         n_legs, n_vp = len(self.heads), self.prep.problem.n_viewpoints
         nx = n_legs + 1
         vp = np.flatnonzero(self.tails >= 0)
@@ -277,13 +279,32 @@ class FlowLP:
         starts = coo_matrix((np.ones(len(st)), (-1 - self.tails[st], st)), shape=(self.n, nx))
         time_row = coo_matrix((np.r_[self.times, -float(self.n)],
                                (np.zeros(nx, np.int64), np.arange(nx))), shape=(1, nx))
-        a = vstack([flow, starts, time_row]).tocsc()
+        return (vstack([flow, starts, time_row]),
+                np.concatenate([np.zeros(n_vp), np.ones(self.n), [0.0]]))
+
+    def legs_allowed(self, allowed) -> np.ndarray:
+        """bool per leg: both its ends in ``allowed`` [n_uavs, n_vp] for some UAV (a
+        start leg: for its own UAV); all True when ``allowed`` is None."""
+        if allowed is None:
+            return np.ones(len(self.heads), bool)
+        ok_any = allowed.any(axis=0)
+        ok = ok_any[self.heads] & np.where(self.tails >= 0,
+                                           ok_any[np.maximum(self.tails, 0)], True)
+        st = self.tails < 0
+        ok[st] &= allowed[-1 - self.tails[st], self.heads[st]]
+        return ok
+
+    def _model(self):
+        """HiGHS holding the LP without its cover rows: the path and time rows."""
+        n_legs, nx = len(self.heads), len(self.heads) + 1
+        a, upper = self.base_rows()
+        a = a.tocsc()
         lp = highspy.HighsLp()
         lp.num_col_, lp.num_row_ = nx, a.shape[0]
         lp.col_cost_ = np.r_[np.zeros(n_legs), 1.0]
         lp.col_lower_, lp.col_upper_ = np.zeros(nx), np.full(nx, highspy.kHighsInf)
         lp.row_lower_ = np.full(a.shape[0], -highspy.kHighsInf)
-        lp.row_upper_ = np.concatenate([np.zeros(n_vp), np.ones(self.n), [0.0]])
+        lp.row_upper_ = upper
         lp.a_matrix_.format_ = highspy.MatrixFormat.kColwise
         lp.a_matrix_.start_, lp.a_matrix_.index_, lp.a_matrix_.value_ = a.indptr, a.indices, a.data
         h = _highs()
@@ -317,14 +338,7 @@ class FlowLP:
         if self._h is None:
             self._h = self._model()
         h, n_legs = self._h, len(self.heads)
-        ub = np.full(n_legs, highspy.kHighsInf)
-        if allowed is not None:
-            ok_any = allowed.any(axis=0)
-            leg_ok = ok_any[self.heads] & np.where(self.tails >= 0,
-                                                   ok_any[np.maximum(self.tails, 0)], True)
-            st = self.tails < 0
-            leg_ok[st] &= allowed[-1 - self.tails[st], self.heads[st]]
-            ub[~leg_ok] = 0.0
+        ub = np.where(self.legs_allowed(allowed), highspy.kHighsInf, 0.0)
         h.changeColsBounds(n_legs, np.arange(n_legs, dtype=np.int32), np.zeros(n_legs), ub)
         value = None
         while True:
