@@ -182,13 +182,13 @@ def _hit_rows(prep, vps, max_subset_rows=64):
 class RouteMaster:
     """The route-pricing relaxation of a small prepared problem (see `route_bound`)."""
 
-    def __init__(self, prep, vps):
-        """``vps``: the useful viewpoints (`_useful`), the only ones priced."""
+    def __init__(self, prep, vps, into):
+        """``vps``: the useful viewpoints (`_useful`) priced, sorted; ``into``: the
+        times from every viewpoint to each of them (`_times_into`)."""
         p = prep.problem
         self.prep = prep
         self.vps = vps
         self.m = len(self.vps)
-        into = _times_into(prep.travel_t, self.vps)
         sub = np.ascontiguousarray(into[self.vps])
         if prep.has_launch:  # via any viewpoint
             lo = (prep.launch_out[:, :, None] + into[None, :, :]).min(axis=1)
@@ -286,16 +286,19 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
     if not len(useful) or len(useful) > SUBSET_MAX_VIEWPOINTS:
         return 0.0
     deadline = time.perf_counter() + time_limit
+    into = _times_into(prep.travel_t, useful)   # once: every subset's columns are in it
     best = 0.0
-    for vps in _subsets(prep, useful):
+    for pick in _subsets(prep, useful, into):
         if time.perf_counter() >= deadline:
             break
-        best = max(best, _refute(RouteMaster(prep, vps), max(lower, best), rel_tol, deadline))
+        rm = RouteMaster(prep, useful[pick], into[:, pick])
+        best = max(best, _refute(rm, max(lower, best), rel_tol, deadline))
     return best
 
 
-def _subsets(prep, useful):
-    """The viewpoint sets to price: the useful ones if they are few enough; else, of
+def _subsets(prep, useful, into):
+    """The viewpoint sets to price, as sorted positions in ``useful`` (``into``: the
+    times to each, `_times_into`): all of them if they are few enough; else, of
     `ROUTE_MAX_VIEWPOINTS` each, the viewers of the targets that need the most
     sightings from the fewest viewers (first), and the viewpoints farthest from the
     bases (or from each other). Any subset U gives a valid bound: a plan's pairs
@@ -304,7 +307,7 @@ def _subsets(prep, useful):
     part of S in U (shortcut in the closure)."""
     size = ROUTE_MAX_VIEWPOINTS
     if len(useful) <= size:
-        return [useful]
+        return [np.arange(len(useful))]
     need = _still_needed(prep)
     degree = np.diff(prep.tgt_indptr)
     hard = []
@@ -313,9 +316,8 @@ def _subsets(prep, useful):
             break
         viewers = prep.tgt_indices[prep.tgt_indptr[c]:prep.tgt_indptr[c + 1]]
         hard += [int(v) for v in viewers if int(v) not in hard][:size - len(hard)]
-    far = (prep.launch_out.min(axis=0)[useful] if prep.has_launch
-           else _times_into(prep.travel_t, useful)[useful].max(axis=0))
-    return [np.sort(np.array(hard, np.int64)), np.sort(useful[np.argsort(-far)[:size]])]
+    far = prep.launch_out.min(axis=0)[useful] if prep.has_launch else into[useful].max(axis=0)
+    return [np.searchsorted(useful, np.sort(hard)), np.sort(np.argsort(-far)[:size])]
 
 
 def _refute(rm, lower, rel_tol, deadline) -> float:
