@@ -441,11 +441,15 @@ def _wait_airborne(link, armed_at, climbed, timeout_s, doing) -> None:
 
 
 def _home_alt(link) -> float:
+    """Home's altitude (m AMSL) of a vehicle armed on the ground for its takeoff:
+    where it stands, which ArduPilot made its home as it armed. The HOME_POSITION
+    heard before may be an earlier home: a vehicle that landed at another base
+    and armed again there climbed that base's height difference too high."""
     s = link.state
+    if s.alt_amsl is not None:
+        return s.alt_amsl
     if s.home is not None:
         return s.home[2]
-    if s.alt_amsl is not None and s.relative_alt is not None:
-        return s.alt_amsl - s.relative_alt
     raise CommandError(link, "no home position or altitude reported yet")
 
 

@@ -600,12 +600,12 @@ class Flight:
         with: landing from where it is flies the rest of its route's proven column
         (hidden because its top is), without the climb to the top."""
         v, state = self.monitor.vehicles[sysid], self.monitor.links[sysid].state
-        launch = v.route.launch
-        if launch is None or state.lat is None or not self._homebound(sysid) or \
+        base = v.route.landing
+        if base is None or state.lat is None or not self._homebound(sysid) or \
                 self._land_item(sysid) is None:
             return False
         rest = v.route.waypoints[self._next_waypoint(sysid):]
-        return all(distance_m(p.lat, p.lon, launch.lat, launch.lon) <= LAUNCH_COLUMN_M
+        return all(distance_m(p.lat, p.lon, base.lat, base.lon) <= LAUNCH_COLUMN_M
                    for p in [state, *rest])
 
     def _land_item(self, sysid):

@@ -154,9 +154,9 @@ class SeparationGuard:
         v = self.monitor.vehicles[sysid]
         rest = [] if land else [w for i, w in enumerate(v.route.waypoints) if i not in v.done]
         poly = frame.project([(w.lon, w.lat, w.alt_amsl) for w in rest])
-        launch = v.route.launch
-        ground = None if launch is None else \
-            frame.project([(launch.lon, launch.lat, launch.alt_amsl)])[0]
+        base = v.route.landing          # the base this flight lands at
+        ground = None if base is None else \
+            frame.project([(base.lon, base.lat, base.alt_amsl)])[0]
         if not len(poly):
             poly = frame.position(sysid)[None]
         profile = Profile.of_route(poly, self.travel, launch=ground, start=frame.position(sysid),

@@ -21,11 +21,12 @@ A vehicle in the air further from its route's proven legs than the plan's track
 tolerance (`gcs.corridor`) flies where nothing was proven: an event when it
 leaves them and when it is back, and an episode in ``off_route``.
 
-Touching the ground is a landing only at the launch point after the mission's
-last waypoint (the one above launch, before the landing). Anywhere else, or
-earlier, it is a crash: the vehicle is lost with its snapshots. So is a vehicle
-whose altitude goes below the terrain (the plan's DEM) + ``CRASH_MARGIN_M``
-away from its launch point, whether or not it disarms.
+Touching the ground is a landing only at a base of its flight (the launch point,
+or the base a sortie lands at) after the mission's last waypoint (the one above
+that base, before the landing). Anywhere else, or earlier, it is a crash: the
+vehicle is lost with its snapshots. So is a vehicle whose altitude goes below
+the terrain (the plan's DEM) + ``CRASH_MARGIN_M`` away from its bases, whether
+or not it disarms.
 """
 
 import collections
@@ -146,10 +147,11 @@ class VehicleProgress:
         return self.state in (LANDED, LOST, STRANDED)
 
     @property
-    def launch_point(self):
-        """(lat, lon) of where it takes off and lands: its route's launch point."""
-        launch = getattr(self.route, "launch", None)
-        return None if launch is None else (launch.lat, launch.lon)
+    def bases(self) -> list:
+        """[(lat, lon)] of where its flight takes off and lands: its route's launch
+        point, and the base a sortie lands at when that is another."""
+        points = [getattr(self.route, "launch", None), getattr(self.route, "land", None)]
+        return [(p.lat, p.lon) for p in points if p is not None]
 
     def final_approach_seq(self) -> int | None:
         """The mission item a proper landing comes after: the last waypoint (above
@@ -365,7 +367,7 @@ class Monitor:
 
     def _judge_disarm(self, v, agl) -> None:
         """Disarmed after flying: on the ground or still falling? On the ground it
-        landed only at its launch point after its last waypoint; anywhere else,
+        landed only at a base of its flight after its last waypoint; anywhere else,
         or before, it crashed (lost)."""
         s = self.links[v.sysid].state
         height = self._height(s)
@@ -377,8 +379,7 @@ class Monitor:
             return
         away = self._from_launch(v, s)
         if away is not None and away > LAUNCH_RADIUS_M:
-            return self._lose(v, f"crashed: touched the ground {away:.0f} m from its launch "
-                                 f"point")
+            return self._lose(v, f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
         if final is not None and (progress is None or progress < final):
             where = "nothing" if progress is None else f"item {progress}"
@@ -397,12 +398,13 @@ class Monitor:
 
     @staticmethod
     def _from_launch(v, s):
-        """Horizontal distance (m) from the launch point (home where the route has none)."""
+        """Horizontal distance (m) from the nearer of its bases (`Vehicle.bases`: the
+        launch point, the base a sortie lands at; home where the route has none)."""
         home = getattr(s, "home", None)
-        launch = v.launch_point or (home[:2] if home is not None else None)
-        if launch is None or getattr(s, "lat", None) is None:
+        bases = v.bases or ([home[:2]] if home is not None else [])
+        if not bases or getattr(s, "lat", None) is None:
             return None
-        return distance_m(launch[0], launch[1], s.lat, s.lon)
+        return min(distance_m(b[0], b[1], s.lat, s.lon) for b in bases)
 
     @staticmethod
     def _progress(v, s):
@@ -561,7 +563,7 @@ class Monitor:
             v.powered_down_at_s = None
 
     def on_pad(self, sysid) -> bool:
-        """Down at its launch point (within `LAUNCH_RADIUS_M`, at home height), whether
+        """Down at a base of its flight (within `LAUNCH_RADIUS_M`, at home height), whether
         or not its landing has been told yet (the disarm comes a few seconds after
         the touchdown)."""
         v, s = self.vehicles[sysid], self.links[sysid].state

@@ -199,12 +199,12 @@ class Retasker:
                 and not (v.airborne and not m.links[s].state.armed)]
 
     def landed_at_launch(self) -> list:
-        """Landed survivors sitting at their launch point, still heard from: they
+        """Landed survivors sitting at their base (`_base`), still heard from: they
         can go up again."""
         m = self.monitor
         out = []
         for s, v in sorted(m.vehicles.items()):
-            state, launch = m.links[s].state, v.route.launch
+            state, launch = m.links[s].state, _base(v)
             if v.state not in (LANDED, WAITING) or launch is None or state.lat is None:
                 continue
             # within the room its takeoff column is proven with, as before the first start
@@ -274,9 +274,10 @@ class Retasker:
     # -- one attempt --------------------------------------------------------------------
     def _survivor(self, sysid, landed=False) -> tuple:
         """(Survivor, [lon, lat, alt]) of a vehicle: where it is held, or for a landed
-        one its launch point (it climbs straight up from there, as at takeoff)."""
+        one its base (it climbs straight up from there, as at takeoff); the base
+        it comes home to (`_base`)."""
         ctx, v = self.ctx, self.monitor.vehicles[sysid]
-        launch = v.route.launch
+        launch = _base(v)
         state = self.monitor.links[sysid].state
         position = [launch.lon, launch.lat, launch.alt_amsl] if landed else \
             [state.lon, state.lat, state.alt_amsl]
@@ -457,3 +458,10 @@ class _LostDuring(Exception):
 def _sees(route) -> bool:
     """Whether a route (a sortie) photographs anything."""
     return any(w.snapshot for w in route.waypoints)
+
+
+def _base(v):
+    """The base a vehicle stands at or comes home to: where its flight lands (its
+    launch point, or another base a sortie lands at), or before its takeoff its
+    launch point."""
+    return v.route.launch if v.state == WAITING else v.route.landing

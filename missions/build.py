@@ -12,7 +12,8 @@ profile):
   the fleet's schedule puts there, plus a hover at a snapshot if asked), followed
   at each snapshot by the firmware's camera command:
   ``DO_DIGICAM_CONTROL`` (ArduPilot) or ``IMAGE_START_CAPTURE`` (PX4);
-- ``NAV_LAND`` at the launch point, when the route ends above it. Never
+- ``NAV_LAND`` at the base it lands at (its launch point, or for a sortie the
+  base it names: `VehicleRoute.landing`), when the route ends above it. Never
   ``RETURN_TO_LAUNCH``: the autopilot would fly straight at its RTL altitude.
 
 Positions are absolute (MAV_FRAME_GLOBAL, metres AMSL) like the exposure
@@ -123,9 +124,9 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
             shots += 1
             if index not in skip_camera:
                 out.add(_command(autopilot.camera_command, *autopilot.camera_params(shots)))
-    if options.takeoff and land and _above_launch(route.launch, last):
-        out.add(_position(NAV_LAND, route.launch.lat, route.launch.lon, route.launch.alt_amsl,
-                          p4=yaw))
+    base = route.landing        # its launch point, or the base a sortie lands at
+    if options.takeoff and land and _above_launch(base, last):
+        out.add(_position(NAV_LAND, base.lat, base.lon, base.alt_amsl, p4=yaw))
     return VehicleMission(route.id, autopilot.name, renumber(out.items), out.waypoint_of_item,
                           segment=segment, first_waypoint=fly[0] if fly else 0,
                           last_waypoint=fly[-1] if fly else None, final=bool(land))
@@ -143,7 +144,8 @@ def firmware_profile(firmware: str):
 def plan_missions(plan, firmware: Optional[str] = None, options: Optional[MissionOptions] = None
                   ) -> list:
     """One `VehicleMission` per vehicle of ``plan``, or per sortie of a vehicle that
-    flies several (each takes off from its base and lands there; firmware default:
+    flies several (each takes off from its base and lands at the base its sortie
+    names: the same, or another of the fleet's; firmware default:
     the plan's; options default: fly the plan's speed, trigger the camera, no hold)."""
     firmware = firmware or plan.params.get("firmware") or ARDUPILOT
     if options is None:

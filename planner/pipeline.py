@@ -324,8 +324,9 @@ def _battery(ctx, starts, out, tops, land, scale=(1.0, 1.0)) -> dict:
     """The sortie model of `coverage.CoverageProblem`: the usable flight time of a
     battery for the split and for the round trips that close a viewpoint (each
     times its ``scale``: `allocate` tightens them where the slowing at waypoints
-    outgrows the search's estimate), the turnaround, and for a vehicle in flight
-    the times out of its base for later sorties, its battery flown, its way home."""
+    outgrows the search's estimate), the turnaround, for a vehicle in flight the
+    times out of its base for later sorties, its battery flown, its way home, and
+    with several bases to land at, the times out of and back to each."""
     s = ctx.scenario
     model = dict(endurance_s=s.usable_s * scale[0], reach_s=s.usable_s * scale[1],
                  turnaround_s=60.0 * s.turnaround_min,
@@ -344,7 +345,32 @@ def _battery(ctx, starts, out, tops, land, scale=(1.0, 1.0)) -> dict:
             home[r] = starts[r].climb_s + float(
                 ctx.graph.times_between(starts[r].xyz[None], tops[r][None])[0, 0]) + land[r]
         model.update(base_out=base_out, start_back=home)
+    bases = fleet_bases(ctx, starts)
+    if len(bases) > 1:
+        top = launch_tops(ctx.graph, bases[:, :2])
+        model.update(bases_out=ctx.graph.times_between(top, ctx.viewpoints.xyz)
+                     + takeoff_time(top[:, 2] - bases[:, 2], ctx.travel_params)[:, None],
+                     bases_back=ctx.graph.times_between(ctx.viewpoints.xyz, top).T
+                     + landing_time(top[:, 2] - bases[:, 2], ctx.travel_params)[:, None])
     return model
+
+
+def fleet_bases(ctx, starts) -> np.ndarray:
+    """(n_bases, 3) ground points (x, y, ground AMSL) a sortie may land at: with
+    ``land_at`` "any", the starts' own bases and the scenario's launch points,
+    each once (in that order); with "own", none (each UAV lands at its own)."""
+    if ctx.scenario.land_at == "own" or not starts:
+        return np.zeros((0, 3))
+    xy = _launch_xy(ctx.terrain, ctx.scenario)
+    points = [st.launch for st in starts if st.launch is not None]
+    if xy is not None:
+        points += [np.array([x, y, float(ctx.terrain.ground(x, y, upper=True)[0])])
+                   for x, y in xy]
+    out = []
+    for p in points:
+        if not any(np.all(np.abs(p - q) <= SAME_PLACE_M) for q in out):
+            out.append(np.asarray(p, float))
+    return np.array(out).reshape(-1, 3)
 
 
 def above_launch(ctx, ground_xyz) -> np.ndarray:
@@ -379,8 +405,8 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         except ValueError as exc:
             raise InputError("plan", str(exc)) from None
         with _stage("routes", timing, progress):
-            sorties = _routes(ctx, allocation.routes, starts, _fraction(progress, "routes"),
-                              sortie_of)
+            sorties = _routes(ctx, problem, allocation.routes, starts,
+                              _fraction(progress, "routes"), sortie_of)
             counts = coverage.coverage_counts(problem, allocation)
         with _stage("separation", timing, progress):
             fleet = fleet_clock(ctx, sorties, starts, problem, allocation.routes)
@@ -468,6 +494,23 @@ def _sortie_of(prep, routes) -> list:
                    prep.has_launch)[1] for r, route in enumerate(routes)]
 
 
+def _landings(ctx, problem, starts, route, of, r) -> list:
+    """The ground point each sortie of UAV r's route lands at (index: the sortie of
+    `_sortie_of`): the base nearest its last viewpoint (`coverage.problem.
+    landing_bases`) where the fleet's bases are several, else its own; the start's
+    flight home without a visit (sortie 0 before a route of later sorties) lands
+    at its own."""
+    own = starts[r].launch
+    n = int(of[-1]) + 1 if len(of) else 1
+    if problem.bases_back is None:
+        return [own] * n
+    bases, at = fleet_bases(ctx, starts), coverage.problem.landing_bases(problem)
+    out = [own] * n
+    for e, j in zip(route, of):
+        out[int(j)] = bases[at[e]]       # the last visit of each sortie decides
+    return out
+
+
 def _in_parts(ctx, parts, n_uavs, starts, seen, required, method, params, timing, progress,
               scheduler, log, visited=None, scale=(1.0, 1.0)):
     """`allocate`'s search for an area planned in ``parts`` parts (`planner.split`):
@@ -510,32 +553,35 @@ class Sortie:
     visits: list         # viewpoint ids photographed, in order
     poly: np.ndarray     # its hidden polyline (projected x, y, alt AMSL), rounded and proven
     snap: np.ndarray     # the polyline vertex of each visit
-    first: bool          # the route's first: from its start (the others from the base)
+    first: bool          # the route's first: from its start (the others from a base)
+    base: Optional[np.ndarray] = None   # ground point it takes off from (x, y, ground AMSL)
+    lands: Optional[np.ndarray] = None  # ground point it lands at (None: no base)
 
 
-def _sortie_points(ctx, route, start, of) -> list:
-    """[(visits, points)] per sortie of one route: each from its start (the first)
-    or the point above its base, through its viewpoints, to the point above its
-    base. ``of``: the sortie of each visit (0: the flight under way at the start;
-    a vehicle in flight whose battery cannot take it to its first viewpoint flies
-    home first, a sortie without visits)."""
+def _sortie_points(ctx, route, start, of, lands) -> list:
+    """[(visits, points, base, lands)] per sortie of one route: each from its start
+    (the first) or the point above the base the one before landed at, through its
+    viewpoints, to the point above the base it lands at (``lands``: per sortie,
+    `_landings`). ``of``: the sortie of each visit (0: the flight under way at the
+    start; a vehicle in flight whose battery cannot take it to its first viewpoint
+    flies home first, a sortie without visits)."""
     vp = ctx.viewpoints.xyz
     if start is None:
-        return [(list(route), vp[list(route)])]
-    top = above_launch(ctx, start.launch) if start.launch is not None else None
-    out = []
+        return [(list(route), vp[list(route)], None, None)]
+    out, base = [], start.launch
     for j in range(int(of[-1]) + 1 if len(of) else 1):
         visits = [e for e, o in zip(route, of) if o == j]
         if not visits and j > 0:
             continue
-        p = [start.xyz if j == 0 else top] + [vp[e] for e in visits]
-        if top is not None:
-            p.append(top)
-        out.append((visits, np.array(p, float).reshape(-1, 3)))
+        p = [start.xyz if j == 0 else above_launch(ctx, base)] + [vp[e] for e in visits]
+        if lands[j] is not None:
+            p.append(above_launch(ctx, lands[j]))
+        out.append((visits, np.array(p, float).reshape(-1, 3), base, lands[j]))
+        base = lands[j]
     return out
 
 
-def _routes(ctx, routes, starts, progress=None, sortie_of=None) -> list:
+def _routes(ctx, problem, routes, starts, progress=None, sortie_of=None) -> list:
     """The `Sortie`s of every route: hidden polylines through its viewpoints, one
     per battery (``sortie_of[r]``: the sortie of each visit; default one flight).
 
@@ -547,11 +593,12 @@ def _routes(ctx, routes, starts, progress=None, sortie_of=None) -> list:
         start = starts[r] if starts else None
         if route or start is not None:    # a UAV without viewpoints takes off and lands
             of = np.zeros(len(route), int) if sortie_of is None else sortie_of[r]
-            wanted += [(r, v, p) for v, p in _sortie_points(ctx, route, start, of)]
-    found = ctx.graph.route_polylines([p for _, _, p in wanted],
+            lands = None if start is None else _landings(ctx, problem, starts, route, of, r)
+            wanted += [(r, *w) for w in _sortie_points(ctx, route, start, of, lands)]
+    found = ctx.graph.route_polylines([w[2] for w in wanted],
                                       (lambda f: progress(0.8 * f)) if progress else None)
     sorties, number = [], {}
-    for n, ((r, visits, _), got) in enumerate(zip(wanted, found)):
+    for n, ((r, visits, _, base, lands), got) in enumerate(zip(wanted, found)):
         if got is None:
             raise InputError("plan", f"UAV {r + 1}: two of its viewpoints are not joined by a "
                                      "hidden path (a defect: the planner only pairs reachable "
@@ -564,7 +611,7 @@ def _routes(ctx, routes, starts, progress=None, sortie_of=None) -> list:
         number[r] = number.get(r, 0) + 1
         snap = stops[1:len(visits) + 1] if starts else stops[:len(visits)]
         sorties.append(Sortie(r, number[r], visits, poly, np.asarray(snap, np.int64),
-                              number[r] == 1))
+                              number[r] == 1, base, lands))
     return sorties
 
 
@@ -685,7 +732,7 @@ def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
     for f in sorties:
         start = starts[f.uav] if starts else None
         profiles.append(Profile.of_route(
-            f.poly, ctx.travel_params, launch=None if start is None else start.launch,
+            f.poly, ctx.travel_params, launch=f.base, land=f.lands,
             start=None if start is None or not f.first or _on_ground(start) else start.held,
             stop_s=stop_time(vars(s))))
     after = [None if f.first else i - 1 for i, f in enumerate(sorties)]
@@ -774,16 +821,12 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
     """UAV r's route: its waypoints with their fleet-clock times and holds, each
     with its sortie, and its trajectory ground to ground (the turnarounds on the
     ground between its sorties)."""
-    launch = None
-    if start is not None and start.launch is not None:
-        llon, llat = ctx.terrain.to_lonlat(start.launch[0], start.launch[1])
-        launch = GeoPoint(float(llon), float(llat), float(start.launch[2]))
+    launch = None if start is None else _geo(ctx, start.launch)
     flights = fleet.of(r)
     if not flights:
         return VehicleRoute(id=r + 1, launch=launch, waypoints=[], coverage_time_s=0.0,
                             mission_time_s=0.0, path_length_m=0.0)
     waypoints, rows, sorties = [], [], []
-    base = None if launch is None else [launch.lon, launch.lat, launch.alt_amsl]
     for i in flights:
         f, profile, timing = fleet.sorties[i], fleet.profiles[i], fleet.schedule.timings[i]
         first = profile.route[0]
@@ -802,15 +845,31 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
                  for t, a, b, z in zip(trajectory.t, tlon, tlat, trajectory.xyz[:, 2])]
         sorties.append({"takeoff_s": _leaves(profile, timing), "landing_s": trajectory.end,
                         "flight_s": fleet.flight_s(i), "length_m": _length(f.poly),
-                        "waypoints": [first_waypoint, len(waypoints)], "base": base})
+                        "waypoints": [first_waypoint, len(waypoints)],
+                        "base": _lonlat_alt(_geo(ctx, f.base)),
+                        "lands_at": _lonlat_alt(_geo(ctx, f.lands))})
     shots = fleet.snapshot_times(r)
+    land = _geo(ctx, fleet.sorties[flights[-1]].lands)
     return VehicleRoute(id=r + 1, launch=launch, waypoints=waypoints,
                         coverage_time_s=float(shots.max()) if len(shots) else 0.0,
                         mission_time_s=sorties[-1]["landing_s"],
                         path_length_m=sum(x["length_m"] for x in sorties),
                         takeoff_s=sorties[0]["takeoff_s"], trajectory=rows,
                         priority=ranks.index(r) + 1,
-                        sorties=sorties if len(sorties) > 1 else [])
+                        sorties=sorties if len(sorties) > 1 else [],
+                        land=land if land != launch else None)
+
+
+def _geo(ctx, ground) -> Optional[GeoPoint]:
+    """A projected ground point (x, y, ground AMSL) as a `GeoPoint`, or None."""
+    if ground is None:
+        return None
+    lon, lat = ctx.terrain.to_lonlat(ground[0], ground[1])
+    return GeoPoint(float(lon), float(lat), float(ground[2]))
+
+
+def _lonlat_alt(point) -> Optional[list]:
+    return None if point is None else [point.lon, point.lat, point.alt_amsl]
 
 
 def _length(poly) -> float:

@@ -62,9 +62,15 @@ class VehicleRoute:
     priority: int = 1  # right of way in flight: 1 first (the separation guard holds others)
     # one per battery when the route takes more than one: {"takeoff_s", "landing_s"}
     # (fleet clock), "flight_s" (airborne, holds included), "length_m", "waypoints"
-    # ([first, end) of `waypoints`), "base" ([lon, lat, alt_amsl] it takes off from and
-    # lands at); empty: one flight
+    # ([first, end) of `waypoints`), "base" ([lon, lat, alt_amsl] it takes off from),
+    # "lands_at" (the base it lands at: the next sortie's "base"); empty: one flight
     sorties: list = field(default_factory=list)
+    land: Optional[GeoPoint] = None  # where it lands, when not at ``launch`` (another base)
+
+    @property
+    def landing(self) -> Optional[GeoPoint]:
+        """The ground point its flight ends at: ``land``, or its launch point."""
+        return self.land or self.launch
 
     @property
     def snapshots(self) -> list:
@@ -72,7 +78,8 @@ class VehicleRoute:
 
     def sortie_routes(self) -> list:
         """The route as one `VehicleRoute` per sortie (itself when it flies one):
-        each takes off from its launch point and lands there, its own mission."""
+        each takes off from its base and lands at the base it names (``launch``,
+        ``land``), its own mission."""
         if len(self.sorties) < 2:
             return [self]
         out = []
@@ -81,10 +88,13 @@ class VehicleRoute:
             rows = [r for r in self.trajectory     # their times are kept to the ms
                     if s["takeoff_s"] - 1e-3 <= r[0] <= s["landing_s"] + 1e-3]
             shots = [p.t_s for p in w if p.snapshot]
+            base, lands = (_base_point(s.get(k)) for k in ("base", "lands_at"))
             out.append(replace(self, waypoints=w, takeoff_s=s["takeoff_s"],
                                coverage_time_s=max(shots, default=0.0),
                                mission_time_s=s["landing_s"], trajectory=rows,
-                               path_length_m=s["length_m"], sorties=[]))
+                               path_length_m=s["length_m"], sorties=[],
+                               launch=base or self.launch,
+                               land=lands if lands != (base or self.launch) else None))
         return out
 
 
@@ -123,6 +133,7 @@ class Plan:
                     trajectory=[list(map(float, row)) for row in v.get("trajectory", [])],
                     priority=int(v.get("priority", v["id"])),
                     sorties=[_sortie(s) for s in v.get("sorties", [])],
+                    land=GeoPoint(**v["land"]) if v.get("land") else None,
                 )
                 for v in data["vehicles"]
             ]
@@ -162,6 +173,11 @@ def _finite(value):
     return value
 
 
+def _base_point(value) -> Optional[GeoPoint]:
+    """A sortie's "base" or "lands_at" ([lon, lat, alt_amsl]) as a `GeoPoint`."""
+    return None if value is None else GeoPoint(*map(float, value))
+
+
 def _sortie(entry: dict) -> dict:
     """A sortie of plan.json: its times and length as floats, its waypoint range as
     ints, its base as [lon, lat, alt_amsl] (None without a launch point)."""
@@ -169,7 +185,7 @@ def _sortie(entry: dict) -> dict:
     for key, value in entry.items():
         if key == "waypoints":
             out[key] = [int(x) for x in value]
-        elif key == "base":
+        elif key in ("base", "lands_at"):
             out[key] = None if value is None else [float(x) for x in value]
         else:
             out[key] = float(value)

@@ -3,8 +3,9 @@
 ``replan`` runs the plan's coverage method again, on the plan's
 `PlanningContext` (in memory, or `PlanningContext.load` from its folder), for
 the survivors only: each starts where it is now (a point in the
-hidden volume) and still returns hidden to its own launch point; what it has
-photographed so far counts as seen by it.
+hidden volume) and still returns hidden to its base (the one its flight lands
+at; with an endurance and several bases, its sorties land at the nearest as a
+plan's do); what it has photographed so far counts as seen by it.
 
 It runs the plan's own method with its own budget, scaled down for flight
 (`REPLAN_BUDGET_FRACTION`), and reports only the quick lower bounds (reach and

@@ -75,6 +75,7 @@ class Scenario:
     #                                        limit, said in every summary)
     reserve_pct: float = RESERVE_PCT  # of the endurance, never planned
     turnaround_min: float = 5.0  # on the ground between sorties: landing, battery swap, checks
+    land_at: str = "any"  # a sortie lands at: "any" of the fleet's bases (the nearest), or its "own"
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
     k: int = 0
@@ -137,6 +138,8 @@ class Scenario:
             (0 <= self.reserve_pct < 90, f"reserve_pct must be from 0 to 90, got "
                                          f"{self.reserve_pct:g}"),
             (self.turnaround_min >= 0, "turnaround_min must not be negative"),
+            (self.land_at in LAND_AT, f"land_at must be one of {', '.join(LAND_AT)}, got "
+                                      f"{self.land_at!r}"),
             (self.resolution_m is None or _positive(self.resolution_m),
              "resolution_m must be a positive number of metres (leave it out: the DEM's own)"),
             (self.geoid_offset_m is None or (isinstance(self.geoid_offset_m, (int, float))
@@ -210,6 +213,8 @@ class Scenario:
         return list(self.launch)
 
 
+#: where a sortie may land: at the fleet's base nearest its last viewpoint, or its own
+LAND_AT = ("any", "own")
 #: fields plan.json keeps under another name (outposts -> outposts_file) or expanded
 _RENAMED = ("outposts", "launch")
 #: a target is a cell's centre this high above the ground (the sensor model's)
@@ -236,7 +241,7 @@ SECTIONS = {
     "fleet": ("uavs", "launch", "speed_mps", "climb_mps", "descent_mps", "takeoff_mps",
               "land_mps", "track_tolerance_m",
               "separation_m", "accel_mps2", "firmware", "endurance_min", "reserve_pct",
-              "turnaround_min"),
+              "turnaround_min", "land_at"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
                "seed", "parts"),
 }

@@ -221,6 +221,9 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
     def per_uav(a):
         return None if a is None else np.asarray(a)[uavs]
 
+    def columns(a):         # per base: its part's viewpoints
+        return None if a is None else np.asarray(a)[:, part.viewpoints]
+
     return coverage.CoverageProblem(part.vis_indptr, part.vis_indices, len(part.targets),
                                     travel, rows(problem.launch_out),
                                     rows(problem.launch_back), len(uavs),
@@ -231,7 +234,9 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
                                     reach_s=problem.reach_s, base_out=rows(problem.base_out),
                                     visited=rows(problem.visited),
                                     used_s=per_uav(problem.used_s),
-                                    start_back=per_uav(problem.start_back))
+                                    start_back=per_uav(problem.start_back),
+                                    bases_out=columns(problem.bases_out),
+                                    bases_back=columns(problem.bases_back))
 
 
 def _solve_part(method, params, report, n, overlay, chunk):

@@ -61,6 +61,7 @@ class Setting:
     crop: tuple                    # row, col, size of the window (cells)
     sensor_range_m: float
     extra: tuple = ()              # more Scenario fields, as (name, value) pairs
+    bases: int = 1                 # launch points, the vehicles shared out among them
 
 
 #: the simulator: 4 vehicles on an 8 km window with 2 outposts
@@ -100,11 +101,32 @@ def cropped_sample(setting: Setting = SIM) -> tuple:
     return terrain, outposts
 
 
-def launch_point(terrain, outposts, setting: Setting = SIM) -> tuple:
-    """(lat, lon) of the lowest flyable cell of the largest hidden region, off the edge.
+#: a second base stands at least this far (m) from the first (at 800 m the sample's
+#: window has one 11 m above it; at 1.5 km, 61 m)
+BASES_APART_M = 800.0
 
-    Lowest, so that real SITL's flat ground (at the home altitude) lies below
-    everything the plan flies over."""
+
+def launch_points(terrain, outposts, setting: Setting = SIM) -> list:
+    """One (lat, lon) per vehicle: `launch_point`, and with two ``bases`` the cell of
+    its region at least `BASES_APART_M` from it whose ground is nearest its height
+    (real SITL's ground is flat at each vehicle's home: a base at another height
+    would be landed at in the air, or under the DEM), the vehicles taking turns."""
+    first = launch_point(terrain, outposts, setting)
+    if setting.bases == 1:
+        return [first]
+    rows, cols = _region_cells(terrain, outposts, setting)
+    fx, fy = terrain.from_lonlat(first[1], first[0])
+    x, y = terrain.xy(rows, cols)
+    far = np.hypot(np.asarray(x) - fx, np.asarray(y) - fy) >= BASES_APART_M
+    ground = terrain.ground(fx, fy, upper=True)[0]
+    i = int(np.argmin(np.where(far, np.abs(terrain.height[rows, cols] - ground), np.inf)))
+    lon, lat = terrain.to_lonlat(*terrain.xy(rows[i], cols[i]))
+    return [first, (float(lat), float(lon))] * (setting.vehicles // 2) + \
+        [first] * (setting.vehicles % 2)
+
+
+def _region_cells(terrain, outposts, setting) -> tuple:
+    """(rows, cols) of the largest hidden region's cells, off the edge."""
     ctx = prepare(Scenario(sample=True, uavs=setting.vehicles,
                            sensor_range_m=setting.sensor_range_m).validate(),
                   terrain=terrain, outposts=outposts)
@@ -114,7 +136,15 @@ def launch_point(terrain, outposts, setting: Setting = SIM) -> tuple:
     rows, cols = np.nonzero(regions == np.argmax(sizes))
     n = terrain.shape[0]
     keep = (rows > 3) & (cols > 3) & (rows < n - 4) & (cols < n - 4)
-    rows, cols = rows[keep], cols[keep]
+    return rows[keep], cols[keep]
+
+
+def launch_point(terrain, outposts, setting: Setting = SIM) -> tuple:
+    """(lat, lon) of the lowest flyable cell of the largest hidden region, off the edge.
+
+    Lowest, so that real SITL's flat ground (at the home altitude) lies below
+    everything the plan flies over."""
+    rows, cols = _region_cells(terrain, outposts, setting)
     i = int(np.argmin(terrain.height[rows, cols]))
     lon, lat = terrain.to_lonlat(*terrain.xy(rows[i], cols[i]))
     return float(lat), float(lon)
@@ -125,7 +155,7 @@ def make_plan(directory: Path, k: int, setting: Setting = SIM) -> Path:
     terrain, outposts = cropped_sample(setting)
     scenario = Scenario(sample=True, uavs=setting.vehicles, k=k,
                         sensor_range_m=setting.sensor_range_m,
-                        launch=[launch_point(terrain, outposts, setting)],
+                        launch=launch_points(terrain, outposts, setting),
                         **dict(setting.extra)).validate()
     ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
     directory.mkdir(parents=True, exist_ok=True)

@@ -175,7 +175,9 @@ def _xyz(ctx, lat, lon, alt):
     return np.stack([x, y, np.asarray(alt, float)], axis=1)
 
 
-def assert_hidden_and_clear(planned, tracks):
+def assert_hidden_and_clear(planned, tracks, bases=()):
+    """Every recorded segment hidden, and clear of the terrain but in the takeoff and
+    landing columns: at home and at the other ``bases`` ((lat, lon))."""
     ctx, surface = planned.ctx, planned.surface
     for sysid, (t, lat, lon, alt, snaps, home) in tracks.items():
         p = _xyz(ctx, lat, lon, alt)
@@ -186,9 +188,11 @@ def assert_hidden_and_clear(planned, tracks):
         seen = np.flatnonzero(~hidden)
         assert not seen.size, (f"vehicle {sysid}: {seen.size} recorded segments seen, the first "
                                f"at t = {t0[seen[0]]:.1f} s from {a[seen[0]].round(1)}")
-        hx, hy = ctx.terrain.from_lonlat(home[1], home[0])
-        away = (np.hypot(a[:, 0] - hx, a[:, 1] - hy) > LAUNCH_RADIUS_M) & \
-               (np.hypot(b[:, 0] - hx, b[:, 1] - hy) > LAUNCH_RADIUS_M)
+        away = np.ones(len(a), bool)
+        for lat_, lon_ in [home[:2], *bases]:
+            hx, hy = ctx.terrain.from_lonlat(lon_, lat_)
+            away &= (np.hypot(a[:, 0] - hx, a[:, 1] - hy) > LAUNCH_RADIUS_M) & \
+                (np.hypot(b[:, 0] - hx, b[:, 1] - hy) > LAUNCH_RADIUS_M)
         lifted = a[away] + [0, 0, CLEARANCE_TOL_M], b[away] + [0, 0, CLEARANCE_TOL_M]
         clear = segments_clear(surface, *lifted)
         assert clear.all(), f"vehicle {sysid}: {int((~clear).sum())} segments below clearance"

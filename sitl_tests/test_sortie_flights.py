@@ -140,3 +140,37 @@ def test_sorties_fly_one_after_another_on_fresh_batteries(planned, backend, crew
         # the battery watch's pace within PACE_OFF of the autopilot's own clock's
         for j, (a, b) in enumerate(zip(planned, flown), start=1):
             assert abs(pace.get(str(j), 1.0) - max(1.0, b / a)) <= PACE_OFF, (v.id, j, pace)
+
+
+#: two vehicles, one at each of two bases 800 m apart or more (`fleets.launch_points`);
+#: planned at k = 1: every target seen by both, so each works near the other's base too
+TWO_BASES = replace(FOR_FIRMWARE["ardupilot"], bases=2)
+
+
+def test_a_sortie_lands_at_the_other_base_and_the_next_leaves_from_there(planned, tmp_path):
+    """Real ArduPilot SITL, two bases: a sortie the plan lands at the other base
+    touches down there (not taken for a crash), is swapped there, arms there (its
+    home now there: ArduPilot sets home at arming) and climbs to its planned height
+    above that base, no higher; judged from the autopilot's own second link."""
+    skip_unless_configured("ardupilot")
+    p = planned(1, TWO_BASES)
+    crossing = [(v.id, j) for v in p.plan.vehicles for j, f in enumerate(v.sorties)
+                if f["lands_at"] != f["base"]]
+    assert crossing, "the plan lands no sortie at the other base"
+    result = fly_case(p, "ardupilot", tmp_path, crew="swap", auto_turnaround=True)
+    report, tracks = result["report"], result["tracks"]
+    outcome = report["outcome"]
+    assert outcome["lost"] == [] and outcome["in_air"] == [] and outcome["coverage_reached"]
+    bases = {(v.launch.lat, v.launch.lon) for v in p.plan.vehicles}
+    assert_hidden_and_clear(p, tracks, bases=sorted(bases))
+    for v in p.plan.vehicles:
+        _, lat, lon, alt, _, _ = tracks[v.id]
+        x, y = p.ctx.terrain.from_lonlat(np.asarray(lon), np.asarray(lat))
+        end = v.landing
+        ex, ey = p.ctx.terrain.from_lonlat(end.lon, end.lat)
+        assert np.hypot(x[-1] - ex, y[-1] - ey) < 5.0, v.id          # down where planned
+        assert len(takeoffs(tracks[v.id])) == len(v.sorties), v.id
+        top = max(w.alt_amsl for w in v.waypoints)
+        assert np.max(alt) <= top + 3.0, (v.id, np.max(alt), top)   # never climbed past it
+    print(f"\ntwo bases [ardupilot]: sorties landing at the other base {crossing}, wall "
+          f"{result['wall_s']:.0f} s, flight {report['duration_s']:.0f} s")

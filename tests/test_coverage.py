@@ -26,7 +26,7 @@ from planner.coverage.insertion import (
     route_time,
 )
 from planner.coverage.instances import random_problem
-from planner.coverage.problem import achievable, beyond_battery, prepare
+from planner.coverage.problem import CLOSED, FREE, achievable, beyond_battery, prepare
 
 FAST = CoverageParams(routing_solutions=20, routing_time_s=2.0)
 
@@ -306,6 +306,137 @@ def test_sorties_fit_the_battery_and_insertion_costs_are_exact(seed, length):
         i = int(rng.integers(length))
         assert removal_saving(route, i, travel, fr, so, True) == pytest.approx(
             base - route_time(np.delete(route, i), travel, fr, so, True))
+
+
+def _two_base_problem(seed, n=12, n_bases=3):
+    """`_metric_sorties`'s plane with ``n_bases`` bases a sortie may land at (the
+    UAV's own the first), as a one-UAV `CoverageProblem` and its prepared frame."""
+    rng, travel, _, so = _metric_sorties(seed, n)
+    xy = np.random.default_rng(seed + 1).uniform(0, 100, (n, 2))
+    travel = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
+    bases = np.vstack([[0.0, 0.0], rng.uniform(0, 100, (n_bases - 1, 2))])
+    dist = np.hypot(*(xy[None] - bases[:, None]).transpose(2, 0, 1))    # [base, viewpoint]
+    out, back = dist + 5.0, dist + 3.0
+    # every base reaches every viewpoint and home (`test_a_sortie_lands_at_another_base_
+    # to_reach_what_its_own_cannot` has those that cannot)
+    endurance = float((out + back.min(axis=0)).max() + rng.uniform(0, 150))
+    so = np.array([endurance, so[1], so[2] * endurance / so[0], 3.0])
+    problem = CoverageProblem(np.zeros(n + 1, np.int64), np.zeros(0, np.int64), 0, travel,
+                              out[:1], back[:1], 1, endurance_s=endurance,
+                              turnaround_s=so[1], used_s=np.array([so[2]]),
+                              start_back=np.array([so[3]]), bases_out=out, bases_back=back)
+    return rng, problem, prepare(problem).frames[0], so
+
+
+def _reference_walk_bases(route, problem, so):
+    """The greedy split by its definition, with several bases: fly on while the next
+    viewpoint and the way home to the nearest base fit the battery; else land at
+    the base nearest the last viewpoint, a turnaround and a new battery there, and
+    out from it (a base that cannot reach a viewpoint and home again on one
+    battery does not fly there: inf). Returns the arrivals, each sortie's flight
+    and the base each lands at."""
+    out, back_to = np.asarray(problem.bases_out), np.asarray(problem.bases_back)
+    back, at = back_to.min(axis=0), back_to.argmin(axis=0)
+    leaves = np.where(out + back > so[0], np.inf, out)
+    t, flown, arrive, sorties, lands = 0.0, so[2], [], [[]], []
+    for i, e in enumerate(route):
+        step = leaves[0, e] if i == 0 else problem.travel[route[i - 1], e]
+        home = so[3] if i == 0 else back[route[i - 1]]
+        if flown + step + back[e] > so[0]:
+            base = 0 if i == 0 else at[route[i - 1]]
+            lands.append(base)
+            t, flown = t + home + so[1] + leaves[base, e], leaves[base, e]
+            sorties.append([])
+        else:
+            t, flown = t + step, flown + step
+        arrive.append(t)
+        sorties[-1].append(flown + back[e])
+    return arrive, [max(f) for f in sorties if f], lands + [at[route[-1]]] * bool(len(route))
+
+
+@given(st.integers(0, 2 ** 16), st.integers(1, 10))
+@settings(max_examples=40, deadline=None)
+def test_sorties_land_at_the_nearest_base_and_leave_from_it(seed, length):
+    """Several bases: the kernels' walk is the split by its definition (each sortie
+    lands at the base nearest its last viewpoint, the next leaves from there),
+    every sortie fits the battery, an insertion's cost is never below what the
+    walked route then takes, and a removal saves what the walks say."""
+    rng, problem, fr, so = _two_base_problem(seed)
+    travel = problem.travel
+    route = rng.permutation(len(travel))[:length].astype(np.int64)
+    arrive, flights, _ = _reference_walk_bases(route, problem, so)
+    np.testing.assert_allclose(arrival_times(route, travel, fr, so, True), arrive)
+    assert all(f <= so[0] + 1e-9 for f in flights)
+    base = route_time(route, travel, fr, so, True)
+    e = int(rng.permutation(np.setdiff1d(np.arange(len(travel)), route))[0])
+    cost, _ = insert_cost(route, e, travel, fr, so, True)
+    assert np.isfinite(base) and np.isfinite(cost)
+    # opening a sortie of its own at the end is always an offer, and walked as costed
+    end = route_time(np.append(route, e), travel, fr, so, True) - base
+    assert cost <= end + 1e-9
+    i = int(rng.integers(length))
+    assert removal_saving(route, i, travel, fr, so, True) == pytest.approx(
+        base - route_time(np.delete(route, i), travel, fr, so, True))
+
+
+def test_a_sortie_lands_at_another_base_to_reach_what_its_own_cannot():
+    """Viewpoints on a line from base A (x = 0) to base B (x = 1000): one UAV at A
+    whose battery does not take it to the far end and back, but does to the far
+    end and on to B. Landing at its own base only, the far viewpoints are beyond
+    its battery; with both bases, it lands at B once and covers them all."""
+    x = np.linspace(100.0, 900.0, 9)
+    travel = np.abs(x[:, None] - x[None])
+    out = np.stack([x, 1000.0 - x]) + 10.0          # climbs out of A and of B
+    back = np.stack([x, 1000.0 - x]) + 8.0          # back to each, landings included
+    indptr, indices = np.arange(10, dtype=np.int64), np.arange(9, dtype=np.int32)
+    endurance = 1300.0          # A -> 900 -> A: 1818; A -> 900 -> B: 1018
+    own = CoverageProblem(indptr, indices, 9, travel, out[:1], back[:1], 1,
+                          endurance_s=endurance, turnaround_s=60.0)
+    both = replace(own, bases_out=out, bases_back=back)
+    assert set(beyond_battery(own)) == {6, 7, 8} and len(beyond_battery(both)) == 0
+    # with less battery no sortie out of A lands at B, and what only B reaches is
+    # as far as without it: a base nobody comes to is no start
+    assert set(beyond_battery(replace(both, endurance_s=1000.0))) == {4, 5, 6, 7, 8}
+    for method in METHODS:
+        a = solve(both, method, FAST)
+        assert a.covered, method
+        so = np.array([endurance, 60.0, 0.0, 0.0])
+        route = np.asarray(a.routes[0], np.int64)
+        arrive, flights, lands = _reference_walk_bases(route, both, so)
+        assert all(f <= endurance + 1e-9 for f in flights), method
+        assert 1 in lands, method                     # it lands at B
+        assert a.times[0] == pytest.approx(arrive[-1]), method
+        assert solve(own, method, FAST).uncoverable == 3, method
+
+
+@given(st.integers(0, 2 ** 16))
+@settings(max_examples=60, deadline=None)
+def test_a_targets_sightings_count_only_uavs_that_can_reach_a_viewpoint_of_it(seed):
+    """`_achievable` against brute force: the most distinct UAVs that can sight a
+    target, each from a place of its own (an earlier sighting) or a viewpoint of
+    it that it can fly (within its battery) and no other of them takes."""
+    from itertools import product
+
+    from planner.coverage.problem import _achievable, csc_transpose
+
+    rng = np.random.default_rng(seed)
+    n, n_vp, n_t = int(rng.integers(1, 5)), int(rng.integers(1, 6)), 6
+    sees = rng.random((n_vp, n_t)) < 0.5
+    able = rng.random((n, n_vp)) < rng.uniform(0.2, 1.0)
+    own = rng.random((n, n_t)) < 0.15
+    owner = np.where(rng.random(n_vp) < 0.2, CLOSED, FREE).astype(np.int64)
+    indptr = np.r_[0, np.cumsum(sees.sum(axis=1))].astype(np.int64)
+    tgt_indptr, tgt_indices = csc_transpose(indptr, np.nonzero(sees)[1].astype(np.int32), n_t)
+    got = _achievable(tgt_indptr, tgt_indices, owner, own, n, able)
+    for t in range(n_t):
+        vps = [e for e in range(n_vp) if sees[e, t] and owner[e] != CLOSED]
+        best = 0                    # every choice of one viewpoint (or none) per UAV
+        for pick in product([None, *vps], repeat=n):
+            flown = [e for r, e in enumerate(pick) if e is not None and not own[r, t]]
+            if all(e is None or (able[r, e] and not own[r, t]) for r, e in enumerate(pick)) \
+                    and len(set(flown)) == len(flown):
+                best = max(best, int(own[:, t].sum()) + len(flown))
+        assert got[t] == best, (t, got[t], best)
 
 
 @pytest.mark.parametrize("visibility", ["hard", "soft"])

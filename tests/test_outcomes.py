@@ -91,7 +91,7 @@ def test_touchdown_away_from_launch_is_a_crash(judged):
     link.at(w.lat, w.lon, link.home_alt, armed=False)
     v = monitor.vehicles[1]
     assert v.state == LOST and "touched the ground" in v.lost_reason
-    assert "from its launch point" in v.lost_reason
+    assert "from its base" in v.lost_reason
     assert monitor.check_losses() == [1]
 
 

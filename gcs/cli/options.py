@@ -14,7 +14,7 @@ from dataclasses import fields
 from autopilots import NAMES as FIRMWARES
 from common.errors import InputError
 from planner.rates import defaults_text
-from planner.scenario import METHODS, Scenario, make_scenario, read_scenario
+from planner.scenario import LAND_AT, METHODS, Scenario, make_scenario, read_scenario
 
 _DEFAULTS = {f.name: f.default for f in fields(Scenario) if f.default is not f.default_factory}
 
@@ -53,6 +53,9 @@ HELP = {
                    "low-battery warning at 15 %% left, with room for wind",
     "turnaround_min": "minutes on the ground between two sorties: landing, battery swap, "
                       "checks",
+    "land_at": "where a sortie lands: any (the fleet's base nearest its last viewpoint, "
+               "where --launch names several; the next sortie takes off there) or own (the "
+               "base it took off from)",
     "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
               "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",
     "k": "fault tolerance: every target seen by k+1 distinct UAVs",
@@ -138,6 +141,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                                help="launch point(s), degrees: one for all UAVs or one per UAV "
                                     "(default: UAVs start at their first viewpoints)")
             group.add_argument("--firmware", choices=FIRMWARES, help=_help("firmware"))
+            group.add_argument("--land-at", dest="land_at", choices=LAND_AT,
+                               help=_help("land_at"))
         if title == "method":
             group.add_argument("--method", choices=METHODS, help=_help("method"))
             group.add_argument("--visibility", choices=("hard", "soft"), help=_help("visibility"))

@@ -103,9 +103,15 @@ def battery_line(plan) -> str:
     line = (f"battery: {b['endurance_min']:g} min less {b['reserve_pct']:g} % reserve = "
             f"{b['usable_s'] / 60:.1f} min a sortie; {flown}, the longest {longest:.1f} min, "
             f"{b['turnaround_min']:g} min on the ground between two")
+    elsewhere = sum(f.get("lands_at") not in (None, f.get("base"))
+                    for v in plan.vehicles for f in v.sorties)
+    if elsewhere:
+        line += (f"; {elsewhere} sorties land at another base than they left (the nearest "
+                 "to their last viewpoint: the next takes off there)")
     if b.get("beyond_battery"):
-        line += (f"; {b['beyond_battery']} viewpoints beyond one battery from any base "
-                 f"(not flown: {b['targets_short']} targets seen fewer times for it)")
+        line += f"; {b['beyond_battery']} viewpoints beyond one battery from any base (not flown)"
+    if b.get("targets_short"):
+        line += f"; {b['targets_short']} targets seen fewer times than asked for the battery"
     return line
 
 

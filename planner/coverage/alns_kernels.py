@@ -27,6 +27,7 @@ import numpy as np
 from numba import njit
 
 from .insertion import (
+    base_row,
     insert_cost,
     limited,
     removal_saving,
@@ -546,7 +547,9 @@ def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
             continue
         m = i - first
         one[0, :m] = route[first:i]
-        lo = frames[r, 0] if sortie[first] == 0 else frames[r, 1]
+        # out of its start, or of the base the sortie before landed at
+        lo = frames[r, 0] if sortie[first] == 0 else \
+            base_row(frames[r], route[first - 1] if first > 0 else -1)
         last = i == L[r]
         work += improve_order(one, np.array([m]), 0, travel, lo,
                               NO_BACK if last else frames[r, 2], True, max_passes)

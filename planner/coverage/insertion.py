@@ -5,17 +5,21 @@ the launch point (``fr[0, e]`` = transit from launch to e) or, without launch
 points, from the first viewpoint (the paper's setting), to the last snapshot.
 Travel may be asymmetric, so every cost is taken in flight direction.
 
-**Sorties.** A UAV's frame ``fr`` [3, n_viewpoints] holds its times out from
-its start (row 0), out from its base for a later sortie (row 1, the climb
-included) and back to its base (row 2, the landing included); its sortie
-model ``so`` = (endurance, turnaround, used, start_back): the flight time one
-battery allows, the time on the ground between sorties, what the current
-battery has flown already (a re-plan in flight) and the time from the start
-back to the base. A route is flown in sorties by the greedy split: the UAV
-flies on while the next viewpoint and the way home from it still fit the
-battery, and otherwise goes home, takes ``turnaround`` and a new battery, and
-flies out to it (`walk`). With an unlimited endurance (inf) that is one
-flight, and every time is what it was without sorties.
+**Sorties.** A UAV's frame ``fr`` [BASE_ROWS + n_bases, n_viewpoints] holds its
+times out from its start (row 0), out from its own base for a sortie after the
+start's way home (row 1, the climb included), back to the base a sortie ending
+at the viewpoint lands at (row 2, the landing included), which base that is
+(row 3: the nearest of the fleet's, or its own), and out from each base (rows
+BASE_ROWS + b: the sortie after one that landed at base b starts there,
+`base_row`); its sortie model ``so`` = (endurance, turnaround, used,
+start_back): the flight time one battery allows, the time on the ground
+between sorties, what the current battery has flown already (a re-plan in
+flight) and the time from the start back to its own base. A route is flown in
+sorties by the greedy split: the UAV flies on while the next viewpoint and the
+way home from it still fit the battery, and otherwise goes home, takes
+``turnaround`` and a new battery, and flies out to it (`walk`). With an
+unlimited endurance (inf) that is one flight, and every time is what it was
+without sorties.
 
 Edge-breaking rule: a viewpoint is inserted at either end of the route or into
 whichever edge gives the least increase in time (the cheapest of them all);
@@ -28,11 +32,22 @@ from numba import njit
 
 #: the sortie model of a UAV whose battery does not limit it
 UNLIMITED = np.array([np.inf, 0.0, 0.0, 0.0])
+#: a frame's rows before its times out of each base (see above)
+BASE_ROWS = 4
 
 
 @njit(cache=True)
 def limited(so) -> bool:
     return so[0] < np.inf
+
+
+@njit(cache=True)
+def base_row(fr, a):
+    """The times out of the base that a sortie whose last viewpoint is ``a`` lands
+    at (a < 0: the start's way home, to its own base): where the next one leaves."""
+    if a < 0 or fr.shape[0] <= BASE_ROWS:      # no base rows: its own base only
+        return fr[1]
+    return fr[BASE_ROWS + int(fr[3, a])]
 
 
 @njit(cache=True)
@@ -56,8 +71,8 @@ def walk(route, travel, fr, so, has_launch, arrive, sortie, flown) -> int:
             out = travel[route[i - 1], e]
             home = fr[2, route[i - 1]]
         if s + out + fr[2, e] > endurance:      # home first, a new battery, out again
-            t += home + turn + fr[1, e]
-            s = fr[1, e]
+            s = base_row(fr, route[i - 1] if i > 0 else -1)[e]
+            t += home + turn + s
             j += 1
         else:
             t += out
@@ -170,7 +185,7 @@ def _sortie_insert_cost(route, e, travel, fr, so):
     if m == 0:
         if so[2] + fr[0, e] + fr[2, e] <= so[0]:
             return fr[0, e], 0
-        return so[3] + so[1] + fr[1, e], 0
+        return so[3] + so[1] + base_row(fr, -1)[e], 0
     arrive, sortie, flown = walked(route, travel, fr, so, True)
     dur = sortie_durations(route, sortie, flown, fr)
     starts = np.flatnonzero(np.diff(sortie)) + 1
@@ -252,7 +267,10 @@ def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos,
 def _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, mid_c, mid_p):
     """(Δt, position) of e among the slots `_sortie_insert_cost` weighs, the edges
     inside sorties by their cached best (``mid_c`` at ``mid_p``) only: that edge
-    if its sortie still fits, else the front, the sorties' ends and the back."""
+    if its sortie still fits, else the front, the sorties' ends and the back.
+    Exact where travel keeps the triangle inequality, with one base; where a
+    sortie's end decides the base the next one leaves from, that sortie may split
+    anew and the cost is an estimate (`walk` times the route)."""
     endurance, turn = so[0], so[1]
     m = len(route)
     best, pos = np.inf, m
@@ -263,27 +281,36 @@ def _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, mid_c, m
     if flown[m - 1] + travel[a, e] + fr[2, e] <= endurance:
         c = travel[a, e]
     else:
-        c = fr[2, a] + turn + fr[1, e]
+        c = fr[2, a] + turn + base_row(fr, a)[e]
     if c < best:
         best, pos = c, m
     for k in range(len(starts) + 1):
         p = 0 if k == 0 else starts[k - 1]
         b, j = route[p], sortie[p]
-        if p == 0:
-            end_c = fr[0, e] + fr[2, e] - so[3]
-            before = so[2] + fr[0, e] + fr[2, e] <= endurance
-        else:
-            a = route[p - 1]
-            end_c = travel[a, e] + fr[2, e] - fr[2, a]
-            before = dur[sortie[p - 1]] + end_c <= endurance
         if p == 0 and j == 0:
             c = fr[0, e] + travel[e, b] - fr[0, b]
             if dur[0] + c > endurance:
                 continue
-        elif before:
-            c = end_c
+            if c < best:
+                best, pos = c, p
+            continue
+        # e at the end of the flight before sortie j (then home from e, and sortie j
+        # out of the base e's way home lands at), or at the start of sortie j
+        a = route[p - 1] if p > 0 else -1
+        if p == 0:
+            end_c = fr[0, e] + fr[2, e] - so[3]
+            before = so[2] + fr[0, e] + fr[2, e] <= endurance
         else:
-            c = fr[1, e] + travel[e, b] - fr[1, b]
+            end_c = travel[a, e] + fr[2, e] - fr[2, a]
+            before = dur[sortie[p - 1]] + end_c <= endurance
+        moved = base_row(fr, e)[b] - base_row(fr, a)[b]     # sortie j's way out
+        if before:      # the split flies e there: sortie j then leaves the base e's lands at
+            if moved > 0 and dur[j] + moved > endurance:
+                continue
+            c = end_c + moved
+        else:
+            out = base_row(fr, a)
+            c = out[e] + travel[e, b] - out[b]
             if dur[j] + c > endurance:
                 continue
         if c < best:

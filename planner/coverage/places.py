@@ -202,6 +202,8 @@ def share(prep, routes, counts) -> list:
                         continue
                     dt, pos = insert_cost(routes[r], e, prep.travel, prep.frames[r],
                                           prep.sorties[r], prep.has_launch)
+                    if not np.isfinite(dt):     # beyond r's battery from its bases
+                        continue
                     key = (max(times[r] + dt, times.max()), dt)
                     if best is None or key < best[0]:
                         best = (key, r, int(e), int(pos))

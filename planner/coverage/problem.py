@@ -14,6 +14,8 @@ from typing import Optional
 import numpy as np
 from numba import njit
 
+from .insertion import BASE_ROWS
+
 #: `CoverageProblem.owner` values besides a UAV: nobody photographed there; closed to all
 FREE, CLOSED = -1, -2
 
@@ -69,6 +71,12 @@ class CoverageProblem:
     base_out: Optional[np.ndarray] = None
     used_s: Optional[np.ndarray] = None
     start_back: Optional[np.ndarray] = None
+    # the fleet's bases a sortie may land at (None: each UAV lands at its own, at
+    # ``launch_back``): the times out of each [n_bases, n_vp] (the climb included)
+    # and back to each (the landing included); a sortie lands at the base nearest
+    # its last viewpoint, and the next takes off from there (`landing_bases`)
+    bases_out: Optional[np.ndarray] = None
+    bases_back: Optional[np.ndarray] = None
 
     @property
     def n_viewpoints(self) -> int:
@@ -190,7 +198,7 @@ class Prepared:
     launch_out: np.ndarray  # float64 [n_uavs, n_vp] (zeros if no launch)
     launch_back: np.ndarray
     has_launch: bool
-    frames: np.ndarray  # float64 [n_uavs, 3, n_vp]: out from start, out from base, back
+    frames: np.ndarray  # float64 [n_uavs, BASE_ROWS + n_bases, n_vp] (`insertion`)
     sorties: np.ndarray  # float64 [n_uavs, 4]: `insertion.walk`'s sortie model per UAV
     seen0: np.ndarray  # uint8 [n_uavs, n_targets]: seen before, from any place
     required: np.ndarray  # int32 [n_targets], reduced to what is achievable
@@ -264,14 +272,13 @@ def prepare(problem: CoverageProblem) -> Prepared:
         raise ValueError(f"owner must hold one UAV, FREE or CLOSED per viewpoint ({n_vp})")
     first = np.where(visited0.any(axis=0), visited0.argmax(axis=0), FREE)
     owner0 = np.where(owner0 == FREE, first, owner0)     # the first visitor's, by default
-    frames, sorties = _sortie_model(problem, lo, lb)
-    beyond = _beyond_battery(problem, frames)
+    frames, sorties, beyond = _sortie_model(problem, lo, lb)
     owner0 = np.where(beyond.all(axis=0) & (owner0 == FREE), CLOSED, owner0)
-    frames[:, :2][np.broadcast_to(beyond[:, None], frames[:, :2].shape)] = np.inf
     tgt_indptr, tgt_indices = csc_transpose(indptr, indices, n_t)
     # A target seen from fewer places than it needs sightings, or needing more UAVs
     # than exist, is capped at what is achievable and reported as uncoverable.
-    achievable = _achievable(tgt_indptr, tgt_indices, owner0, own0.astype(np.bool_), n)
+    achievable = _achievable(tgt_indptr, tgt_indices, owner0, own0.astype(np.bool_), n,
+                             ~beyond)
     uncoverable = int(np.count_nonzero(req > achievable))
     req = np.minimum(req, achievable).astype(np.int32)
     return Prepared(problem, indptr, indices, tgt_indptr, tgt_indices, travel,
@@ -282,7 +289,11 @@ def prepare(problem: CoverageProblem) -> Prepared:
 
 
 def _sortie_model(problem: CoverageProblem, lo, lb) -> tuple:
-    """(frames, sorties) of `Prepared` (see `insertion`)."""
+    """(frames, sorties) of `Prepared` (see `insertion`): per UAV its times out of
+    its start and of its own base, back to the base its sortie lands at and which
+    that is, and out of every base; viewpoints no base reaches and leaves on one
+    battery closed (inf out of the start and the bases), and [n_uavs, n_vp] where
+    none is: beyond its battery."""
     n = int(problem.n_uavs)
     endurance = float(problem.endurance_s)
     if endurance < np.inf and problem.launch_out is None:
@@ -290,7 +301,10 @@ def _sortie_model(problem: CoverageProblem, lo, lb) -> tuple:
     base = lo if problem.base_out is None else np.asarray(problem.base_out, np.float64)
     if base.shape != lo.shape:
         raise ValueError(f"base_out must be {lo.shape}")
-    frames = np.ascontiguousarray(np.stack([lo, base, lb], axis=1))
+    back, at, out = _landings(problem, base, lb)
+    frames = np.empty((n, BASE_ROWS + out.shape[1], lo.shape[1]))
+    frames[:, 0], frames[:, 1], frames[:, 2], frames[:, 3] = lo, base, back, at
+    frames[:, BASE_ROWS:] = out
     sorties = np.zeros((n, 4))
     sorties[:, 0] = endurance
     sorties[:, 1] = problem.turnaround_s
@@ -298,24 +312,71 @@ def _sortie_model(problem: CoverageProblem, lo, lb) -> tuple:
         sorties[:, 2] = problem.used_s
     if problem.start_back is not None:
         sorties[:, 3] = problem.start_back
-    return frames, sorties
+    reach = endurance if problem.reach_s is None else problem.reach_s
+    far = frames[:, BASE_ROWS:] + frames[:, 2:3] > reach      # per UAV, base, viewpoint
+    own = frames[:, 1] + frames[:, 2] > reach
+    if problem.bases_out is not None:       # a base it never comes to is no start
+        far |= ~_bases_reached(frames[:, 3].astype(np.int64), ~own, ~far)[:, :, None]
+    frames[:, BASE_ROWS:][far] = np.inf
+    frames[:, :2][np.broadcast_to(own[:, None], frames[:, :2].shape)] = np.inf
+    return frames, sorties, far.all(axis=1)
 
 
-def _beyond_battery(problem, frames) -> np.ndarray:
-    """bool [n_uavs, n_vp]: viewpoints a UAV cannot fly to from its base and back on
-    one battery (closed to it; to everyone when no UAV can: `beyond_battery`)."""
-    reach = problem.endurance_s if problem.reach_s is None else problem.reach_s
-    return frames[:, 1] + frames[:, 2] > reach
+def _bases_reached(at, first, near) -> np.ndarray:
+    """bool [n_uavs, n_bases]: the bases each UAV can land at, and so take off from:
+    those where a sortie out of its own base (``first`` [n_uavs, n_vp]: the
+    viewpoints it reaches and leaves on one battery) lands, and where one out of
+    those lands (``near`` [n_uavs, n_bases, n_vp] the same out of each base;
+    ``at``: the base a sortie ending at each viewpoint lands at)."""
+    n, n_bases = near.shape[:2]
+    out = np.zeros((n, n_bases), bool)
+    for r in range(n):
+        todo = set(at[r][first[r]].tolist())
+        while todo:
+            b = todo.pop()
+            if not out[r, b]:
+                out[r, b] = True
+                todo |= set(at[r][near[r, b]].tolist())
+    return out
+
+
+def _landings(problem, base, lb) -> tuple:
+    """(back [n_uavs, n_vp]: the way home from each viewpoint, landing included;
+    at: the base it lands at; out [n_uavs, n_bases, n_vp]: out of each base)."""
+    if problem.bases_out is None:           # its own base only
+        return lb, np.zeros(lb.shape), base[:, None, :]
+    bo = np.asarray(problem.bases_out, np.float64)
+    bb = np.asarray(problem.bases_back, np.float64)
+    if bo.shape != bb.shape or bo.shape[1:] != base.shape[1:]:
+        raise ValueError(f"bases_out and bases_back must be [n_bases, {base.shape[1]}]")
+    at = landing_bases(problem)
+    back = np.take_along_axis(bb, at[None], axis=0)[0]
+    n = base.shape[0]
+    return np.broadcast_to(back, base.shape), np.broadcast_to(at, base.shape), \
+        np.broadcast_to(bo, (n,) + bo.shape)
+
+
+def landing_bases(problem: CoverageProblem) -> np.ndarray:
+    """int per viewpoint: the base (of ``bases_back``) a sortie whose last viewpoint
+    it is lands at, the nearest on its hidden way home (all 0 without bases)."""
+    if problem.bases_back is None:
+        return np.zeros(problem.n_viewpoints, np.int64)
+    return np.argmin(np.asarray(problem.bases_back, np.float64), axis=0)
 
 
 def beyond_battery(problem: CoverageProblem) -> np.ndarray:
-    """Ids of the viewpoints no UAV can fly to from its base and back on one
+    """Ids of the viewpoints no UAV can fly to from a base and back on one
     battery: no plan visits them (a plan reports them)."""
+    return np.flatnonzero(_beyond(problem).all(axis=0))
+
+
+def _beyond(problem) -> np.ndarray:
+    """bool [n_uavs, n_vp]: the viewpoints beyond each UAV's battery (`_sortie_model`)."""
     lo = np.asarray(problem.launch_out, np.float64) if problem.launch_out is not None \
         else np.zeros((problem.n_uavs, problem.n_viewpoints))
     lb = np.asarray(problem.launch_back, np.float64) if problem.launch_back is not None \
         else np.zeros_like(lo)
-    return np.flatnonzero(_beyond_battery(problem, _sortie_model(problem, lo, lb)[0]).all(axis=0))
+    return _sortie_model(problem, lo, lb)[2]
 
 
 def achievable(problem: CoverageProblem) -> np.ndarray:
@@ -328,30 +389,71 @@ def achievable(problem: CoverageProblem) -> np.ndarray:
     own = problem.own_matrix()
     owner = (np.full(len(indptr) - 1, FREE, np.int64) if problem.owner is None
              else np.array(problem.owner, np.int64))
+    able = np.ones((n, len(indptr) - 1), np.bool_)
     if problem.endurance_s < np.inf:
-        far = beyond_battery(problem)
+        able = ~_beyond(problem)
+        far = np.flatnonzero(~able.any(axis=0))
         owner[far[owner[far] == FREE]] = CLOSED
-    return _achievable(tgt_indptr, tgt_indices, owner, own, n)
+    return _achievable(tgt_indptr, tgt_indices, owner, own, n, able)
 
 
 @njit(cache=True)
-def _achievable(tgt_indptr, tgt_indices, owner0, own0, n):
+def _achievable(tgt_indptr, tgt_indices, owner0, own0, n, able):
     """Per target, the most sightings from distinct UAVs at distinct places it can
-    get: one per place, i.e. per UAV that saw it from a place of its own
-    (``own0``) and per viewpoint seeing it that is not `CLOSED` (any UAV may fly
-    one, a second one where another photographed before: `places.share`), at
+    get: one per UAV that saw it from a place of its own (``own0``), and the
+    largest matching of the other UAVs to the viewpoints seeing it that are not
+    `CLOSED` and that each may fly (``able`` [n, n_vp]: within its battery from
+    a base it comes to; a second UAV may fly one another photographed from before:
+    `places.share`). Where every UAV may fly every one, that is one per place, at
     most one per UAV (n)."""
     n_t = len(tgt_indptr) - 1
     out = np.empty(n_t, np.int32)
+    match = np.empty(n, np.int64)
     for t in range(n_t):
-        places = 0
+        places, uniform = 0, True
         for r in range(n):
             places += own0[r, t]
         for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-            if owner0[tgt_indices[i]] != CLOSED:
+            e = tgt_indices[i]
+            if owner0[e] != CLOSED:
                 places += 1
-        out[t] = min(n, places)
+                for r in range(n):
+                    uniform &= able[r, e]
+        if uniform or places == 0:
+            out[t] = min(n, places)
+            continue
+        match[:] = -1           # viewpoint each UAV sights t from
+        got = 0
+        for r in range(n):
+            if own0[r, t] or _match(r, t, tgt_indptr, tgt_indices, owner0, able, match,
+                                    np.zeros(n, np.bool_)):
+                got += 1
+        out[t] = got
     return out
+
+
+@njit(cache=True)
+def _match(r, t, tgt_indptr, tgt_indices, owner0, able, match, tried):
+    """An augmenting path from UAV r in `_achievable`'s matching of target t."""
+    for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
+        e = tgt_indices[i]
+        if owner0[e] == CLOSED or not able[r, e]:
+            continue
+        holder = -1
+        for u in range(len(match)):
+            if match[u] == e:
+                holder = u
+        if holder == r:
+            continue
+        if holder >= 0:
+            if tried[holder]:
+                continue
+            tried[holder] = True
+            if not _match(holder, t, tgt_indptr, tgt_indices, owner0, able, match, tried):
+                continue
+        match[r] = e
+        return True
+    return False
 
 
 def owners(prep: "Prepared", routes) -> np.ndarray:

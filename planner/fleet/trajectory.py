@@ -61,12 +61,13 @@ class Profile:
 
     @classmethod
     def of_route(cls, polyline, travel_params, launch=None, start=None,
-                 stop_s=0.0) -> "Profile":
+                 stop_s=0.0, land=None) -> "Profile":
         """The profile of a hidden polyline (its first vertex the top of the takeoff,
-        its last the point above launch where the landing starts): with ``launch``
-        (x, y, ground AMSL), from and to the ground there; with ``start`` (x, y,
-        alt) instead of a takeoff, from that point in the air (a vehicle held in
-        flight), flown straight to the polyline's first vertex. ``stop_s``: what
+        its last the point above the base where the landing starts): with ``launch``
+        (x, y, ground AMSL), from and to the ground there (to ``land`` where given:
+        a sortie landing at another base); with ``start`` (x, y, alt) instead of a
+        takeoff, from that point in the air (a vehicle held in flight), flown
+        straight to the polyline's first vertex. ``stop_s``: what
         slowing to a stop at a vertex and speeding up again costs (speed / the
         acceleration: a multicopter flying a mission stops at each waypoint),
         added to each leg that leaves a polyline vertex but the first. The lowest
@@ -75,8 +76,9 @@ class Profile:
         band begins."""
         poly = np.asarray(polyline, float).reshape(-1, 3)
         tp = travel_params
+        land = launch if land is None else land
         up = launch is not None and start is None
-        down = launch is not None and len(poly) > 0
+        down = land is not None and len(poly) > 0
         pts, rate = [], []      # vertices; the vertical rate of the leg leaving each
         if start is not None:
             pts, rate = [np.asarray(start, float)], [None]
@@ -89,12 +91,12 @@ class Profile:
         first = len(pts)
         pts, rate = pts + list(poly), rate + [None] * len(poly)
         if down:
-            mid, slow = _slow_band(launch, poly[-1], tp.land_band_m, tp.land_mps)
+            mid, slow = _slow_band(land, poly[-1], tp.land_band_m, tp.land_mps)
             if mid is None:
                 rate[-1] = slow
             else:
                 pts, rate = pts + [mid], rate + [slow]
-            pts, rate = pts + [np.asarray(launch, float)], rate + [None]
+            pts, rate = pts + [np.asarray(land, float)], rate + [None]
         xyz = np.vstack(pts)
         d = np.diff(xyz, axis=0)
         duration = leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], tp).astype(float)
@@ -156,11 +158,16 @@ def route_profile(route, terrain, travel_params, stop_s=0.0) -> Profile:
     x, y = terrain.from_lonlat(np.array([p.lon for p in w], float),
                                np.array([p.lat for p in w], float))
     poly = np.stack([x, y, [p.alt_amsl for p in w]], axis=1)
-    launch = None
-    if route.launch is not None:
-        lx, ly = terrain.from_lonlat(route.launch.lon, route.launch.lat)
-        launch = np.array([float(lx), float(ly), route.launch.alt_amsl])
-    return Profile.of_route(poly, travel_params, launch=launch, stop_s=stop_s)
+    return Profile.of_route(poly, travel_params, launch=_ground(terrain, route.launch),
+                            stop_s=stop_s, land=_ground(terrain, route.land))
+
+
+def _ground(terrain, point):
+    """A `planner.plan.GeoPoint` on ``terrain``'s grid (x, y, alt AMSL), or None."""
+    if point is None:
+        return None
+    x, y = terrain.from_lonlat(point.lon, point.lat)
+    return np.array([float(x), float(y), point.alt_amsl])
 
 
 def route_trajectory(route, terrain, travel_params, stop_s=0.0) -> Trajectory:
