@@ -377,7 +377,7 @@ class Monitor:
             if v.disarmed_reports >= DISARM_REPORTS:
                 self._lose(v, f"disarmed in the air ({agl or 0.0:.0f} m above home)")
             return
-        away = self._from_launch(v, s)
+        away = self._from_base(v, s)
         if away is not None and away > LAUNCH_RADIUS_M:
             return self._lose(v, f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
@@ -397,7 +397,7 @@ class Monitor:
         return None if ground is None or not math.isfinite(ground) else s.alt_amsl - ground
 
     @staticmethod
-    def _from_launch(v, s):
+    def _from_base(v, s):
         """Horizontal distance (m) from the nearer of its bases (`Vehicle.bases`: the
         launch point, the base a sortie lands at; home where the route has none)."""
         home = getattr(s, "home", None)
@@ -420,7 +420,7 @@ class Monitor:
         height = self._height(s)
         if height is None or height >= CRASH_MARGIN_M:
             return
-        away = self._from_launch(v, s)
+        away = self._from_base(v, s)
         if away is None or away > LAUNCH_RADIUS_M:
             self._lose(v, f"crashed: {height:.1f} m above the terrain "
                           f"({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
@@ -567,7 +567,7 @@ class Monitor:
         or not its landing has been told yet (the disarm comes a few seconds after
         the touchdown)."""
         v, s = self.vehicles[sysid], self.links[sysid].state
-        agl, away = getattr(s, "relative_alt", None), self._from_launch(v, s)
+        agl, away = getattr(s, "relative_alt", None), self._from_base(v, s)
         return agl is not None and abs(agl) <= LANDED_AGL_M and away is not None \
             and away <= LAUNCH_RADIUS_M
 

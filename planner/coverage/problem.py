@@ -409,6 +409,9 @@ def _achievable(tgt_indptr, tgt_indices, owner0, own0, n, able):
     n_t = len(tgt_indptr) - 1
     out = np.empty(n_t, np.int32)
     match = np.empty(n, np.int64)
+    everyone = np.ones(able.shape[1], np.bool_)     # every UAV may fly the viewpoint
+    for r in range(n):
+        everyone &= able[r]
     for t in range(n_t):
         places, uniform = 0, True
         for r in range(n):
@@ -417,8 +420,7 @@ def _achievable(tgt_indptr, tgt_indices, owner0, own0, n, able):
             e = tgt_indices[i]
             if owner0[e] != CLOSED:
                 places += 1
-                for r in range(n):
-                    uniform &= able[r, e]
+                uniform &= everyone[e]
         if uniform or places == 0:
             out[t] = min(n, places)
             continue
