@@ -43,8 +43,8 @@ value is lowered by a relative 1e-6 for its tolerances.
 Not modelled (kept as relaxations): which UAV flies which leg (targets
 needing k+1 *distinct* UAVs are only counted), and balancing beyond the sum.
 Where at most 30 viewpoints see what is needed, `route_bound` says both (each
-route counts a target once and lasts at most T; beyond 16 on subsets of them)
-and `bounds` takes the larger.
+route counts a target once and lasts at most T, priced on every route set
+within a horizon) and `bounds` takes the larger.
 """
 
 import math
@@ -400,10 +400,10 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     the reach and packing bounds (`metrics.lower_bound`, the "radius bound")
     and, with ``strong``, the first-sighting flow LP (`flow_bound`; a few
     seconds of HiGHS on the largest problems) and, where at most 30 viewpoints
-    see what is needed, the route-pricing bound (`route_bound.route_bound`,
-    under half a second there; beyond 16 on subsets of 16).  The bounds work on target classes
-    (`classes.target_classes`: identical rows, so the same bound at a fraction
-    of the size)."""
+    see what is needed, the route-pricing bound (`route_bound.route_bound`:
+    0.3 s in the median case of 17-30, a budget of 4 s).  The bounds work on
+    target classes (`classes.target_classes`: identical rows, so the same bound
+    at a fraction of the size)."""
     return bounds(problem, strong)[1]
 
 

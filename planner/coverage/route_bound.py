@@ -6,15 +6,17 @@ and its set S of useful viewpoints (those seeing a target that still needs
 sightings) takes at least ``time_g(S)``, the least time of a path through
 exactly S in the shortest-path closure of travel (and of the launch times) from
 the start of the UAV's launch group g: a walk through S, shortcut in the
-closure, is such a path. `set_times` computes it for all 2^m subsets
-(Held-Karp), so the bound is built on at most `ROUTE_MAX_VIEWPOINTS` useful
-viewpoints, and not with a battery limit (sorties).
+closure, is such a path. `feasible_sets` finds every set S with ``time_g(S)``
+within a horizon, and its time (Held-Karp over those sets alone: a route of a
+few of m viewpoints leaves far fewer than 2^m), so the bound is built on up
+to `ROUTE_MAX_VIEWPOINTS` useful viewpoints, and not with a battery limit
+(sorties).
 
-**Subsets.** With more useful viewpoints (up to `SUBSET_MAX_VIEWPOINTS`) it is
-built on subsets U of that size (`_subsets`) and the best is kept: a route
-through S takes at least ``time_g(S & U)`` (shortcut again), and a target's q
-pairs at distinct places have at most one at each of its viewers outside U, so
-its rows ask q less that many of U.
+**Subsets.** Where a horizon the search needs holds more than `MAX_SETS` sets,
+the bound is also built on subsets U of `SUBSET_VIEWPOINTS` (`_subsets`) and
+the best is kept: a route through S takes at least ``time_g(S & U)`` (shortcut
+again), and a target's q pairs at distinct places have at most one at each of
+its viewers outside U, so its rows ask q less that many of U.
 
 **Rows (W, b).** A viewpoint mask W and "at least b UAVs' routes fly a
 viewpoint of W": for a target with viewers V that needs q more sightings (its
@@ -27,18 +29,19 @@ most j lie outside W, and the others are distinct UAVs flying W.
 every route within T has ``sum_W b_W pi_W <= sum over its routes of val(S) <=
 sum_g n_g max{val(S) : time_g(S) <= T}``, ``val(S)`` the sum of pi_W over the
 rows W that S hits. So where ``b.pi`` exceeds the right side, no plan has
-makespan <= T, and OPT > T. The maximum is exact (a subset-sum transform over
-all 2^m sets, `RouteMaster.price`); pi comes from column generation on the
-restricted master (routes as columns, least total shortfall): HiGHS only
-proposes pi, and the inequality is checked here, with a margin. This is the
-Dantzig-Wolfe (route) relaxation: each route counts a target once and lasts at
-most T, which the flow LP of `bounds` cannot say (it counts flow, so one route
-passing twice counts twice, and bounds only the sum of the routes' times).
+makespan <= T, and OPT > T. The maximum is exact (every set within T is
+priced, `_values`); pi comes from column generation on the restricted master
+(routes as columns, least total shortfall): HiGHS only proposes pi, and the
+inequality is checked here, with a margin. This is the Dantzig-Wolfe (route)
+relaxation: each route counts a target once and lasts at most T, which the
+flow LP of `bounds` cannot say (it counts flow, so one route passing twice
+counts twice, and bounds only the sum of the routes' times).
 
 **The bound.** The times T tried are the sets' own times
 (`RouteMaster.candidate_times`): if T is certified, some route of the optimal
-plan has ``time_g(S) > T``, so OPT is at least the next candidate time. The
-least such time the search cannot refute, less a relative 1e-6, is returned.
+plan has ``time_g(S) > T``, so OPT is at least the next set time (beyond the
+horizon if none is within it: every set within it is known). The least such
+time above every time certified, less a relative 1e-6, is returned.
 
 Measured (``bench_coverage --optimal``, 230 proven optima of 8-16 viewpoints;
 ``--optimal-mid``, 17-30): see docs/benchmarks.md. On larger problems it is
@@ -50,17 +53,27 @@ import math
 import time
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.typed import Dict
 from scipy.optimize import linprog
 
+from .metrics import _packing_bound, _reach_bound
+
 #: built when at most this many viewpoints see a target that needs sightings
-#: (2^m subsets are enumerated per launch group); up to SUBSET_MAX_VIEWPOINTS, on
-#: subsets of them (on 31-40, measured, two subsets of 16 raised no bound)
-ROUTE_MAX_VIEWPOINTS = 16
-SUBSET_MAX_VIEWPOINTS = 30
+ROUTE_MAX_VIEWPOINTS = 30
+#: the route sets within the horizon (`feasible_sets`) of a launch group at most;
+#: beyond, the bound is built on subsets of SUBSET_VIEWPOINTS viewpoints (at most
+#: 2^16 sets each)
+MAX_SETS = 1_000_000
+SUBSET_VIEWPOINTS = 16
+#: up to this many viewpoints `feasible_sets` finds a set by an array over every
+#: mask (16 MB at 22), beyond by a hash table
+DENSE_BITS = 22
 #: its time budget (seconds), and the growth of its search for a time it cannot refute
 ROUTE_TIME_LIMIT_S = 4.0
 GROWTH = 1.06
+#: the horizon is extended this far past the time the search needs (two steps)
+HORIZON_AHEAD = GROWTH ** 2
 #: the value is lowered by this relative amount for HiGHS's tolerances (as `bounds`)
 _SAFETY = 1e-6
 
@@ -94,46 +107,108 @@ def _times_into(travel_t, vps):
 
 
 @njit(cache=True)
-def set_times(travel, start, has_start):
-    """Per subset S of the m viewpoints of ``travel`` (bit i: viewpoint i), the
-    least time of a path through exactly S (Held-Karp), from ``start[e]`` (the
-    launch) or, without, from its first viewpoint at 0; inf for the empty set."""
+def feasible_sets(travel, start, has_start, horizon, max_sets):
+    """(masks, times, sizes, True): the sets S of the m viewpoints of ``travel`` (bit i:
+    viewpoint i) with a path through exactly S within ``horizon``, from ``start[e]``
+    (the launch) or, without, from its first viewpoint at 0, with the least such
+    time and |S|. Held-Karp over those sets alone: a path's prefix is within the
+    horizon too, so each set grows from another, a viewpoint at a time, and a set
+    is done when every set one smaller is (breadth first). A route of a few of
+    many viewpoints leaves few such sets, where Held-Karp over all 2^m would
+    not finish. Empty arrays and False when there are more than ``max_sets``."""
     m = travel.shape[0]
-    full = 1 << m
-    dp = np.full((full, m), np.inf)
+    singles = 0
     for i in range(m):
-        dp[1 << i, i] = start[i] if has_start else 0.0
-    for mask in range(1, full):
-        for i in range(m):
-            here = dp[mask, i]
-            if not (mask >> i) & 1 or not here < np.inf:
+        singles += (start[i] if has_start else 0.0) <= horizon
+    if singles > max_sets:
+        return np.empty(0, np.int64), np.empty(0), np.empty(0, np.int64), False
+    cap = min(max(1024, m), max_sets)
+    masks = np.empty(cap, np.int64)
+    dp = np.full((cap, m), np.inf)
+    # where each set is in ``masks``: an array over all 2^m masks when that is small
+    dense = m <= DENSE_BITS
+    at = np.full(1 << m if dense else 1, -1, np.int32)
+    index = Dict.empty(key_type=types.int64, value_type=types.int64)
+    n = 0
+    for i in range(m):
+        t = start[i] if has_start else 0.0
+        if t <= horizon:
+            masks[n], dp[n, i] = 1 << i, t
+            if dense:
+                at[1 << i] = n
+            else:
+                index[1 << i] = n
+            n += 1
+    k = 0
+    while k < n:
+        s = masks[k]
+        for j in range(m):
+            if (s >> j) & 1:
                 continue
-            for j in range(m):
-                if (mask >> j) & 1:
-                    continue
-                t = here + travel[i, j]
-                if t < dp[mask | (1 << j), j]:
-                    dp[mask | (1 << j), j] = t
-    out = np.empty(full)
-    out[0] = np.inf
-    for mask in range(1, full):
-        best = np.inf
+            t = np.inf
+            for i in range(m):
+                if (s >> i) & 1 and dp[k, i] + travel[i, j] < t:
+                    t = dp[k, i] + travel[i, j]
+            if not t <= horizon:
+                continue
+            grown = s | (1 << j)
+            q = -1
+            if dense:
+                q = at[grown]
+            elif grown in index:
+                q = index[grown]
+            if q < 0:
+                if n == cap:
+                    if cap == max_sets:
+                        return np.empty(0, np.int64), np.empty(0), np.empty(0, np.int64), False
+                    cap = min(2 * cap, max_sets)
+                    more = np.empty(cap, np.int64)
+                    more[:n] = masks[:n]
+                    masks = more
+                    rows = np.full((cap, m), np.inf)
+                    rows[:n] = dp[:n]
+                    dp = rows
+                q, masks[n] = n, grown
+                if dense:
+                    at[grown] = n
+                else:
+                    index[grown] = n
+                n += 1
+            if t < dp[q, j]:
+                dp[q, j] = t
+        k += 1
+    times = np.empty(n)
+    sizes = np.zeros(n, np.int64)
+    for k in range(n):
+        times[k] = dp[k].min()
         for i in range(m):
-            if dp[mask, i] < best:
-                best = dp[mask, i]
-        out[mask] = best
-    return out
+            sizes[k] += (masks[k] >> i) & 1
+    return masks[:n].copy(), times, sizes, True
+
+
+def _greedy_path(travel, start, has_start) -> float:
+    """The time of a path through every viewpoint of ``travel``, nearest first."""
+    here = int(np.argmin(start)) if has_start else 0
+    total = float(start[here]) if has_start else 0.0
+    left = np.ones(len(travel), bool)
+    left[here] = False
+    while left.any():
+        nxt = int(np.flatnonzero(left)[np.argmin(travel[here, left])])
+        total += float(travel[here, nxt])
+        left[nxt], here = False, nxt
+    return total
 
 
 @njit(cache=True)
-def _subset_sums(h, m):
-    """In place: h[U] becomes the sum of h[W] over W contained in U (zeta transform)."""
-    full = 1 << m
-    for i in range(m):
-        bit = 1 << i
-        for u in range(full):
-            if u & bit:
-                h[u] += h[u ^ bit]
+def _values(sets, masks, pi):
+    """Per set, the sum of pi over the rows (``masks``) it hits."""
+    out = np.zeros(len(sets))
+    for r in range(len(masks)):
+        if pi[r] > 0.0:
+            for f in range(len(sets)):
+                if sets[f] & masks[r]:
+                    out[f] += pi[r]
+    return out
 
 
 def _still_needed(prep) -> np.ndarray:
@@ -180,7 +255,8 @@ def _hit_rows(prep, vps, max_subset_rows=64):
 
 
 class RouteMaster:
-    """The route-pricing relaxation of a small prepared problem (see `route_bound`)."""
+    """The route-pricing relaxation of a small prepared problem (see `route_bound`),
+    on the route sets within a horizon (`extend`)."""
 
     def __init__(self, prep, vps, into):
         """``vps``: the useful viewpoints (`_useful`) priced, sorted; ``into``: the
@@ -189,51 +265,69 @@ class RouteMaster:
         self.prep = prep
         self.vps = vps
         self.m = len(self.vps)
-        sub = np.ascontiguousarray(into[self.vps])
+        self.sub = np.ascontiguousarray(into[self.vps])
         if prep.has_launch:  # via any viewpoint
             lo = (prep.launch_out[:, :, None] + into[None, :, :]).min(axis=1)
-            rows, self.count = np.unique(lo, axis=0, return_counts=True)
+            self.starts, self.count = np.unique(lo, axis=0, return_counts=True)
         else:
-            rows, self.count = np.zeros((1, self.m)), np.array([p.n_uavs])
-        self.times = [set_times(sub, np.ascontiguousarray(r), prep.has_launch) for r in rows]
+            self.starts, self.count = np.zeros((1, self.m)), np.array([p.n_uavs])
         self.masks, self.rhs = _hit_rows(prep, self.vps)
-        every = np.arange(1 << self.m)
-        self.sizes = sum((every >> i) & 1 for i in range(self.m))   # |S| per subset
-        self.cols = []  # (group, subset): the column pool, kept across times
+        # no route set takes longer than a path through all of them
+        self.longest = max(_greedy_path(self.sub, r, prep.has_launch) for r in self.starts)
+        self.horizon = -math.inf
+        self.overflowed = False  # a horizon had too many route sets
+        self.build_s = 0.0       # the seconds the last horizon's sets took
+        self.cols = []  # (group, set mask, its time): the column pool, kept across times
+
+    def extend(self, horizon) -> bool:
+        """The route sets of every launch group within ``horizon``, sorted by time
+        (`feasible_sets`); False, and the sets as they were, when a group has more
+        than `MAX_SETS`."""
+        if horizon <= self.horizon:
+            return True
+        began = time.perf_counter()
+        found = [feasible_sets(self.sub, np.ascontiguousarray(r), self.prep.has_launch,
+                               horizon, MAX_SETS) for r in self.starts]
+        self.build_s = time.perf_counter() - began
+        if not all(f[3] for f in found):
+            self.overflowed = True
+            return False
+        self.sets, self.times, self.sizes = [], [], []
+        for masks, times, sizes, _ in found:
+            order = np.argsort(times, kind="stable")
+            self.sets.append(masks[order])
+            self.times.append(times[order])
+            self.sizes.append(sizes[order])
+        self.horizon = horizon
+        return True
 
     def candidate_times(self):
-        t = np.concatenate(self.times)
-        return np.unique(t[np.isfinite(t)])
+        """Every route set's time within the horizon, sorted, once each."""
+        return np.unique(np.concatenate(self.times))
 
-    def price(self, pi):
-        """Per group, the subsets' values sum of pi[W] over rows W they hit."""
-        h = np.zeros(1 << self.m)
-        np.add.at(h, self.masks, pi)
-        total = float(pi.sum())
-        _subset_sums(h, self.m)
-        full = (1 << self.m) - 1
-        return total - h[full ^ np.arange(1 << self.m)]
+    def _within(self, g, t) -> int:
+        return int(np.searchsorted(self.times[g], t, side="right"))
 
-    def _add(self, g, s):
-        if (g, s) not in self._have:
-            self._have.add((g, s))
-            self.cols.append((g, s))
+    def _add(self, g, i):
+        key = (g, int(self.sets[g][i]))
+        if key not in self._have:
+            self._have.add(key)
+            self.cols.append((g, key[1], float(self.times[g][i])))
 
     def infeasible(self, t, deadline=math.inf, max_rounds=60, per_group=4):
-        """True when no plan has every route within ``t`` (certified by a dual
-        vector and exact pricing, see `route_bound`); False when the LP is
-        feasible at ``t`` or the rounds run out."""
-        self._have = set(self.cols)
-        ok = [ts <= t for ts in self.times]
+        """True when no plan has every route within ``t`` (at most the horizon;
+        certified by a dual vector and exact pricing, see `route_bound`); False
+        when the LP is feasible at ``t`` or the rounds run out."""
+        self._have = {(g, s) for g, s, _ in self.cols}
+        within = [self._within(g, t) for g in range(len(self.sets))]
         n_rows, n_g = len(self.rhs), len(self.count)
         for g in range(n_g):  # a first column per group: its largest set within t
-            if ok[g].any():
-                idx = np.flatnonzero(ok[g])
-                self._add(g, int(idx[np.argmax(self.sizes[idx])]))
+            if within[g]:
+                self._add(g, int(np.argmax(self.sizes[g][:within[g]])))
         for _ in range(max_rounds):
             if time.perf_counter() > deadline:
                 return False
-            cols = [(g, s) for g, s in self.cols if self.times[g][s] <= t]
+            cols = [(g, s) for g, s, ts in self.cols if ts <= t]
             nc = len(cols)
             gs = np.array([g for g, _ in cols], np.int64)
             ss = np.array([s for _, s in cols], np.int64)
@@ -251,63 +345,65 @@ class RouteMaster:
             if res.fun <= 1e-7:
                 return False  # the LP has a plan of routes within t
             pi = np.clip(-res.ineqlin.marginals[:n_rows], 0.0, None)
-            val = self.price(pi)
             lag = float(self.rhs @ pi)
             new = []
             for g in range(n_g):
-                v = np.where(ok[g], val, -np.inf)
-                best = float(v.max())
+                v = _values(self.sets[g][:within[g]], self.masks, pi)
+                best = float(v.max()) if len(v) else 0.0
                 lag -= self.count[g] * max(best, 0.0)
                 mu = max(-res.ineqlin.marginals[n_rows + g], 0.0)
                 if best > mu + 1e-9:
                     top = (np.argpartition(-v, per_group)[:per_group] if len(v) > per_group
                            else np.arange(len(v)))
-                    new += [(g, int(s)) for s in top if v[s] > mu + 1e-9]
+                    new += [(g, int(i)) for i in top if v[i] > mu + 1e-9]
             if lag > 1e-6 * max(1.0, float(self.rhs @ pi)):
                 return True  # a certificate: rhs.pi > every plan's sum of values
             if not new:
                 return False
-            for g, s in new:
-                self._add(g, s)
+            for g, i in new:
+                self._add(g, i)
         return False
 
 
 def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) -> float:
-    """The route-pricing bound (module doc): the least candidate time the route
-    master cannot refute, searched from ``lower`` (a valid bound) up by
-    `GROWTH` then by bisection to ``rel_tol``. Over `ROUTE_MAX_VIEWPOINTS` useful
-    viewpoints (up to `SUBSET_MAX_VIEWPOINTS`) the best of the bounds of a few
-    subsets of that size (`_subsets`). 0 when the problem is too large for it, or
-    has a battery."""
+    """The route-pricing bound (module doc): the least route-set time above every
+    time the route master certifies, searched from ``lower`` (a valid bound; at
+    least the radius bound) up by `GROWTH` then by bisection to ``rel_tol``, on
+    every useful viewpoint, or where their route sets are too many, the best of
+    the bounds on a few subsets of `SUBSET_VIEWPOINTS` (`_subsets`). 0 when the
+    problem is too large for it, or has a battery."""
     p = prep.problem
     if p.n_viewpoints == 0 or p.n_targets == 0 or math.isfinite(p.endurance_s):
         return 0.0
     useful = np.flatnonzero(_useful(prep))
-    if not len(useful) or len(useful) > SUBSET_MAX_VIEWPOINTS:
+    if not len(useful) or len(useful) > ROUTE_MAX_VIEWPOINTS:
+        return 0.0
+    lower = max(lower, _reach_bound(prep), _packing_bound(prep))
+    if lower <= 0.0:
         return 0.0
     deadline = time.perf_counter() + time_limit
     into = _times_into(prep.travel_t, useful)   # once: every subset's columns are in it
-    best = 0.0
-    for pick in _subsets(prep, useful, into):
-        if time.perf_counter() >= deadline:
-            break
-        rm = RouteMaster(prep, useful[pick], into[:, pick])
-        best = max(best, _refute(rm, max(lower, best), rel_tol, deadline))
+    whole = RouteMaster(prep, useful, into)
+    best = _refute(whole, lower, rel_tol, deadline)
+    if whole.overflowed and len(useful) > SUBSET_VIEWPOINTS:
+        for pick in _subsets(prep, useful, into):
+            if time.perf_counter() >= deadline:
+                break
+            rm = RouteMaster(prep, useful[pick], into[:, pick])
+            best = max(best, _refute(rm, max(lower, best), rel_tol, deadline))
     return best
 
 
 def _subsets(prep, useful, into):
-    """The viewpoint sets to price, as sorted positions in ``useful`` (``into``: the
-    times to each, `_times_into`): all of them if they are few enough; else, of
-    `ROUTE_MAX_VIEWPOINTS` each, the viewers of the targets that need the most
+    """Viewpoint sets to price where the whole set has too many route sets, as
+    sorted positions in ``useful`` (``into``: the times to each, `_times_into`):
+    of `SUBSET_VIEWPOINTS` each, the viewers of the targets that need the most
     sightings from the fewest viewers (first), and the viewpoints farthest from the
     bases (or from each other). Any subset U gives a valid bound: a plan's pairs
     for a target at viewpoints outside U are at most one per such viewpoint
     (`_hit_rows`), and a route's time through S is at least its time through the
     part of S in U (shortcut in the closure)."""
-    size = ROUTE_MAX_VIEWPOINTS
-    if len(useful) <= size:
-        return [np.arange(len(useful))]
+    size = SUBSET_VIEWPOINTS
     need = _still_needed(prep)
     degree = np.diff(prep.tgt_indptr)
     hard = []
@@ -321,35 +417,43 @@ def _subsets(prep, useful, into):
 
 
 def _refute(rm, lower, rel_tol, deadline) -> float:
-    """The least candidate time of ``rm`` it cannot certify infeasible, searched
-    from ``lower`` (see `route_bound`); 0 when none is certified."""
-    cand = rm.candidate_times()
-    if not len(cand):
-        return 0.0
-    # cand[i] certified infeasible for i <= lo_i (below ``lower``: no plan is that
-    # quick anyway); not certified at hi_i. The bound is cand[lo_i + 1] once a
-    # time is certified: ``lower`` alone says nothing of the candidate after it (a
-    # subset's times need not include the optimum).
-    lo_i = first = int(np.searchsorted(cand, lower, side="left")) - 1
-    hi_i = len(cand)
-    base = cand[lo_i + 1] if lo_i + 1 < len(cand) else cand[-1]
-    grow = 0
-    while lo_i + 1 < hi_i and time.perf_counter() < deadline:
-        if hi_i == len(cand):  # grow until a time is not certified
-            i = int(np.searchsorted(cand, base * GROWTH ** grow, side="right")) - 1
-            i = min(max(i, lo_i + 1), len(cand) - 1)
+    """The least route-set time of ``rm`` above every time it certifies (see
+    `route_bound`), searched from ``lower`` (> 0) up by `GROWTH`, the horizon
+    extended as it goes, then by bisection; 0 when none is certified."""
+    best, hi, grow = lower, math.inf, 0  # best: certified (or below lower); hi: not
+    certified = False
+    cand = np.empty(0)
+    while time.perf_counter() < deadline:
+        if hi == math.inf:  # grow until a time is not certified
+            target = lower * GROWTH ** grow
             grow += 1
+            if target > rm.horizon:
+                if time.perf_counter() + 2 * rm.build_s > deadline:
+                    break  # a larger horizon takes longer to build than the last
+                if not (rm.extend(min(target * HORIZON_AHEAD, rm.longest)) or rm.extend(target)):
+                    break
+            cand = rm.candidate_times()
+            ahead = cand[(cand > best) & (cand <= target)]
+            if not len(ahead):
+                if target >= rm.longest:
+                    break  # every route set is within the horizon
+                continue
+            t = float(ahead[-1])
         else:
-            if cand[hi_i] <= cand[lo_i + 1] * (1 + rel_tol):
+            between = cand[(cand > best) & (cand < hi)]
+            if not len(between) or hi <= between[0] * (1 + rel_tol):
                 break
-            i = (lo_i + hi_i) // 2
-        if rm.infeasible(float(cand[i]), deadline):
-            lo_i = i
+            t = float(between[len(between) // 2])
+        if rm.infeasible(t, deadline):
+            best, certified = t, True
         else:
-            hi_i = i
-    if lo_i == first or lo_i + 1 >= len(cand):
+            hi = t
+    if not certified:
         return 0.0
-    return float(cand[lo_i + 1]) * (1.0 - _SAFETY)
+    # some route set of every plan takes longer than ``best``: at least the next set
+    # time, or beyond the horizon if none is within it (every set within it is known)
+    above = cand[cand > best]
+    return float(above[0] if len(above) else rm.horizon) * (1.0 - _SAFETY)
 
 
 __all__ = ["route_bound"]
