@@ -381,8 +381,9 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
     lower = max(lower, _reach_bound(prep), _packing_bound(prep))
     if lower <= 0.0:
         return 0.0
-    deadline = time.perf_counter() + time_limit
     into = _times_into(prep.travel_t, useful)   # once: every subset's columns are in it
+    _compiled()
+    deadline = time.perf_counter() + time_limit
     whole = RouteMaster(prep, useful, into)
     best = _refute(whole, lower, rel_tol, deadline)
     if whole.overflowed and len(useful) > SUBSET_VIEWPOINTS:
@@ -392,6 +393,14 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
             rm = RouteMaster(prep, useful[pick], into[:, pick])
             best = max(best, _refute(rm, max(lower, best), rel_tol, deadline))
     return best
+
+
+def _compiled() -> None:
+    """The kernels compiled (or loaded from numba's cache) before the budget starts:
+    the first bound of a process after a change would spend it in the compiler
+    (about 5 s on 2 cores) and fall back to the flow bound."""
+    feasible_sets(np.zeros((1, 1)), np.zeros(1), True, 1.0, 2)
+    _values(np.ones(1, np.int64), np.ones(1, np.int64), np.ones(1))
 
 
 def _subsets(prep, useful, into):
