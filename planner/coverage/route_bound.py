@@ -38,7 +38,7 @@ flow LP of `bounds` cannot say (it counts flow, so one route passing twice
 counts twice, and bounds only the sum of the routes' times).
 
 **The bound.** The times T tried are the sets' own times
-(`RouteMaster.candidate_times`): if T is certified, some route of the optimal
+(`RouteMaster.candidates`): if T is certified, some route of the optimal
 plan has ``time_g(S) > T``, so OPT is at least the next set time (beyond the
 horizon if none is within it: every set within it is known). The least such
 time above every time certified, less a relative 1e-6, is returned.
@@ -174,8 +174,7 @@ def feasible_sets(travel, start, has_start, horizon, max_sets):
                 else:
                     index[grown] = n
                 n += 1
-            if t < dp[q, j]:
-                dp[q, j] = t
+            dp[q, j] = min(dp[q, j], t)
         k += 1
     times = np.empty(n)
     sizes = np.zeros(n, np.int64)
@@ -298,12 +297,10 @@ class RouteMaster:
             self.sets.append(masks[order])
             self.times.append(times[order])
             self.sizes.append(sizes[order])
+        # every route set's time within the horizon, sorted, once each
+        self.candidates = np.unique(np.concatenate(self.times))
         self.horizon = horizon
         return True
-
-    def candidate_times(self):
-        """Every route set's time within the horizon, sorted, once each."""
-        return np.unique(np.concatenate(self.times))
 
     def _within(self, g, t) -> int:
         return int(np.searchsorted(self.times[g], t, side="right"))
@@ -378,7 +375,8 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
     useful = np.flatnonzero(_useful(prep))
     if not len(useful) or len(useful) > ROUTE_MAX_VIEWPOINTS:
         return 0.0
-    lower = max(lower, _reach_bound(prep), _packing_bound(prep))
+    if lower <= 0.0:  # `bounds` gives these and more; a caller on its own, not
+        lower = max(_reach_bound(prep), _packing_bound(prep))
     if lower <= 0.0:
         return 0.0
     into = _times_into(prep.travel_t, useful)   # once: every subset's columns are in it
@@ -441,7 +439,7 @@ def _refute(rm, lower, rel_tol, deadline) -> float:
                     break  # a larger horizon takes longer to build than the last
                 if not (rm.extend(min(target * HORIZON_AHEAD, rm.longest)) or rm.extend(target)):
                     break
-            cand = rm.candidate_times()
+            cand = rm.candidates
             ahead = cand[(cand > best) & (cand <= target)]
             if not len(ahead):
                 if target >= rm.longest:
