@@ -12,9 +12,11 @@ takeoff column. Waits are whole seconds (what an ArduPilot waypoint hold keeps),
 1, 2, 4, ... at one place but never more than the conflict lasts, and the walk
 starts again until none is left.
 
-Vehicles sharing a base therefore take off one at a time, each as soon as the one
-before has climbed the separation above it, and land one at a time, the later
-ones holding at a hidden waypoint while another is in the column. A vehicle
+A base's column is one vehicle's at a time (`columns`): two airborne vehicles in
+one column at once are a conflict too. Vehicles sharing a base therefore take off
+one at a time, each once the one before has left the column (a separation away
+sideways, or above its top), and land one at a time, the later ones holding at a
+hidden waypoint while another is in the column. A vehicle
 that finds no room after `MAX_WAITS` waits takes off once all the others have
 landed. Several priority orders are tried and the best plan kept (`schedule`).
 A vehicle flying several sorties (one per battery) is one flight per sortie,
@@ -26,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .columns import Occupied, base_columns, profile_bases
 from .trajectory import Profile, Trajectory, doing_at
 
 #: metres kept beyond the separation while timing (rounding of saved waypoints)
@@ -82,6 +85,7 @@ def schedule(profiles, separation_m: float, score=None, after=None,
     # kept with a little room: the waypoints are stored to 1e-7 degrees, and a
     # saved plan's trajectories are proven again from them (`prove_separated`)
     room = separation_m + SLACK_M if separation_m > 0 else 0.0
+    columns = base_columns(profile_bases(profiles), room)
     best = None
     for order in _orders(profiles, after, urgency or [0.0] * len(profiles)):
         timings = [None] * len(profiles)
@@ -89,9 +93,9 @@ def schedule(profiles, separation_m: float, score=None, after=None,
         for i in order:
             earliest = 0.0 if after[i] is None else \
                 float(math.ceil(timings[after[i]].trajectory.end + turnaround_s))
-            timings[i] = _fit(profiles[i], placed, room, earliest, air_s)
-            placed.append(timings[i].trajectory)
-        d, closest = separation(placed)
+            timings[i] = _fit(profiles[i], placed, room, earliest, air_s, columns)
+            placed.append(Occupied(timings[i].trajectory, columns))
+        d, closest = separation([p.trajectory for p in placed])
         closest = None if closest is None else (order[closest[0]], order[closest[1]],
                                                 closest[2])
         key = (d < separation_m - 1e-6, score(timings))
@@ -137,16 +141,17 @@ def _orders(profiles, after, urgency) -> list:
     return out
 
 
-def _fit(profile: Profile, placed, separation_m, earliest=0.0, air_s=math.inf) -> Timing:
-    """`Timing` of one flight among those ``placed``, leaving at ``earliest`` or
-    later, airborne at most ``air_s`` when it leaves the ground (see the module
-    doc and `schedule`)."""
+def _fit(profile: Profile, placed, separation_m, earliest=0.0, air_s=math.inf,
+         columns=()) -> Timing:
+    """`Timing` of one flight among those ``placed`` (`Occupied`), leaving at
+    ``earliest`` or later, airborne at most ``air_s`` when it leaves the ground, never
+    in one of ``columns`` with another (see the module doc and `schedule`)."""
     holds = np.zeros(profile.n)
     start = earliest
     where, step = None, 1.0
     for _ in range(MAX_WAITS):
         trajectory = profile.timed(start, holds)
-        begin, end = _first_conflict(trajectory, placed, separation_m)
+        begin, end = _first_conflict(Occupied(trajectory, columns), placed, separation_m)
         if not math.isfinite(begin):
             return Timing(start, holds, trajectory, earliest)
         vertex, holding = doing_at(trajectory, begin)
@@ -174,7 +179,7 @@ def _fit(profile: Profile, placed, separation_m, earliest=0.0, air_s=math.inf) -
 
 def _after_everyone(profile, placed, earliest=0.0) -> Timing:
     """Leave once every placed vehicle has landed (in flight: hold until then)."""
-    last = max([t.end for t in placed] + [earliest])
+    last = max([p.trajectory.end for p in placed] + [earliest])
     holds = np.zeros(profile.n)
     start = 0.0
     if profile.on_ground[0]:
@@ -191,17 +196,20 @@ def drift_s(trajectory) -> float:
     return DRIFT_S + DRIFT_RATE * (trajectory.end - trajectory.start)
 
 
-def _first_conflict(trajectory, placed, separation_m) -> tuple:
-    """The earliest (start, end) of a conflict with any placed trajectory, with this
-    one on time and `drift_s` early and late: a schedule the vehicles keep only
-    to the second would not hold in the air."""
+def _first_conflict(occupied, placed, separation_m) -> tuple:
+    """The earliest (start, end) of a conflict with any placed trajectory (closer
+    than the separation, or in one column at once), with this one on time and
+    `drift_s` early and late: a schedule the vehicles keep only to the second would
+    not hold in the air."""
     best = (math.inf, math.inf)
+    trajectory = occupied.trajectory
     drift = drift_s(trajectory)
     for shift in (0.0, -drift, drift):
         moved = Trajectory(trajectory.t + shift, trajectory.xyz, trajectory.air,
                            trajectory.vertex)
         for other in placed:
-            begin, end = moved.first_conflict(other, separation_m)
-            if begin - shift < best[0]:
-                best = (begin - shift, end - shift)
+            for begin, end in (moved.first_conflict(other.trajectory, separation_m),
+                               occupied.first_shared(other, shift)):
+                if begin - shift < best[0]:
+                    best = (begin - shift, end - shift)
     return best
