@@ -62,30 +62,54 @@ def closest_ahead(d0, dv, horizon):
     return float(np.linalg.norm(d0 + u * dv)), u
 
 
+class GuardFleet:
+    """What the guard reads of a flight and asks of its vehicles (a flight's
+    `gcs.flight.holds.Holds`; tests give their own)."""
+
+    def airborne(self) -> list:
+        """The system ids flying now."""
+        return []
+
+    def hold(self, sysid) -> None:
+        """Hold ``sysid`` where it is (its firmware's hold mode)."""
+
+    def resume(self, sysid) -> None:
+        """Fly ``sysid`` on along its route."""
+
+    def on_pad(self, sysid) -> bool:
+        """Touched down at its base, not yet told landed."""
+        return False
+
+    def short(self, sysid) -> bool:
+        """Short of battery: it goes before every other."""
+        return False
+
+    def waiting(self, sysid):
+        """Fleet seconds until a re-plan flies it on, None if it waits for none."""
+        return None
+
+    def lands_here(self, sysid) -> bool:
+        """It may land from where it is (`land`)."""
+        return False
+
+    def land(self, sysid) -> None:
+        """Land it from where it is."""
+        self.resume(sysid)
+
+
 class SeparationGuard:
     """Holds and resumes vehicles of one flight (see the module doc).
 
-    ``airborne()``: the system ids flying now; ``priority[sysid]``: 1 has right of
-    way; ``clock``: the flight's `gcs.clock.FleetClock`; ``hold(sysid)`` /
-    ``resume(sysid)``: what holding means for the flight (mode and state);
-    ``travel``: the plan's speeds (`TravelParams`) and ``stop_s`` per waypoint;
-    ``on_pad(sysid)``: touched down at its base, not yet told landed;
-    ``short(sysid)``: short of battery (it goes before every other);
-    ``waiting(sysid)``: fleet seconds until a re-plan flies it on, None if it does not
-    wait for one; ``lands_here(sysid)``: it may land from where it is, and ``land(sysid)``
-    lands it so."""
+    ``priority[sysid]``: 1 has right of way; ``clock``: the flight's
+    `gcs.clock.FleetClock`; ``fleet``: the flight's `GuardFleet`; ``travel``: the
+    plan's speeds (`TravelParams`) and ``stop_s`` per waypoint."""
 
-    def __init__(self, monitor, separation_m, priority, clock, airborne, hold, resume,
-                 travel=TravelParams(), stop_s=0.0, on_pad=lambda sysid: False,
-                 short=lambda sysid: False, waiting=lambda sysid: None,
-                 lands_here=lambda sysid: False, land=None):
+    def __init__(self, monitor, separation_m, priority, clock, fleet: GuardFleet,
+                 travel=TravelParams(), stop_s=0.0):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
-        self.clock, self.airborne = clock, airborne
-        self._hold, self._resume = hold, resume
+        self.clock, self.fleet = clock, fleet
         self.travel, self.stop_s = travel, float(stop_s)
-        self.on_pad, self.short, self.waiting = on_pad, short, waiting
-        self.lands_here, self._land = lands_here, land
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.landing = set()      # flown on by landing where they stand
         self.actions = []         # the report's records
@@ -112,41 +136,41 @@ class SeparationGuard:
 
     def hold(self, sysid, other) -> None:
         """Hold ``sysid`` now, for ``other``: flown on as any hold, once clear."""
-        self._do(sysid, self._hold, "hold", other)
+        self._do(sysid, self.fleet.hold, "hold", other)
 
     def step(self) -> None:
         if not self.active:
             return
-        frame = _Frame(self.monitor, self.airborne(), self.clock.rate())
+        frame = _Frame(self.monitor, self.fleet.airborne(), self.clock.rate())
         if not frame.here:
             return
         self._note_closest(frame)
         self.landing &= set(frame.here)
         horizon = self.horizon()
         ahead = {s: (frame.standing(s, horizon) if s in self.held else
-                     self._route(frame, s, self.waiting(s) or 0.0, s in self.landing))
+                     self._route(frame, s, self.fleet.waiting(s) or 0.0, s in self.landing))
                  for s in frame.here}
         for a, b, begin in self._conflicts(frame, ahead, horizon, self.separation_m):
             self._separate(frame, ahead, a, b, begin, horizon)
         for sysid in sorted(self.held, key=self._rank):
             if sysid not in frame.here:
                 continue
-            land = self._land is not None and self.lands_here(sysid)
+            land = self.fleet.lands_here(sysid)
             go = self._route(frame, sysid, land=land)
             if self._may_go(frame, ahead, sysid, go, horizon):
                 ahead[sysid] = go
                 if land:
                     self.landing.add(sysid)
-                self._do(sysid, self._land if land else self._resume,
+                self._do(sysid, self.fleet.land if land else self.fleet.resume,
                          "land here" if land else "resume", other=self.held[sysid][1])
 
     # -- predictions -------------------------------------------------------------------
     def _rank(self, sysid):
-        return not self.short(sysid), self.priority.get(sysid, 99), sysid
+        return not self.fleet.short(sysid), self.priority.get(sysid, 99), sysid
 
     def _fixed(self, sysid) -> bool:
         """Held by the guard, or by a re-plan until its time: not the guard's to move."""
-        return sysid in self.held or self.waiting(sysid) is not None
+        return sysid in self.held or self.fleet.waiting(sysid) is not None
 
     def _route(self, frame, sysid, wait_s=0.0, land=False) -> Trajectory:
         """Where ``sysid`` flies from now, after standing ``wait_s``: the rest of its
@@ -193,12 +217,14 @@ class SeparationGuard:
             still = frame.standing(target, horizon)
             if ahead[other].first_conflict(still, self.separation_m)[0] > horizon:
                 ahead[target] = still
-                self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
+                self._do(target, self.fleet.hold, "hold", other=other,
+                         predicted=(predicted[0], begin))
                 return
         for target, other in ((low, high), (high, low)):
             if not self._fixed(target):
                 ahead[target] = frame.standing(target, horizon)
-                self._do(target, self._hold, "hold", other=other, predicted=(predicted[0], begin))
+                self._do(target, self.fleet.hold, "hold", other=other,
+                         predicted=(predicted[0], begin))
 
     def _may_go(self, frame, ahead, sysid, go, horizon) -> bool:
         """Whether ``sysid``'s route from here (``go``) keeps ``RESUME_FACTOR``
@@ -221,7 +247,7 @@ class SeparationGuard:
         down on its base pad (a shared base is one point of the plan; the next
         vehicle's descent to it is the plan's, proven on its schedule)."""
         now = self.monitor.now()
-        ids = sorted(s for s in frame.here if not self.on_pad(s))
+        ids = sorted(s for s in frame.here if not self.fleet.on_pad(s))
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
                 d = float(np.linalg.norm(frame.position(a) - frame.position(b)))

@@ -140,7 +140,7 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
     return summary
 
 
-def _in_parallel(fn, sysids, monitor=None) -> dict:
+def in_parallel(fn, sysids, monitor=None) -> dict:
     """Run fn(sysid) for each in its own thread; {sysid: exception or None}.
 
     With a ``monitor``, losses are checked while waiting, and a vehicle found
@@ -417,7 +417,7 @@ class Retasker:
 
     def _step(self, sysids, fn) -> None:
         """fn on every survivor at once; a failure of a vehicle found lost restarts."""
-        errors = _in_parallel(fn, sysids, self.monitor)
+        errors = in_parallel(fn, sysids, self.monitor)
         newly = self.monitor.check_losses()
         failed = {s: e for s, e in errors.items() if e is not None}
         gone = [s for s in sysids if self.monitor.vehicles[s].state == LOST]

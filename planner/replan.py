@@ -31,7 +31,7 @@ from planner.visibility import Viewpoints, compute_visibility
 from .context import PlanningContext
 from .coverage import CoverageProblem, required_uavs
 from .coverage.metrics import sighting_counts
-from .pipeline import Start, above_launch, allocate
+from .pipeline import Start, above_launch, allocate, launch_starts
 
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
 #: autopilots accept a waypoint within about 2 m
@@ -358,3 +358,27 @@ def replan(ctx: PlanningContext, survivors: list, seen=None, method=None,
     for r, (vehicle, s) in enumerate(zip(outcome.plan.vehicles, survivors)):
         vehicle.id = int(s.vehicle_id)
     return outcome
+
+
+class BaseRefused(InputError):
+    """No hidden takeoff from the base of vehicle ``index`` (`plan_from_bases`)."""
+
+    def __init__(self, index, exc: InputError):
+        super().__init__(exc.source, exc.problem)
+        self.index = index
+
+
+def plan_from_bases(ctx: PlanningContext, launch: list, moved=(), log=None):
+    """The context's scenario planned again for the whole fleet from ``launch``
+    ((lat, lon) of each vehicle's base, in order): vehicles standing elsewhere than
+    planned, before their takeoff. Each base of ``moved`` (indices) is checked alone
+    first, so that one from which no hidden takeoff is possible is named
+    (`BaseRefused`); returns the (context, `planner.pipeline.Outcome`)."""
+    for i in moved:
+        try:
+            launch_starts(replace(ctx, scenario=replace(ctx.scenario, launch=[launch[i]],
+                                                        uavs=1)))
+        except InputError as exc:
+            raise BaseRefused(i, exc) from None
+    ctx = replace(ctx, scenario=replace(ctx.scenario, launch=list(launch)))
+    return ctx, allocate(ctx, len(launch), launch_starts(ctx), log=log)

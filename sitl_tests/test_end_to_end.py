@@ -20,7 +20,7 @@ import numpy as np
 import pytest
 from fleets import LONG, REAL_BACKENDS, SPEEDUP, start_backend
 
-from gcs.fly import Flight, FlyOptions
+from gcs.flight import Flight, FlyOptions
 from planner.exposure import segments_clear, segments_hidden
 from planner.replan import coverage_summary
 
@@ -103,7 +103,7 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
         def swap_when_waiting():
             swapped = {}            # id -> route, kept: a freed route's id is reused
             while not stop.is_set():
-                for sysid, route in list(flight._waiting_battery.items()):
+                for sysid, route in list(flight.batteries.waiting.items()):
                     if id(route) not in swapped:
                         swapped[id(route)] = route
                         swap(sysid)

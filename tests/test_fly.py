@@ -10,9 +10,9 @@ import pytest
 
 from common.errors import InputError
 from gcs.cli import main
-from gcs.fly import assign_vehicles
+from gcs.flight import assign_vehicles
 from gcs.monitor import FLYING, HOLDING, LANDED, LOST, Monitor
-from gcs.retask import _in_parallel
+from gcs.retask import in_parallel
 from gcs.sim import free_base_port, read_track, track_path
 from planner.plan import Plan
 
@@ -138,7 +138,7 @@ def test_a_loss_found_while_waiting_on_another_vehicle_is_not_forgotten(plan_dir
             links[sysid - 1].beat()
             time.sleep(0.02)
 
-    assert _in_parallel(switch, [1], m) == {1: None}
+    assert in_parallel(switch, [1], m) == {1: None}
     assert m.vehicles[2].state == LOST
     assert m.check_losses() == []            # found already, while waiting ...
     assert m.take_losses() == [2]            # ... and still to be re-tasked for
@@ -251,13 +251,17 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
     nobody watching: they are brought home by hidden paths and watched down.
     Judged by the simulator's own tracks: each landed where it took off, long
     before its mission would have ended, and the one refused never armed."""
-    from gcs.fly import Flight, FlightError, FlyOptions
-    from gcs.sim import fleet_for_plan
+    from gcs.flight import Flight, FlightError, FlyOptions
+    from gcs.sim import fleet_for_plan, terrain_ground
 
     plan = planned.plan
     last = max(plan.vehicles, key=lambda v: v.takeoff_s).id
+    # over the plan's relief: its routes go below the base, where a flat ground at the
+    # base's height would be touched (at the time the start gives up, once the
+    # others have left the base column one at a time, they fly there)
     fleet = fleet_for_plan(plan, speedup=20.0, base_port=free_base_port(10, 3),
-                           track_dir=tmp_path / "tracks")
+                           track_dir=tmp_path / "tracks",
+                           terrain=terrain_ground(planned.terrain))
     fleet.refuse_arm(last)
     try:
         with pytest.raises(FlightError, match="start failed"):
@@ -277,18 +281,21 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
             assert "armed" not in events
             continue
         assert "landed" in events and abs(track.alt[-1] - track.home[2]) < 1.0
-        assert track.t[-1] < v.mission_time_s
+        # down before its mission would have ended, on its own clock from its takeoff
+        took_off = next(e["t"] for e in track.events if e["event"] == "takeoff")
+        assert track.t[-1] < took_off + v.mission_time_s - v.takeoff_s
 
 
 LAT0, LON0, M_PER_DEG = 36.6, -84.2, 111_320.0
 
 
 def _watched(holds=(), waiting=None):
-    """A vehicle as `Flight._left_s` sees it, on a straight route north at 10 m/s, a
-    waypoint every 1000 m and 100 s apart (``holds``: {waypoint: s}, the later
-    ones that much later), standing at the first on its own clock 1000 s; the
-    flight's methods it calls, its own; ``waiting``: a re-plan's wait (s)."""
-    from gcs.fly import Flight
+    """A vehicle as the battery watch (`Batteries.left_s`) sees it, on a straight route
+    north at 10 m/s, a waypoint every 1000 m and 100 s apart (``holds``: {waypoint:
+    s}, the later ones that much later), standing at the first on its own clock
+    1000 s; ``waiting``: a re-plan's wait (s). Returns the watch, the vehicle and
+    its reported state."""
+    from gcs.flight.batteries import Batteries
     from planner.plan import VehicleRoute, Waypoint
     from planner.travel import TravelParams
 
@@ -303,13 +310,10 @@ def _watched(holds=(), waiting=None):
     vehicle = SimpleNamespace(route=route, done={0}, track=[(0, LON0, LAT0, 700.0, 1000.0)],
                               state=FLYING)
     travel = TravelParams(speed_mps=10.0, climb_mps=3.0, descent_mps=2.0)
-    fake = SimpleNamespace(monitor=SimpleNamespace(vehicles={1: vehicle}, links={1: SimpleNamespace(
-        state=state)}, now=lambda: 100.0), ctx=SimpleNamespace(scenario=SimpleNamespace(
-            travel_params=lambda: travel)), _route_seen={}, _pace={}, paces={},
-        _waiting_s=lambda s: waiting)
-    for name in ("_own_clock", "_next_waypoint", "_on_timeline", "_stood_s"):
-        setattr(fake, name, getattr(Flight, name).__get__(fake))
-    return fake, vehicle, state
+    flight = SimpleNamespace(monitor=SimpleNamespace(vehicles={1: vehicle}, links={
+        1: SimpleNamespace(state=state)}, now=lambda: 100.0), ctx=SimpleNamespace(
+            scenario=SimpleNamespace(travel_params=lambda: travel)))
+    return Batteries(flight, lambda s: waiting), vehicle, state
 
 
 def _stand(vehicle, state, north_m, own_s, t_s=0.0) -> None:
@@ -319,48 +323,49 @@ def _stand(vehicle, state, north_m, own_s, t_s=0.0) -> None:
 
 
 def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
-    """`Flight._left_s`: the rest of a sortie from where the vehicle is (to its next
+    """`Batteries.left_s`: the rest of a sortie from where the vehicle is (to its next
     waypoint at the plan's speed, then the route as planned), stretched by how
     much slower than planned it has made its way along the route on its own
     clock, never shrunk; on its way home once it has nothing left to photograph
     (the watch then only says what it will land on); nothing past the end. And a
     re-plan counts the battery of one that slow as that much shorter
     (`Retasker._flown_s`). Reference: the route's own times, by hand."""
-    from gcs.fly import WATCH_AFTER_S, Flight
+    from gcs.flight.batteries import WATCH_AFTER_S
+    from gcs.flight.state import homebound
     from gcs.retask import Retasker
 
     fake, vehicle, state = _watched()
-    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - 0.0, abs=1.0)   # first look
+    assert fake.left_s(1) == pytest.approx(460.0 - 0.0, abs=1.0)   # first look
     # 2 * WATCH_AFTER_S later on its own clock, where the plan is WATCH_AFTER_S after
     # the start: it makes half the planned pace
     along = WATCH_AFTER_S * 10.0
     _stand(vehicle, state, along, 1000.0 + 2 * WATCH_AFTER_S)
     vehicle.done = {k for k in range(5) if 1000.0 * k <= along}
-    left = Flight._left_s(fake, 1)
+    left = fake.left_s(1)
     assert fake._pace[1] == pytest.approx(2.0, rel=0.01)
     assert fake.paces == {1: {1: pytest.approx(2.0, rel=0.01)}}   # flight.json's, by sortie
     assert left == pytest.approx(2.0 * (460.0 - WATCH_AFTER_S), rel=0.01)
-    assert not Flight._homebound(fake, 1)
+    assert not homebound(fake.state.monitor, 1)
     vehicle.done = {0, 1, 2}           # its last snapshot taken: on its way home, 1800 m
-    assert Flight._homebound(fake, 1)  # from waypoint 3 (planned at 300 s), at half pace
-    assert Flight._left_s(fake, 1) == pytest.approx(2.0 * (460.0 - (300.0 - 180.0)), rel=0.01)
+    assert homebound(fake.state.monitor, 1)  # from waypoint 3 (planned at 300 s), at half pace
+    assert fake.left_s(1) == pytest.approx(2.0 * (460.0 - (300.0 - 180.0)), rel=0.01)
     vehicle.done = {0, 1, 2, 3, 4}
-    assert Flight._left_s(fake, 1) is None
+    assert fake.left_s(1) is None
     # held by a re-plan until its time: its pace is timed afresh from where it flies
     # on (one so held read 6.8 times slower)
-    vehicle.done, fake._waiting_s = {0, 1, 2}, lambda s: 30.0
-    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - (300.0 - 180.0), rel=0.01)
+    vehicle.done, fake.waiting_s = {0, 1, 2}, lambda s: 30.0
+    assert fake.left_s(1) == pytest.approx(460.0 - (300.0 - 180.0), rel=0.01)
     assert 1 not in fake._pace and fake._route_seen[1][1] == 1000.0 + 2 * WATCH_AFTER_S
     # held by the separation guard 50 s, 1800 m along: timed afresh from where it flies
     # on, at the planned pace (with the holds' spans taken out of its time instead, a
     # simulated vehicle held at 100 x was said to need 221 % of a battery to get home)
-    fake._waiting_s, vehicle.state, vehicle.done = (lambda s: None), HOLDING, {0, 1}
+    fake.waiting_s, vehicle.state, vehicle.done = (lambda s: None), HOLDING, {0, 1}
     _stand(vehicle, state, 1800.0, 1000.0 + 2 * WATCH_AFTER_S + 50.0)
-    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - 180.0, rel=0.01)
+    assert fake.left_s(1) == pytest.approx(460.0 - 180.0, rel=0.01)
     assert 1 not in fake._pace
     vehicle.state, vehicle.done = FLYING, {0, 1, 2}
     _stand(vehicle, state, 1800.0 + 10.0 * WATCH_AFTER_S, 1000.0 + 3 * WATCH_AFTER_S + 50.0)
-    assert Flight._left_s(fake, 1) == pytest.approx(460.0 - 180.0 - WATCH_AFTER_S, rel=0.01)
+    assert fake.left_s(1) == pytest.approx(460.0 - 180.0 - WATCH_AFTER_S, rel=0.01)
     assert fake._pace[1] == pytest.approx(1.0, rel=0.01)
     # the re-plan: half its battery left, at half the pace: a quarter of the flight
     ctx = SimpleNamespace(scenario=SimpleNamespace(endurance_min=12.0))
@@ -373,25 +378,23 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
 @pytest.mark.parametrize("reached", ["on arrival", "after the hold"])
 def test_a_vehicle_standing_out_its_planned_hold_is_on_time(reached):
     """A hold the plan gives a waypoint (a separation wait: 63 s on a sortie of the
-    shared plan) is spent as planned: `Flight._left_s` counts the time the vehicle
+    shared plan) is spent as planned: `Batteries.left_s` counts the time the vehicle
     has stood there, on its own clock, up to the hold, and its pace stays the
     plan's. ArduPilot says it reached the waypoint on arrival, PX4 (and the
     simulator) after the hold. Read as flying to the next waypoint, a vehicle of the
     shared plan flying as planned was timed 1.34 times slower, and the battery
     watch brought it home early. Reference: the route's own times, by hand."""
-    from gcs.fly import Flight
-
     fake, vehicle, state = _watched(holds={2: 60.0})     # waypoint 2: 200 s to 260 s
     assert vehicle.route.mission_time_s == 520.0
-    assert Flight._left_s(fake, 1) == pytest.approx(520.0, abs=1.0)   # first look
+    assert fake.left_s(1) == pytest.approx(520.0, abs=1.0)   # first look
     vehicle.done = {0, 1, 2} if reached == "on arrival" else {0, 1}
     for stood in (0.0, 50.0, 60.0):     # arrived on time, at 1200 s on its own clock
         _stand(vehicle, state, 2000.0, 1200.0 + stood)
-        assert Flight._left_s(fake, 1) == pytest.approx(520.0 - 200.0 - stood, abs=1.0)
+        assert fake.left_s(1) == pytest.approx(520.0 - 200.0 - stood, abs=1.0)
         assert fake._pace[1] == pytest.approx(1.0, abs=0.01)
     vehicle.done = {0, 1, 2}            # left on time: 100 m on to waypoint 3 at 1270 s
     _stand(vehicle, state, 2100.0, 1270.0)
-    assert Flight._left_s(fake, 1) == pytest.approx(520.0 - 270.0, abs=1.0)
+    assert fake.left_s(1) == pytest.approx(520.0 - 270.0, abs=1.0)
     assert fake._pace[1] == pytest.approx(1.0, abs=0.01)
 
 
@@ -403,7 +406,7 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
     per vehicle, naming the parameter and both rates; vehicles at the plan's rates
     hear nothing, but that PX4 stops at each waypoint of a plan made for ArduPilot
     (what it costs there: `planner.rates.waypoint_stop_s`)."""
-    from gcs.fly import Flight, FlyOptions
+    from gcs.flight import Flight, FlyOptions
     from gcs.sim import fleet_for_plan
     from gcs.sim.physics import Limits
     from planner.rates import waypoint_stop_s

@@ -10,7 +10,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gcs.guard import SeparationGuard, closest_ahead
+from gcs.guard import GuardFleet, SeparationGuard, closest_ahead
 from gcs.monitor import Monitor
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
 from planner.travel import TravelParams
@@ -66,13 +66,28 @@ def _guard(vehicles, priority, short=(), waiting=lambda s: None):
     for v in vehicles:
         monitor.follow(v, v.sysid, v.route or _route(*v.p[:2]), None)
     clock = SimpleNamespace(rate=lambda: 1.0)
-    guard = SeparationGuard(monitor, 30.0, priority, clock,
-                            airborne=lambda: [v.sysid for v in vehicles],
-                            hold=lambda s: _set(vehicles, s, True),
-                            resume=lambda s: _set(vehicles, s, False),
-                            travel=TravelParams(speed_mps=12.0),
-                            short=lambda s: s in short, waiting=waiting)
+    guard = SeparationGuard(monitor, 30.0, priority, clock, _Scripted(vehicles, short, waiting),
+                            travel=TravelParams(speed_mps=12.0))
     return monitor, guard
+
+
+class _Scripted(GuardFleet):
+    """The scripted vehicles as the guard sees a flight."""
+
+    def __init__(self, vehicles, short, waiting):
+        self.vehicles, self._short, self.waiting = vehicles, short, waiting
+
+    def airborne(self):
+        return [v.sysid for v in self.vehicles]
+
+    def hold(self, sysid):
+        _set(self.vehicles, sysid, True)
+
+    def resume(self, sysid):
+        _set(self.vehicles, sysid, False)
+
+    def short(self, sysid):
+        return sysid in self._short
 
 
 def _set(vehicles, sysid, held):
@@ -281,12 +296,12 @@ def test_held_low_in_a_shared_column_with_only_its_top_left_it_lands_from_there(
     one = Descending(1, ALT - 16.0, base.alt_amsl)
     three = InColumn(3, ALT - 54.0, base.alt_amsl, ALT)
     guard = _held_in_one_column(one, three, base, top)
-    guard.lands_here = lambda s: s == 3
+    guard.fleet.lands_here = lambda s: s == 3
 
     def land(sysid):
         three.landing = True
         _set([one, three], sysid, False)
-    guard._land = land
+    guard.fleet.land = land
     least = math.inf
     for _ in range(400):
         _run([one, three], guard, 0.25)
@@ -314,7 +329,8 @@ def test_closest_approach_counts_no_vehicle_touched_down_on_its_pad():
     for v in (down, above):
         monitor.vehicles[v.sysid].route = VehicleRoute(v.sysid, base, [top], 0.0, 0.0, 0.0)
     down.state.relative_alt = 0.0
-    guard.on_pad = monitor.on_pad
+    guard.fleet.on_pad = monitor.on_pad
     assert monitor.on_pad(2) and not monitor.on_pad(3)
     _run([down, above], guard, 1.0)
     assert guard.report()["pairs"] == []
+

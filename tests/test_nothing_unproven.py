@@ -17,7 +17,7 @@ from hypothesis import strategies as st
 
 from common.errors import InputError
 from gcs.cli import main
-from gcs.fly import PLAN_FROM_HERE
+from gcs.flight import PLAN_FROM_HERE
 from gcs.sim import FleetConfig, SimFleet, free_fleet_ports, read_track, track_path
 from missions import qgc
 from missions.build import MissionOptions, vehicle_mission

@@ -197,7 +197,7 @@ def test_live_table_says_alt_is_above_home():
 def test_one_connect_timeout_for_upload_download_and_fly():
     from gcs.cli import download, fly, upload
     from gcs.cli.options import CONNECT_TIMEOUT_S
-    from gcs.fly import FlyOptions
+    from gcs.flight import FlyOptions
 
     defaults = set()
     for module in (upload, download, fly):

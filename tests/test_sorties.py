@@ -17,7 +17,7 @@ from flown import problems_beside_guard
 
 from common.errors import InputError
 from gcs.cli import main
-from gcs.fly import LOOP_S
+from gcs.flight import LOOP_S
 from gcs.guard import hold_spans
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
 from gcs.plan_folder import write_plan_folder
@@ -592,7 +592,7 @@ def test_a_battery_that_drains_fast_is_brought_home_early(twelve, tmp_path):
 def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve, tmp_path):
     """On real vehicles the next sortie waits for the operator's word as well as a
     fresh battery: the flight waits, says so, and goes once it is given."""
-    from gcs.fly import Flight, FlyOptions
+    from gcs.flight import Flight, FlyOptions
 
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks", battery_min=12.0,
@@ -605,7 +605,7 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
         def confirm_when_asked():       # once per sortie waiting, as an operator would
             answered = {}           # id -> route, kept: a freed route's id is reused
             while not done.is_set():
-                for sysid, route in list(flight._waiting_battery.items()):
+                for sysid, route in list(flight.batteries.waiting.items()):
                     if id(route) not in answered:
                         answered[id(route)] = route
                         flight.confirm_swap(sysid)
@@ -635,20 +635,20 @@ def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve,
     one): a loss, re-planned like any other, not a failed flight. The sortie stayed
     awaited while it uploaded (once it was taken off the list first, the vehicle
     could not be lost, and the flight stopped on the upload's error)."""
-    import gcs.fly
-    from gcs.fly import Flight, FlyOptions
+    import gcs.flight.flight
+    from gcs.flight import Flight, FlyOptions
 
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks", battery_min=12.0,
                            terrain=terrain_ground(planned.terrain))
-    real, calls = gcs.fly.upload_route, []
+    real, calls = gcs.flight.flight.upload_route, []
 
     def upload_route(link, missions, *args, **kwargs):
         calls.append(link.sysid)
         if calls.count(2) == 2 and calls[-1] == 2:   # its first upload after takeoff
             fleet.kill(2)
         return real(link, missions, *args, **kwargs)
-    monkeypatch.setattr(gcs.fly, "upload_route", upload_route)
+    monkeypatch.setattr(gcs.flight.flight, "upload_route", upload_route)
     try:
         report = Flight(twelve.dir, fleet.urls(),
                         FlyOptions(output=tmp_path / "f", lost_after_s=3.0, plot=False,
@@ -699,7 +699,7 @@ def test_a_flight_whose_last_survivors_fall_during_a_re_plan_ends(planned, twelv
     sorties once stood: the flight then waited for ever on sorties of lost
     vehicles): the flight ends, every vehicle lost."""
     import gcs.retask
-    from gcs.fly import Flight, FlyOptions
+    from gcs.flight import Flight, FlyOptions
     from gcs.sim import FaultPlan
 
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),

@@ -70,7 +70,7 @@ def run(args) -> int:
 def _fly(ctx, plan, plan_dir, flight_dir, args):
     """Fly the plan on simulated vehicles, with the planning context in memory."""
     from gcs.cli.views import fly_plan, summary
-    from gcs.fly import FlightError, FlyOptions
+    from gcs.flight import FlightError, FlyOptions
     from gcs.progress import console
     from gcs.sim import FaultPlan, fleet_for_plan, terrain_ground
     from missions.build import vehicle_mission

@@ -98,7 +98,7 @@ def add_arguments(parser) -> None:
 
 
 def options_from_args(args):
-    from gcs.fly import FlyOptions
+    from gcs.flight import FlyOptions
 
     if not args.lost_after > 0:
         raise InputError("--lost-after", f"must be positive, got {args.lost_after}")
@@ -215,7 +215,7 @@ def forwarder(args):
 
 def run(args) -> int:
     from gcs.cli.views import fly_flight, summary
-    from gcs.fly import Flight, FlightError
+    from gcs.flight import Flight, FlightError
     from gcs.progress import console
 
     check_urls(args.connect)

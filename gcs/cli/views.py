@@ -157,7 +157,7 @@ def fly_plan(plan_dir, urls, options, ctx=None) -> dict:
     """Fly with a live status table on a terminal, event lines on stderr otherwise;
     FlightError when the flight could not go on (the report is written first).
     ``ctx``: the plan's context when it is in memory."""
-    from gcs.fly import Flight
+    from gcs.flight import Flight
 
     live = console.is_terminal
     flight = Flight(plan_dir, urls, options, ctx=ctx,

@@ -60,7 +60,7 @@ class LiveMap:
 
     def __init__(self, flight, ctx, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT,
                  area=None):
-        """``flight``: a `gcs.fly.Flight` (read, never changed); ``ctx``: its plan's
+        """``flight``: a `gcs.flight.Flight` (read, never changed); ``ctx``: its plan's
         context (terrain and surface for the base layer); ``area``: polygons of the
         plan's area file (`planner.terrain.area.read_area`), drawn when given."""
         from gcs.livemap.base import base_layer, ceiling_scale_png

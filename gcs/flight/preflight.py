@@ -1,0 +1,154 @@
+"""Before anything is armed: where the vehicles stand, what their autopilots would
+do on their own, and how fast they are set to fly.
+
+- `locate`: every vehicle at its route's launch point, within the plan's track
+  tolerance (a vehicle elsewhere would climb and fly a first leg nobody proved
+  hidden): refused by name, or with ``from_where_they_stand`` the fleet planned
+  again from where they stand (`planner.replan.plan_from_bases`);
+- `check_failsafes`: what each autopilot does on a low battery, said;
+- `check_rates`: where an autopilot's own rate limits are below the plan's, said.
+"""
+
+from gcs import commands
+from gcs.monitor import LOST, distance_m
+from planner.fleet import stop_time
+
+from .options import FlightError, launch_tolerance
+
+#: a battery failsafe that does one of these stays hidden: straight down from a
+#: hidden point is below the exposure surface (`check_failsafes`)
+HIDDEN_FAILSAFES = ("a warning", "LAND where", "brake where")
+#: m/s an autopilot's rate limit may fall short of the plan's (float32, unit rounding)
+RATE_SLACK_MPS = 0.01
+
+
+def start_of(route):
+    """Where a route's vehicle must stand to start it: its launch point, or under its
+    first waypoint when the plan has none (None for a route without waypoints)."""
+    if route.launch is not None:
+        return route.launch
+    return route.waypoints[0] if route.waypoints else None
+
+
+def start_name(route) -> str:
+    return "the launch point" if route.launch is not None else "under the first waypoint"
+
+
+class Preflight:
+    """The checks of one flight before arming (see the module doc). ``replan(off)``:
+    plans the fleet again from where the ``off`` vehicles stand and flies that plan
+    instead (`gcs.flight.Flight.plan_from_where_they_stand`)."""
+
+    def __init__(self, state, replan):
+        self.state, self.replan = state, replan
+
+    def locate(self) -> None:
+        """Wait for every vehicle's position (ArduPilot reports none before its EKF
+        has an origin), then `check_positions`: before anything is uploaded or armed."""
+        m = self.state.monitor
+        self.state.on_every(lambda sysid: commands.wait_position(
+            m.links[sysid], self.state.options.ready_timeout_s), "locating", commands.CommandError)
+        self.check_positions()
+
+    def check_positions(self) -> None:
+        """Before anything is armed: every vehicle stands at its route's launch point
+        (its reported position), within the plan's track tolerance, the room its
+        takeoff column is proven with. A vehicle elsewhere would climb and fly a
+        first leg nobody proved hidden: FlightError naming each one and how far off it
+        stands, or with ``from_where_they_stand`` the fleet planned again from where
+        they stand. (Its home is not compared: ArduPilot and PX4 both set home where
+        they arm.)"""
+        off = self.off_launch()
+        if off and self.state.options.from_where_they_stand:
+            self.replan(off)
+            off = self.off_launch()          # the new plan's bases: where they stand
+        if off:
+            lines = [f"vehicle {sysid} stands {d:.1f} m from {start_name(route)} of route "
+                     f"{route.id} ({lat:.7f},{lon:.7f}, not {start_of(route).lat:.7f},"
+                     f"{start_of(route).lon:.7f})" for sysid, route, d, lat, lon in off]
+            for line in lines:
+                self.state.monitor.event(None, f"refused: {line}")
+            raise FlightError("; ".join(lines) + f": each must stand within "
+                              f"{launch_tolerance(self.state.plan):g} m of where its route "
+                              "starts (the plan's track tolerance) before it is armed")
+
+    def off_launch(self) -> list:
+        """[(sysid, route, metres, lat, lon)] of the vehicles standing farther from their
+        route's launch point (or, for a plan without one, from under its first
+        waypoint: it climbs straight up to it) than the launch tolerance."""
+        tolerance = launch_tolerance(self.state.plan)
+        m = self.state.monitor
+        off = []
+        for sysid, v in sorted(m.vehicles.items()):
+            launch, s = start_of(v.route), m.links[sysid].state
+            if launch is None or v.state == LOST or s.lat is None:
+                continue
+            d = distance_m(launch.lat, launch.lon, s.lat, s.lon)
+            if d > tolerance:
+                off.append((sysid, v.route, d, s.lat, s.lon))
+        return off
+
+    def check_failsafes(self) -> None:
+        """Say, one line per vehicle, what its autopilot does on a low battery
+        (ArduPilot BATT_FS_LOW_ACT and BATT_FS_CRT_ACT, PX4 COM_LOW_BAT_ACT): anything
+        but a warning or a landing where it is flies a path nobody proved hidden, in
+        view of the outposts. The plan's reserve keeps the battery above it; the
+        battery watch acts first."""
+        m = self.state.monitor
+        for sysid, v in sorted(m.vehicles.items()):
+            link = m.links[sysid]
+            failsafes = commands.autopilot(link).battery_failsafes
+            if not failsafes or v.state == LOST:
+                continue
+            said, unproven = [], False
+            for name, actions in failsafes:
+                value = commands.read_param(link, name, retries=1)
+                if value is None:
+                    said.append(f"{name} not answered (what it does is unknown)")
+                    continue
+                does = actions.get(int(value), f"value {int(value)} (see the autopilot's manual)")
+                said.append(f"{name} = {int(value)}, {does}")
+                unproven |= not does.startswith(HIDDEN_FAILSAFES)
+            m.event(sysid, "battery failsafe: " + "; ".join(said)
+                    + (": if one fired, that flight is not proven hidden from the outposts"
+                       if unproven else ""))
+
+    def check_rates(self) -> None:
+        """Say, one line per vehicle, where its autopilot's own limits on a mission's
+        speed, climb or descent (the profile's `rate_limits`: ArduPilot
+        WPNAV_SPEED_UP / _DN, PX4 MPC_XY_VEL_MAX, MPC_Z_V_AUTO_UP / _DN) are below the
+        plan's: the legs they cap take longer than planned, and the fleet's
+        schedule, its separation and each sortie's battery were planned on the
+        plan's figures."""
+        m, params = self.state.monitor, self.state.params
+        for sysid, v in sorted(m.vehicles.items()):
+            link = m.links[sysid]
+            if v.state == LOST:
+                continue
+            slower = []
+            for name, rate, unit in commands.autopilot(link).rate_limits:
+                planned, value = params.get(rate), commands.read_param(link, name, retries=1)
+                if planned is not None and value is not None and \
+                        value * unit < float(planned) - RATE_SLACK_MPS:
+                    slower.append(f"{name} = {value:g} ({value * unit:g} m/s, the plan's "
+                                  f"{rate} {float(planned):g})")
+            stops = self._stop_said(commands.autopilot(link).name)
+            if stops:
+                slower.append(stops)
+            if slower:
+                m.event(sysid, "slower than planned: " + "; ".join(slower) + ": its legs take "
+                        "longer than the plan's times, on which its schedule, separation and "
+                        "battery were planned; set the parameters to the plan's rates, or "
+                        "plan with the vehicle's")
+
+    def _stop_said(self, firmware):
+        """What a vehicle of ``firmware`` loses at a waypoint beyond what the plan
+        counts, said; None when no more (a PX4 vehicle flying a plan made for
+        ArduPilot stops at each: 2.7 s more a waypoint at 12 m/s)."""
+        params = self.state.params
+        planned = stop_time(params)
+        own = stop_time(dict(params, firmware=firmware))
+        if own <= planned + 1e-6:
+            return None
+        return (f"each waypoint {own:.1f} s ({firmware} stops at each) where the plan counts "
+                f"{planned:.1f} s (planned for {params.get('firmware') or 'ardupilot'})")

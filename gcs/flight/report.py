@@ -1,0 +1,152 @@
+"""The flight's report (flight.json) and its verdict (`outcome`).
+
+Coverage at the end is re-evaluated from the snapshot positions with the
+planner's own sensor model; a lost vehicle's snapshots count as lost. The
+``outcome`` says whether the flight did its job: the required coverage reached,
+no vehicle lost, none left in the air; ``problems`` says what went wrong, one
+line each.
+"""
+
+import json
+import math
+from dataclasses import asdict
+from datetime import datetime, timezone
+
+from common.fileio import write_text_atomic
+from gcs.monitor import LOST, STRANDED, WAITING
+from gcs.retask import snapshot_xyz
+from planner.replan import coverable_targets, coverage_summary
+
+from .options import FLIGHT_FILE, FORMAT, PLOT_FILE
+
+
+def _finite_or_none(x):
+    return None if x is None or not math.isfinite(x) else round(float(x), 2)
+
+
+def report(flight) -> dict:
+    """flight.json's document of a `gcs.flight.Flight` (read, never changed)."""
+    m = flight.monitor
+    vehicles = [_vehicle_report(flight, v) for _, v in sorted(m.vehicles.items())]
+    losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
+               "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason,
+               "stalled_s": v.lost_stalled_s}
+              for _, v in sorted(m.vehicles.items()) if v.state == LOST]
+    covered = coverage(flight.state)
+    plan = flight.plan
+    guard = flight.guard
+    return {
+        "format": FORMAT, "plan": str(flight.plan_dir),
+        "started_utc": datetime.fromtimestamp(flight.start_unix, timezone.utc).isoformat(),
+        "start_unix": flight.start_unix, "duration_s": round(m.now(), 3),
+        "lost_after_s": flight.options.lost_after_s, "k": int(plan.metrics.get("k", 0)),
+        # what of the area of operations the plan's targets are, and its observers
+        "area": plan.metrics.get("area"), "outposts": len(plan.outposts),
+        "outcome": outcome(flight, covered),
+        "vehicles": vehicles, "losses": losses,
+        "replans": [asdict(r) for r in flight.retasks],
+        "segments": flight.segments.report(),
+        "separation": dict(guard.report() if guard is not None else {},
+                           planned_closest_m=_finite_or_none(flight.min_separation_m)),
+        "coverage": covered, "events": list(m.events),
+    }
+
+
+def outcome(flight, covered: dict) -> dict:
+    """Did the flight do its job? ``ok`` only with the required coverage reached
+    (every coverable target seen by min(k + 1, survivors) survivors), no vehicle
+    lost and none left in the air; ``problems`` says what went wrong, one line each."""
+    m = flight.monitor
+    lost = [s for s, v in sorted(m.vehicles.items()) if v.state == LOST]
+    stranded = [s for s, v in sorted(m.vehicles.items()) if v.state == STRANDED]
+    # one whose start never came (or was called off) stands on the ground
+    grounded = [s for s, v in sorted(m.vehicles.items()) if v.state == WAITING]
+    flying = [s for s, v in sorted(m.vehicles.items())
+              if not v.finished and s not in grounded]
+    survivors = covered.get("survivors")
+    reached = bool(survivors) and survivors["k_covered"] >= covered["coverable_targets"]
+    problems = []
+    if flight.error is not None:
+        problems.append(f"failed: {flight.error}")
+    if lost:
+        problems.append(f"vehicle(s) {', '.join(map(str, lost))} lost")
+    if not reached:
+        problems.append("required coverage not reached: " + (
+            f"{survivors['k_covered']} of {covered['coverable_targets']} coverable targets "
+            f"seen by {survivors['required_uavs']} surviving vehicle(s)" if survivors
+            else covered.get("error", "no coverage computed")))
+    if stranded:
+        problems.append(f"vehicle(s) {', '.join(map(str, stranded))} stranded: held in "
+                        "the air where no hidden leg joins them, left to the operator")
+    held = sorted({a["sysid"] for a in (flight.guard.actions if flight.guard else [])
+                   if a["action"] == "hold"})
+    if held:
+        problems.append(f"vehicle(s) {', '.join(map(str, held))} held by the separation "
+                        "guard: flown off the proven schedule")
+    for sysid, v in sorted(m.vehicles.items()):
+        if v.off_route:
+            worst = max(e[2] for e in v.off_route)
+            problems.append(f"vehicle {sysid} flew off its proven route ({len(v.off_route)} "
+                            f"time(s), up to {worst:.0f} m from its legs): what it flew "
+                            "there was not proven hidden")
+        if v.uncommanded:
+            modes = ", ".join(f"{mode} at {t:.1f} s" for t, mode in v.uncommanded)
+            problems.append(f"vehicle {sysid} flew in modes gcs did not command ({modes}): "
+                            "what it flew there was not proven hidden")
+    if flying:
+        why = "timed out" if flight.timed_out else (flight.stopped or "stopped")
+        problems.append(f"{why} with vehicle(s) {', '.join(map(str, flying))} in the air")
+    if grounded:
+        problems.append(f"vehicle(s) {', '.join(map(str, grounded))} never took off")
+    return {"ok": not problems, "coverage_reached": reached, "lost": lost,
+            "timed_out": flight.timed_out, "in_air": sorted(flying + stranded),
+            "stranded": stranded, "problems": problems}
+
+
+def _vehicle_report(flight, v) -> dict:
+    m = flight.monitor
+    return {
+        "sysid": v.sysid, "vehicle": v.vehicle_id, "flavour": v.flavour, "state": v.state,
+        "missions": v.generation + 1, "segments": v.segments,
+        "mission_capacity": getattr(m.links.get(v.sysid), "mission_capacity", None),
+        "lost_at_s": v.lost_at_s,
+        "lost_reason": v.lost_reason, "landed_at_s": v.landed_at_s,
+        "snapshots": [asdict(s) for s in v.snapshots],
+        "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],
+        "off_route": [list(e) for e in v.off_route],
+        "pace": {str(j): p for j, p in flight.batteries.paces.get(v.sysid, {}).items()},
+    }
+
+
+def coverage(state) -> dict:
+    """k-coverage from the snapshots taken: by the survivors, and by every vehicle."""
+    try:
+        ctx = state.context()
+    except Exception as exc:
+        return {"error": str(exc)}
+    m, plan = state.monitor, state.plan
+    k = int(plan.metrics.get("k", ctx.scenario.k))
+    alive = [v for _, v in sorted(m.vehicles.items()) if v.state != LOST]
+    every = [v for _, v in sorted(m.vehicles.items())]
+    # the targets only viewpoints beyond one battery see are not the flight's to cover
+    short = int((plan.metrics.get("battery") or {}).get("targets_short", 0))
+    out = {"coverable_targets": coverable_targets(ctx) - short,
+           "beyond_battery_targets": short}
+    for name, group in (("survivors", alive), ("all_vehicles", every)):
+        out[name] = coverage_summary(ctx, [snapshot_xyz(ctx, v) for v in group], k)
+    out["planned"] = {key: plan.metrics.get(key) for key in
+                      ("targets", "covered", "k_covered", "coverage_time_s")}
+    return out
+
+
+def write(flight, document: dict) -> None:
+    """flight.json, and its picture unless the options say no plot."""
+    flight.output.mkdir(parents=True, exist_ok=True)
+    write_text_atomic(flight.output / FLIGHT_FILE, json.dumps(document, indent=1))
+    if flight.options.plot:
+        from gcs.flight_plot import flight_png
+        try:
+            ctx = flight.state.context()
+        except Exception:
+            return
+        flight_png(flight.output / PLOT_FILE, ctx.terrain, ctx.surface, flight.plan, document)
