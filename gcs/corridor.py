@@ -10,12 +10,10 @@ flies where nothing was proven: the monitor says so as it happens, and the
 flight's outcome counts it as a problem.
 """
 
-import math
-
 import numpy as np
 
-#: mean Earth radius (m) of the flat local frames of a flight (this path's, the guard's)
-EARTH_R = 6371008.8
+from common.geo import LocalFrame
+
 #: what a reported position may be off by (GNSS, the report's latency) before a
 #: vehicle counts as off its proven legs (m)
 POSITION_MARGIN_M = 3.0
@@ -25,7 +23,7 @@ COLUMN_M = 10_000.0
 
 
 class ProvenPath:
-    """A route's proven legs on a local flat frame, and how far a position is from them."""
+    """A route's proven legs on a local frame, and how far a position is from them."""
 
     def __init__(self, route, start=None):
         """``route``: the `planner.plan.VehicleRoute` flown; ``start``: (lat, lon,
@@ -36,16 +34,14 @@ class ProvenPath:
         first, last = way[0], way[-1]
         head = [start] if start is not None else [(first[0], first[1], first[2] - COLUMN_M)]
         geo = np.array(head + way + [(last[0], last[1], last[2] - COLUMN_M)], float)
-        self.lat0, self.lon0 = geo[0, 0], geo[0, 1]
-        self._k = math.cos(math.radians(self.lat0))
+        self.frame = LocalFrame(geo[0, 0], geo[0, 1])
         p = self._local(geo)
         self._a, self._ab = p[:-1], np.diff(p, axis=0)
         self._ab2 = np.maximum((self._ab ** 2).sum(axis=1), 1e-12)
 
     def _local(self, geo) -> np.ndarray:
         """(lat, lon, alt) rows as metres east, north, up of the path's first point."""
-        return np.column_stack([np.radians(geo[:, 1] - self.lon0) * EARTH_R * self._k,
-                                np.radians(geo[:, 0] - self.lat0) * EARTH_R, geo[:, 2]])
+        return self.frame.project(geo[:, [1, 0, 2]])
 
     def distance_m(self, lat, lon, alt) -> float:
         """Least distance (m) from the position to the path's legs."""

@@ -31,14 +31,13 @@ Every hold and resume is an event, and `report` gives them with the closest
 approach seen between each pair (from telemetry).
 """
 
-import math
 import threading
 import time
 
 import numpy as np
 
+from common.geo import LocalFrame
 from gcs import commands
-from gcs.corridor import EARTH_R
 from planner.fleet import Profile, Trajectory
 from planner.travel import TravelParams
 
@@ -317,19 +316,20 @@ def _parting(frame, ahead, a, b) -> bool:
 
 
 class _Frame:
-    """The airborne vehicles now, on one local flat frame (metres east, north, up),
-    each reported position carried forward to now at its reported velocity."""
+    """The airborne vehicles now, on one local frame (`common.geo.LocalFrame`: metres
+    east, north, up), each reported position carried forward to now at its
+    reported velocity."""
 
     def __init__(self, monitor, sysids, rate):
         self.monitor = monitor
-        self._p, self.lat0, self.lon0 = {}, None, None
+        self._p, self.local = {}, None
         mono = time.monotonic()
         for sysid in sysids:
             s = monitor.links[sysid].state
             if s.lat is None or s.velocity is None or s.position_at is None:
                 continue
-            if self.lat0 is None:
-                self.lat0, self.lon0 = s.lat, s.lon
+            if self.local is None:
+                self.local = LocalFrame(s.lat, s.lon)
             north, east, up = s.velocity
             p = self.project([(s.lon, s.lat, s.alt_amsl)])[0]
             self._p[sysid] = p + np.array([east, north, up]) * (mono - s.position_at) * rate
@@ -342,12 +342,7 @@ class _Frame:
         return self._p[sysid]
 
     def project(self, points) -> np.ndarray:
-        if not points:
-            return np.zeros((0, 3))
-        a = np.asarray(points, float)
-        k = math.cos(math.radians(self.lat0))
-        return np.column_stack([np.radians(a[:, 0] - self.lon0) * EARTH_R * k,
-                                np.radians(a[:, 1] - self.lat0) * EARTH_R, a[:, 2]])
+        return self.local.project(points) if len(points) else np.zeros((0, 3))
 
     def standing(self, sysid, horizon) -> Trajectory:
         """Held where it is for the horizon."""

@@ -35,6 +35,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from common.geo import distance_m
 from gcs.corridor import POSITION_MARGIN_M, ProvenPath
 from gcs.link import has_position
 from gcs.mavlink import M
@@ -66,13 +67,6 @@ SWAP_SILENCE_S = 600.0
 #: wall seconds a held vehicle is given to brake before its position is taken
 SETTLE_S = 3.0
 SETTLED_MPS = 0.5
-
-
-def distance_m(lat1, lon1, lat2, lon2) -> float:
-    """Horizontal distance in metres (equirectangular: plenty over a few km)."""
-    dlat = math.radians(lat2 - lat1)
-    dlon = math.radians(lon2 - lon1) * math.cos(math.radians((lat1 + lat2) / 2))
-    return 6371008.8 * math.hypot(dlat, dlon)
 
 
 def _note_airborne(v, armed: bool, agl) -> None:

@@ -1,25 +1,29 @@
 """A vehicle off its proven legs is told as it happens and counted in the outcome.
 
 The reference is plain geometry: positions placed at known distances beside a
-route's legs, above its takeoff column and on a re-plan's join leg, fed to the
-monitor as GLOBAL_POSITION_INT reports."""
+route's legs, above its takeoff column and on a re-plan's join leg (by pyproj's
+geodesic on the WGS 84 ellipsoid, from the launch point), fed to the monitor as
+GLOBAL_POSITION_INT reports."""
 
 import math
 from types import SimpleNamespace
 
 import pytest
+from pyproj import Geod
 
 from gcs.corridor import POSITION_MARGIN_M, ProvenPath
 from gcs.monitor import FLYING, Monitor
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
 
 LAT0, LON0, GROUND = -33.9, 151.2, 40.0          # southern and eastern: signs matter
-M_PER_DEG = 6371008.8 * math.pi / 180
 
 
 def _geo(east, north, alt):
-    k = math.cos(math.radians(LAT0))
-    return LAT0 + north / M_PER_DEG, LON0 + east / (M_PER_DEG * k), alt
+    """(lat, lon, alt) ``east`` and ``north`` metres of the launch point, along the
+    geodesic: distances and bearings from it are exact on the ellipsoid."""
+    lon, lat, _ = Geod(ellps="WGS84").fwd(LON0, LAT0, math.degrees(math.atan2(east, north)),
+                                         math.hypot(east, north))
+    return lat, lon, alt
 
 
 def _route():

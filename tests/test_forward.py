@@ -13,11 +13,11 @@ import pytest
 from flown import problems_beside_guard
 
 from common.errors import InputError
+from common.geo import distance_m
 from gcs.cli import main
 from gcs.forward import Forwarder
 from gcs.link import GroundLink
 from gcs.mavlink import GCS_SYSTEM_ID, M, mavutil
-from gcs.monitor import distance_m
 from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports
 
 pytestmark = pytest.mark.timeout(180)

@@ -11,6 +11,7 @@ flight turns them around by itself, the operator has said it is swapped.
 
 from dataclasses import dataclass
 
+from common.geo import distance_m
 from gcs.monitor import FLYING, HOLDING, LANDED
 from planner.travel import leg_time
 
@@ -60,8 +61,6 @@ class SortieDraw:
 
 def at_waypoint(w, lat, lon, alt_amsl) -> bool:
     """A vehicle at (lat, lon, alt_amsl) stands at waypoint ``w``."""
-    from gcs.monitor import distance_m
-
     return abs(w.alt_amsl - alt_amsl) < AT_WAYPOINT_M and \
         distance_m(lat, lon, w.lat, w.lon) < AT_WAYPOINT_M
 
@@ -245,8 +244,6 @@ class Batteries:
         reached a waypoint before its hold, PX4 after), the arrival plus the time it
         has stood there, up to the hold (read as flying to the next, a 63 s hold
         timed a vehicle flying as planned 1.34 times slower)."""
-        from gcs.monitor import distance_m
-
         m = self.state.monitor
         v, state = m.vehicles[sysid], m.links[sysid].state
         waypoints = v.route.waypoints

@@ -22,12 +22,13 @@ from pathlib import Path
 
 from autopilots import NAMES
 from common.errors import InputError
+from common.geo import distance_m
 from gcs import commands
 from gcs.clock import FleetClock
 from gcs.guard import SeparationGuard
 from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
-from gcs.monitor import LANDED, LOST, WAITING, Monitor, distance_m
+from gcs.monitor import LANDED, LOST, WAITING, Monitor
 from gcs.retask import Retasker, RetaskError, in_parallel
 from gcs.segments import Segments, upload_route
 from missions.build import vehicle_mission

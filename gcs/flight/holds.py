@@ -9,10 +9,11 @@ landing left may land from where it stands (`lands_here`).
 """
 
 from common.errors import InputError
+from common.geo import distance_m
 from gcs import commands
 from gcs.guard import GuardFleet
 from gcs.mission_protocol import MissionError
-from gcs.monitor import FLYING, HOLDING, distance_m
+from gcs.monitor import FLYING, HOLDING
 from missions.items import NAV_LAND
 from planner.replan import LAUNCH_COLUMN_M
 

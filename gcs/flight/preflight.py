@@ -9,8 +9,9 @@ do on their own, and how fast they are set to fly.
 - `check_rates`: where an autopilot's own rate limits are below the plan's, said.
 """
 
+from common.geo import distance_m
 from gcs import commands
-from gcs.monitor import LOST, distance_m
+from gcs.monitor import LOST
 from planner.fleet import stop_time
 
 from .options import FlightError, launch_tolerance

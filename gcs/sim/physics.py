@@ -5,7 +5,8 @@ The vehicle tracks the straight line from a leg's origin to its destination
 (as ArduPilot's waypoint navigation does), so a track flown between two planned
 waypoints stays on the planned segment; cross-track error left by a change of
 leg is pulled back at a finite acceleration. Positions are local metres (x east,
-y north) around the vehicle's home, altitude metres AMSL.
+y north) around the vehicle's home (`common.geo.LocalFrame`, the ground
+station's own), altitude metres AMSL.
 """
 
 import math
@@ -15,7 +16,6 @@ from planner.rates import VERTICAL_RATES
 
 DEFAULT_HOME = (-35.363261, 149.165230, 584.0)      # ArduPilot SITL's default (CMAC)
 
-EARTH_RADIUS_M = 6378137.0
 _CROSS_GAIN = 1.0      # 1/s: cross-track error -> correcting velocity
 _POS_GAIN = 2.0        # 1/s: linear speed profile close to the destination
 
@@ -43,24 +43,6 @@ class Limits:
         """These limits, each rate not given taken from ``rates``."""
         return replace(self, **{f.name: getattr(rates, f.name) for f in fields(rates)
                                 if getattr(self, f.name) is None})
-
-
-@dataclass(frozen=True)
-class LocalFrame:
-    """Equirectangular projection around an origin: exact enough over a few km and
-    exactly invertible, so waypoints survive the round trip."""
-    lat0: float
-    lon0: float
-
-    def to_local(self, lat: float, lon: float) -> tuple:
-        k = math.radians(1.0) * EARTH_RADIUS_M
-        return ((lon - self.lon0) * k * math.cos(math.radians(self.lat0)),
-                (lat - self.lat0) * k)
-
-    def to_geo(self, x: float, y: float) -> tuple:
-        k = math.radians(1.0) * EARTH_RADIUS_M
-        return (self.lat0 + y / k,
-                self.lon0 + x / (k * math.cos(math.radians(self.lat0))))
 
 
 class PointMass:

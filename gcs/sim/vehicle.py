@@ -17,12 +17,13 @@ from typing import Callable
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilots import ARDUPILOT
+from common.geo import LocalFrame
 from gcs.sim import flavours as fl
 from gcs.sim import telemetry
 from gcs.sim.battery import Battery
 from gcs.sim.faults import FaultPlan, LinkFaults
 from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
-from gcs.sim.physics import Limits, LocalFrame, PointMass
+from gcs.sim.physics import Limits, PointMass
 from gcs.sim.track import TrackRecorder
 from gcs.sim.transport import PtyLink, TcpServerLink, UdpLink
 from planner.rates import FIRMWARE_RATES, waypoint_stop_s
