@@ -13,11 +13,11 @@ import shutil
 
 import pytest
 from saved_plan import copy_plan
+from sim_fleet import quick_fleet
 
 from gcs import mission_protocol as mp
 from gcs.cli import main
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
-from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
 from missions import wpl
 from missions.build import MissionOptions, plan_missions, vehicle_mission
 from missions.export import export_plan_dir
@@ -72,9 +72,7 @@ def _firmware_folder(planned, tmp_path, firmware, *extra) -> object:
 
 
 def _fleet(planned, firmware):
-    cfg = FleetConfig(vehicles=1, firmware=firmware, homes=[planned.launch], warmup_s=0.5,
-                      no_space_s=0.0, speedup=20.0, **free_fleet_ports(firmware, 1))
-    return SimFleet(cfg).start()
+    return quick_fleet(1, firmware, homes=[planned.launch])
 
 
 def _held(fleet) -> list:

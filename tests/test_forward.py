@@ -11,6 +11,7 @@ from collections import defaultdict
 
 import pytest
 from flown import problems_beside_guard
+from sim_fleet import quick_fleet
 
 from common.errors import InputError
 from common.geo import distance_m
@@ -18,7 +19,7 @@ from gcs.cli import main
 from gcs.forward import Forwarder
 from gcs.link import GroundLink
 from gcs.mavlink import GCS_SYSTEM_ID, M, mavutil
-from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports
+from gcs.sim import free_base_port
 
 pytestmark = pytest.mark.timeout(180)
 
@@ -115,9 +116,7 @@ def test_qgroundcontrol_sees_the_fleet_and_cannot_command_it(plan_dir, tmp_path)
 
 @pytest.fixture
 def fleet():
-    ports = free_fleet_ports("ardupilot", 2)
-    f = SimFleet(FleetConfig(vehicles=2, firmware="ardupilot", warmup_s=1.0, no_space_s=1.0,
-                             speedup=10.0, **ports)).start()
+    f = quick_fleet(2, warmup_s=1.0, no_space_s=1.0, speedup=10.0)
     yield f
     f.stop()
 

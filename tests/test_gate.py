@@ -12,6 +12,7 @@ from contextlib import contextmanager
 from types import SimpleNamespace
 
 import pytest
+from sim_fleet import quick_fleet
 
 from autopilots import profile
 from common.errors import InputError
@@ -20,7 +21,6 @@ from gcs.cli import main
 from gcs.link import GroundLink
 from gcs.monitor import FLYING, STRANDED, Monitor
 from gcs.retask import Retask, Retasker, RetaskError
-from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
 from missions import qgc, wpl
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import CheckedMission, checked
@@ -34,9 +34,7 @@ pytestmark = pytest.mark.timeout(90)
 @pytest.fixture
 def vehicle(planned):
     """One simulated ArduPilot copter at the plan's launch point."""
-    cfg = FleetConfig(vehicles=1, firmware="ardupilot", homes=[planned.launch], warmup_s=0.5,
-                      no_space_s=0.0, speedup=20.0, **free_fleet_ports("ardupilot", 1))
-    fleet = SimFleet(cfg).start()
+    fleet = quick_fleet(1, homes=[planned.launch])
     yield fleet
     fleet.stop()
 
@@ -165,9 +163,8 @@ def test_url_without_a_scheme_is_refused_at_once(plan_copy, capsys, command):
 def test_upload_over_a_serial_line(planned, plan_copy, capsys):
     """A simulated vehicle on one end of a pseudo-terminal, `gcs upload` with the
     DEVICE,BAUD URL on the other."""
-    cfg = FleetConfig(vehicles=1, firmware="px4", homes=[planned.launch], warmup_s=0.5,
-                      transport="pty")
-    fleet = SimFleet(cfg).start()
+    fleet = quick_fleet(1, "px4", homes=[planned.launch], transport="pty", speedup=1.0,
+                        no_space_s=1.0)
     try:
         url = fleet.urls()[0]
         assert url.startswith("/dev/") and url.endswith(",57600")

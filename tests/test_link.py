@@ -9,21 +9,22 @@ import threading
 import time
 
 import pytest
+from sim_fleet import quick_config
 
 from common.errors import InputError
 from gcs import commands, signing
 from gcs.link import GroundLink, LinkError, build_message
 from gcs.mavlink import M, mavutil, mode_name, mode_number
-from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports
+from gcs.sim import FleetConfig, SimFleet, free_base_port
 
 pytestmark = pytest.mark.timeout(60)
 
-FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=10.0)
+# the links meet the autopilots' first second after boot, refusing uploads
+BOOTING = dict(warmup_s=1.0, no_space_s=1.0, speedup=10.0)
 
 
 def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
-    ports = free_fleet_ports(firmware, vehicles)
-    return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
+    return quick_config(vehicles, firmware, **{**BOOTING, **kw})
 
 
 @pytest.fixture

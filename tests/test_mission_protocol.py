@@ -7,12 +7,13 @@ import threading
 import time
 
 import pytest
+from sim_fleet import quick_config
 
 from gcs import commands
 from gcs import mission_protocol as mp
 from gcs.link import GroundLink
 from gcs.mavlink import M
-from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track, track_path
+from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import unproven
 from missions.items import MissionItem
@@ -22,13 +23,13 @@ pytestmark = pytest.mark.timeout(60)
 
 HOME = (-35.363261, 149.165230, 584.0)
 ALT = HOME[2] + 25.0
-FAST = dict(warmup_s=1.0, no_space_s=1.0, speedup=20.0)
+# the protocol meets the autopilots' first second after boot, refusing uploads
+BOOTING = dict(warmup_s=1.0, no_space_s=1.0)
 
 
 # -- helpers ---------------------------------------------------------------------------
 def fleet_config(firmware, vehicles, **kw) -> FleetConfig:
-    ports = free_fleet_ports(firmware, vehicles)
-    return FleetConfig(vehicles=vehicles, firmware=firmware, **dict(FAST, **ports, **kw))
+    return quick_config(vehicles, firmware, **{**BOOTING, **kw})
 
 
 def route(vehicle_id: int, legs: int = 6, north_m: float = 0.0) -> VehicleRoute:

@@ -14,11 +14,12 @@ import pytest
 from flown import problems_beside_guard
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from sim_fleet import quick_fleet
 
 from common.errors import InputError
 from gcs.cli import main
 from gcs.flight import PLAN_FROM_HERE
-from gcs.sim import FleetConfig, SimFleet, free_fleet_ports, read_track, track_path
+from gcs.sim import read_track, track_path
 from missions import qgc
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
@@ -34,10 +35,7 @@ pytestmark = pytest.mark.timeout(180)
 def _fleet(planned, firmware="ardupilot", offset_m=0.0, vehicles=1, **extra):
     lat, lon, alt = planned.launch
     home = (lat + offset_m / 111_320.0, lon, alt)
-    cfg = FleetConfig(vehicles=vehicles, firmware=firmware, homes=[home] * vehicles,
-                      warmup_s=0.5, no_space_s=0.0, speedup=20.0,
-                      **free_fleet_ports(firmware, vehicles), **extra)
-    return SimFleet(cfg).start()
+    return quick_fleet(vehicles, firmware, homes=[home] * vehicles, **extra)
 
 
 def _standing(planned, at, vehicles, track_dir):
@@ -45,11 +43,8 @@ def _standing(planned, at, vehicles, track_dir):
     from gcs.sim import terrain_ground
 
     ground = terrain_ground(planned.terrain)
-    cfg = FleetConfig(vehicles=vehicles, firmware="ardupilot",
-                      homes=[(*at, ground(*at))] * vehicles, terrain=ground, warmup_s=0.5,
-                      no_space_s=0.0, speedup=20.0, track_dir=track_dir,
-                      **free_fleet_ports("ardupilot", vehicles))
-    return SimFleet(cfg).start()
+    return quick_fleet(vehicles, homes=[(*at, ground(*at))] * vehicles, terrain=ground,
+                       track_dir=track_dir)
 
 
 def _stored(fleet, sysid=1) -> int:

@@ -16,12 +16,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from rich.console import Console
+from sim_fleet import quick_fleet
 
 from common.errors import InputError
 from gcs.cli import build_parser, main, views
 from gcs.cli import sim as sim_cli
 from gcs.monitor import LANDED, LOST, Monitor
-from gcs.sim import FleetConfig, SimFleet, free_base_port, read_track, track_path
+from gcs.sim import SimFleet, free_base_port, read_track, track_path
 from gcs.sim.fleet import terrain_ground
 from missions.build import MissionOptions, vehicle_mission
 from planner.replan import coverable_targets, coverage_summary
@@ -133,9 +134,8 @@ def test_flat_ground_above_the_valleys_is_a_loss_not_a_landing(planned, tmp_path
     assert max(lows) < planned.launch[2]                   # every route goes below launch
     base = free_base_port(10, 3)
     out = tmp_path / "flight"
-    fleet = SimFleet(FleetConfig(vehicles=3, homes=[planned.launch] * 3, speedup=100.0,
-                                 base_port=base, warmup_s=0.5, no_space_s=0.0,
-                                 track_dir=out / "tracks")).start()
+    fleet = quick_fleet(3, homes=[planned.launch] * 3, speedup=100.0, base_port=base,
+                        track_dir=out / "tracks")
     try:
         code = main(["fly", str(planned.dir), *[a for i in range(3) for a in
                      ("--connect", f"tcp:127.0.0.1:{base + 10 * i}")],

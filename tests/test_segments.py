@@ -14,6 +14,7 @@ import json
 import numpy as np
 import pytest
 from flown import problems_beside_guard
+from sim_fleet import quick_fleet
 
 from autopilots import NAMES, profile
 from common.errors import InputError
@@ -21,7 +22,7 @@ from gcs import mission_protocol as mp
 from gcs.cli import main
 from gcs.link import GroundLink
 from gcs.segments import upload_route
-from gcs.sim import FleetConfig, SimFleet, free_base_port, free_fleet_ports, read_track, track_path
+from gcs.sim import free_base_port, read_track, track_path
 from missions.build import MissionOptions, vehicle_mission
 from missions.check import CheckedMission, checked
 from missions.items import NAV_LAND, NAV_TAKEOFF, NAV_WAYPOINT
@@ -144,10 +145,7 @@ def test_capacity_learned_from_what_the_vehicle_says_or_by_probing(planned):
     route = max(planned.plan.vehicles, key=lambda r: len(r.waypoints))
     for firmware, capacity, how in (("ardupilot", 650, "said"), ("ardupilot", 20, "said"),
                                     ("px4", 23, "probed")):
-        cfg = FleetConfig(vehicles=1, firmware=firmware, homes=[planned.launch], warmup_s=0.5,
-                          no_space_s=0.0, speedup=20.0, mission_capacity=capacity,
-                          **free_fleet_ports(firmware, 1))
-        fleet = SimFleet(cfg).start()
+        fleet = quick_fleet(1, firmware, homes=[planned.launch], mission_capacity=capacity)
         try:
             with GroundLink.open(fleet.urls(), expect=1, timeout_s=10) as link:
                 vehicle = link.vehicles[1]
@@ -171,8 +169,8 @@ def test_capacity_learned_from_what_the_vehicle_says_or_by_probing(planned):
 def test_upload_of_a_mission_too_long_says_so(planned, tmp_path, capsys):
     """`gcs upload` without fly: the capacity found, and how to raise it."""
     base = free_base_port(10, 3)
-    fleet = SimFleet(FleetConfig(vehicles=3, homes=[planned.launch] * 3, warmup_s=0.5,
-                                 no_space_s=0.0, base_port=base, mission_capacity=30)).start()
+    fleet = quick_fleet(3, homes=[planned.launch] * 3, base_port=base, mission_capacity=30,
+                        speedup=1.0)
     try:
         code = main(["upload", str(planned.dir),
                      *[f"--connect=tcp:127.0.0.1:{base + 10 * i}" for i in range(3)]])
