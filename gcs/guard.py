@@ -1,26 +1,41 @@
 """The separation guard: keeps airborne vehicles apart when they drift from the plan.
 
-A plan proves its vehicles separated on its own schedule; real ones drift from it
-(wind, speed, a late takeoff). Each flight-loop step the guard predicts where
-every airborne vehicle will be over the next `horizon` seconds of fleet time: from
-its reported position (carried forward to now at its reported velocity) along the
-rest of its route, at the planned speeds, stops and holds, down to its landing
-(`planner.fleet.Profile`: what it flies, not a straight line that ignores its
-turns); a held vehicle stays where it is. Where two predictions come closer than
-the separation within the horizon (`Trajectory.first_conflict`, exact), the guard
-holds one of them where it is, in its firmware's hold mode, on its proven leg, so
-hidden: the one of lower priority (the plan's: the later placed on the fleet
-clock; before it, a vehicle short of battery, which every second held costs),
-unless standing there would still be in the other's way, then the other; both
-only when neither alone clears it. A held vehicle flies on, highest priority
-first, once its route from where it stands keeps clear of every other's
-prediction (with `RESUME_FACTOR` of room) and no other stands that close now, or,
-where one does (two held in one base column), its route never comes closer to it
-than now (the lower one's descent): a pair that close and parting is no conflict.
-A held vehicle in its base column with nothing left to photograph, only the
-column's top before its landing (`lands_here`: a re-plan that brought it home as it
-took off), is flown on by landing from where it stands: up to the top it would
-climb through the one descending above it, each waiting on the other for good.
+A plan proves its vehicles separated on its own schedule, and its base columns
+used by one vehicle at a time (`planner.fleet.columns`); real ones drift from it
+(wind, speed, a late takeoff, a slow spool-up). Each flight-loop step the guard
+predicts where every airborne vehicle will be over the next `horizon` seconds of
+fleet time: from its reported position (carried forward to now at its reported
+velocity) along the rest of its route, at the planned speeds, stops and holds,
+down to its landing (`planner.fleet.Profile`: what it flies, not a straight line
+that ignores its turns); a held vehicle stays where it is. A conflict is two
+predictions closer than the separation (`Trajectory.first_conflict`, exact) or
+two in one base column at once. The guard holds one of the pair where it is, in
+its firmware's hold mode, on its proven leg, so hidden: the one of lower priority
+(the plan's: the later placed on the fleet clock; before it, a vehicle short of
+battery, which every second held costs), unless holding it would still be in the
+other's way, then the other; both only when neither alone clears it. Two
+already in one column: the one that leaves it first on its route (the upper one
+climbing out, the lower one landing) goes, the other holds.
+
+The guard reacts in its own time: its loop (measured, `loop_s`) and a command's
+way to the vehicle (measured, `command_s`), which at a speed-up of the vehicles'
+clock are that many times more seconds of flight. The horizon counts them, and a
+vehicle about to be held is predicted flying on along its route for that long
+before it stands (`reaction_s`): on a busy machine a loop of 0.5 s is 50 s of
+flight at 100x.
+
+A held vehicle flies on, highest priority first, no sooner than two of the
+guard's loops after its hold, and only once its route from where it stands keeps
+`RESUME_FACTOR` separations clear of every other's prediction and shares no
+column with another within the horizon. From closer than that to another (two
+in one base column), it flies on only where its route parts from the other
+*standing* (the other's own motion is not counted on: at the top of a column a
+copter lingers as it turns to its first leg), and in a column only if it leaves
+the column first. A held vehicle in its base column with nothing left to
+photograph, only the column's top before its landing (`lands_here`: a re-plan
+that brought it home as it took off), is flown on by landing from where it
+stands: up to the top it would climb through the one descending above it, each
+waiting on the other for good.
 
 A vehicle a re-plan holds until its own time to fly on (`waiting`) is the re-plan's:
 the guard never holds or resumes it (resumed early, it flew its new route ahead of
@@ -31,6 +46,7 @@ Every hold and resume is an event, and `report` gives them with the closest
 approach seen between each pair (from telemetry).
 """
 
+import collections
 import threading
 import time
 
@@ -38,12 +54,13 @@ import numpy as np
 
 from common.geo import LocalFrame
 from gcs import commands
-from planner.fleet import Profile, Trajectory
+from planner.fleet import Profile, Trajectory, base_columns
+from planner.fleet.columns import Occupied
 from planner.travel import TravelParams
 
 #: fleet seconds of look-ahead, beyond the ground station's own reaction time
 HORIZON_S = 8.0
-#: wall seconds from a position report to the vehicle braking on a hold
+#: wall seconds from a position report to the vehicle braking on a hold, at most
 LATENCY_S = 1.0
 #: a held vehicle flies on only when predicted this many separations clear
 RESUME_FACTOR = 1.2
@@ -51,6 +68,10 @@ RESUME_FACTOR = 1.2
 PARTING_SLACK_M = 0.5
 #: wall seconds a re-plan waits for a hold or resume under way
 FORGET_WAIT_S = 15.0
+#: the loops and commands whose wall times are kept (the longest is counted)
+KEPT_TIMES = 32
+#: a held vehicle flies on no sooner than this many of the guard's loops after its hold
+MIN_HOLD_LOOPS = 2
 
 
 def closest_ahead(d0, dv, horizon):
@@ -101,26 +122,48 @@ class SeparationGuard:
 
     ``priority[sysid]``: 1 has right of way; ``clock``: the flight's
     `gcs.clock.FleetClock`; ``fleet``: the flight's `GuardFleet`; ``travel``: the
-    plan's speeds (`TravelParams`) and ``stop_s`` per waypoint."""
+    plan's speeds (`TravelParams`) and ``stop_s`` per waypoint; ``bases``: (lat,
+    lon, column top m AMSL) of every base the fleet takes off from or lands at,
+    each a column one vehicle at a time (`planner.fleet.columns`)."""
 
     def __init__(self, monitor, separation_m, priority, clock, fleet: GuardFleet,
-                 travel=TravelParams(), stop_s=0.0):
+                 travel=TravelParams(), stop_s=0.0, bases=()):
         self.monitor, self.separation_m = monitor, float(separation_m)
         self.priority = dict(priority)
         self.clock, self.fleet = clock, fleet
         self.travel, self.stop_s = travel, float(stop_s)
+        self.bases = list(bases)
         self.held = {}            # sysid -> (since t_s, other sysid)
         self.landing = set()      # flown on by landing where they stand
         self.actions = []         # the report's records
         self.closest = {}         # (a, b) -> [distance m, t_s]
         self._busy = set()        # a command in flight for these
+        self._loops = collections.deque(maxlen=KEPT_TIMES)     # wall s between steps
+        self._commands = collections.deque(maxlen=KEPT_TIMES)  # wall s a command took
+        self._last_step = None
 
     @property
     def active(self) -> bool:
         return self.separation_m > 0
 
+    @property
+    def loop_s(self) -> float:
+        """The longest of the guard's recent loops, wall s (the flight loop's period
+        at least): what it may take to see a position and act on it."""
+        return max(self._loops, default=0.0)
+
+    @property
+    def command_s(self) -> float:
+        """The longest recent hold or resume from sending to its answer, wall s."""
+        return max(self._commands, default=0.0)
+
+    def reaction_s(self) -> float:
+        """Fleet seconds a vehicle flies on after the position the guard acts on:
+        one loop and one command, at the vehicles' rate."""
+        return self.clock.rate() * (self.loop_s + self.command_s)
+
     def horizon(self) -> float:
-        return HORIZON_S + self.clock.rate() * LATENCY_S
+        return HORIZON_S + self.clock.rate() * (LATENCY_S + self.loop_s)
 
     def forget(self, wait_s: float = FORGET_WAIT_S) -> None:
         """A re-plan took over the held vehicles (it holds and resumes them itself):
@@ -132,6 +175,7 @@ class SeparationGuard:
         for sysid, (since, other) in self.held.items():
             self._record("released by a re-plan", sysid, other, None, since)
         self.held, self.landing = {}, set()
+        self._last_step = None        # the re-plan's time is no loop of the guard's
 
     def hold(self, sysid, other) -> None:
         """Hold ``sysid`` now, for ``other``: flown on as any hold, once clear."""
@@ -140,24 +184,40 @@ class SeparationGuard:
     def step(self) -> None:
         if not self.active:
             return
+        now = time.monotonic()
+        if self._last_step is not None:
+            self._loops.append(now - self._last_step)
+        self._last_step = now
         frame = _Frame(self.monitor, self.fleet.airborne(), self.clock.rate())
         if not frame.here:
             return
         self._note_closest(frame)
         self.landing &= set(frame.here)
         horizon = self.horizon()
+        columns = frame.columns(self.bases, self.separation_m)
+        # one down on its pad (its landing not told yet) is in nobody's way
         ahead = {s: (frame.standing(s, horizon) if s in self.held else
                      self._route(frame, s, self.fleet.waiting(s) or 0.0, s in self.landing))
-                 for s in frame.here}
-        for a, b, begin in self._conflicts(frame, ahead, horizon, self.separation_m):
-            self._separate(frame, ahead, a, b, begin, horizon)
+                 for s in frame.here if not self.fleet.on_pad(s)}
+        for a, b, begin, column in self._conflicts(frame, ahead, horizon, columns):
+            if self._fixed(a) and self._fixed(b) or \
+                    self._clash(ahead[a], ahead[b], columns) > horizon:
+                continue            # a hold for an earlier conflict settled this one
+            if column and begin <= 0.0:
+                self._leave_first(frame, ahead, a, b, columns, horizon)
+            else:
+                self._separate(frame, ahead, a, b, begin, horizon, columns, column)
+        # a vehicle flies on only when clear for longer than a conflict is looked for
+        # (and by more room): a resume is not undone by the next loop's look
+        ahead_longer = RESUME_FACTOR * horizon + self.reaction_s()
         for sysid in sorted(self.held, key=self._rank):
-            if sysid not in frame.here:
+            if sysid not in ahead or not self._held_long_enough(sysid):
                 continue
             land = self.fleet.lands_here(sysid)
             go = self._route(frame, sysid, land=land)
-            if self._may_go(frame, ahead, sysid, go, horizon):
-                ahead[sysid] = go
+            if self._may_go(frame, ahead, sysid, go, ahead_longer, columns):
+                # it leaves where it stands once the command has reached it
+                ahead[sysid] = self._route(frame, sysid, self.reaction_s(), land=land)
                 if land:
                     self.landing.add(sysid)
                 self._do(sysid, self.fleet.land if land else self.fleet.resume,
@@ -170,6 +230,13 @@ class SeparationGuard:
     def _fixed(self, sysid) -> bool:
         """Held by the guard, or by a re-plan until its time: not the guard's to move."""
         return sysid in self.held or self.fleet.waiting(sysid) is not None
+
+    def _held_long_enough(self, sysid) -> bool:
+        """Held for `MIN_HOLD_LOOPS` of the guard's loops at least: a hold and its
+        resume within one loop (both in 0.1 s once, at the top of a base column)
+        acted on nothing the vehicles had done."""
+        since, _ = self.held[sysid]
+        return self.monitor.now() - since >= MIN_HOLD_LOOPS * self.loop_s
 
     def _route(self, frame, sysid, wait_s=0.0, land=False) -> Trajectory:
         """Where ``sysid`` flies from now, after standing ``wait_s``: the rest of its
@@ -189,55 +256,107 @@ class SeparationGuard:
         holds[0] += wait_s          # vertex 0: where it stands now
         return profile.timed(0.0, holds)
 
-    @staticmethod
-    def _conflicts(frame, ahead, horizon, distance) -> list:
-        """(a, b, when) of every pair predicted closer than ``distance`` within the
-        horizon, soonest first; a pair already that close is one only while it
-        closes in (one leaving the other is what ends it)."""
+    def _stopping(self, frame, sysid, horizon) -> Trajectory:
+        """``sysid`` held now: it flies on along its route for the guard's reaction
+        time (`reaction_s`), then stands there."""
+        route = self._route(frame, sysid, self.fleet.waiting(sysid) or 0.0,
+                            sysid in self.landing)
+        return _halted(route, self.reaction_s(), horizon)
+
+    def _conflicts(self, frame, ahead, horizon, columns) -> list:
+        """(a, b, when, column) of every pair predicted closer than the separation,
+        or in one base column (``column``), within the horizon, soonest first; a pair
+        already that close is one only while it closes in (one leaving the other is
+        what ends it)."""
         out = []
         ids = sorted(ahead)
+        occupied = {s: Occupied(ahead[s], columns) for s in ids}
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
-                begin, _ = ahead[a].first_conflict(ahead[b], distance)
+                begin, _ = ahead[a].first_conflict(ahead[b], self.separation_m)
                 if begin <= horizon and not (begin == 0.0 and _parting(frame, ahead, a, b)):
-                    out.append((a, b, begin))
+                    out.append((a, b, begin, False))
+                shared, _ = occupied[a].first_shared(occupied[b])
+                if shared <= horizon:
+                    out.append((a, b, shared, True))
         return sorted(out, key=lambda c: c[2])
 
-    def _separate(self, frame, ahead, a, b, begin, horizon) -> None:
-        """Hold one of a conflicting pair: the lower priority, unless standing where it
-        is would still be in the other's way; both when neither alone will do."""
+    def _clash(self, one, other, columns) -> float:
+        """When trajectory ``one`` first comes closer than the separation to ``other``
+        or shares a column with it (inf: never)."""
+        begin, _ = one.first_conflict(other, self.separation_m)
+        shared, _ = Occupied(one, columns).first_shared(Occupied(other, columns))
+        return min(begin, shared)
+
+    def _separate(self, frame, ahead, a, b, begin, horizon, columns, column=False) -> None:
+        """Hold one of a conflicting pair: the lower priority, unless holding it (it
+        flies on for the guard's reaction time first) would still be in the
+        other's way; both when neither alone will do. ``column``: the two are
+        predicted in one base column at ``begin``, not closer than the separation."""
         if self._fixed(a) and self._fixed(b):
             return
         low, high = sorted((a, b), key=self._rank)[::-1]
-        predicted = ahead[a].closest_approach(ahead[b])
+        predicted = (ahead[a].closest_approach(ahead[b])[0], begin, column)
         for target, other in ((low, high), (high, low)):
             if self._fixed(target):
                 continue
-            still = frame.standing(target, horizon)
-            if ahead[other].first_conflict(still, self.separation_m)[0] > horizon:
+            still = self._stopping(frame, target, horizon)
+            if self._clash(ahead[other], still, columns) > horizon:
                 ahead[target] = still
-                self._do(target, self.fleet.hold, "hold", other=other,
-                         predicted=(predicted[0], begin))
+                self._do(target, self.fleet.hold, "hold", other=other, predicted=predicted)
                 return
         for target, other in ((low, high), (high, low)):
             if not self._fixed(target):
-                ahead[target] = frame.standing(target, horizon)
-                self._do(target, self.fleet.hold, "hold", other=other,
-                         predicted=(predicted[0], begin))
+                ahead[target] = self._stopping(frame, target, horizon)
+                self._do(target, self.fleet.hold, "hold", other=other, predicted=predicted)
 
-    def _may_go(self, frame, ahead, sysid, go, horizon) -> bool:
+    def _leave_first(self, frame, ahead, a, b, columns, horizon) -> None:
+        """Two in one base column now: the one whose route leaves it first (climbing
+        out above, or landing below) goes; the other holds."""
+        stay = self._stayer(frame, a, b, columns)
+        if stay is None or self._fixed(stay):
+            return
+        other = b if stay == a else a
+        ahead[stay] = self._stopping(frame, stay, horizon)
+        self._do(stay, self.fleet.hold, "hold", other=other,
+                 predicted=(float(np.linalg.norm(frame.position(a) - frame.position(b))), 0.0,
+                            True))
+
+    def _stayer(self, frame, a, b, columns):
+        """Of two in one column, the one that leaves it later flying its route (None:
+        they are in no column together)."""
+        exits = {s: _exits(Occupied(self._route(frame, s, land=s in self.landing), columns))
+                 for s in (a, b)}
+        shared = [c for c in range(len(columns)) if c in exits[a] and c in exits[b]]
+        if not shared:
+            return None
+        c = shared[0]
+        return a if exits[a][c] > exits[b][c] else b
+
+    def _may_go(self, frame, ahead, sysid, go, horizon, columns) -> bool:
         """Whether ``sysid``'s route from here (``go``) keeps ``RESUME_FACTOR``
-        separations clear of every other; from closer than that (two held in one
-        base column) only a route that never comes closer than now, the lower one's
-        descent."""
+        separations clear of every other and shares no column with one within the
+        horizon; from closer than that (two held in one base column) only a route
+        that parts from the other standing where it is (not counting on the
+        other's own motion: at the top of a column a copter lingers as it turns to
+        its first leg); two in one column now, only the one that leaves it first."""
         room = self.separation_m * RESUME_FACTOR
-        for other in frame.here:
+        mine = Occupied(go, columns)
+        for other in ahead:
             if other == sysid:
                 continue
             if np.linalg.norm(frame.position(other) - frame.position(sysid)) < room:
-                if not _parting(frame, {**ahead, sysid: go}, sysid, other):
+                # the other where it stands, while it is in the air (one landing is not)
+                still = frame.standing(other, min(horizon, ahead[other].end))
+                if not _parting(frame, {sysid: go, other: still}, sysid, other):
                     return False
             elif go.first_conflict(ahead[other], room)[0] <= horizon:
+                return False
+            shared, _ = mine.first_shared(Occupied(ahead[other], columns))
+            if shared <= 0.0:
+                if self._stayer(frame, sysid, other, columns) == sysid:
+                    return False
+            elif shared <= horizon:
                 return False
         return True
 
@@ -268,8 +387,10 @@ class SeparationGuard:
         self._busy.add(sysid)
 
         def run():
+            sent = time.monotonic()
             try:
                 action(sysid)
+                self._commands.append(time.monotonic() - sent)
             except commands.CommandError as exc:
                 self.monitor.event(sysid, f"separation guard: {what} failed", error=str(exc))
             finally:
@@ -281,9 +402,13 @@ class SeparationGuard:
         entry = {"t_s": round(now, 3), "sysid": sysid, "action": what, "other": other}
         text = f"separation guard: {what}"
         if predicted is not None:
-            entry["predicted_m"], entry["in_s"] = round(predicted[0], 1), round(predicted[1], 1)
-            text += (f" (vehicle {other} predicted {predicted[0]:.0f} m away in "
-                     f"{predicted[1]:.0f} s)")
+            d, when, column = predicted
+            entry["predicted_m"], entry["in_s"] = round(d, 1), round(when, 1)
+            if column:
+                entry["column"] = True
+                text += f" (vehicle {other} predicted in one base column with it in {when:.0f} s)"
+            else:
+                text += f" (vehicle {other} predicted {d:.0f} m away in {when:.0f} s)"
         if what != "hold":
             entry["held_s"] = round(now - since, 3)
         self.actions.append(entry)
@@ -293,7 +418,8 @@ class SeparationGuard:
         pairs = [{"vehicles": [a, b], "closest_m": d, "t_s": t}
                  for (a, b), (d, t) in sorted(self.closest.items())]
         return {"separation_m": self.separation_m, "actions": self.actions, "pairs": pairs,
-                "closest_m": min((p["closest_m"] for p in pairs), default=None)}
+                "closest_m": min((p["closest_m"] for p in pairs), default=None),
+                "loop_s": round(self.loop_s, 3), "command_s": round(self.command_s, 3)}
 
 
 def hold_spans(actions, end) -> list:
@@ -313,6 +439,23 @@ def _parting(frame, ahead, a, b) -> bool:
     """Whether ``a`` and ``b`` never come closer than they stand now."""
     now = float(np.linalg.norm(frame.position(a) - frame.position(b)))
     return ahead[a].closest_approach(ahead[b])[0] >= now - PARTING_SLACK_M
+
+
+def _exits(occupied) -> dict:
+    """{column index: when it leaves that column} of a trajectory in a column now."""
+    return {c: float(st[0, 1]) for c, st in enumerate(occupied.stretches)
+            if len(st) and st[0, 0] <= 1e-9}
+
+
+def _halted(trajectory, at_s, until_s) -> Trajectory:
+    """``trajectory`` flown until ``at_s``, then standing where it is until ``until_s``."""
+    t, p = trajectory.t, trajectory.xyz
+    at_s = min(max(at_s, t[0]), t[-1])
+    keep = t < at_s
+    here = np.array([np.interp(at_s, t, p[:, k]) for k in range(3)])
+    times = np.r_[t[keep], at_s, max(until_s, at_s + 1e-3)]
+    points = np.vstack([p[keep], here, here])
+    return Trajectory(times, points, np.ones(len(times) - 1, bool))
 
 
 class _Frame:
@@ -343,6 +486,12 @@ class _Frame:
 
     def project(self, points) -> np.ndarray:
         return self.local.project(points) if len(points) else np.zeros((0, 3))
+
+    def columns(self, bases, separation_m) -> list:
+        """The base `Column` s of ``bases`` ((lat, lon, column top m AMSL) of each
+        use of a base) in this frame."""
+        return base_columns([(*self.local.to_local(lat, lon), top) for lat, lon, top in bases],
+                            separation_m)
 
     def standing(self, sysid, horizon) -> Trajectory:
         """Held where it is for the horizon."""

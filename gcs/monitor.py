@@ -49,6 +49,10 @@ WAITING, STARTING, FLYING, HOLDING, RETURNING, LANDED, LOST = (
 STRANDED = "stranded"
 #: below this height above home (m) a disarmed vehicle has landed, above it it fell
 LANDED_AGL_M = 3.0
+#: this high above home (m), armed, a vehicle has left the ground: its liftoff as it
+#: reports it, which a fleet's takeoffs are timed on (seconds after the command that
+#: sent it up, with arming and spool-up: `gcs.flight.departures`)
+LIFTOFF_M = 1.0
 #: keep one track sample per this many wall seconds (telemetry comes at a few Hz)
 TRACK_PERIOD_S = 0.2
 #: position reports above LANDED_AGL_M after a disarm that make it a fall
@@ -111,6 +115,7 @@ class VehicleProgress:
     camera: list = field(default_factory=list)  # camera feedback positions [(t, lon, lat, alt)]
     track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL, vehicle time s)]
     airborne: bool = False
+    lifted_at_s: float | None = None  # when it last left the ground (`LIFTOFF_M`)
     lost_at_s: float | None = None
     lost_reason: str | None = None
     lost_stalled_s: float = 0.0  # of its silence, the time this ground station stood still
@@ -308,7 +313,7 @@ class Monitor:
             if v.state not in (LANDED, WAITING):
                 return
             v.grounded, v.state, v.airborne = v.state, STARTING, False
-            v.disarmed_at_s, v.disarmed_reports = None, 0
+            v.disarmed_at_s, v.disarmed_reports, v.lifted_at_s = None, 0, None
             v.relaunched += 1
             self.event(sysid, "re-launching")
 
@@ -424,7 +429,10 @@ class Monitor:
             return                     # no position yet (ArduPilot before its EKF origin)
         t = self.now()
         agl = msg.relative_alt * 1e-3
-        _note_airborne(v, self.links[v.sysid].state.armed, agl)
+        armed = self.links[v.sysid].state.armed
+        _note_airborne(v, armed, agl)
+        if armed and agl > LIFTOFF_M and v.lifted_at_s is None:
+            v.lifted_at_s = t
         if v.airborne and v.state not in (LANDED, LOST):
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:

@@ -172,16 +172,18 @@ class SimBackend:
     name = "sim"
     firmware = "ardupilot"
 
-    def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None):
-        from gcs.sim import FleetConfig, SimFleet, free_fleet_ports
+    def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None,
+                 below_base_m=0.0, spool=None):
+        from gcs.sim import FaultPlan, FleetConfig, SimFleet, free_fleet_ports
         from gcs.sim.physics import Limits
 
-        homes = [(v.launch.lat, v.launch.lon, v.launch.alt_amsl) for v in plan.vehicles]
+        homes = list(homes_of(plan, below_base_m).values())
         self.track_dir = workdir / "tracks"
         self.fleet = SimFleet(FleetConfig(
             vehicles=len(homes), firmware=self.firmware, homes=homes, speedup=speedup,
             track_dir=self.track_dir, warmup_s=1.0, auto_disarm_s=50.0 * speedup,
             limits=Limits(speed_mps=plan.params["speed_mps"]),   # the firmware's vertical rates
+            faults={sysid: FaultPlan(spool_s=s) for sysid, s in (spool or {}).items()},
             **({} if capacity is None else {"mission_capacity": capacity}),
             **free_fleet_ports(self.firmware, len(homes)))).start()
         # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be
@@ -223,15 +225,15 @@ class ProcessBackend:
     """Real SITL processes, one per vehicle, each watched by a `judge.Judge` on its
     second link; a kill is a SIGKILL of the process."""
 
-    def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None):
+    def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None,
+                 below_base_m=0.0, spool=None):
         self.plan = plan
         self.workdir = workdir
         self.procs, self.judges = {}, {}
-        self.homes = {i + 1: (v.launch.lat, v.launch.lon, v.launch.alt_amsl)
-                      for i, v in enumerate(plan.vehicles)}
+        self.homes = homes_of(plan, below_base_m)
         try:
-            for i, v in enumerate(plan.vehicles):
-                self.procs[i + 1] = self._start(i, v.launch, speedup)
+            for sysid, home in self.homes.items():
+                self.procs[sysid] = self._start(sysid - 1, home, speedup)
             self._ready()
         except BaseException:
             self.stop()
@@ -289,7 +291,8 @@ class ArduPilotBackend(ProcessBackend):
     name = "ardupilot"
     firmware = "ardupilot"
 
-    def _start(self, i, launch, speedup):
+    def _start(self, i, home, speedup):
+        lat, lon, alt = home
         cwd = self.workdir / f"ardupilot_{i}"
         cwd.mkdir(parents=True, exist_ok=True)
         # the camera reports where it fires (CAMERA_FEEDBACK); CAM2_TYPE too, or
@@ -301,7 +304,7 @@ class ArduPilotBackend(ProcessBackend):
         cmd = [ARDUPILOT_BIN, "--model", "+", "--speedup", str(speedup),
                "--defaults", ",".join(defaults + [str(camera)]), "-I", str(i),
                "--sysid", str(i + 1),
-               "--home", f"{launch.lat},{launch.lon},{launch.alt_amsl},0"]
+               "--home", f"{lat},{lon},{alt},0"]
         return self._popen(cmd, cwd)
 
     def _battery(self) -> str:
@@ -328,6 +331,12 @@ class ArduPilotBackend(ProcessBackend):
     def urls(self) -> list:
         return [f"tcp:127.0.0.1:{5760 + 10 * i}" for i in range(len(self.procs))]
 
+    def hold_on_ground(self, sysid: int, hold: bool = True) -> None:
+        """Refuse (or allow again) the arming of ``sysid``, as a pre-arm check does
+        until the vehicle is ready: BATT_ARM_VOLT above the pack's voltage ("PreArm:
+        Battery 1 below minimum arming voltage")."""
+        self.judges[sysid].set_param("BATT_ARM_VOLT", 100.0 if hold else 0.0)
+
     def swap_battery(self, sysid: int) -> None:
         """The crew's battery swap between sorties: the monitor's consumed charge reset
         to a full pack (MAV_CMD_BATTERY_RESET, first battery, 100 %), sent on the
@@ -345,7 +354,8 @@ class Px4Backend(ProcessBackend):
     name = "px4"
     firmware = "px4"
 
-    def _start(self, i, launch, speedup):
+    def _start(self, i, home, speedup):
+        lat, lon, alt = home
         binary = Path(PX4_BIN).resolve()
         build = Path(os.environ.get("PX4_SITL_DIR") or binary.parents[1])
         cwd = self.workdir / f"px4_{i}"
@@ -354,8 +364,8 @@ class Px4Backend(ProcessBackend):
         sysid = i + 1
         self.judges[sysid] = Judge.px4(sysid, self.homes[sysid], 14540 + i, 14580 + i)
         env = dict(os.environ, PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", HEADLESS="1",
-                   PX4_HOME_LAT=repr(launch.lat), PX4_HOME_LON=repr(launch.lon),
-                   PX4_HOME_ALT=repr(launch.alt_amsl), PX4_SIM_SPEED_FACTOR=str(speedup),
+                   PX4_HOME_LAT=repr(lat), PX4_HOME_LON=repr(lon),
+                   PX4_HOME_ALT=repr(alt), PX4_SIM_SPEED_FACTOR=str(speedup),
                    PX4_PARAM_TRIG_MODE="1", **self._battery())
         env.pop("PX4_SIM_MODEL", None)
         return self._popen([str(binary), "-i", str(i), "-d", "-w", str(cwd),
@@ -371,6 +381,11 @@ class Px4Backend(ProcessBackend):
             return {}
         return {"PX4_PARAM_SIM_BAT_DRAIN": f"{endurance * 60 * PACK_HEADROOM:.0f}",
                 "PX4_PARAM_SIM_BAT_MIN_PCT": "0"}
+
+    def hold_on_ground(self, sysid: int, hold: bool = True) -> None:
+        """Refuse (or allow again) the arming of ``sysid``: COM_ARMABLE 0 (commander
+        denies every arming while it is 0)."""
+        self.judges[sysid].set_param("COM_ARMABLE", 0 if hold else 1, integer=True)
 
     def swap_battery(self, sysid: int) -> None:
         """Nothing for the crew to do: PX4 SITL's simulated battery is full again
@@ -400,9 +415,20 @@ def skip_unless_configured(name: str) -> None:
 
 
 def start_backend(name: str, plan: Plan, workdir: Path, speedup: float | None = None,
-                  capacity=None):
+                  capacity=None, below_base_m=0.0, spool=None):
+    """``below_base_m``: each vehicle's home (its simulated ground) that much below its
+    base, a column longer than planned; ``spool``: {sysid: s} it stays on the ground
+    after its takeoff is commanded (the built-in simulator)."""
     cls, _ = BACKENDS[name]
-    return cls(plan, workdir, speedup or SPEEDUP[name], capacity)
+    return cls(plan, workdir, speedup or SPEEDUP[name], capacity, below_base_m, spool)
+
+
+def homes_of(plan: Plan, below_base_m=0.0) -> dict:
+    """{sysid: (lat, lon, ground m AMSL)}: each vehicle at its route's launch point,
+    its ground ``below_base_m`` lower (SITL's flat ground below the planned base: the
+    column it climbs is that much longer than the plan's)."""
+    return {i + 1: (v.launch.lat, v.launch.lon, v.launch.alt_amsl - below_base_m)
+            for i, v in enumerate(plan.vehicles)}
 
 
 #: wall seconds a real-SITL test may take (a flight of up to ~40 min of simulated

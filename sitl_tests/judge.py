@@ -17,6 +17,7 @@ connects again when it is back).
 """
 
 import socket
+import struct
 import threading
 import time
 
@@ -91,7 +92,7 @@ class Judge:
         self.shots = []                    # (lat, lon, alt AMSL)
         self.battery = []                  # (wall t, % remaining)
         self.clock = []                    # (wall t, the autopilot's own s since boot)
-        self._sock = None                  # ArduPilot's link, once connected
+        self._send = None                  # bytes -> None on its link, once connected
         self._mav = M.MAVLink(None, srcSystem=JUDGE_SYSID, srcComponent=190)
         self._mav.robust_parsing = True
         self._stop = threading.Event()
@@ -111,7 +112,7 @@ class Judge:
                                (M.MAV_DATA_STREAM_EXTENDED_STATUS, 2)):
                 ask = judge._mav.request_data_stream_encode(sysid, 1, stream, hz, 1)
                 sock.sendall(ask.pack(judge._mav))
-            judge._sock = sock
+            judge._send = sock.sendall
             return sock
 
         judge._start(lambda: judge._run_tcp(connect))
@@ -128,12 +129,30 @@ class Judge:
         return judge
 
     def command(self, command: int, *params) -> None:
-        """Send COMMAND_LONG ``command`` to the autopilot on this link (ArduPilot)."""
-        if self._sock is None:
-            raise RuntimeError(f"vehicle {self.sysid}: the judge's link is not connected")
-        msg = self._mav.command_long_encode(self.sysid, 1, command, 0,
-                                            *(list(params) + [0.0] * 7)[:7])
-        self._sock.sendall(msg.pack(self._mav))
+        """Send COMMAND_LONG ``command`` to the autopilot on this link."""
+        self._out(self._mav.command_long_encode(self.sysid, 1, command, 0,
+                                                *(list(params) + [0.0] * 7)[:7]))
+
+    def set_param(self, name: str, value: float, integer: bool = False) -> None:
+        """Set the autopilot's parameter ``name`` on this link (never the ground
+        station's: what the test does to the vehicle, the ground station sees only
+        in what the vehicle does). ``integer``: an INT32 parameter, sent bytewise as
+        PX4 takes it (ArduPilot takes every value as a float)."""
+        kind, wire = M.MAV_PARAM_TYPE_REAL32, float(value)
+        if integer:
+            kind = M.MAV_PARAM_TYPE_INT32
+            wire = struct.unpack("<f", struct.pack("<i", int(value)))[0]
+        self._out(self._mav.param_set_encode(self.sysid, 1, name.encode(), wire, kind))
+
+    def _out(self, msg, timeout_s: float = 60.0) -> None:
+        """Send ``msg``, once the link is connected (ArduPilot's second port opens only
+        after the ground station has connected to the first)."""
+        end = time.monotonic() + timeout_s
+        while self._send is None:
+            if time.monotonic() > end:
+                raise RuntimeError(f"vehicle {self.sysid}: the judge's link is not connected")
+            time.sleep(0.05)
+        self._send(msg.pack(self._mav))
 
     def _start(self, target) -> None:
         self._thread = threading.Thread(target=target, daemon=True,
@@ -180,6 +199,7 @@ class Judge:
 
     def _run_udp(self, sock, px4) -> None:
         asked = False
+        self._send = lambda data: sock.sendto(data, px4)
         with sock:
             for data in self._received(sock):
                 if not asked:                               # 10 Hz is plenty
@@ -247,4 +267,33 @@ def closest_airborne(tracks, airborne_m=1.0, near=None) -> tuple:
         i = int(np.argmin(np.where(up, d, np.inf)))
         if d[i] < best[0]:
             best = (float(d[i]), (a, b), float(t[i]))
+    return best
+
+
+def shared_column(tracks, base, radius, top) -> tuple:
+    """(longest s, (sysid, sysid), wall t it began) that two vehicles were at once in
+    the column above ``base`` (lat, lon): airborne (more than 1 m above their
+    homes), within ``radius`` m of it across the ground and below ``top`` m AMSL,
+    from their recorded tracks as `closest_airborne` reads them (on the times of
+    either's samples, linear between them); (0.0, None, None) if never."""
+    import itertools
+
+    k = np.cos(np.radians(base[0])) * 6371008.8 * np.pi / 180
+    best = (0.0, None, None)
+    for (a, ta), (b, tb) in itertools.combinations(sorted(tracks.items()), 2):
+        t = np.union1d(ta[0], tb[0])
+        t = t[(t >= max(ta[0][0], tb[0][0])) & (t <= min(ta[0][-1], tb[0][-1]))]
+        if len(t) < 2:
+            continue
+        inside = np.ones(len(t), bool)
+        for tr in (ta, tb):
+            lat, lon, alt = (np.interp(t, tr[0], tr[i]) for i in (1, 2, 3))
+            across = np.hypot((lon - base[1]) * k, (lat - base[0]) * 6371008.8 * np.pi / 180)
+            inside &= (alt > tr[-1][2] + 1.0) & (across < radius) & (alt < top)
+        # stretches of consecutive samples both inside
+        edges = np.flatnonzero(np.diff(np.r_[0, inside.astype(int), 0]))
+        for i0, i1 in zip(edges[::2], edges[1::2]):
+            span = t[i1 - 1] - t[i0]
+            if best[1] is None or span > best[0]:
+                best = (float(span), (a, b), float(t[i0]))
     return best

@@ -36,7 +36,8 @@ pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collect
 
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
-             capacity=None, late=None, crew=False, held=None, **options):
+             capacity=None, late=None, crew=False, held=None, below_base_m=0.0, spool=None,
+             arm_delay=None, **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
@@ -53,7 +54,7 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
     longest = max(v.mission_time_s for v in planned.plan.vehicles)
-    be = start_backend(backend, planned.plan, workdir, speedup, capacity)
+    be = start_backend(backend, planned.plan, workdir, speedup, capacity, below_base_m, spool)
     if drop_pct:
         be.set_drop(drop_pct)
     out = workdir / "flight"
@@ -97,6 +98,17 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
                     return
                 time.sleep(0.01)
         threading.Thread(target=release, daemon=True).start()
+    for sysid, seconds in (arm_delay or {}).items():
+        def delay(sysid=sysid, seconds=seconds):
+            while not stop.is_set():
+                v = flight.monitor.vehicles.get(sysid)
+                if v is not None and v.state != "waiting":      # its start has begun
+                    be.hold_on_ground(sysid)
+                    time.sleep(seconds / speedup)
+                    be.hold_on_ground(sysid, False)
+                    return
+                time.sleep(0.01)
+        threading.Thread(target=delay, daemon=True).start()
     if crew:
         swap = be.reboot if crew == "reboot" else be.swap_battery
 

@@ -461,3 +461,51 @@ def test_the_plan_summary_says_the_rates_it_assumed(planned):
         line = rates_line(replace(planned.plan, params=params))
         assert f"climb {rates.climb_mps:g}, descent {rates.descent_mps:g}" in line and \
             line.endswith(f"{firmware}'s defaults (gcs fly says where a vehicle is set slower)")
+
+
+def test_takeoffs_are_timed_on_the_liftoff_the_vehicle_reports():
+    """`Departures`: the fleet clock reads the first vehicle's planned takeoff time
+    when it is seen leaving the ground, not when its takeoff was commanded (arming
+    and spool-up come between: on real ArduPilot SITL a liftoff came 7 s of flight
+    after the one before instead of 15); one seen leaving 12 s after its planned
+    time puts the takeoffs after it 12 s later, and says so."""
+    from gcs.flight.departures import Departure, Departures
+
+    now = {"t": 0.0}
+    vehicles = {s: SimpleNamespace(state=FLYING, lifted_at_s=None,
+                                   route=SimpleNamespace(takeoff_s=15.0 * (s - 1)))
+                for s in (1, 2, 3)}
+    events = []
+    monitor = SimpleNamespace(vehicles=vehicles, now=lambda: now["t"],
+                              event=lambda s, text, **kw: events.append((s, text)))
+
+    class Clock:                                    # the fleet clock at 10x
+        t = None
+        started = property(lambda self: self.t is not None)
+
+        def rate(self):
+            return 10.0
+
+        def start(self, at):
+            self.t, self.wall = at, now["t"]
+
+        def now(self):
+            return None if self.t is None else self.t + 10.0 * (now["t"] - self.wall)
+    state = SimpleNamespace(monitor=monitor, clock=Clock())
+    d = Departures(state)
+    d._launched = {1: (0.0, 0.0)}                   # commanded at 0, due at 0
+    d.pending = {2: Departure(15.0, "launch", None), 3: Departure(30.0, "launch", None)}
+    now["t"] = 1.0                                  # 10 s of flight later: not up yet
+    d._anchor_clock()
+    assert not state.clock.started
+    vehicles[1].lifted_at_s, now["t"] = 1.2, 1.5    # up 12 s after the command
+    d._anchor_clock()
+    assert state.clock.now() == pytest.approx(3.0)  # up 0.3 s ago, at 10x
+    assert d.latency_s == pytest.approx(12.0)
+    assert [p.due for p in d.pending.values()] == [15.0, 30.0]     # the first sets t = 0
+    del d.pending[2]
+    d._launched = {2: (now["t"], 15.0)}
+    vehicles[2].lifted_at_s, now["t"] = 3.9, 4.0    # up at fleet 27 s, due at 15 s
+    d._anchor_clock()
+    assert d.pending[3].due == pytest.approx(42.0)
+    assert any("12 s after its planned takeoff" in text for _, text in events)

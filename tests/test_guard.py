@@ -61,13 +61,13 @@ def _route(x, y):
     return VehicleRoute(1, None, [w], 0.0, 0.0, 0.0)
 
 
-def _guard(vehicles, priority, short=(), waiting=lambda s: None):
+def _guard(vehicles, priority, short=(), waiting=lambda s: None, bases=()):
     monitor = Monitor(lost_after_s=5.0)
     for v in vehicles:
         monitor.follow(v, v.sysid, v.route or _route(*v.p[:2]), None)
     clock = SimpleNamespace(rate=lambda: 1.0)
     guard = SeparationGuard(monitor, 30.0, priority, clock, _Scripted(vehicles, short, waiting),
-                            travel=TravelParams(speed_mps=12.0))
+                            travel=TravelParams(speed_mps=12.0), bases=bases)
     return monitor, guard
 
 
@@ -334,3 +334,62 @@ def test_closest_approach_counts_no_vehicle_touched_down_on_its_pad():
     _run([down, above], guard, 1.0)
     assert guard.report()["pairs"] == []
 
+
+class Lingering(Scripted):
+    """At the top of its base column, held; flown on, it lingers ``linger_s`` (turning
+    to its first leg) before it flies off at its velocity."""
+
+    def __init__(self, sysid, velocity, linger_s):
+        super().__init__(sysid, (0.0, 0.0), velocity)
+        self.linger_s = linger_s
+
+    def advance(self, dt):
+        if not self.held and self.linger_s > 0:
+            self.linger_s -= dt
+            return self.report()
+        super().advance(dt)
+
+
+class Climbing(Scripted):
+    """Low in its base column: unless held it climbs at 2 m/s to the top, then flies
+    off at its velocity."""
+
+    def __init__(self, sysid, alt, velocity):
+        super().__init__(sysid, (0.0, 0.0), velocity)
+        self.p[2] = alt
+        self.report()
+
+    def advance(self, dt):
+        if not self.held and self.p[2] < ALT:
+            self.p[2] = min(ALT, self.p[2] + 2.0 * dt)
+            return self.report()
+        super().advance(dt)
+
+
+def test_two_held_at_the_top_of_a_column_the_one_above_leaves_first():
+    """Issue 62, as on real ArduPilot SITL: 1 at the top of its base column, about to
+    turn to its first leg, 2 climbing 16 m below it; the guard held both and
+    resumed both 0.1 s later, and 2 came up under 1, which lingered as it turned:
+    4-6 m. Now 1, which leaves the column first, flies on; 2 holds until 1 has
+    left (its own motion is not counted on), never closer than they stood, and
+    neither flies on within two of the guard's loops of its hold."""
+    base = GeoPoint(LON0, LAT0, ALT - 140.0)
+    one = Lingering(1, (12.0, 0.0), linger_s=3.0)
+    two = Climbing(2, ALT - 16.0, (0.0, 12.0))
+    one.route = VehicleRoute(1, base, [Waypoint(LON0, LAT0, ALT, 0.0), _route(400, 0)
+                                       .waypoints[0]], 0.0, 0.0, 0.0)
+    two.route = VehicleRoute(2, base, [Waypoint(LON0, LAT0, ALT, 0.0), _route(0, 400)
+                                       .waypoints[0]], 0.0, 0.0, 0.0)
+    monitor, guard = _guard([one, two], {1: 1, 2: 2}, bases=[(LAT0, LON0, ALT)])
+    monitor.vehicles[1].done.add(0)              # at the top: its first leg next
+    for v in (one, two):
+        v.held = True
+        guard.held[v.sysid] = (monitor.now(), 3 - v.sysid)
+    least = _run([one, two], guard, 40.0)
+    acts = [(a["sysid"], a["action"]) for a in guard.actions]
+    assert acts[0] == (1, "resume") and (2, "resume") in acts, acts
+    resumed = next(a["t_s"] for a in guard.actions if a["sysid"] == 2)
+    assert least >= 16.0 - 0.5                   # never closer than they stood
+    # 2 went once 1 was a separation away across the ground (out of the column)
+    assert one.p[0] >= 30.0 and two.p[2] == ALT and two.p[1] > 100.0
+    assert resumed > 0.0

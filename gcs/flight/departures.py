@@ -2,11 +2,21 @@
 
 A departure is a takeoff ("launch": the firmware's start sequence) or a vehicle a
 re-plan held flying on ("resume"). Each goes in a thread of its own when its time
-comes; a takeoff waits while another vehicle is in its base column, and claims
-the column from its arming until it is seen airborne. The fleet clock reads a
-vehicle's planned takeoff time when it leaves the ground (t = 0: the first
-takeoff). Parts that care when a vehicle lifts off (the battery watch) listen
+comes. Parts that care when a vehicle is sent up (the battery watch) listen
 through ``on_liftoff``.
+
+One vehicle in a base column at a time, as the plan schedules it
+(`planner.fleet.columns`), enforced from what the vehicles report, not from the
+clock of the commands: a takeoff waits while another airborne vehicle is in its
+base's column (within the separation of the base across the ground, below the
+column's top and the separation, at any height below: SITL's ground can lie
+140 m under a base), and claims the column from its arming until it is seen
+airborne. Takeoffs are timed on what the vehicles do: the fleet clock reads a
+vehicle's planned takeoff time when it is seen leaving the ground (t = 0: the
+first takeoff), and a vehicle seen leaving later than planned (arming, a slow
+spool-up) puts every takeoff after it as much later, so that the plan's spacing
+is kept (on real ArduPilot SITL a liftoff came 7 s of flight after the one
+before instead of the planned 15, timed from the commands).
 """
 
 import math
@@ -14,15 +24,35 @@ import threading
 from dataclasses import dataclass
 from types import SimpleNamespace
 
+from common.geo import LocalFrame
 from gcs import commands
-from gcs.monitor import FLYING, LANDED, LOST, STARTING, distance_m
+from gcs.monitor import FLYING, LANDED, LOST, STARTING
 from gcs.retask import Retasker
+from planner.fleet import base_columns
 
 from .options import FlightError
 
 #: wall seconds a called-off start sequence is given to stop (its command in flight
 #: answered or timed out)
 CALL_OFF_WAIT_S = 10.0
+#: fleet seconds a liftoff may come after its planned time before the takeoffs after
+#: it are put later (the clock's own reading of a report is no finer)
+SLIP_S = 1.0
+
+
+def flight_bases(plan) -> list:
+    """(lat, lon, column top m AMSL) of every takeoff and landing of ``plan``: each
+    sortie's launch point under its first waypoint, and where it lands under its
+    last (the separation guard's and the departures' base columns)."""
+    out = []
+    for v in plan.vehicles:
+        for part in v.sortie_routes() if v.waypoints else []:
+            if part.launch is not None:
+                out.append((part.launch.lat, part.launch.lon, part.waypoints[0].alt_amsl))
+            if part.landing is not None:
+                out.append((part.landing.lat, part.landing.lon, part.waypoints[-1].alt_amsl))
+    return out
+
 
 @dataclass
 class Departure:
@@ -45,9 +75,10 @@ class Departures:
         self._waiting_for = {}    # sysid -> the vehicle its base column waits for
         self._lifting = {}        # sysid -> launch point of the base column claimed for it
         self._column_lock = threading.Lock()
-        self._lifted = []         # (sysid, launch begun, lifted off): monitor times
+        self._launched = {}       # sysid -> (monitor s begun, fleet s due) not yet seen up
         self.latency_s = 0.0      # fleet s from a launch's first command to its liftoff
-        self.on_liftoff = []      # [(sysid, route) -> None]: told as each takes off
+        self.on_liftoff = []      # [(sysid, route) -> None]: told as each is sent up
+        self._frame, self._columns = None, None     # the plan's base columns, once
 
     def __contains__(self, sysid) -> bool:
         return sysid in self.pending
@@ -102,8 +133,8 @@ class Departures:
         m = self.state.monitor
         self._anchor_clock()
         now = self.state.clock.now()
-        if now is None:     # the clock starts at the first takeoff: those go now, alone
-            now = -math.inf if self._running else \
+        if now is None:     # the clock starts at the first liftoff: those go now, alone
+            now = -math.inf if self._running or self._launched else \
                 min((d.due for d in self.pending.values()), default=0.0)
         for sysid, (thread, error, _) in list(self._running.items()):
             if thread.is_alive():
@@ -128,6 +159,8 @@ class Departures:
         run = self._launch if d.kind == "launch" else self._resume
         if d.kind == "resume":
             self._resuming.add(sysid)
+        else:
+            self._launched[sysid] = (self.state.monitor.now(), d.due)
 
         def go(s=sysid, route=d.route):
             try:
@@ -142,13 +175,12 @@ class Departures:
 
     def _launch(self, sysid, route, cancel) -> None:
         m, options = self.state.monitor, self.state.options
-        begun, lifted = m.now(), []
+        lifted = []
 
         def liftoff():
             if not lifted:          # sent up: from now a re-plan holds it in the air
                 m.event(sysid, "taking off")
             lifted.append(True)
-            self._lifted.append((sysid, begun, m.now()))
             for listener in self.on_liftoff:
                 listener(sysid, route)
         m.set_state(sysid, STARTING)
@@ -165,14 +197,19 @@ class Departures:
             self._lifting.pop(sysid, None)
             # sent up: the re-plan holds it where it is; never sent up: it stays down
             if not lifted:
-                m.call_off(sysid)
+                self._grounded(sysid)
             return
         except BaseException:
             self._lifting.pop(sysid, None)
             if not lifted:
-                m.call_off(sysid)     # still down: not one a re-plan would hold in the air
+                self._grounded(sysid)     # still down: not one a re-plan would hold in the air
             raise
         m.set_state(sysid, FLYING)  # its column is kept until it is seen airborne
+
+    def _grounded(self, sysid) -> None:
+        """Its launch stopped before it was sent up: it stays down, no liftoff to come."""
+        self._launched.pop(sysid, None)
+        self.state.monitor.call_off(sysid)
 
     def _resume(self, sysid, route=None, cancel=None) -> None:
         Retasker.resume(self.state.monitor, sysid, self.state.options.protocol_retries)
@@ -189,17 +226,39 @@ class Departures:
                 del self._running[sysid]
 
     def _anchor_clock(self) -> None:
-        """The fleet clock reads a vehicle's planned takeoff time when it is seen
-        leaving the ground (t = 0: the first takeoff), and each launch is begun as
-        much earlier as the last one took from its first command to that moment
-        (arming, the takeoff command: `latency_s`), so takeoffs keep the plan's
-        spacing whatever the ground station's and the vehicles' own delays."""
+        """Each launch seen leaving the ground (`Monitor`'s ``lifted_at_s``): the fleet
+        clock reads its planned takeoff time then if it has not started (t = 0: the
+        first takeoff); one later than planned puts every takeoff to come as much
+        later (`_slipped`); and each launch is begun as much earlier as the last one
+        took from its first command to its liftoff (arming, the takeoff command,
+        the spool-up: `latency_s`)."""
         m, clock = self.state.monitor, self.state.clock
-        while self._lifted:
-            sysid, begun, lifted = self._lifted.pop(0)
+        for sysid, (begun, due) in list(self._launched.items()):
+            v = m.vehicles[sysid]
+            if v.state == LOST:
+                del self._launched[sysid]
+                continue
+            if v.lifted_at_s is None or v.lifted_at_s < begun:
+                continue
+            del self._launched[sysid]
+            rate = clock.rate()
+            ago = (m.now() - v.lifted_at_s) * rate      # fleet s since it lifted off
             if not clock.started:
-                clock.start(m.vehicles[sysid].route.takeoff_s + (m.now() - lifted))
-            self.latency_s = (lifted - begun) * clock.rate()
+                clock.start(due + ago)
+            self.latency_s = (v.lifted_at_s - begun) * rate
+            self._slipped(sysid, clock.now() - ago - due)
+
+    def _slipped(self, sysid, late_s) -> None:
+        """``sysid`` left the ground ``late_s`` fleet seconds after its planned time:
+        the takeoffs to come wait as much longer, keeping the plan's spacing."""
+        later = [s for s, d in self.pending.items() if d.kind == "launch"]
+        if late_s <= SLIP_S or not later:
+            return
+        for other in later:
+            self.pending[other].due += late_s
+        self.state.monitor.event(sysid, f"left the ground {late_s:.0f} s after its planned "
+                                        f"takeoff: the takeoffs after it are as much later",
+                                 late_s=round(late_s, 1), vehicles=sorted(later))
 
     def _claim_column(self, sysid, route) -> bool:
         """`_column_clear`, and if so the column kept for ``sysid`` from its arming
@@ -214,32 +273,42 @@ class Departures:
             return True
 
     def _column_clear(self, sysid, route) -> bool:
-        """No other airborne vehicle within the separation of the column above its
-        base (from the ground to the separation above its takeoff top), and the
+        """No other airborne vehicle in the column above its base (`column`), and the
         column claimed by no other vehicle lifting off (`_claim_column`)."""
         m = self.state.monitor
-        sep = self.state.separation_m
         launch = route.launch
-        if sep <= 0 or launch is None:
+        column = self.column(launch) if launch is not None else None
+        if column is None:
             return True
         for other, base in list(self._lifting.items()):
             v = m.vehicles[other]
             if v.airborne or v.state in (LOST, LANDED):
                 self._lifting.pop(other, None)      # where it is now speaks for it
-            elif other != sysid and base is not None and \
-                    distance_m(launch.lat, launch.lon, base.lat, base.lon) < sep:
+            elif other != sysid and base is not None and self.column(base) is column:
                 return self._wait_for(sysid, other)
-        top = route.waypoints[0].alt_amsl + sep
         for other, v in m.vehicles.items():
             s = m.links[other].state
             if other == sysid or not v.airborne or v.state in (LOST, LANDED) or s.lat is None:
                 continue
-            h = distance_m(launch.lat, launch.lon, s.lat, s.lon)
-            below = max(launch.alt_amsl - s.alt_amsl, 0.0, s.alt_amsl - top)
-            if math.hypot(h, below) < sep:
+            x, y = self._frame.to_local(s.lat, s.lon)
+            if column.contains(math.hypot(x - column.x, y - column.y), s.alt_amsl):
                 return self._wait_for(sysid, other)
         self._waiting_for.pop(sysid, None)
         return True
+
+    def column(self, point):
+        """The base column (`planner.fleet.Column`) ``point`` (lat, lon) stands in, in
+        the flight's local frame; None without a separation to keep."""
+        if self._columns is None:
+            bases = flight_bases(self.state.plan)
+            self._frame = LocalFrame(bases[0][0], bases[0][1]) if bases else None
+            self._columns = base_columns(
+                [(*self._frame.to_local(lat, lon), top) for lat, lon, top in bases],
+                self.state.separation_m) if bases else []
+        if not self._columns:
+            return None
+        x, y = self._frame.to_local(point.lat, point.lon)
+        return min(self._columns, key=lambda c: math.hypot(c.x - x, c.y - y))
 
     def _wait_for(self, sysid, other) -> bool:
         """False, said once per vehicle waited for."""

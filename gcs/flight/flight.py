@@ -39,7 +39,7 @@ from planner.plan import PLAN_FILE, Plan
 
 from . import report as reporting
 from .batteries import Batteries
-from .departures import Departures
+from .departures import Departures, flight_bases
 from .holds import Holds
 from .options import (
     LOOP_S,
@@ -315,7 +315,7 @@ class Flight:
         self.guard = SeparationGuard(
             m, self.state.separation_m, {s: v.route.priority for s, v in m.vehicles.items()},
             self.clock, self.holds, travel=self.state.ctx.scenario.travel_params(),
-            stop_s=stop_time(self.plan.params))
+            stop_s=stop_time(self.plan.params), bases=flight_bases(self.plan))
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self.state.on_every(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),

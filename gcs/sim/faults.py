@@ -25,6 +25,9 @@ class FaultPlan:
     cuts: list = field(default_factory=list)   # (start mission time s, duration wall s)
     refuse_arm: bool = False
     drain: float = 1.0                   # its battery empties this many times faster
+    spool_s: float = 0.0                 # mission s on the ground after each takeoff is
+                                         # commanded (motors spooling up, a slow start):
+                                         # its liftoff comes that much after the command
 
 
 def parse_kill(text: str) -> tuple:

@@ -699,6 +699,11 @@ class SimVehicle:
         self.body.go_to(dest, origin)
 
     def _start_takeoff(self, alt: float, seq=None) -> None:
+        if self.landed and self.plan.spool_s > 0 and \
+                (self.task or {}).get("kind") != "spool":
+            self.task = {"kind": "spool", "until": self.t + self.plan.spool_s, "alt": alt,
+                         "seq": seq}
+            return
         x, y, z = self.body.pos
         if self.landed:
             self.landed = False
@@ -723,7 +728,10 @@ class SimVehicle:
         if task is None:
             return self._idle_check()
         kind = task["kind"]
-        if kind == "takeoff":
+        if kind == "spool":
+            if self.t >= task["until"]:
+                self._start_takeoff(task["alt"], task["seq"])
+        elif kind == "takeoff":
             if abs(self.body.pos[2] - self.body.dest[2]) < TAKEOFF_TOLERANCE_M:
                 self._takeoff_done(task)
         elif kind == "item":
