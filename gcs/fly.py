@@ -58,7 +58,6 @@ from missions.build import MissionOptions, vehicle_mission
 from missions.check import checked
 from missions.items import NAV_LAND
 from missions.segments import RouteMissions, fewer_waypoints
-from planner.context import PlanningContext
 from planner.fleet import prove_separated, stop_time
 from planner.plan import PLAN_FILE, Plan
 from planner.replan import LAUNCH_COLUMN_M, coverable_targets, coverage_summary
@@ -283,7 +282,9 @@ class Flight:
         if self.missions is not None:
             return
         if self.ctx is None:
-            self.ctx = PlanningContext.load(self.plan_dir, self.plan)
+            from planner.pipeline import load_context
+
+            self.ctx = load_context(self.plan_dir, self.plan)
         self.surface = self.ctx.surface
         clearance = self.plan.params.get("clearance_m")
         missions = {}

@@ -31,7 +31,8 @@ from planner.visibility import Viewpoints, compute_visibility
 from .context import PlanningContext
 from .coverage import CoverageProblem, required_uavs
 from .coverage.metrics import sighting_counts
-from .pipeline import Start, above_launch, allocate
+from .launch import Start, above_launch
+from .pipeline import allocate
 
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
 #: autopilots accept a waypoint within about 2 m

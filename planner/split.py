@@ -263,7 +263,7 @@ class Joined:
 
     routes: list  # per UAV: global viewpoint ids
     arrivals: list  # per UAV: estimated arrival time at each snapshot (an upper bound)
-    sortie_of: list  # per UAV: the sortie of each visit (`planner.pipeline._routes`)
+    sortie_of: list  # per UAV: the sortie of each visit (`planner.sorties.make_sorties`)
     groups: list  # per part: its UAV ids
     part_times: list  # per part: its coverage time as solved
     dropped: int  # visits the join made redundant
