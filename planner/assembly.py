@@ -16,7 +16,7 @@ from planner.terrain.dem import VOID_FILL_MARGIN_M
 from planner.visibility.unseen import area_summary
 
 from .context import outposts_json
-from .coverage.problem import achievable, beyond_battery
+from .coverage.model import achievable, beyond_battery
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 
 

@@ -210,17 +210,17 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
              strong_bound=True, scheduler=None, log=None, visited=None) -> Outcome:
     """Run the scenario's coverage method from ``starts`` and build hidden routes.
 
-    ``budget_fraction`` caps the search budget (`coverage.CoverageParams`);
+    ``budget_fraction`` caps the search budget (`coverage.methods.alns.AlnsParams`);
     ``strong_bound=False`` reports only the quick lower bounds (re-plans in flight).
     A large area is planned in parts (`planner.split`), as dask tasks on
     ``scheduler`` (see `prepare`) when it names one."""
     s = ctx.scenario
     method = method or s.method
     timing = dict(ctx.timing_s)
-    params = coverage.CoverageParams(alpha=s.alpha, beta=s.beta,
-                                     step_time_cap=s.step_time_cap_s, seed=s.seed,
-                                     time_budget_s=s.time_budget_s,
-                                     budget_fraction=budget_fraction)
+    # the scenario's method settings: each method takes those it has (`coverage.solve`)
+    params = {"alpha": s.alpha, "beta": s.beta, "step_time_cap": s.step_time_cap_s,
+              "seed": s.seed, "time_budget_s": s.time_budget_s,
+              "budget_fraction": budget_fraction}
     request = SearchRequest(ctx, n_uavs, starts, seen, required, visited, method, params,
                             scheduler, log)
     parts = split.n_parts(len(ctx.viewpoints), s)
@@ -228,7 +228,7 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
                                                                 progress)
     # only the reach bound holds for the whole of an area planned in parts
     bounds = ((split.reach_bound(problem),) * 2 if parts > 1
-              else coverage.bounds(problem, strong_bound, prep))
+              else coverage.lower_bounds(problem, strong_bound, prep))
     plan = make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds)
     over = over_battery(fleet, s.usable_s, starts)
     if over.any():
@@ -300,7 +300,7 @@ class SearchRequest:
     required: Optional[np.ndarray]     # sightings each target needs (None: k + 1)
     visited: Optional[np.ndarray]      # bool [UAVs, viewpoints] photographed from before
     method: str
-    params: object                     # the method's settings (`coverage.solve`)
+    params: dict                       # the method's settings (`coverage.solve`)
     scheduler: object                  # where plans in parts run (see `prepare`)
     log: Optional[Callable]
 

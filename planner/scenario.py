@@ -12,12 +12,10 @@ from pathlib import Path
 from typing import Optional
 
 from common.errors import InputError
+from planner.coverage.methods import METHODS
 from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
 
 FIRMWARES = ("ardupilot", "px4")
-#: the coverage methods, in the order users see them; each registers itself in
-#: planner.coverage (`methods.register` refuses a name not listed here)
-METHODS = ("rt", "rt+ls", "alns", "rd", "b", "c")
 #: the default separation between airborne vehicles (m, 3-D). Each of two vehicles
 #: may be off its planned point by its track tolerance (5 m: what its legs are
 #: proven with) plus its GNSS error (about 3 m at 95 %): 16 m together; the

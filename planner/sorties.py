@@ -17,21 +17,21 @@ import numpy as np
 from common.errors import InputError
 from planner.exposure import segments_clear, segments_hidden
 
-from .coverage.insertion import walked
-from .coverage.problem import landing_bases
+from .coverage.model import landing_bases
+from .coverage.model.routes import walked
 from .launch import SAME_PLACE_M, above_launch, fleet_bases
 
 
 def sortie_split(prep, routes) -> list:
     """Per UAV, the sortie of each visit: the greedy split the methods planned with
-    (`coverage.insertion.walk`; all 0 with an unlimited battery)."""
-    return [walked(np.asarray(route, np.int64), prep.travel, prep.frames[r], prep.sorties[r],
+    (`coverage.model.routes.walk`; all 0 with an unlimited battery)."""
+    return [walked(np.asarray(route, np.int64), prep.travel, prep.battery(r),
                    prep.has_launch)[1] for r, route in enumerate(routes)]
 
 
 def _landings(ctx, problem, starts, route, of, r) -> list:
     """The ground point each sortie of UAV r's route lands at (index: the sortie of
-    `sortie_split`): the base nearest its last viewpoint (`coverage.problem.
+    `sortie_split`): the base nearest its last viewpoint (`coverage.model.
     landing_bases`) where the fleet's bases are several, else its own; the start's
     flight home without a visit (sortie 0 before a route of later sorties) lands
     at its own."""

@@ -12,8 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.coverage.metrics import last_needed_sighting
-from planner.coverage.problem import achievable
+from planner.coverage.model import achievable, last_needed_sighting
 
 from . import FleetSchedule, Profile, schedule, stop_time
 
