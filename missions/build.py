@@ -24,19 +24,18 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
-from autopilots import ARDUPILOT, NAMES, profile
-from common.errors import InputError
-
-from .items import (
+from autopilots import NAMES, firmware_of, profile
+from autopilots.mavlink import (
     DO_CHANGE_SPEED,
     FRAME_GLOBAL,
     FRAME_MISSION,
     NAV_LAND,
     NAV_TAKEOFF,
     NAV_WAYPOINT,
-    MissionItem,
-    renumber,
 )
+from common.errors import InputError
+
+from .items import MissionItem, renumber
 
 FIRMWARES = NAMES
 SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1
@@ -147,7 +146,7 @@ def plan_missions(plan, firmware: Optional[str] = None, options: Optional[Missio
     flies several (each takes off from its base and lands at the base its sortie
     names: the same, or another of the fleet's; firmware default:
     the plan's; options default: fly the plan's speed, trigger the camera, no hold)."""
-    firmware = firmware or plan.params.get("firmware") or ARDUPILOT
+    firmware = firmware_of(plan.params, firmware)
     if options is None:
         options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
     return [mission for route in plan.vehicles if route.waypoints
