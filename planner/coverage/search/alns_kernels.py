@@ -1,3 +1,6 @@
+# Over 600 lines, knowingly: the ALNS kernels share one state layout (R, L, cnt, dc, pc,
+# fly and ex, below) and call each other inside numba; apart, that layout would be
+# described, and kept in step, in several places.
 """Numba kernels of the ALNS (`search.alns`): repair, redundant-visit removal, route order.
 
 Routes are held in a padded matrix ``R[r, :L[r]]`` (viewpoint ids in flying
