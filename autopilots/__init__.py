@@ -2,21 +2,28 @@
 
     from autopilots import profile, profile_of_heartbeat, NAMES
     ap = profile("ardupilot")
-    ap.home_item, ap.hold_mode, ap.mode_number("GUIDED"), ap.start_sequence
+    ap.home_item, ap.hold_mode, ap.mode_number("GUIDED"), ap.start_sequence, ap.rates
 
 A new firmware, or a new quirk of one, is one module here (`ardupilot`,
-`px4`), built on `autopilots.base.Autopilot`. `missions` and `gcs` import this
-package; the simulator (`gcs.sim.flavours`) builds its vehicle-side mirror from
-the same profiles. It imports nothing else of the project.
+`px4`), built on `autopilots.base.Autopilot`. `planner`, `missions` and `gcs`
+import this package; the simulator (`gcs.sim.flavours`) builds its vehicle-side
+mirror from the same profiles. The MAVLink numbers they all use are
+`autopilots.mavlink`'s. It imports nothing else of the project.
 """
 
 from . import ardupilot, px4
-from .base import Autopilot, Step
+from .base import ACCEPT_RADIUS_M, Autopilot, Rates, Step
 
 #: every profile, by name; the one list of firmware names
 PROFILES = {p.name: p for p in (ardupilot.PROFILE, px4.PROFILE)}
 NAMES = tuple(PROFILES)
 ARDUPILOT, PX4 = ardupilot.PROFILE.name, px4.PROFILE.name
+#: the firmware planned for where none is named: a scenario's default, and what a
+#: plan.json that names none (an older version's) was made for
+DEFAULT = ARDUPILOT
+#: whose modes a generic autopilot (neither) is asked in: ArduPilot's plain
+#: custom-mode numbers
+GENERIC_MODES = ARDUPILOT
 
 
 def profile(name: str) -> Autopilot:
@@ -25,6 +32,12 @@ def profile(name: str) -> Autopilot:
         return PROFILES[str(name).lower()]
     except KeyError:
         raise KeyError(f"unknown autopilot {name!r}; known: {', '.join(NAMES)}") from None
+
+
+def firmware_of(params=None, given=None) -> str:
+    """The firmware a plan is for: ``given`` (a command's option) first, then the
+    one its ``params`` name (plan.json's, a scenario's), else `DEFAULT`."""
+    return given or (params or {}).get("firmware") or DEFAULT
 
 
 def profile_of_heartbeat(autopilot_type: int) -> Autopilot | None:
@@ -36,5 +49,18 @@ def profile_of_heartbeat(autopilot_type: int) -> Autopilot | None:
     return None
 
 
-__all__ = ["ARDUPILOT", "Autopilot", "NAMES", "PROFILES", "PX4", "Step", "profile",
-           "profile_of_heartbeat"]
+__all__ = [
+    "ACCEPT_RADIUS_M",
+    "ARDUPILOT",
+    "DEFAULT",
+    "GENERIC_MODES",
+    "NAMES",
+    "PROFILES",
+    "PX4",
+    "Autopilot",
+    "Rates",
+    "Step",
+    "firmware_of",
+    "profile",
+    "profile_of_heartbeat",
+]

@@ -33,14 +33,17 @@ import math
 import struct
 from dataclasses import dataclass
 
-from .base import FRAME_GLOBAL, POSITION_COMMANDS, Autopilot, Step
-
-MAV_AUTOPILOT_ARDUPILOTMEGA = 3
-MAV_TYPE_QUADROTOR = 2
-DO_DIGICAM_CONTROL = 203
+from .base import Autopilot, Rates, Step
+from .mavlink import (
+    DO_DIGICAM_CONTROL,
+    FRAME_GLOBAL,
+    MAV_AUTOPILOT_ARDUPILOTMEGA,
+    MAV_TYPE_QUADROTOR,
+    NAV_POSITION_COMMANDS,
+)
 
 #: commands whose x, y, z are kept as a location (AP_Mission::stored_in_location)
-IN_LOCATION = POSITION_COMMANDS | {30, 82, 84, 85, 92, 94, 179, 188, 189, 191, 195, 201}
+IN_LOCATION = NAV_POSITION_COMMANDS | {30, 82, 84, 85, 92, 94, 179, 188, 189, 191, 195, 201}
 #: per command, the fields besides the location that a read-back returns, each
 #: with the conversion its storage applies (mission_cmd_to_mavlink_int); a
 #: command missing here is compared as sent (frame aside)
@@ -152,13 +155,17 @@ PROFILE = ArduPilot(
     start_sequence=(Step("set_current"), Step("mode", "GUIDED"), Step("arm"),
                     Step("takeoff"), Step("mode", "AUTO"), Step("mission_start")),
     request_streams=True,
+    # WPNAV_SPEED_UP 250, WPNAV_SPEED_DN 150 cm/s (NAV_TAKEOFF climbs at the first);
+    # NAV_LAND descends at LAND_SPEED 50 cm/s below LAND_ALT_LOW 1000 cm (ArduPilot 4.7)
+    rates=Rates(climb_mps=2.5, descent_mps=1.5, takeoff_mps=2.5, takeoff_band_m=0.0,
+                land_mps=0.5, land_band_m=10.0),
     capacity_text=r"Only (\d+) items are supported",
     capacity_advice="raise it with the parameter BRD_SD_MISSION (kB of the SD card kept for "
                     "missions: 64 holds about 4,368 items), then reboot",
     battery_failsafes=(("BATT_FS_LOW_ACT", _BATTERY_ACTIONS),
                        ("BATT_FS_CRT_ACT", _BATTERY_ACTIONS)),
     # the mission's DO_CHANGE_SPEED sets the speed; climbs and descents keep these
-    # (defaults 250, 150, 50 cm/s: planner.rates.FIRMWARE_RATES)
+    # (defaults 250, 150, 50 cm/s: ``rates``)
     rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01), ("WPNAV_SPEED_DN", "descent_mps", 0.01),
                  ("LAND_SPEED", "land_mps", 0.01)),
 )

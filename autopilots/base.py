@@ -8,20 +8,38 @@ command written at a snapshot, the yaw written in navigation items, what a
 mission read-back keeps (`read_back`: an item as the firmware reports it), how
 many items a vehicle holds, how it says so, and how that is raised.
 
-Numbers are MAVLink's (common.xml); nothing here talks to a vehicle, so
-`missions`, `gcs` and the simulator can all import it.
+Numbers are MAVLink's (common.xml, `autopilots.mavlink`); nothing here talks to
+a vehicle, so `planner`, `missions`, `gcs` and the simulator can all import it.
 """
 
 import re
 from dataclasses import dataclass
 
-# MAV_FRAME / MAV_CMD numbers used by the profiles (common.xml)
-FRAME_GLOBAL = 0
-FRAME_MISSION = 2
-NAV_LAST = 95                 # MAV_CMD_NAV_LAST: commands below it are navigation
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
-#: MAV_CMD numbers whose x, y, z are a position (waypoint, loiters, land, takeoff, ...)
-POSITION_COMMANDS = frozenset({16, 17, 18, 19, 21, 22, 31})
+#: a waypoint counts as reached this close (m): ArduPilot's WPNAV_RADIUS and PX4's
+#: NAV_ACC_RAD defaults, and the built-in simulator's
+ACCEPT_RADIUS_M = 2.0
+
+
+@dataclass(frozen=True)
+class Rates:
+    """The vertical rates a firmware flies a mission by, and how it passes a
+    waypoint, its parameters at their defaults: what a plan for it assumes unless
+    the scenario says otherwise (`planner.scenario`, `planner.rates`).
+
+    A firmware climbs and descends between waypoints at its mission rates, flies
+    the lowest metres of a takeoff and of a landing slower (the bands), and loses
+    time at each waypoint (`planner.rates.waypoint_stop_s`). Where `gcs fly`
+    reads a vehicle's own values: `Autopilot.rate_limits`."""
+
+    climb_mps: float
+    descent_mps: float
+    takeoff_mps: float          # the lowest ``takeoff_band_m`` of a takeoff
+    takeoff_band_m: float
+    land_mps: float             # the lowest ``land_band_m`` of a landing
+    land_band_m: float
+    # how it passes a waypoint (`planner.fleet.stop_time`): None, slowing only to what
+    # stops it within the acceptance radius; a jerk (m/s³), to a jerk-limited stop
+    jerk_mps3: float | None = None
 
 
 @dataclass(frozen=True)
@@ -59,6 +77,7 @@ class Autopilot:
     mission_end_mode: str         # where the autopilot puts itself when a mission ends
     start_sequence: tuple         # of `Step`, after pre-arm readiness
     request_streams: bool         # telemetry must be asked for (REQUEST_DATA_STREAM)
+    rates: Rates                  # a mission's vertical rates and stops, at their defaults
     #: STATUSTEXT pattern whose group 1 is the capacity, sent with a NO_SPACE refusal
     capacity_text: str | None = None
     #: how a user raises the capacity (said when a mission does not fit)

@@ -23,10 +23,8 @@
 
 from dataclasses import dataclass
 
-from .base import Autopilot, Step
-
-MAV_AUTOPILOT_PX4 = 12
-IMAGE_START_CAPTURE = 2000
+from .base import Autopilot, Rates, Step
+from .mavlink import IMAGE_START_CAPTURE, MAV_AUTOPILOT_PX4
 
 MAIN = {"MANUAL": 1, "ALTCTL": 2, "POSCTL": 3, "AUTO": 4, "ACRO": 5, "OFFBOARD": 6,
         "STABILIZED": 7, "RATTITUDE": 8}
@@ -98,13 +96,21 @@ PROFILE = PX4(
     mission_end_mode="AUTO.LOITER",
     resume_rewinds=True,    # MissionBase::on_activation, camera triggering: replay
     resume_climbs_above_m=0.8,  # MissionBase::checkClimbRequired, NAV_MC_ALT_RAD's default
-    # (defaults 12, 3, 1.5, 1.5, 0.7 m/s: planner.rates.FIRMWARE_RATES)
+    # (defaults 12, 3, 1.5, 1.5, 0.7 m/s: ``rates``)
     rate_limits=(("MPC_XY_VEL_MAX", "speed_mps", 1.0), ("MPC_Z_V_AUTO_UP", "climb_mps", 1.0),
                  ("MPC_Z_V_AUTO_DN", "descent_mps", 1.0), ("MPC_TKO_SPEED", "takeoff_mps", 1.0),
                  ("MPC_LAND_SPEED", "land_mps", 1.0)),
     start_sequence=(Step("set_current"), Step("mission_start", "AUTO.MISSION"), Step("arm"),
                     Step("airborne")),
     request_streams=False,
+    # MPC_Z_V_AUTO_UP 3, MPC_Z_V_AUTO_DN 1.5 m/s; FlightTaskAuto: a takeoff climbs at
+    # MPC_TKO_SPEED 1.5 m/s below MPC_LAND_ALT1 (10 m); a landing slows from 1.5 m/s
+    # at MPC_LAND_ALT1 to MPC_LAND_SPEED 0.7 m/s at MPC_LAND_ALT2 (5 m) and below:
+    # 11.9 s from 10 m, taken as 0.7 m/s below 7.5 m (12.4 s: never shorter). A
+    # mission's waypoints are flown to a near stop, jerk limited by MPC_JERK_AUTO 4:
+    # PX4 v1.17 SITL lost 2-4 s more a waypoint than slowing within NAV_ACC_RAD costs
+    rates=Rates(climb_mps=3.0, descent_mps=1.5, takeoff_mps=1.5, takeoff_band_m=10.0,
+                land_mps=0.7, land_band_m=7.5, jerk_mps3=4.0),
     capacity_advice="a board keeps missions in its dataman: on the SD card (SYS_DM_BACKEND 0) "
                     "it holds more than in RAM",
     battery_failsafes=(("COM_LOW_BAT_ACT", {

@@ -36,12 +36,11 @@ against the same bound with the LP whole (scipy's HiGHS, every row, as before
 2026-11-29), on seeded problems of 150-800 viewpoints: values and seconds.
 
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
-(planner.coverage.instances), ``--sweep`` the step-cap (th_ra) sweep,
+(planner.coverage.model.instances), ``--sweep`` the step-cap (th_ra) sweep,
 ``--large`` RT and ALNS on a 3,000-viewpoint x 50,000-target x 8-UAV problem.
 """
 
 import argparse
-import importlib
 import json
 import math
 import sys
@@ -54,10 +53,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from benchmarks import optimality  # noqa: E402
-from planner.coverage import METHODS, CoverageParams, lower_bound, solve  # noqa: E402
-
-bounds_mod = importlib.import_module("planner.coverage.bounds")  # the package's `bounds` is its function
-from planner.coverage.instances import FAMILIES, random_problem  # noqa: E402
+from planner.coverage import METHODS, lower_bound, solve  # noqa: E402
+from planner.coverage.bounds import flow as bounds_mod  # noqa: E402
+from planner.coverage.model.instances import FAMILIES, random_problem  # noqa: E402
 
 
 def gmean(values):
@@ -165,9 +163,9 @@ def sweep(quick):
         if spec["k"] > 1:
             continue
         p = random_problem(n_viewpoints=150, n_targets=1500, **spec)
-        base = solve(p, "rt", CoverageParams(step_time_cap=math.inf)).coverage_time
+        base = solve(p, "rt", {"step_time_cap": math.inf}).coverage_time
         for f in factors:
-            a = solve(p, "rt", CoverageParams(step_cap_factor=f)) if np.isfinite(f) else None
+            a = solve(p, "rt", {"step_cap_factor": f}) if np.isfinite(f) else None
             table[f].append((a.coverage_time if a else base) / base)
     print("\nStep-cap sweep: RT coverage time / RT without cap (geometric mean)")
     for f in factors:
@@ -216,7 +214,7 @@ def bound_rows(quick):
     """The flow bound with its target rows generated (`FlowLP.solve`) against the same
     bound with the LP whole (`_whole_lp`), on seeded problems of 150-800 viewpoints,
     with and without launch points: the values and the seconds of each."""
-    from planner.coverage.problem import prepare
+    from planner.coverage.model import prepare, target_classes
 
     sizes = (150, 400) if quick else (150, 400, 800)
     rows = []
@@ -225,7 +223,7 @@ def bound_rows(quick):
             for launch in (False, True):
                 p = random_problem(n_viewpoints=n_vp, n_targets=10 * n_vp, n_uavs=4,
                                    k=n_vp % 3, family=family, seed=n_vp, launch=launch)
-                prep = prepare(p).classes[0]
+                prep = target_classes(prepare(p))[0]
                 timed, generated = [], bounds_mod.FlowLP.solve
                 try:
                     for solve_lp in (_whole_lp, generated):
@@ -308,7 +306,7 @@ def save_best_known(table: dict):
 
 def run_terrain_suite(quick, best_known_runs=False, budgets=False):
     from planner.coverage import lower_bound, solve
-    from planner.coverage.alns import default_budget_s
+    from planner.coverage.search.alns import default_budget_s
     from planner.pipeline import coverage_problem, launch_starts
     from planner.scenario import Scenario
 
@@ -331,23 +329,23 @@ def run_terrain_suite(quick, best_known_runs=False, budgets=False):
             row["lb"] = lower_bound(p)
             row["lb_s"] = time.perf_counter() - t0
             for m in methods:
-                a = solve(p, m, CoverageParams())
+                a = solve(p, m)
                 assert a.covered, (key, m)
                 row[m], row[m + "_s"], row[m + "_n"] = a.coverage_time, a.planning_s, a.n_snapshots
             if k >= 1:
                 ph = coverage_problem(ctx, n, [starts[0]] * n, k, "hard")
                 for m in dict.fromkeys([default, "rt"]):
-                    row[m + "_hard"] = solve(ph, m, CoverageParams()).coverage_time
+                    row[m + "_hard"] = solve(ph, m).coverage_time
             if budgets:
                 visits = row[default + "_n"]
                 base = default_budget_s(visits)
                 for f in BUDGET_FACTORS:
-                    a = solve(p, "alns", CoverageParams(time_budget_s=base * f))
+                    a = solve(p, "alns", {"time_budget_s": base * f})
                     row[f"budget_{f}"], row[f"budget_{f}_s"] = a.coverage_time, a.planning_s
             if best_known_runs:
                 long = default_budget_s(row[default + "_n"]) * LONG_BUDGET_FACTOR
                 for seed in (1,):
-                    a = solve(p, "alns", CoverageParams(seed=seed, time_budget_s=long))
+                    a = solve(p, "alns", {"seed": seed, "time_budget_s": long})
                     row[f"long_{seed}"] = a.coverage_time
             found = min(v for c, v in row.items() if c in methods or c.startswith(("long_",
                                                                                     "budget_"))
@@ -529,7 +527,7 @@ def main(argv=None):
         plot(rows, methods, args.plot)
     separation_cost(args.quick)
     if args.synthetic:
-        srows = run_suite(args.quick, CoverageParams())
+        srows = run_suite(args.quick, None)
         report(srows)
         goals(srows)
     if args.sweep:

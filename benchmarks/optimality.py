@@ -2,7 +2,7 @@
 
 The instances are `instances.optimality_case` for seeds 0..N-1 (8-16
 viewpoints, 2-4 UAVs, k = 0..n-1, launch points or none, the three families).
-Their optima come from `planner.coverage.exact.optimum` (started from the
+Their optima come from `planner.coverage.bounds.exact.optimum` (started from the
 default method's plan) and are kept in `CACHE` with the solver's proof status
 and time: an instance is solved once, and again only if it was not proven. Per
 method: median and worst coverage time / optimum, how many plans are optimal
@@ -20,8 +20,8 @@ from pathlib import Path
 import numpy as np
 
 from planner.coverage import METHODS, lower_bound, solve
-from planner.coverage.exact import optimum
-from planner.coverage.instances import optimality_case
+from planner.coverage.bounds.exact import optimum
+from planner.coverage.model.instances import optimality_case
 from planner.scenario import Scenario
 
 CACHE = Path(__file__).resolve().parent / "coverage_optimal.json"
@@ -40,7 +40,7 @@ def _load(cache: Path) -> dict:
 
 
 def _save(cases: dict, cache: Path) -> None:
-    cache.write_text(json.dumps({"solver": "planner.coverage.exact.optimum",
+    cache.write_text(json.dumps({"solver": "planner.coverage.bounds.exact.optimum",
                                  "cases": dict(sorted(cases.items()))}, indent=1) + "\n")
 
 

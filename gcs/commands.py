@@ -14,7 +14,7 @@ old index).
 
 import time
 
-from autopilots import ARDUPILOT
+from autopilots import GENERIC_MODES
 from gcs.mavlink import M, command_name, profile_of, result_name
 
 TIMEOUT_S = 1.5
@@ -129,7 +129,7 @@ def _mode_profile(link):
     """The profile that names and packs modes: a generic autopilot is asked in
     ArduPilot's plain custom-mode numbers."""
     return getattr(link, "profile", None) or profile_of(getattr(link, "flavour", None)) \
-        or profile_of(ARDUPILOT)
+        or profile_of(GENERIC_MODES)
 
 
 # -- modes and arming ------------------------------------------------------------------

@@ -22,8 +22,8 @@ from matplotlib.patches import Patch  # noqa: E402
 from common.colours import vehicle_colour  # noqa: E402
 from gcs.guard import hold_spans  # noqa: E402
 from gcs.plots import (  # noqa: E402
-    _lonlat_km,
-    _save,
+    lonlat_km,
+    save_figure,
     draw_background,
     draw_bases,
     symbol_legend,
@@ -99,7 +99,7 @@ class MissionClock:
 def flight_png(path, terrain, surface, plan, report: dict) -> None:
     """The map (recorded tracks solid, planned routes faint, re-planned routes
     dashed, snapshots taken, losses), the timeline and the altitude profiles."""
-    _save(flight_figure(terrain, surface, plan, report), path)
+    save_figure(flight_figure(terrain, surface, plan, report), path)
 
 
 def flight_figure(terrain, surface, plan, report: dict):
@@ -132,7 +132,7 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
         c = vehicle_colour(v["vehicle"])
         route = planned.get(v["vehicle"])
         if route is not None and route.waypoints:
-            x, y = _lonlat_km(terrain, [w.lon for w in route.waypoints],
+            x, y = lonlat_km(terrain, [w.lon for w in route.waypoints],
                               [w.lat for w in route.waypoints])
             ax.plot(x, y, "-", color=c, linewidth=0.9, alpha=0.35, zorder=4)
         handles.append(_draw_track(ax, terrain, v, c, clock))
@@ -141,7 +141,7 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
             if not points:
                 continue
             p = np.asarray(points, float)
-            x, y = _lonlat_km(terrain, p[:, 0], p[:, 1])
+            x, y = lonlat_km(terrain, p[:, 0], p[:, 1])
             c = _colour_of_sysid(report, int(sysid))
             ax.plot(x, y, "-", color="white", linewidth=3.2, alpha=0.8, zorder=6)
             ax.plot(x, y, linestyle=(0, (4, 2)), color=c, linewidth=1.8, zorder=7)
@@ -169,7 +169,7 @@ def _draw_track(ax, terrain, v, c, clock):
     handle = Line2D([], [], color=c, linewidth=2.0, label=label)
     if v["track"]:
         t = np.asarray(v["track"], float)
-        x, y = _lonlat_km(terrain, t[:, 1], t[:, 2])
+        x, y = lonlat_km(terrain, t[:, 1], t[:, 2])
         ax.plot(x, y, "-", color=c, linewidth=2.0, zorder=5)
         if v["state"] == "lost":
             ax.plot(x[-1], y[-1], "X", color=c, markersize=14, markeredgecolor="black",
@@ -183,7 +183,7 @@ def _draw_track(ax, terrain, v, c, clock):
                         bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=c, alpha=0.85))
     if v["snapshots"]:
         s = v["snapshots"]
-        x, y = _lonlat_km(terrain, [p["lon"] for p in s], [p["lat"] for p in s])
+        x, y = lonlat_km(terrain, [p["lon"] for p in s], [p["lat"] for p in s])
         ax.plot(x, y, "o", color=c, markersize=4, markeredgecolor="black",
                 markeredgewidth=0.5, alpha=0.4 if v["state"] == "lost" else 1.0, zorder=8)
     return handle

@@ -1,3 +1,5 @@
+# Over 600 lines, knowingly: the fleet's connections, the HEARTBEAT discovery and the routed
+# sends share one receive thread and its per-system queues; split, each part would reach into them.
 """MAVLink links to a fleet: connections, vehicles found by HEARTBEAT, routed sends.
 
     link = GroundLink.open(["udpin:0.0.0.0:14550"], expect=4, timeout_s=10)

@@ -14,7 +14,7 @@ os.environ["MAVLINK20"] = "1"      # before pymavlink is imported anywhere
 
 from pymavlink import mavutil  # noqa: E402
 
-from autopilots import ARDUPILOT, profile, profile_of_heartbeat  # noqa: E402
+from autopilots import GENERIC_MODES, profile, profile_of_heartbeat  # noqa: E402
 
 mavutil.set_dialect("ardupilotmega")
 mavlink = mavutil.mavlink
@@ -64,7 +64,7 @@ def profile_of(flavour: str):
 def mode_number(flavour: str, name: str, mav_type: int = M.MAV_TYPE_QUADROTOR) -> tuple:
     """(custom_mode, main, sub) of a mode name; raises KeyError naming the choices.
     A generic autopilot is asked in ArduPilot's numbers (plain custom modes)."""
-    return (profile_of(flavour) or profile(ARDUPILOT)).mode_number(name, mav_type)
+    return (profile_of(flavour) or profile(GENERIC_MODES)).mode_number(name, mav_type)
 
 
 def mode_name(flavour: str, custom_mode: int, mav_type: int = M.MAV_TYPE_QUADROTOR) -> str:

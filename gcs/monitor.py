@@ -1,3 +1,5 @@
+# Over 600 lines, knowingly: one Monitor owns each vehicle's telemetry state (progress,
+# snapshots, silence, liftoff, landing), and every verdict reads the same fields under one lock.
 """Following each vehicle from its telemetry: progress, snapshots, losses, landing.
 
 A `Monitor` subscribes to every `gcs.link.VehicleLink` of the flight. From the

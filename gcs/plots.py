@@ -53,7 +53,7 @@ def _from_km(terrain, kx, ky):
     return np.asarray(kx) * 1000.0 + t.c, np.asarray(ky) * 1000.0 + (t.f + rows * t.e)
 
 
-def _lonlat_km(terrain, lon, lat):
+def lonlat_km(terrain, lon, lat):
     x, y = terrain.from_lonlat(np.asarray(lon, float), np.asarray(lat, float))
     return _to_km(terrain, x, y)
 
@@ -147,7 +147,7 @@ def draw_graticule(ax, terrain) -> None:
                  bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75))
     fine = np.linspace(lat.min() - step, lat.max() + step, 60)
     for value in np.arange(math.floor(lon.min() / step) * step, lon.max() + step, step):
-        x, y = _lonlat_km(terrain, np.full_like(fine, value), fine)
+        x, y = lonlat_km(terrain, np.full_like(fine, value), fine)
         ax.plot(x, y, **style)
         bottom = _crossing(x, y, y0, along_y=True)
         if bottom is not None and x0 < bottom < x1:
@@ -155,7 +155,7 @@ def draw_graticule(ax, terrain) -> None:
                     **label)
     fine = np.linspace(lon.min() - step, lon.max() + step, 60)
     for value in np.arange(math.floor(lat.min() / step) * step, lat.max() + step, step):
-        x, y = _lonlat_km(terrain, fine, np.full_like(fine, value))
+        x, y = lonlat_km(terrain, fine, np.full_like(fine, value))
         ax.plot(x, y, **style)
         left = _crossing(y, x, x0, along_y=True)
         if left is not None and y0 < left < y1:
@@ -255,7 +255,7 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
         lat = [w.lat for w in vehicle.waypoints]
         if not lon:
             continue
-        x, y = _lonlat_km(terrain, lon, lat)
+        x, y = lonlat_km(terrain, lon, lat)
         waits = vehicle.takeoff_s + sum(w.hold_s for w in vehicle.waypoints)
         sorties = f", {len(vehicle.sorties)} sorties" if len(vehicle.sorties) > 1 else ""
         ax.plot(x, y, linestyle, color=colour, linewidth=1.6, alpha=alpha, zorder=5,
@@ -282,7 +282,7 @@ def draw_area(ax, terrain, plan) -> None:
                                               else "") + " inside)"
     for polygon in read_area(name):
         for ring in polygon:
-            x, y = _lonlat_km(terrain, ring[:, 0], ring[:, 1])
+            x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
             ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
                     label=label)
             label = None
@@ -292,7 +292,7 @@ def draw_bases(ax, terrain, plan) -> None:
     """Launch points as white squares, on top of every route."""
     for vehicle in plan.vehicles:
         if vehicle.launch is not None:
-            lx, ly = _lonlat_km(terrain, vehicle.launch.lon, vehicle.launch.lat)
+            lx, ly = lonlat_km(terrain, vehicle.launch.lon, vehicle.launch.lat)
             ax.plot(lx, ly, marker="s", color=BASE_COLOUR, markeredgecolor="black",
                     markersize=8, zorder=12)
 
@@ -333,7 +333,7 @@ def draw_beyond_battery(ax, terrain, plan) -> None:
     if not at:
         return
     lat, lon = np.array(at, float).T
-    x, y = _lonlat_km(terrain, lon, lat)
+    x, y = lonlat_km(terrain, lon, lat)
     ax.plot(x, y, linestyle="none", marker="D", color=BEYOND_COLOUR, markersize=3.5,
             markeredgecolor="white", markeredgewidth=0.5, zorder=7,
             label=f"viewpoint beyond one battery ({len(at)}): not flown to")
@@ -352,7 +352,7 @@ def battery_title(plan) -> str:
 def overview_png(path, terrain, surface, plan, unseen=None) -> None:
     """overview.png: where one can hide, who watches, every route, and the ground no
     snapshot sees (``unseen``: `planner.visibility.unseen_reasons`)."""
-    _save(overview_figure(terrain, surface, plan, unseen), path)
+    save_figure(overview_figure(terrain, surface, plan, unseen), path)
 
 
 def overview_figure(terrain, surface, plan, unseen=None):
@@ -399,7 +399,7 @@ def view3d_png(path, terrain, surface, plan, max_cells=160) -> None:
     """view3d.png: terrain, the exposure surface above it and the routes in 3-D
     (the source paper's Fig. 4), decimated to at most ``max_cells`` per side, with
     the terrain's colour bar and the vertical exaggeration in the title."""
-    _save(view3d_figure(terrain, surface, plan, max_cells), path)
+    save_figure(view3d_figure(terrain, surface, plan, max_cells), path)
 
 
 def view3d_figure(terrain, surface, plan, max_cells=160):
@@ -422,7 +422,7 @@ def view3d_figure(terrain, surface, plan, max_cells=160):
         if not vehicle.waypoints:
             continue
         w = vehicle.waypoints
-        vx, vy = _lonlat_km(terrain, [p.lon for p in w], [p.lat for p in w])
+        vx, vy = lonlat_km(terrain, [p.lon for p in w], [p.lat for p in w])
         ax.plot(vx, vy, [p.alt_amsl for p in w], color=vehicle_colour(vehicle.id),
                 linewidth=2.2, label=f"UAV {vehicle.id} route")
     for n, o in enumerate(surface.outposts):
@@ -434,7 +434,7 @@ def view3d_figure(terrain, surface, plan, max_cells=160):
                 color="black", zorder=20)
     for vehicle in plan.vehicles:
         if vehicle.launch is not None:
-            lx, ly = _lonlat_km(terrain, vehicle.launch.lon, vehicle.launch.lat)
+            lx, ly = lonlat_km(terrain, vehicle.launch.lon, vehicle.launch.lat)
             ax.scatter([lx], [ly], [vehicle.launch.alt_amsl], marker="s", color=BASE_COLOUR,
                        edgecolors="black", s=60, depthshade=False)
     ax.set_xlabel("east (km)")
@@ -459,7 +459,7 @@ def view3d_figure(terrain, surface, plan, max_cells=160):
     return fig
 
 
-def _save(fig, path) -> None:
+def save_figure(fig, path) -> None:
     with atomic_path(path) as tmp:
         fig.savefig(tmp, format="png", bbox_inches="tight")
     plt.close(fig)

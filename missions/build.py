@@ -24,19 +24,18 @@ import math
 from dataclasses import dataclass, field
 from typing import Optional
 
-from autopilots import ARDUPILOT, NAMES, profile
-from common.errors import InputError
-
-from .items import (
+from autopilots import NAMES, firmware_of, profile
+from autopilots.mavlink import (
     DO_CHANGE_SPEED,
     FRAME_GLOBAL,
     FRAME_MISSION,
     NAV_LAND,
     NAV_TAKEOFF,
     NAV_WAYPOINT,
-    MissionItem,
-    renumber,
 )
+from common.errors import InputError
+
+from .items import MissionItem, renumber
 
 FIRMWARES = NAMES
 SPEED_TYPE_GROUND = 1.0  # DO_CHANGE_SPEED param1
@@ -105,7 +104,7 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
     if autopilot.home_item:
         home = route.launch or first
         out.add(_position(NAV_WAYPOINT, home.lat, home.lon, home.alt_amsl))
-    if options.takeoff and takeoff and _above_launch(route.launch, first):
+    if options.takeoff and takeoff and is_above_launch(route.launch, first):
         out.add(_position(NAV_TAKEOFF, route.launch.lat, route.launch.lon, first.alt_amsl,
                           p4=yaw))
     if options.speed_mps:
@@ -125,7 +124,7 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
             if index not in skip_camera:
                 out.add(_command(autopilot.camera_command, *autopilot.camera_params(shots)))
     base = route.landing        # its launch point, or the base a sortie lands at
-    if options.takeoff and land and _above_launch(base, last):
+    if options.takeoff and land and is_above_launch(base, last):
         out.add(_position(NAV_LAND, base.lat, base.lon, base.alt_amsl, p4=yaw))
     return VehicleMission(route.id, autopilot.name, renumber(out.items), out.waypoint_of_item,
                           segment=segment, first_waypoint=fly[0] if fly else 0,
@@ -147,7 +146,7 @@ def plan_missions(plan, firmware: Optional[str] = None, options: Optional[Missio
     flies several (each takes off from its base and lands at the base its sortie
     names: the same, or another of the fleet's; firmware default:
     the plan's; options default: fly the plan's speed, trigger the camera, no hold)."""
-    firmware = firmware or plan.params.get("firmware") or ARDUPILOT
+    firmware = firmware_of(plan.params, firmware)
     if options is None:
         options = MissionOptions(speed_mps=plan.params.get("speed_mps"))
     return [mission for route in plan.vehicles if route.waypoints
@@ -173,7 +172,10 @@ class _Builder:
         self.waypoint_of_item.append(waypoint)
 
 
-def _above_launch(launch, w) -> bool:
+def is_above_launch(launch, w) -> bool:
+    """Whether waypoint ``w`` stands over the launch point (within `ABOVE_LAUNCH_M`
+    horizontally): the takeoff's top or the landing's approach (`missions.segments`
+    asks too)."""
     if launch is None:
         return False
     # equirectangular distance: plenty for "the same point" at 1 m

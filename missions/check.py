@@ -25,19 +25,19 @@ from dataclasses import replace
 import numpy as np
 
 from autopilots import profile
-from common.errors import InputError
-from planner.exposure import is_hidden, segments_clear, segments_hidden, segments_under_ceiling
-
-from .items import (
+from autopilots.mavlink import (
     DO_CHANGE_SPEED,
     FRAME_GLOBAL,
     GLOBAL_FRAMES,
     NAV_LAND,
+    NAV_LAST,
     NAV_POSITION_COMMANDS,
     NAV_RETURN_TO_LAUNCH,
     NAV_TAKEOFF,
     NAV_WAYPOINT,
 )
+from common.errors import InputError
+from planner.exposure import is_hidden, segments_clear, segments_hidden, segments_under_ceiling
 
 # Commands whose flight is not a straight leg between mission positions.
 UNPROVABLE = {
@@ -56,7 +56,6 @@ UNPROVABLE = {
 #: moves the vehicle some way the check does not know (NAV_CONTINUE_AND_CHANGE_ALT,
 #: NAV_GUIDED_ENABLE, the VTOL and payload commands, ...) and is refused
 PROVEN_NAV = frozenset({NAV_WAYPOINT, 17, 19, NAV_LAND, NAV_TAKEOFF, 31, 80, 93})
-NAV_LAST = 95
 #: m/s a DO_CHANGE_SPEED may differ from the plan's speed (float32 rounding)
 SPEED_TOLERANCE_MPS = 0.01
 #: loiters and the parameter of their radius: a circle is not a proven leg

@@ -16,7 +16,7 @@ import re
 from pathlib import Path
 from typing import Optional
 
-from autopilots import ARDUPILOT, NAMES, profile
+from autopilots import NAMES, firmware_of, profile
 from common.errors import InputError
 from planner.plan import PLAN_FILE, Plan
 
@@ -75,8 +75,9 @@ def export_plan_dir(directory, plan, firmware: Optional[str] = None, surface=Non
 
 
 def export_firmware(plan, firmware: Optional[str] = None) -> str:
-    """The firmware an export writes: ``firmware``, else the plan's, else ArduPilot."""
-    return firmware_profile(firmware or plan.params.get("firmware") or ARDUPILOT).name
+    """The firmware an export writes: ``firmware``, else the plan's, else the default
+    (`autopilots.firmware_of`)."""
+    return firmware_profile(firmware_of(plan.params, firmware)).name
 
 
 def check_formats(formats) -> None:

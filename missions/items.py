@@ -11,31 +11,29 @@ integer values of param5 and param6.
 import math
 from dataclasses import dataclass
 
-# MAV_FRAME values whose x / y are latitude / longitude
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
-# MAV_FRAME values whose x / y are metres (LOCAL_NED, LOCAL_ENU, LOCAL_OFFSET_NED, BODY_*)
-LOCAL_FRAMES = frozenset({1, 4, 7, 8, 9, 12, 20, 21})
+from autopilots.mavlink import (
+    COMMAND_NAMES,
+    GLOBAL_FRAMES,
+    LOCAL_FRAMES,
+    NAV_POSITION_COMMANDS,
+    SAME_FRAME,
+)
 
-# The few MAVLink numbers this package writes (common.xml); names for messages.
-FRAME_GLOBAL = 0
-FRAME_MISSION = 2
-NAV_WAYPOINT = 16
-NAV_RETURN_TO_LAUNCH = 20
-NAV_LAND = 21
-NAV_TAKEOFF = 22
-DO_CHANGE_SPEED = 178
-DO_DIGICAM_CONTROL = 203
-IMAGE_START_CAPTURE = 2000
-COMMAND_NAMES = {
-    NAV_WAYPOINT: "NAV_WAYPOINT", NAV_RETURN_TO_LAUNCH: "NAV_RETURN_TO_LAUNCH",
-    NAV_LAND: "NAV_LAND", NAV_TAKEOFF: "NAV_TAKEOFF", DO_CHANGE_SPEED: "DO_CHANGE_SPEED",
-    DO_DIGICAM_CONTROL: "DO_DIGICAM_CONTROL", IMAGE_START_CAPTURE: "IMAGE_START_CAPTURE",
-}
-# Commands whose x, y, z are a place the vehicle flies to (the legs the check proves).
-NAV_POSITION_COMMANDS = frozenset({NAV_WAYPOINT, 17, 18, 19, NAV_LAND, NAV_TAKEOFF, 31})
-
-# The deprecated _INT frame variants mean the same as the plain ones.
-_SAME_FRAME = {5: 0, 6: 3, 11: 10}
+# isort: split
+# The other MAVLink numbers the ground station and the tests take from here are
+# `autopilots.mavlink`'s, handed on (a block of their own: none is used here).
+from autopilots.mavlink import (  # noqa: F401 - handed on
+    DO_CHANGE_SPEED,
+    DO_DIGICAM_CONTROL,
+    FRAME_GLOBAL,
+    FRAME_MISSION,
+    IMAGE_START_CAPTURE,
+    NAV_LAND,
+    NAV_LAST,
+    NAV_RETURN_TO_LAUNCH,
+    NAV_TAKEOFF,
+    NAV_WAYPOINT,
+)
 
 DEG_E7 = 1e7
 LOCAL_SCALE = 1e4
@@ -107,8 +105,8 @@ class MissionItem:
         rounding), other x / y after rounding to the wire's integers.
         """
         out = []
-        if _SAME_FRAME.get(int(self.frame), int(self.frame)) != \
-                _SAME_FRAME.get(int(other.frame), int(other.frame)):
+        if SAME_FRAME.get(int(self.frame), int(self.frame)) != \
+                SAME_FRAME.get(int(other.frame), int(other.frame)):
             out.append(f"frame {self.frame} != {other.frame}")
         for name in ("seq", "command", "autocontinue", "mission_type"):
             if int(getattr(self, name)) != int(getattr(other, name)):

@@ -20,15 +20,15 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from autopilots import PROFILES, PX4, profile, profile_of_heartbeat
+from autopilots.mavlink import FRAME_GLOBAL, MAV_TYPE_QUADROTOR, NAV_WAYPOINT
 from common.errors import InputError
 from common.fileio import write_text_atomic
 
 from .build import firmware_profile
-from .items import FRAME_GLOBAL, NAV_WAYPOINT, MissionItem, renumber
+from .items import MissionItem, renumber
 
 #: firmware name -> .plan firmwareType (MAV_AUTOPILOT)
 MAV_AUTOPILOT = {name: p.mav_autopilot for name, p in PROFILES.items()}
-MAV_TYPE_QUADROTOR = 2
 ALTITUDE_MODE_ABSOLUTE = 2  # QGroundControl's AltMode: 1 relative, 2 absolute (AMSL)
 GROUND_STATION = "hidden-coverage-gcs"
 DEFAULT_SPEED_MPS = 5.0  # cruiseSpeed / hoverSpeed when the mission sets no speed

@@ -31,7 +31,7 @@ import numpy as np
 
 from common.errors import InputError
 
-from .build import _above_launch, firmware_profile, route_items
+from .build import firmware_profile, is_above_launch, route_items
 
 #: waypoints closer than this (m, horizontally and vertically) are the same place
 SAME_PLACE_M = 0.01
@@ -157,9 +157,9 @@ class RouteMissions:
         whether it lands (it reaches the route's end)."""
         w, o = self.route.waypoints, self.options
         used = (1 if self.profile.home_item else 0) + (1 if o.speed_mps else 0)
-        if k == 0 and o.takeoff and _above_launch(self.route.launch, w[0]):
+        if k == 0 and o.takeoff and is_above_launch(self.route.launch, w[0]):
             used += 1
-        landing = 1 if o.takeoff and _above_launch(self.route.launch, w[-1]) else 0
+        landing = 1 if o.takeoff and is_above_launch(self.route.launch, w[-1]) else 0
         end = k
         for j in range(k, len(self.fly)):
             cost = 1 + (1 if w[self.fly[j]].snapshot and o.camera else 0)

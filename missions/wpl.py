@@ -31,10 +31,11 @@ import math
 from dataclasses import replace
 
 from autopilots import NAMES, profile
+from autopilots.mavlink import FRAME_GLOBAL, NAV_WAYPOINT
 from common.errors import InputError
 from common.fileio import write_text_atomic
 
-from .items import FRAME_GLOBAL, NAV_WAYPOINT, MissionItem, renumber
+from .items import MissionItem, renumber
 
 HEADER = "QGC WPL 110"
 #: MAV_AUTOPILOT number -> firmware name, for the mark on the home line

@@ -2,14 +2,14 @@
 targets from there (`gcs bases`).
 
 A base is a point ``gcs plan --launch`` accepts, decided by the planner's own
-check (`pipeline.launch_starts`: the cell under it is flyable hidden, the column
+check (`launch.launch_starts`: the cell under it is flyable hidden, the column
 above it is hidden and clear up to a takeoff top, and a proven hidden leg joins
 that top to the travel graph), which also leaves the plan's context unchanged:
 its cell lies in the fleet's flyable region and its top in the strongly
 connected part of the graph that holds the viewpoints. Bases are ranked by the
-planner's reach bound (`coverage.metrics`): a lower bound on coverage time for
+planner's reach bound (`coverage.bounds.radius`): a lower bound on coverage time for
 the whole fleet leaving from that base, from the hidden travel times of the
-coverage problem `gcs plan` would build (`pipeline.coverage_problem`).
+coverage problem `gcs plan` would build (`problem.coverage_problem`).
 
 The exact check costs tenths of a second a point (its proven legs), so not every
 cell is checked: candidates on a grid are ordered by a quick estimate (the same
@@ -26,9 +26,10 @@ import numpy as np
 from common.errors import InputError
 
 from .context import PlanningContext
-from .coverage.metrics import _reach_bound, reach_bound_of
-from .coverage.problem import prepare as prepare_problem
-from .pipeline import coverage_problem, launch_starts
+from .coverage.bounds.radius import reach_bound, reach_bound_of
+from .coverage.model import prepare as prepare_problem
+from .launch import launch_starts
+from .problem import coverage_problem
 from .split import PART_VIEWPOINTS
 
 #: least distance between two reported bases (m): apart enough that the list offers
@@ -180,6 +181,6 @@ def _base(ctx: PlanningContext, start, lat, lon) -> Base:
     `gcs plan` builds for the fleet leaving from it."""
     s = ctx.scenario
     problem = coverage_problem(ctx, s.uavs, [start] * s.uavs, s.k, s.visibility)
-    bound = float(_reach_bound(prepare_problem(problem)))
+    bound = float(reach_bound(prepare_problem(problem)))
     return Base(0, lat, lon, float(start.launch[0]), float(start.launch[1]),
                 float(start.launch[2]), float(start.xyz[2]), bound)

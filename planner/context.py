@@ -17,8 +17,9 @@ can open too, and ``load`` reads it back without redoing the heavy stages:
 
 The viewpoint-to-viewpoint times are recomputed from the graph on first use
 (`PlanningContext.travel`), a few seconds, on a background thread in `gcs fly`.
-A folder without these files (written by an older version) gets its stages
-run again from its terrain and outposts.
+A folder without these files (copied without them, or written by an older
+version) is refused here (`MissingContext`, naming the file);
+`planner.pipeline.load_context` runs its stages again instead.
 """
 
 import csv
@@ -30,10 +31,19 @@ import numpy as np
 
 from common.errors import InputError
 from common.fileio import save_npz
-from planner.exposure import ExposureParams, ExposureSurface, Outpost, surface_from_lowest
+from planner.exposure import (
+    ExposureParams,
+    ExposureSurface,
+    Outpost,
+    lowest_seen,
+    restricted,
+    surface_from_lowest,
+)
 from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
 from planner.scenario import Scenario
+from planner.split import n_parts
 from planner.terrain import Terrain, read_grid, read_terrain, write_grid
+from planner.terrain.area import areas
 from planner.travel import TravelGraph, TravelParams
 from planner.visibility import Viewpoints, VisibilityMatrix
 from planner.visibility.unseen import OUTSIDE, REASONS
@@ -82,8 +92,6 @@ class PlanningContext:
     def in_parts(self) -> bool:
         """Plans here are made in parts (`planner.split`), each with its own travel
         times: `travel` over all the viewpoints is never needed (nor affordable)."""
-        from planner.split import n_parts
-
         return n_parts(len(self.viewpoints), self.scenario) > 1
 
     @property
@@ -121,17 +129,13 @@ class PlanningContext:
         plan = plan or Plan.load(d)
         surface = load_surface(d, plan)
         scenario = Scenario.from_params(plan.params, source=d / PLAN_FILE)
-        from planner.pipeline import areas, restrict_surface
-
-        flight = areas(scenario, surface.terrain)[1]
+        flight = areas(surface.terrain, scenario.area, scenario.area_file,
+                       scenario.area_flight)[1]
         if flight is not None:  # re-planned routes stay inside the area too
-            surface = restrict_surface(surface, flight)
-        if not all((d / name).is_file() for name in (VIEWPOINTS_FILE, VISIBILITY_FILE,
-                                                      TRAVEL_FILE)):
-            # a folder written before the context was saved: its stages run again
-            from planner.pipeline import prepare
-
-            return prepare(scenario, terrain=surface.terrain, outposts=surface.outposts)
+            surface = restricted(surface, flight)
+        for name in (VIEWPOINTS_FILE, VISIBILITY_FILE, TRAVEL_FILE):
+            if not (d / name).is_file():
+                raise MissingContext(d / name, scenario, surface)
         with np.load(d / TRAVEL_FILE) as saved:
             graph = TravelGraph(surface, scenario.travel_params(),
                                 edges={k: saved[k] for k in saved.files if k != "regions"})
@@ -148,12 +152,21 @@ class PlanningContext:
                    visibility, graph, unseen=unseen)
 
 
+class MissingContext(InputError):
+    """A plan folder without a file of its context: what was read of it (its
+    scenario, its surface cut to the area) comes with it, for the stages to be run
+    again (`planner.pipeline.load_context`)."""
+
+    def __init__(self, path, scenario, surface):
+        super().__init__(path, "missing from the plan folder (it keeps what the plan was "
+                               "made in): plan it again")
+        self.scenario, self.surface = scenario, surface
+
+
 def load_surface(directory, plan: Plan) -> ExposureSurface:
     """The exposure surface a saved plan was made against: its terrain, outposts
     and lowest seen altitudes, as planned (no sweep is run again; a folder
     without lowest_seen.tif, from an older version, gets it computed)."""
-    from planner.exposure import lowest_seen
-
     d = Path(directory)
     terrain = read_terrain(d / TERRAIN_FILE)
     outposts = plan_outposts(terrain, plan)

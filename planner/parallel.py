@@ -80,6 +80,24 @@ def run_chunks(fn: Callable, chunks, shared: tuple = (), client=None,
     return out
 
 
+def chunks_of(items, size) -> list:
+    """``items`` in consecutive chunks of at most ``size``."""
+    return [items[i:i + size] for i in range(0, len(items), size)]
+
+
+def progress_part(progress, lo, hi):
+    """A progress callback mapping [0, 1] onto [lo, hi] of ``progress``."""
+    if progress is None:
+        return None
+    return lambda f: progress(lo + (hi - lo) * f)
+
+
+def n_threads() -> int:
+    """numba's threads in this process (imported when asked: this module stays light)."""
+    from numba import get_num_threads
+    return max(1, int(get_num_threads()))
+
+
 def _here(fn, shared, chunks, threads):
     """The chunks' results in order, in this thread (whose numba threads then serve
     every chunk) or on a pool of ``threads``."""

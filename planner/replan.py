@@ -29,9 +29,9 @@ from planner.travel import CLEARANCE_MARGIN_M, leg_time
 from planner.visibility import Viewpoints, compute_visibility
 
 from .context import PlanningContext
-from .coverage import CoverageProblem, required_uavs
-from .coverage.metrics import sighting_counts
-from .pipeline import Start, above_launch, allocate, launch_starts
+from .coverage.model import CoverageProblem, required_uavs, sighting_counts
+from .launch import Start, above_launch, launch_starts
+from .pipeline import allocate
 
 #: a snapshot this close (m, 3-D) to a candidate viewpoint counts as taken there;
 #: autopilots accept a waypoint within about 2 m
@@ -288,7 +288,7 @@ def requirement(ctx: PlanningContext, n_survivors: int) -> tuple:
 
 
 def earlier_sightings(ctx: PlanningContext, snapshots_per_uav) -> tuple:
-    """What the survivors photographed, by place (`planner.coverage.places`):
+    """What the survivors photographed, by place (`planner.coverage.model.places`):
     (visited, seen), bool [n_survivors, n_viewpoints] the candidate viewpoints
     each took a snapshot at (within `SNAP_TO_VIEWPOINT_M`), and bool
     [n_survivors, n_targets] what it saw from anywhere else (places of their
@@ -321,7 +321,7 @@ def _snapped(ctx: PlanningContext, snapshots_per_uav) -> list:
 def place_counts(ctx: PlanningContext, snapshots_per_uav) -> np.ndarray:
     """Per target, its sightings in ``snapshots_per_uav`` (xyz arrays per UAV) from
     distinct UAVs at distinct places (`earlier_sightings`, counted by the
-    matching of `planner.coverage.places`)."""
+    matching of `planner.coverage.model.places`)."""
     visited, seen = earlier_sightings(ctx, snapshots_per_uav)
     vis = ctx.visibility
     problem = CoverageProblem(vis.indptr, vis.indices, vis.n_targets, None, None, None,

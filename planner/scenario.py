@@ -11,13 +11,13 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Optional
 
+from autopilots import DEFAULT, NAMES, PROFILES
 from common.errors import InputError
-from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
+from planner.coverage.methods import METHODS
+from planner.rates import VERTICAL_RATES
 
-FIRMWARES = ("ardupilot", "px4")
-#: the coverage methods, in the order users see them; each registers itself in
-#: planner.coverage (`methods.register` refuses a name not listed here)
-METHODS = ("rt", "rt+ls", "alns", "rd", "b", "c")
+#: the firmware names a scenario takes (the profiles')
+FIRMWARES = NAMES
 #: the default separation between airborne vehicles (m, 3-D). Each of two vehicles
 #: may be off its planned point by its track tolerance (5 m: what its legs are
 #: proven with) plus its GNSS error (about 3 m at 95 %): 16 m together; the
@@ -62,7 +62,7 @@ class Scenario:
     uavs: int = 4
     launch: list = field(default_factory=list)  # [(lat, lon)], one for all or one per UAV
     speed_mps: float = 12.0
-    # vertical rates; None: the firmware's at its defaults (`planner.rates.FIRMWARE_RATES`)
+    # vertical rates; None: the firmware's at its defaults (`autopilots.Autopilot.rates`)
     climb_mps: Optional[float] = None
     descent_mps: Optional[float] = None
     takeoff_mps: Optional[float] = None  # the lowest metres of a takeoff (PX4: 10 m)
@@ -70,7 +70,7 @@ class Scenario:
     track_tolerance_m: float = 5.0  # legs proven hidden and clear with this much room around
     separation_m: float = SEPARATION_M  # no two airborne vehicles closer, proven (0: not kept)
     accel_mps2: float = 3.0  # horizontal acceleration: the time a waypoint costs (fleet.stop_time)
-    firmware: str = "ardupilot"
+    firmware: str = DEFAULT
     endurance_min: Optional[float] = None  # flight per battery, takeoff to touchdown (None: no
     #                                        limit, said in every summary)
     reserve_pct: float = RESERVE_PCT  # of the endurance, never planned
@@ -222,9 +222,10 @@ TARGET_HEIGHT_M = 0.5
 
 
 def _firmware_rates(name):
-    """The firmware's `planner.rates.Rates`; None for an unknown one (`validate`
-    says so)."""
-    return FIRMWARE_RATES.get(str(name).lower())
+    """The firmware's `autopilots.Rates`; None for an unknown one (`validate` says
+    so)."""
+    found = PROFILES.get(str(name).lower())
+    return None if found is None else found.rates
 
 
 def _positive(x) -> bool:

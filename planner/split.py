@@ -40,11 +40,11 @@ from scipy.spatial import cKDTree
 from common.errors import InputError
 
 from . import coverage
-from .coverage.insertion import walked
-from .coverage.metrics import reach_bound_of
-from .coverage.places import count_with, matched_counts
-from .coverage.problem import CLOSED, achievable, beyond_battery, csc_transpose
-from .coverage.setcover import greedy_cover
+from .coverage.bounds.radius import reach_bound_of
+from .coverage.model import CLOSED, achievable, beyond_battery, csc_transpose
+from .coverage.model.places import count_with, matched_counts
+from .coverage.model.routes import walked
+from .coverage.search.setcover import greedy_cover
 from .parallel import run_chunks
 from .travel import overlay_rows
 
@@ -252,8 +252,8 @@ def _solve_part(method, params, report, n, overlay, chunk):
     on = (lambda f: report((k + f) / n)) if report is not None else None
     allocation = coverage.solve(problem, method, params, progress=on)
     prep = coverage.prepare(problem)
-    walks = [walked(np.asarray(r, np.int64), prep.travel, prep.frames[u], prep.sorties[u],
-                    prep.has_launch)[:2] for u, r in enumerate(allocation.routes)]
+    walks = [walked(np.asarray(r, np.int64), prep.travel, prep.battery(u), prep.has_launch)[:2]
+             for u, r in enumerate(allocation.routes)]
     return allocation.routes, walks, allocation.coverage_time
 
 
@@ -263,7 +263,7 @@ class Joined:
 
     routes: list  # per UAV: global viewpoint ids
     arrivals: list  # per UAV: estimated arrival time at each snapshot (an upper bound)
-    sortie_of: list  # per UAV: the sortie of each visit (`planner.pipeline._routes`)
+    sortie_of: list  # per UAV: the sortie of each visit (`planner.sorties.make_sorties`)
     groups: list  # per part: its UAV ids
     part_times: list  # per part: its coverage time as solved
     dropped: int  # visits the join made redundant
@@ -441,8 +441,9 @@ def _droppable(uav, vp, when, order, indptr, indices, seen, own, required, by, s
 
 
 def reach_bound(problem) -> float:
-    """A lower bound on the coverage time of the whole area, `metrics.reach_bound_of`
-    with ``launch_out`` as the earliest arrivals (exact hidden times: no detour
+    """A lower bound on the coverage time of the whole area: the reach bound
+    (`coverage.bounds.radius.reach_bound_of`) with ``launch_out`` as the earliest
+    arrivals (exact hidden times: no detour
     through other viewpoints is shorter); 0 without launch points. The parts' own
     bounds are not bounds of the whole area."""
     if problem.launch_out is None:

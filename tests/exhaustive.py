@@ -7,7 +7,7 @@ import math
 import numpy as np
 import places_reference as ref
 
-from planner.coverage.instances import random_problem
+from planner.coverage.model.instances import random_problem
 
 
 def tiny(seed, n_vp, n_uavs, k, launch, n_targets=12, sensor_m=450.0):

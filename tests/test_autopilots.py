@@ -17,7 +17,6 @@ from gcs.sim.flavours import FLAVOURS
 from missions.build import MissionOptions, vehicle_mission
 from missions.items import FRAME_GLOBAL, MissionItem
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
-from planner.rates import FIRMWARE_RATES
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -158,14 +157,18 @@ def _imports(path: Path) -> set:
 
 
 def test_layering():
-    """autopilots imports nothing of ours; planner never imports it; and gcs/ and
-    missions/ test no firmware by name (the profiles do)."""
-    ours = {"gcs", "missions", "planner"}
-    for path in (ROOT / "autopilots").glob("*.py"):
-        assert not _imports(path) & ours, path
-    for path in (ROOT / "planner").rglob("*.py"):
-        assert "autopilots" not in _imports(path), path
-    for package in ("gcs", "missions"):
+    """autopilots and common import nothing of ours; planner imports only common and
+    autopilots (the firmware facts it plans with: rates, names, the default);
+    missions never gcs; and gcs/, missions/ and planner/ test no firmware by name
+    (the profiles do)."""
+    ours = {"gcs", "missions", "planner", "autopilots", "common"}
+    for package in ("autopilots", "common"):
+        for path in (ROOT / package).rglob("*.py"):
+            assert not _imports(path) & (ours - {package}), path
+    for package, never in (("planner", {"gcs", "missions"}), ("missions", {"gcs"})):
+        for path in (ROOT / package).rglob("*.py"):
+            assert not _imports(path) & never, path
+    for package in ("gcs", "missions", "planner"):
         for path in (ROOT / package).rglob("*.py"):
             if path.name == "flavours.py":
                 continue                     # the simulator's mirror names its profiles
@@ -173,4 +176,5 @@ def test_layering():
             for needle in ('== "ardupilot"', '== "px4"', "== ARDUPILOT", "== PX4",
                            "flavour.name =="):
                 assert needle not in text, f"{path}: {needle}"
-    assert set(PROFILES) == set(NAMES) == set(FIRMWARE_RATES)
+    assert set(PROFILES) == set(NAMES)
+    assert all(p.rates.climb_mps > 0 for p in PROFILES.values())    # every one has its rates

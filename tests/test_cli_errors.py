@@ -193,7 +193,10 @@ try:
 except SystemExit as exc:
     heavy = sorted(m for m in sys.modules if m.split(".")[0] in ("numba", "rasterio", "scipy")
                    or m.split(".")[:2] in (["planner", "pipeline"], ["planner", "terrain"],
-                                           ["planner", "exposure"], ["planner", "coverage"]))
+                                           ["planner", "exposure"])
+                   # the coverage methods' catalogue (--method's choices) is light by design
+                   or m.startswith("planner.coverage.")
+                   and not m.startswith("planner.coverage.methods"))
     print(json.dumps(heavy))
     raise
 """

@@ -9,26 +9,16 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.coverage import (
-    METHODS,
-    CoverageParams,
-    CoverageProblem,
-    coverage_counts,
-    lower_bound,
-    solve,
-)
-from planner.coverage.gains import CoverState
-from planner.coverage.insertion import (
-    UNLIMITED,
-    arrival_times,
-    insert_cost,
-    removal_saving,
-    route_time,
-)
-from planner.coverage.instances import random_problem
-from planner.coverage.problem import CLOSED, FREE, achievable, beyond_battery, prepare
+from planner.coverage import METHODS, CoverageProblem, coverage_counts, lower_bound, solve
+from planner.coverage.model import CLOSED, FREE, achievable, beyond_battery, prepare
+from planner.coverage.model.battery import Battery
+from planner.coverage.model.instances import random_problem
+from planner.coverage.model.routes import arrival_times, route_time
+from planner.coverage.search.gains import CoverState
+from planner.coverage.search.insertion import insert_cost, removal_saving
 
-FAST = CoverageParams(routing_solutions=20, routing_time_s=2.0)
+#: settings by name: each method takes those it has (the baselines' routing here)
+FAST = {"routing_solutions": 20, "routing_time_s": 2.0}
 
 
 def small(k=0, visibility="soft", launch=False, seed=0, n_uavs=3, family="uniform"):
@@ -99,15 +89,15 @@ def test_methods_plan_sorties_a_battery_can_fly(method, k):
     problem = small(k=k, launch=True, seed=7 + k, n_uavs=3)
     unlimited = solve(problem, method, FAST)
     endurance = float((problem.launch_out + problem.launch_back).max()) * 1.6
-    so = np.array([endurance, 120.0, 0.0, 0.0])
-    limited = replace(problem, endurance_s=endurance, turnaround_s=so[1])
+    limited = replace(problem, endurance_s=endurance, turnaround_s=120.0)
     a = solve(limited, method, FAST)
     assert a.covered
     assert_covers(limited, a)
     several = 0
     for r, route in enumerate(a.routes):
-        fr = np.stack([problem.launch_out[r], problem.launch_out[r], problem.launch_back[r]])
-        arrive, flights = _reference_walk(route, problem.travel, fr, so)
+        battery = _battery(problem.launch_out[r], problem.launch_out[r],
+                           problem.launch_back[r], endurance, 120.0)
+        arrive, flights = _reference_walk(route, problem.travel, battery)
         assert all(f <= endurance + 1e-9 for f in flights)
         assert a.times[r] == pytest.approx(arrive[-1] if route else 0.0, abs=1e-6)
         several += len(flights) > 1
@@ -178,12 +168,12 @@ def unseen_after_starts(problem, steps):
 def test_alpha_one_picks_most_visible_alpha_zero_picks_quickest(seed):
     problem = small(seed=seed)
     n = problem.n_uavs
-    a1 = solve(problem, "rt", CoverageParams(alpha=1.0, step_time_cap=math.inf))
+    a1 = solve(problem, "rt", {"alpha": 1.0, "step_time_cap": math.inf})
     v = unseen_after_starts(problem, a1.steps)
     phase, _, e, _ = a1.steps[n]
     assert phase == 2 and v[e] == v.max()
 
-    a0 = solve(problem, "rt", CoverageParams(alpha=0.0, step_time_cap=math.inf))
+    a0 = solve(problem, "rt", {"alpha": 0.0, "step_time_cap": math.inf})
     v = unseen_after_starts(problem, a0.steps)
     starts = [e for phase, _, e, _ in a0.steps[:n]]
     # routes are single starts with time 0: the pick minimises the insertion time
@@ -214,7 +204,7 @@ def test_threshold_adaptation_keeps_uav_times_together():
             problem = random_problem(80, 800, 4, seed=seed, family=family,
                                      launch=bool(seed % 2))
             a = solve(problem, "rt")
-            b = solve(problem, "rt", CoverageParams(threshold_adaptation=False))
+            b = solve(problem, "rt", {"threshold_adaptation": False})
             assert any(s[0] == 3 for s in a.steps) and not any(s[0] == 3 for s in b.steps)
             for alloc in (a, b):  # the recorded times are the routes' real times
                 last = {r: t for _, r, _, t in alloc.steps}
@@ -243,16 +233,25 @@ def test_edge_breaking_insertion_is_cheapest_position(seed, length, launch):
     n = 10
     travel = rng.uniform(1, 10, (n, n))
     lo = rng.uniform(1, 10, n)
-    fr = np.stack([lo, lo, rng.uniform(1, 10, n)])
+    battery = _battery(lo, lo, rng.uniform(1, 10, n))      # no limit
     route = rng.permutation(n)[:length].astype(np.int64)
     e = int(rng.permutation(np.setdiff1d(np.arange(n), route))[0])
-    base = route_time(route, travel, fr, UNLIMITED, launch)
-    brute = min(route_time(np.insert(route, p, e), travel, fr, UNLIMITED, launch) - base
+    base = route_time(route, travel, battery, launch)
+    brute = min(route_time(np.insert(route, p, e), travel, battery, launch) - base
                 for p in range(length + 1))
-    cost, pos = insert_cost(route, e, travel, fr, UNLIMITED, launch)
+    cost, pos = insert_cost(route, e, travel, battery, launch)
     assert cost == pytest.approx(brute)
-    assert route_time(np.insert(route, pos, e), travel, fr, UNLIMITED, launch) - base \
+    assert route_time(np.insert(route, pos, e), travel, battery, launch) - base \
         == pytest.approx(brute)
+
+
+def _battery(out, base_out, back, endurance=np.inf, turnaround=0.0, used=0.0,
+             start_back=0.0) -> Battery:
+    """One UAV's `Battery` with its own base only (no bases listed)."""
+    n = len(out)
+    return Battery(np.asarray(out, float), np.asarray(base_out, float), np.asarray(back, float),
+                   np.zeros(n, np.int64), np.zeros((0, n)), float(endurance), float(turnaround),
+                   float(used), float(start_back))
 
 
 def _metric_sorties(seed, n=12):
@@ -263,55 +262,55 @@ def _metric_sorties(seed, n=12):
     xy = rng.uniform(0, 100, (n, 2))
     travel = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
     home = np.hypot(*xy.T)
-    fr = np.stack([home, home + 5.0, home + 3.0])      # a climb out, a landing back
-    endurance = float((fr[1] + fr[2]).max() + rng.uniform(0, 150))
-    so = np.array([endurance, rng.uniform(0, 50), rng.uniform(0, 0.3) * endurance, 3.0])
-    return rng, travel, fr, so
+    out, base_out, back = home, home + 5.0, home + 3.0     # a climb out, a landing back
+    endurance = float((base_out + back).max() + rng.uniform(0, 150))
+    turnaround, used = rng.uniform(0, 50), rng.uniform(0, 0.3) * endurance
+    return rng, travel, _battery(out, base_out, back, endurance, turnaround, used, 3.0)
 
 
-def _reference_walk(route, travel, fr, so):
+def _reference_walk(route, travel, b):
     """The greedy split by its definition: fly on while the next viewpoint and the
-    way home from it fit the battery; else home, turnaround, a new battery."""
-    t, flown, sorties, arrive = 0.0, so[2], [[]], []
+    way home from it fit the battery ``b``; else home, turnaround, a new battery."""
+    t, flown, sorties, arrive = 0.0, b.used, [[]], []
     for i, e in enumerate(route):
-        out = fr[0, e] if i == 0 else travel[route[i - 1], e]
-        home = so[3] if i == 0 else fr[2, route[i - 1]]
-        if flown + out + fr[2, e] > so[0]:
-            t, flown = t + home + so[1] + fr[1, e], fr[1, e]
+        out = b.out[e] if i == 0 else travel[route[i - 1], e]
+        home = b.start_back if i == 0 else b.back[route[i - 1]]
+        if flown + out + b.back[e] > b.endurance:
+            t, flown = t + home + b.turnaround + b.base_out[e], b.base_out[e]
             sorties.append([])
         else:
             t, flown = t + out, flown + out
         arrive.append(t)
-        sorties[-1].append(flown + fr[2, e])
+        sorties[-1].append(flown + b.back[e])
     return arrive, [max(s) for s in sorties if s]
 
 
 @given(st.integers(0, 2 ** 16), st.integers(0, 10))
 @settings(max_examples=40, deadline=None)
 def test_sorties_fit_the_battery_and_insertion_costs_are_exact(seed, length):
-    rng, travel, fr, so = _metric_sorties(seed)
+    rng, travel, battery = _metric_sorties(seed)
     route = rng.permutation(len(travel))[:length].astype(np.int64)
-    arrive, flights = _reference_walk(route, travel, fr, so)
-    np.testing.assert_allclose(arrival_times(route, travel, fr, so, True), arrive)
-    assert all(f <= so[0] + 1e-9 for f in flights)      # every sortie within one battery
-    base = route_time(route, travel, fr, so, True)
+    arrive, flights = _reference_walk(route, travel, battery)
+    np.testing.assert_allclose(arrival_times(route, travel, battery, True), arrive)
+    assert all(f <= battery.endurance + 1e-9 for f in flights)   # each within one battery
+    base = route_time(route, travel, battery, True)
     e = int(rng.permutation(np.setdiff1d(np.arange(len(travel)), route))[0])
-    cost, pos = insert_cost(route, e, travel, fr, so, True)
+    cost, pos = insert_cost(route, e, travel, battery, True)
     # the rule's cost is the walked route's own, and no insertion is dearer than
     # opening a sortie of its own at the end
-    assert route_time(np.insert(route, pos, e), travel, fr, so, True) - base \
+    assert route_time(np.insert(route, pos, e), travel, battery, True) - base \
         == pytest.approx(cost, abs=1e-9)
-    assert cost <= route_time(np.append(route, e), travel, fr, so, True) - base + 1e-9
+    assert cost <= route_time(np.append(route, e), travel, battery, True) - base + 1e-9
     if length:
         i = int(rng.integers(length))
-        assert removal_saving(route, i, travel, fr, so, True) == pytest.approx(
-            base - route_time(np.delete(route, i), travel, fr, so, True))
+        assert removal_saving(route, i, travel, battery, True) == pytest.approx(
+            base - route_time(np.delete(route, i), travel, battery, True))
 
 
 def _two_base_problem(seed, n=12, n_bases=3):
     """`_metric_sorties`'s plane with ``n_bases`` bases a sortie may land at (the
-    UAV's own the first), as a one-UAV `CoverageProblem` and its prepared frame."""
-    rng, travel, _, so = _metric_sorties(seed, n)
+    UAV's own the first), as a one-UAV `CoverageProblem` and its prepared battery."""
+    rng, travel, one = _metric_sorties(seed, n)
     xy = np.random.default_rng(seed + 1).uniform(0, 100, (n, 2))
     travel = np.hypot(*(xy[:, None] - xy[None]).transpose(2, 0, 1))
     bases = np.vstack([[0.0, 0.0], rng.uniform(0, 100, (n_bases - 1, 2))])
@@ -320,32 +319,33 @@ def _two_base_problem(seed, n=12, n_bases=3):
     # every base reaches every viewpoint and home (`test_a_sortie_lands_at_another_base_
     # to_reach_what_its_own_cannot` has those that cannot)
     endurance = float((out + back.min(axis=0)).max() + rng.uniform(0, 150))
-    so = np.array([endurance, so[1], so[2] * endurance / so[0], 3.0])
+    used = one.used * endurance / one.endurance
     problem = CoverageProblem(np.zeros(n + 1, np.int64), np.zeros(0, np.int64), 0, travel,
                               out[:1], back[:1], 1, endurance_s=endurance,
-                              turnaround_s=so[1], used_s=np.array([so[2]]),
-                              start_back=np.array([so[3]]), bases_out=out, bases_back=back)
-    return rng, problem, prepare(problem).frames[0], so
+                              turnaround_s=one.turnaround, used_s=np.array([used]),
+                              start_back=np.array([3.0]), bases_out=out, bases_back=back)
+    return rng, problem, prepare(problem).battery(0)
 
 
-def _reference_walk_bases(route, problem, so):
+def _reference_walk_bases(route, problem, b):
     """The greedy split by its definition, with several bases: fly on while the next
     viewpoint and the way home to the nearest base fit the battery; else land at
     the base nearest the last viewpoint, a turnaround and a new battery there, and
     out from it (a base that cannot reach a viewpoint and home again on one
     battery does not fly there: inf). Returns the arrivals, each sortie's flight
-    and the base each lands at."""
+    and the base each lands at (of the battery ``b`` only its numbers are read:
+    endurance, turnaround, used and the start's way home)."""
     out, back_to = np.asarray(problem.bases_out), np.asarray(problem.bases_back)
     back, at = back_to.min(axis=0), back_to.argmin(axis=0)
-    leaves = np.where(out + back > so[0], np.inf, out)
-    t, flown, arrive, sorties, lands = 0.0, so[2], [], [[]], []
+    leaves = np.where(out + back > b.endurance, np.inf, out)
+    t, flown, arrive, sorties, lands = 0.0, b.used, [], [[]], []
     for i, e in enumerate(route):
         step = leaves[0, e] if i == 0 else problem.travel[route[i - 1], e]
-        home = so[3] if i == 0 else back[route[i - 1]]
-        if flown + step + back[e] > so[0]:
+        home = b.start_back if i == 0 else back[route[i - 1]]
+        if flown + step + back[e] > b.endurance:
             base = 0 if i == 0 else at[route[i - 1]]
             lands.append(base)
-            t, flown = t + home + so[1] + leaves[base, e], leaves[base, e]
+            t, flown = t + home + b.turnaround + leaves[base, e], leaves[base, e]
             sorties.append([])
         else:
             t, flown = t + step, flown + step
@@ -361,22 +361,22 @@ def test_sorties_land_at_the_nearest_base_and_leave_from_it(seed, length):
     lands at the base nearest its last viewpoint, the next leaves from there),
     every sortie fits the battery, an insertion's cost is never below what the
     walked route then takes, and a removal saves what the walks say."""
-    rng, problem, fr, so = _two_base_problem(seed)
+    rng, problem, battery = _two_base_problem(seed)
     travel = problem.travel
     route = rng.permutation(len(travel))[:length].astype(np.int64)
-    arrive, flights, _ = _reference_walk_bases(route, problem, so)
-    np.testing.assert_allclose(arrival_times(route, travel, fr, so, True), arrive)
-    assert all(f <= so[0] + 1e-9 for f in flights)
-    base = route_time(route, travel, fr, so, True)
+    arrive, flights, _ = _reference_walk_bases(route, problem, battery)
+    np.testing.assert_allclose(arrival_times(route, travel, battery, True), arrive)
+    assert all(f <= battery.endurance + 1e-9 for f in flights)
+    base = route_time(route, travel, battery, True)
     e = int(rng.permutation(np.setdiff1d(np.arange(len(travel)), route))[0])
-    cost, _ = insert_cost(route, e, travel, fr, so, True)
+    cost, _ = insert_cost(route, e, travel, battery, True)
     assert np.isfinite(base) and np.isfinite(cost)
     # opening a sortie of its own at the end is always an offer, and walked as costed
-    end = route_time(np.append(route, e), travel, fr, so, True) - base
+    end = route_time(np.append(route, e), travel, battery, True) - base
     assert cost <= end + 1e-9
     i = int(rng.integers(length))
-    assert removal_saving(route, i, travel, fr, so, True) == pytest.approx(
-        base - route_time(np.delete(route, i), travel, fr, so, True))
+    assert removal_saving(route, i, travel, battery, True) == pytest.approx(
+        base - route_time(np.delete(route, i), travel, battery, True))
 
 
 def test_a_sortie_lands_at_another_base_to_reach_what_its_own_cannot():
@@ -400,9 +400,9 @@ def test_a_sortie_lands_at_another_base_to_reach_what_its_own_cannot():
     for method in METHODS:
         a = solve(both, method, FAST)
         assert a.covered, method
-        so = np.array([endurance, 60.0, 0.0, 0.0])
+        battery = _battery(out[0], out[0], back[0], endurance, 60.0)   # its numbers only
         route = np.asarray(a.routes[0], np.int64)
-        arrive, flights, lands = _reference_walk_bases(route, both, so)
+        arrive, flights, lands = _reference_walk_bases(route, both, battery)
         assert all(f <= endurance + 1e-9 for f in flights), method
         assert 1 in lands, method                     # it lands at B
         assert a.times[0] == pytest.approx(arrive[-1]), method
@@ -417,7 +417,9 @@ def test_a_targets_sightings_count_only_uavs_that_can_reach_a_viewpoint_of_it(se
     it that it can fly (within its battery) and no other of them takes."""
     from itertools import product
 
-    from planner.coverage.problem import _achievable, csc_transpose
+    # the kernel itself (private): `achievable` derives ``able`` from a problem's
+    # battery, where this test draws it at random
+    from planner.coverage.model.prepared import _achievable, csc_transpose
 
     rng = np.random.default_rng(seed)
     n, n_vp, n_t = int(rng.integers(1, 5)), int(rng.integers(1, 6)), 6

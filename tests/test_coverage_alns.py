@@ -16,24 +16,23 @@ from exhaustive import CASES, exhaustive_optimum, tiny
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from planner.coverage import (
-    METHODS,
-    CoverageParams,
-    CoverageProblem,
-    lower_bound,
-    solve,
-)
-from planner.coverage.alns import default_budget_s, search
-from planner.coverage.alns_kernels import _matching
-from planner.coverage.bounds import FlowLP, flow_bound
-from planner.coverage.instances import optimality_case, random_problem
-from planner.coverage.problem import prepare
-from planner.coverage.route_bound import feasible_sets, route_bound
+from planner.coverage import METHODS, CoverageProblem, lower_bound, solve
+from planner.coverage.bounds.flow import FlowLP, flow_bound
+from planner.coverage.bounds.routes import feasible_sets, route_bound
+from planner.coverage.methods.alns import AlnsParams
+from planner.coverage.model import prepare, target_classes
+from planner.coverage.model.instances import optimality_case, random_problem
+from planner.coverage.search.alns import default_budget_s, search
+
+# the count beyond two sightings (private), against the brute force: a kernel no public
+# function exposes alone
+from planner.coverage.search.alns_kernels import _matching
 
 #: optima of mid-size problems proven by our exact solver (bench_coverage --optimal-mid)
 MID_OPTIMA = Path(__file__).resolve().parents[1] / "benchmarks" / "coverage_optimal_mid.json"
 
-QUICK = CoverageParams(time_budget_s=0.05, routing_solutions=10, routing_time_s=1.0)
+#: settings by name: each method takes those it has
+QUICK = {"time_budget_s": 0.05, "routing_solutions": 10, "routing_time_s": 1.0}
 
 
 @pytest.mark.parametrize("family,k,launch,seed", [
@@ -73,7 +72,7 @@ def test_every_intermediate_alns_solution_covers(monkeypatch, n_uavs, k, before)
     with two sightings needed (counted as min(UAVs, places)) and with three, where
     shared viewpoints make the search count a matching, earlier sightings too (at
     viewpoints and elsewhere)."""
-    from planner.coverage import alns as alns_module
+    from planner.coverage.search import alns as alns_module
 
     problem = random_problem(n_viewpoints=30, n_targets=200, n_uavs=n_uavs, k=k, seed=4,
                              launch=True, size_m=2000.0, sensor_m=450.0)
@@ -92,7 +91,7 @@ def test_every_intermediate_alns_solution_covers(monkeypatch, n_uavs, k, before)
         return out
 
     monkeypatch.setattr(alns_module.Alns, "polish", polish)
-    result = search(prep, [start], CoverageParams(seed=3), units=2_000_000)
+    result = search(prep, [start], AlnsParams(seed=3), units=2_000_000)
     assert result.iterations > 10 and len(checked) > 10 and all(checked)
     assert ref.shortfall(problem, result.routes) == 0
 
@@ -116,13 +115,13 @@ def test_the_search_counts_sightings_as_the_brute_force_matching(case):
 def test_alns_is_deterministic_for_a_seed_and_budget():
     problem = random_problem(n_viewpoints=60, n_targets=500, n_uavs=4, k=1, seed=8,
                              family="clustered", launch=True, size_m=2500.0, sensor_m=450.0)
-    params = CoverageParams(seed=7, time_budget_s=0.1)
+    params = {"seed": 7, "time_budget_s": 0.1}
     a, b = solve(problem, "alns", params), solve(problem, "alns", params)
     assert a.routes == b.routes and a.coverage_time == b.coverage_time
     # the budget is counted in work, not read off a clock: a bigger one never
     # ends worse than its start, and a run is repeatable at any budget
-    c = solve(problem, "alns", CoverageParams(seed=7, time_budget_s=0.3))
-    assert c.routes == solve(problem, "alns", CoverageParams(seed=7, time_budget_s=0.3)).routes
+    c = solve(problem, "alns", {"seed": 7, "time_budget_s": 0.3})
+    assert c.routes == solve(problem, "alns", {"seed": 7, "time_budget_s": 0.3}).routes
     assert c.coverage_time <= solve(problem, "rt", params).coverage_time + 1e-9
 
 
@@ -131,14 +130,14 @@ def test_two_chains_are_never_worse_than_one_and_run_at_once():
     it on another thread, which only pays if the kernels release the GIL."""
     from numba.core.registry import CPUDispatcher
 
-    from planner.coverage import alns_kernels
+    from planner.coverage.search import alns_kernels
 
     problem = random_problem(n_viewpoints=120, n_targets=900, n_uavs=4, k=1, seed=9,
                              family="clustered", launch=True, size_m=3000.0, sensor_m=450.0)
     prep = prepare(problem)
     start = solve(problem, "rt").routes
-    one = search(prep, [start], CoverageParams(seed=5), units=20_000_000, chains=1)
-    two = search(prep, [start], CoverageParams(seed=5), units=20_000_000, chains=2)
+    one = search(prep, [start], AlnsParams(seed=5), units=20_000_000, chains=1)
+    two = search(prep, [start], AlnsParams(seed=5), units=20_000_000, chains=2)
     assert two.best_time <= one.best_time + 1e-9
     assert two.iterations > one.iterations
     assert ref.shortfall(problem, two.routes) == 0
@@ -207,7 +206,7 @@ def test_route_bound_on_subsets_never_exceeds_the_exhaustive_optimum(monkeypatch
     without. A target's pairs at viewpoints left out are at most one each, so its
     rows ask that many fewer; the bound stays below the optimum and still says
     something."""
-    rb = importlib.import_module("planner.coverage.route_bound")
+    rb = importlib.import_module("planner.coverage.bounds.routes")
     monkeypatch.setattr(rb, "SUBSET_VIEWPOINTS", 3)
     monkeypatch.setattr(rb, "MAX_SETS", 2 ** 3 - 1)  # a subset's sets fit, not the whole's
     ratios = []
@@ -277,7 +276,8 @@ def test_the_flow_lp_with_its_rows_generated_has_the_whole_lps_value(monkeypatch
     of the rows it has, below it. (Before the rows were generated, the whole LP took
     2.5 times as long on `bench_coverage --bound`.)"""
     for seed, launch in itertools.product((0, 1), (False, True)):
-        prep = prepare(random_problem(150, 1500, 4, k=seed, seed=seed, launch=launch)).classes[0]
+        problem = random_problem(150, 1500, 4, k=seed, seed=seed, launch=launch)
+        prep = target_classes(prepare(problem))[0]
         generated, whole = FlowLP(prep), FlowLP(prep)
         whole._h = whole._model()
         whole._add_rows(whole._h, np.arange(len(whole.tids)))

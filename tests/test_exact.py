@@ -10,10 +10,9 @@ import pytest
 from exhaustive import CASES, exhaustive_optimum, tiny
 
 from planner.coverage import METHODS, lower_bound, solve
-from planner.coverage.exact import optimum
-from planner.coverage.instances import optimality_case, random_problem
-from planner.coverage.metrics import evaluate
-from planner.coverage.problem import prepare
+from planner.coverage.bounds.exact import optimum
+from planner.coverage.model import evaluate, prepare
+from planner.coverage.model.instances import optimality_case, random_problem
 
 
 @pytest.mark.parametrize("case,sensor", list(itertools.product(CASES, (450.0, 700.0))))

@@ -14,10 +14,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy import ndimage
 
+from autopilots import profile
 from planner.fleet import Profile, Trajectory, schedule, separation
 from planner.fleet.schedule import drift_s
 from planner.pipeline import exposure_stages, plan_mission
-from planner.rates import FIRMWARE_RATES
 from planner.scenario import METHODS, Scenario
 from planner.terrain import synthetic_terrain
 from planner.travel import TravelParams
@@ -145,7 +145,7 @@ def test_a_takeoff_and_a_landing_fly_their_lowest_metres_at_the_firmwares_rates(
     reference of the firmware's rates (PX4: 1.5 m/s for the lowest 10 m of a
     takeoff; ArduPilot: 0.5 m/s for the lowest 10 m of a landing): the same
     times to the top and to touchdown, and the same height at every moment."""
-    rates = FIRMWARE_RATES[firmware]
+    rates = profile(firmware).rates
     params = Scenario(sample=True, firmware=firmware).travel_params()
     base = np.array([0.0, 0.0, 100.0])
     poly = np.array([[0, 0, 220.0], [600, 0, 220.0], [0, 0, 220.0]])

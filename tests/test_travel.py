@@ -272,8 +272,8 @@ def test_bridged_overlay_joins_what_the_graph_joins(case, monkeypatch):
         xyz = graph.node_xyz[nodes]
     radius = 0.5 if case == "pockets" else 3.0
     searched = []
-    hub_times = travel_graph._hub_times
-    monkeypatch.setattr(travel_graph, "_hub_times", lambda csr, sources, slot, limit: (
+    hub_times = travel_graph.hub_times
+    monkeypatch.setattr(travel_graph, "hub_times", lambda csr, sources, slot, limit: (
         searched.append(len(sources)) or hub_times(csr, sources, slot, limit)))
     overlay = graph.overlay(xyz, radius_factor=radius)
     times = overlay_rows(overlay, np.arange(len(nodes)))

@@ -135,8 +135,8 @@ def bases_kml(bases) -> str:
 def bases_png(path, ctx, bases) -> None:
     """bases.png: the overview map's background (hidden room, outposts and their
     ranges), the area of operations, and the bases numbered by rank."""
-    from gcs.plots import _save
-    _save(bases_figure(ctx, bases), path)
+    from gcs.plots import save_figure
+    save_figure(bases_figure(ctx, bases), path)
 
 
 def bases_figure(ctx, bases):
@@ -144,13 +144,13 @@ def bases_figure(ctx, bases):
     from matplotlib.lines import Line2D
 
     from common.colours import BASE_COLOUR
-    from gcs.plots import _lonlat_km, draw_background, symbol_legend
+    from gcs.plots import lonlat_km, draw_background, symbol_legend
 
     terrain = ctx.terrain
     fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)
     im = draw_background(ax, terrain, ctx.surface)
     _draw_area(ax, terrain, ctx.scenario)
-    x, y = _lonlat_km(terrain, [b.lon for b in bases], [b.lat for b in bases])
+    x, y = lonlat_km(terrain, [b.lon for b in bases], [b.lat for b in bases])
     for b, bx, by in zip(reversed(bases), x[::-1], y[::-1]):   # the best drawn on top
         best = b.rank == 1
         ax.plot(bx, by, marker="s", color="#ffd700" if best else BASE_COLOUR,
@@ -180,7 +180,7 @@ def _draw_area(ax, terrain, scenario) -> None:
     """The --area box and the --area-file polygon, dashed, labelled for the legend."""
     import numpy as np
 
-    from gcs.plots import _lonlat_km
+    from gcs.plots import lonlat_km
 
     rings = []
     if scenario.area is not None:
@@ -191,7 +191,7 @@ def _draw_area(ax, terrain, scenario) -> None:
         rings += [ring for polygon in read_area(scenario.area_file) for ring in polygon]
     label = "area of operations"
     for ring in rings:
-        x, y = _lonlat_km(terrain, ring[:, 0], ring[:, 1])
+        x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
         ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
                 label=label)
         label = None

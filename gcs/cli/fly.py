@@ -4,7 +4,7 @@ import sys
 from dataclasses import replace
 from pathlib import Path
 
-from autopilots import ARDUPILOT, NAMES
+from autopilots import NAMES, firmware_of
 from common.errors import InputError
 from gcs.cli.options import (
     add_connect_timeout,
@@ -152,8 +152,8 @@ def sim_fleet(plan, plan_dir, args, output: Path):
         sysid, factor = _drain(text, n)
         faults[sysid] = replace(faults.get(sysid, FaultPlan()), drain=factor)
     try:
-        return fleet_for_plan(plan, n, firmware=args.firmware or plan.params.get(
-            "firmware", ARDUPILOT), speedup=args.speedup, base_port=args.sim_base_port,
+        return fleet_for_plan(plan, n, firmware=firmware_of(plan.params, args.firmware),
+            speedup=args.speedup, base_port=args.sim_base_port,
             gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
             swap_reboot_s=args.swap_reboot,
             terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))

@@ -13,6 +13,7 @@ from dataclasses import fields
 
 from autopilots import NAMES as FIRMWARES
 from common.errors import InputError
+from planner.coverage.methods import method
 from planner.rates import defaults_text
 from planner.scenario import LAND_AT, METHODS, Scenario, make_scenario, read_scenario
 
@@ -56,8 +57,8 @@ HELP = {
     "land_at": "where a sortie lands: any (the fleet's base nearest its last viewpoint, "
                "where --launch names several; the next sortie takes off there) or own (the "
                "base it took off from)",
-    "method": "coverage method: alns (ours: large-neighbourhood search, the best), "
-              "rt (the paper's), rt+ls (rt + our local search), rd, b, c (baselines)",
+    "method": "coverage method: " + ", ".join(f"{m.name} ({m.brief})"
+                                              for m in map(method, METHODS)),
     "k": "fault tolerance: every target seen by k+1 distinct UAVs",
     "visibility": "fault-tolerant visibility: hard or soft",
     "alpha": "PTV exponent alpha (visibility vs time)",

@@ -13,8 +13,9 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
+from autopilots import DEFAULT, PROFILES, firmware_of, profile
 from gcs.progress import console
-from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
+from planner.rates import VERTICAL_RATES
 
 
 # -- a plan --------------------------------------------------------------------------------
@@ -68,10 +69,10 @@ def fleet_line(plan) -> str:
 
 def rates_line(plan) -> str:
     """The vertical rates every time of the plan assumes, and whether they are its
-    firmware's own (`planner.rates`): a vehicle set slower flies longer."""
+    firmware's own (`autopilots.Autopilot.rates`): a vehicle set slower flies longer."""
     p = plan.params
-    firmware = str(p.get("firmware", "ardupilot"))
-    own = FIRMWARE_RATES.get(firmware, FIRMWARE_RATES["ardupilot"])
+    firmware = str(firmware_of(p))
+    own = PROFILES.get(firmware, profile(DEFAULT)).rates
     rates = {name: p.get(name) or getattr(own, name)      # a plan from before they were said
              for name in VERTICAL_RATES}
     line = (f"rates: climb {rates['climb_mps']:g}, descent {rates['descent_mps']:g}, "

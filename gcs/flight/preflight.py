@@ -9,6 +9,7 @@ do on their own, and how fast they are set to fly.
 - `check_rates`: where an autopilot's own rate limits are below the plan's, said.
 """
 
+from autopilots import firmware_of
 from common.geo import distance_m
 from gcs import commands
 from gcs.monitor import LOST
@@ -152,4 +153,4 @@ class Preflight:
         if own <= planned + 1e-6:
             return None
         return (f"each waypoint {own:.1f} s ({firmware} stops at each) where the plan counts "
-                f"{planned:.1f} s (planned for {params.get('firmware') or 'ardupilot'})")
+                f"{planned:.1f} s (planned for {firmware_of(params)})")

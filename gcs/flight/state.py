@@ -17,6 +17,7 @@ from gcs.monitor import LOST
 from gcs.retask import in_parallel
 from missions.build import MissionOptions
 from planner.context import PlanningContext
+from planner.pipeline import load_context
 from planner.plan import Plan
 
 from .options import FlightError
@@ -54,9 +55,10 @@ class FlightState:
         return MissionOptions(speed_mps=self.plan.params.get("speed_mps"))
 
     def load_context(self) -> PlanningContext:
-        """The plan's `PlanningContext`: given (`gcs demo`), or read from its folder."""
+        """The plan's `PlanningContext`: given (`gcs demo`), or read from its folder (a
+        folder of only plan.json and terrain.tif: its stages run again)."""
         if self.ctx is None:
-            self.ctx = PlanningContext.load(self.plan_dir, self.plan)
+            self.ctx = load_context(self.plan_dir, self.plan)
         return self.ctx
 
     def prepare_context(self) -> None:

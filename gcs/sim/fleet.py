@@ -16,7 +16,7 @@ import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from autopilots import ARDUPILOT
+from autopilots import ARDUPILOT, firmware_of
 from gcs.sim.faults import FaultPlan
 from gcs.sim.flavours import flavour
 from gcs.sim.physics import DEFAULT_HOME, PLANNED_RATES, Limits
@@ -210,7 +210,7 @@ def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
         if route.launch is None:
             raise ValueError(f"plan vehicle {route.id} has no launch point to start from")
         homes.append((route.launch.lat, route.launch.lon, route.launch.alt_amsl))
-    config.setdefault("firmware", plan.params.get("firmware", ARDUPILOT))
+    config.setdefault("firmware", firmware_of(plan.params))
     config.setdefault("limits", Limits(**{name: plan.params[name] for name in PLANNED_RATES
                                           if plan.params.get(name) is not None}))
     return SimFleet(FleetConfig(vehicles=n, homes=homes, **config)).start()

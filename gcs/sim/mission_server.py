@@ -18,8 +18,10 @@ from dataclasses import dataclass, replace
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-GLOBAL_FRAMES = frozenset({0, 3, 5, 6, 10, 11})
-SUPPORTED_FRAMES = GLOBAL_FRAMES | {2}            # plus MAV_FRAME_MISSION
+# GLOBAL_FRAMES is also taken from here (gcs.sim.vehicle)
+from autopilots.mavlink import FRAME_MISSION, GLOBAL_FRAMES
+
+SUPPORTED_FRAMES = GLOBAL_FRAMES | {FRAME_MISSION}
 RETRY_S = 1.5
 RETRIES = 5
 

@@ -27,7 +27,7 @@ PLANNED_RATES = ("speed_mps",) + VERTICAL_RATES
 @dataclass(frozen=True)
 class Limits:
     """What the vehicle flies by; a rate left None is its firmware's at its defaults
-    (`planner.rates.FIRMWARE_RATES`, `of_firmware`): the lowest metres of a takeoff and a
+    (`autopilots.Autopilot.rates`, `of_firmware`): the lowest metres of a takeoff and a
     landing at their slower rates."""
     speed_mps: float = 12.0
     climb_mps: float | None = None

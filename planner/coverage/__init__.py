@@ -1,24 +1,42 @@
 """Coverage allocation: which UAV photographs from which viewpoint, in what order.
 
 Pure combinatorics over a :class:`CoverageProblem` (visibility sets, hidden
-travel times, optional launch points).  Methods: ``rt`` (the paper's
-reduced-time method), ``rt+ls`` (RT followed by our local search), ``alns``
-(our adaptive large-neighbourhood search, the default), ``rd``
-(per-distance baseline), ``b`` (dominating set, then routing), ``c`` (time
-clustering, then dominating set and tour per cluster).
+travel times, optional launch points), in four parts:
 
-Modules, one piece each: problem (data model), gains (fault-tolerant V),
-objectives (So, M_PTV, M_PTV2, per-distance), insertion (edge-breaking rule,
-route times), greedy (RT/RD phases), setcover, routing (OR-Tools), baselines
-(B, C), local_search (RT+LS), alns and alns_kernels (ALNS), metrics
-(evaluation, reach and packing bounds), bounds (the flow LP bound and the best
-of all), exact (the proven optimum of small problems: the tests' oracle), solve.
+- ``model``: the problem, each UAV's battery, route times, the sightings rule
+  and the evaluation of a plan;
+- ``methods``: the coverage methods, one module each, registered with their
+  own settings: ``rt`` (the paper's reduced-time method), ``rt+ls`` (RT
+  followed by our local search), ``alns`` (our adaptive large-neighbourhood
+  search, the default), ``rd`` (per-distance baseline), ``b`` (dominating set,
+  then routing), ``c`` (time clustering, then dominating set and tour per
+  cluster);
+- ``search``: the code the methods are made of (greedy phases, local search,
+  ALNS, set cover, routing);
+- ``bounds``: lower bounds on coverage time, and the proven optimum of small
+  problems (the tests' oracle).
+
+`solve` (``solver``) runs a method. The names below are imported when first
+used, not with this package: `methods` is read by the command line, which must
+not load numba for it.
 """
 
-from .bounds import bounds, lower_bound
-from .metrics import coverage_counts
-from .problem import Allocation, CoverageParams, CoverageProblem, prepare, required_uavs
-from .solve import METHODS, solve
+from importlib import import_module
 
-__all__ = ["Allocation", "CoverageParams", "CoverageProblem", "METHODS", "bounds",
-           "coverage_counts", "lower_bound", "prepare", "required_uavs", "solve"]
+#: the public names, each with the module it comes from
+_FROM = {
+    "Allocation": ".model", "CoverageProblem": ".model", "coverage_counts": ".model",
+    "prepare": ".model", "required_uavs": ".model", "sighting_counts": ".model",
+    "lower_bound": ".bounds", "lower_bounds": ".bounds",
+    "METHODS": ".methods", "solve": ".solver",
+}
+__all__ = ["METHODS", "Allocation", "CoverageProblem", "coverage_counts", "lower_bound",
+           "lower_bounds", "prepare", "required_uavs", "sighting_counts", "solve"]
+
+
+def __getattr__(name):
+    if name not in _FROM:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(import_module(_FROM[name], __name__), name)
+    globals()[name] = value
+    return value

@@ -13,6 +13,7 @@ from .surface import (
                       compute_exposure,
                       is_hidden,
                       lowest_seen,
+                      restricted,
                       segment_clear,
                       segment_hidden,
                       segments_clear,
@@ -22,6 +23,6 @@ from .surface import (
 )
 
 __all__ = ["ExposureParams", "ExposureSurface", "Outpost", "compute_exposure", "is_hidden",
-           "load_outposts", "lowest_seen", "outposts_to_geojson", "sample_outposts",
+           "load_outposts", "lowest_seen", "outposts_to_geojson", "restricted", "sample_outposts",
            "segment_clear", "segment_hidden", "segments_clear", "segments_hidden",
            "segments_under_ceiling", "surface_from_lowest"]

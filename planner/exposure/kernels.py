@@ -1,3 +1,6 @@
+# Over 600 lines, knowingly: the ring sweep and the leg proofs share `ray_max` (the exact
+# maximum over a patch, which numba inlines into both) and the safe-side argument below,
+# which holds for both only as long as they use the same exact pieces.
 """numba kernels of the exposure surface (see planner.exposure.surface for the model).
 
 Grid coordinates as in planner.exposure.los: ``u`` = column, ``v`` = row, cell centre of

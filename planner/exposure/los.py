@@ -119,7 +119,7 @@ def gap_range(h, u0, v0, z0, u1, v1, z1, void_is_clear=True):
 
 
 @njit(cache=True, inline="always")
-def _piece_max_slope(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
+def piece_max_slope(h, i, j, u0, v0, du, dv, ta, tb, z0, length_m, curv):
     """Max over t in [ta, tb] of (T(t) - drop(d) - z0) / d on patch (col i, row j).
 
     T(t) = c0 + c1 t + c2 t^2 (bilinear along the line), d = t * length_m, so
@@ -162,7 +162,7 @@ def max_slope(h, cell, u0, v0, z0, u1, v1, t_from, curvature_coeff):
     t = max(t_from, EYE_GAP_M / length_m)
     while t < 1.0:
         i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
-        s = _piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m,
+        s = piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m,
                              curvature_coeff)
         if s > best:
             best = s

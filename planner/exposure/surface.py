@@ -20,7 +20,7 @@ planner.exposure.kernels).
 conservative checks used to prove that a flown leg is hidden and clear.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numba
 import numpy as np
@@ -103,10 +103,23 @@ def surface_from_lowest(terrain, outposts, params, lowest) -> ExposureSurface:
         capped = np.minimum(lowest, terrain.height + params.ceiling_agl_m)
         flyable = terrain.solid & (capped - params.hide_margin_m
                                    >= terrain.upper + params.clearance_m)
-    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
     return ExposureSurface(terrain=terrain, outposts=list(outposts), params=params,
                            lowest_seen=lowest, exposure=np.where(flyable, capped, np.nan),
-                           flyable=flyable, regions=regions.astype(np.int32))
+                           flyable=flyable, regions=_regions(flyable))
+
+
+def restricted(surface, inside) -> ExposureSurface:
+    """The surface with nothing flyable outside ``inside`` (bool [rows, cols]: an
+    area of operations); what is hidden (``lowest_seen``) is unchanged."""
+    flyable = surface.flyable & inside
+    return replace(surface, exposure=np.where(flyable, surface.exposure, np.nan),
+                   flyable=flyable, regions=_regions(flyable))
+
+
+def _regions(flyable) -> np.ndarray:
+    """int32 [rows, cols]: the connected flyable regions 1..n (8-connected), 0 elsewhere."""
+    regions, _ = ndimage.label(flyable, structure=np.ones((3, 3), bool))
+    return regions.astype(np.int32)
 
 
 def is_hidden(surface, xyz) -> np.ndarray:

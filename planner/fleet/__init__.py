@@ -14,7 +14,8 @@ base's column, one vehicle in it at a time), schedule (the waits: `schedule`,
 `separation`).
 """
 
-from planner.rates import FIRMWARE_RATES, waypoint_stop_s
+from autopilots import PROFILES, firmware_of
+from planner.rates import waypoint_stop_s
 
 from .columns import Column, base_columns, first_shared_column, profile_bases
 from .schedule import FleetSchedule, Timing, schedule, separation
@@ -28,10 +29,11 @@ __all__ = ["Column", "FleetSchedule", "Profile", "Timing", "Trajectory", "base_c
 def stop_time(params: dict) -> float:
     """What flying through a waypoint costs beyond cruising past it, s
     (`waypoint_stop_s` at the firmware's way of passing one, `Profile.of_route`).
-    From a scenario's or a plan's parameters (a plan naming no firmware: ArduPilot's)."""
-    rates = FIRMWARE_RATES.get(params.get("firmware") or "ardupilot")
+    From a scenario's or a plan's parameters (a plan naming no firmware: the default's,
+    `autopilots.firmware_of`; one naming an unknown firmware: no jerk limit)."""
+    firmware = PROFILES.get(firmware_of(params))
     return waypoint_stop_s(float(params["speed_mps"]), params.get("accel_mps2") or 0.0,
-                           rates.jerk_mps3 if rates is not None else None)
+                           firmware.rates.jerk_mps3 if firmware is not None else None)
 
 
 def prove_separated(plan, terrain, travel_params, source="plan.json") -> float:

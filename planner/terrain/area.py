@@ -2,6 +2,7 @@
 
     polygons = read_area(path)                 # [[ring, ring, ...], ...], rings of (lon, lat)
     inside = area_mask(terrain, polygons)      # bool [rows, cols]: cell centre inside
+    targets, flight = areas(terrain, box, path, area_flight)   # what a plan may use
 
 Accepted: a GeoJSON Polygon or MultiPolygon, bare, as a Feature or in a
 FeatureCollection (every polygon feature counts; other geometries are
@@ -10,6 +11,10 @@ MultiGeometry; outer and inner boundaries); a KMZ (the zipped KML Google Earth
 writes). Coordinates are WGS 84 longitude, latitude (GeoJSON and KML both say
 so). Holes are honoured: a point is inside when it is inside an odd number of
 rings of its polygon (even-odd rule).
+
+A scenario's area of operations is a (south, west, north, east) box, a polygon
+file, or both (`areas`): targets lie inside both, and flight inside the box, and
+inside the polygon too where the scenario says so.
 """
 
 import json
@@ -184,3 +189,37 @@ def area_mask(terrain, polygons) -> np.ndarray:
 
 
 __all__ = ["SUFFIXES", "area_mask", "read_area"]
+
+
+def box_ring(area) -> list:
+    """The (south, west, north, east) box as an `area_mask` polygon (lon, lat ring)."""
+    s, w, n, e = area
+    return [np.array([[w, s], [e, s], [e, n], [w, n]], float)]
+
+
+def area_of(terrain, area_file, polygons=None):
+    """bool [rows, cols] of the cells inside ``area_file``'s polygon (``polygons``:
+    read from it already); None without one."""
+    if not area_file:
+        return None
+    inside = area_mask(terrain, polygons if polygons is not None else read_area(area_file))
+    if not inside.any():
+        raise InputError(area_file, "the polygon covers no cell of the terrain (outside the "
+                                    "DEM or the --area crop?)")
+    return inside
+
+
+def areas(terrain, box=None, area_file=None, area_flight=False, polygons=None) -> tuple:
+    """(where targets are, where the fleet may fly): bool [rows, cols] masks, None
+    where nothing restricts it. Targets lie inside the (south, west, north, east)
+    ``box`` (the DEM may be read wider, around outposts outside it) and the
+    ``area_file`` polygon; flight stays inside the box, and inside the polygon
+    with ``area_flight``."""
+    inside_box = area_mask(terrain, [box_ring(box)]) if box is not None else None
+    shape = area_of(terrain, area_file, polygons)
+    return _both(inside_box, shape), _both(inside_box, shape if area_flight else None)
+
+
+def _both(a, b):
+    """The intersection of two optional masks (None: no restriction)."""
+    return b if a is None else a if b is None else a & b

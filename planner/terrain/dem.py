@@ -1,3 +1,6 @@
+# Over 600 lines, knowingly: reading, mosaicking, void filling and the warp are one
+# pipeline over one private model of a source grid (`_Grid`); apart, each step would
+# hand that private type across modules.
 """DEM loading: GeoTIFF (any CRS), SRTM ``.hgt`` tiles and the built-in sample,
 mosaicked, cropped, void-filled and reprojected to a `Terrain` in local UTM.
 

@@ -1,3 +1,7 @@
+# Over 600 lines, knowingly: `TravelGraph` is one object whose arrays (the nodes, the
+# proven edges and their dips, the raised terrain) every part of it reads: the proofs
+# that build it, attaching points, times and the string-pulled paths. What needs none
+# of them lives beside it: the time model (params), the overlay of many points (overlay).
 """Hidden travel times and paths between viewpoints.
 
 The UAV flies inside the hidden volume: at every point of its path it is at
@@ -32,9 +36,6 @@ checked exactly like the clearance), not only at its vertices: hidden alone, a
 straight leg could pass up to the sight lines where E dips under it.
 """
 
-from dataclasses import dataclass
-from typing import Optional
-
 import numpy as np
 from scipy.ndimage import maximum_filter
 from scipy.sparse import csr_matrix
@@ -44,15 +45,22 @@ from scipy.spatial import cKDTree
 from common.errors import InputError
 from planner import exposure
 from planner.exposure import kernels as exposure_kernels
-from planner.parallel import run_chunks
+from planner.parallel import chunks_of, n_threads, progress_part, run_chunks
 from planner.terrain import bilinear
 
 from . import kernels as K
+from .overlay import (
+    all_pairs,
+    bounded_rows,
+    bounded_sparse,
+    dijkstra_rows,
+    hub_times,
+    hubs,
+    overlay_rows,
+    with_edges,
+)
+from .params import ROUNDING_SLACK_M, TravelParams, polyline_time
 
-#: MISSION_ITEM_INT carries lat/lon in 1e-7 degree (<= 1.1 cm): every planned leg is
-#: proven hidden and clear with this much room around it on top of the track
-#: tolerance, so the rounded leg is too
-ROUNDING_SLACK_M = 0.05
 #: planned legs keep this much more than clearance_m above the ground, so that the
 #: mission check, which proves the rounded waypoints against clearance_m itself,
 #: never finds a leg exactly at the floor
@@ -69,81 +77,11 @@ HINT_LATTICE = 3
 #: rounds of doubling the hubs' time limit (`TravelGraph._bridged`) before the last,
 #: unlimited one: from twice the radius to 128 times it
 BRIDGE_ROUNDS = 6
-#: hubs per overlay part, each chosen among its nearest points (`_hubs`): more
-#: hubs, shorter detours through them
-HUBS_PER_PART = 3
-HUB_NEIGHBOURS = 16
 
 #: (dr, dc) of half the neighbour set; each edge is checked once, used both ways
 _HALF_8 = ((0, 1), (1, -1), (1, 0), (1, 1))
 _HALF_16 = _HALF_8 + ((1, -2), (1, 2), (2, -1), (2, 1))
 _HALF_16_ARRAY = np.array(_HALF_16, np.int64)
-
-
-@dataclass(frozen=True)
-class TravelParams:
-    speed_mps: float = 12.0
-    climb_mps: float = 3.0
-    descent_mps: float = 2.0
-    #: how far (horizontally) a vehicle may stray from a planned leg and stay hidden and
-    #: clear: cross-track error and corner overshoot (the simulator's copter: up to 4 m)
-    track_tolerance_m: float = 5.0
-    #: the slower rates of the lowest metres of a takeoff and of a landing (a
-    #: firmware's `planner.rates.Rates`); None: the climb or descent rate throughout
-    takeoff_mps: Optional[float] = None
-    takeoff_band_m: float = 0.0
-    land_mps: Optional[float] = None
-    land_band_m: float = 0.0
-
-    def __post_init__(self):
-        for name in ("speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps"):
-            value = getattr(self, name)
-            if value is not None and not value > 0:
-                raise InputError(name, f"must be positive, got {value}")
-        if not self.track_tolerance_m >= 0:
-            raise InputError("track_tolerance_m", f"must not be negative, got "
-                                                  f"{self.track_tolerance_m}")
-
-    @property
-    def slack_m(self) -> float:
-        """Room around every leg that must be hidden too (segments_hidden's slack_m)."""
-        return self.track_tolerance_m + ROUNDING_SLACK_M
-
-
-def leg_time(horizontal_m, dz_m, params=TravelParams()):
-    """Time of straight legs: the slower of horizontal and vertical motion."""
-    horizontal_m = np.asarray(horizontal_m, float)
-    dz_m = np.asarray(dz_m, float)
-    vertical = np.where(dz_m > 0, dz_m / params.climb_mps, -dz_m / params.descent_mps)
-    return np.maximum(horizontal_m / params.speed_mps, vertical)
-
-
-def takeoff_time(height_m, params=TravelParams()) -> float:
-    """Time of a takeoff ``height_m`` straight up: its lowest ``takeoff_band_m`` at
-    ``takeoff_mps``, the rest at the climb rate."""
-    return _vertical_time(height_m, params.takeoff_band_m, params.takeoff_mps, params.climb_mps)
-
-
-def landing_time(height_m, params=TravelParams()) -> float:
-    """Time of a landing ``height_m`` straight down: its lowest ``land_band_m`` at
-    ``land_mps``, the rest at the descent rate."""
-    return _vertical_time(height_m, params.land_band_m, params.land_mps, params.descent_mps)
-
-
-def _vertical_time(height_m, band_m, slow_mps, rate_mps):
-    h = np.maximum(np.asarray(height_m, float), 0.0)
-    low = np.minimum(h, band_m if slow_mps else 0.0)
-    out = low / (slow_mps or rate_mps) + (h - low) / rate_mps
-    return float(out) if out.ndim == 0 else out
-
-
-def polyline_time(poly, params=TravelParams()) -> float:
-    """Flight time along a 3-D polyline (n, 3) under the leg time model."""
-    poly = np.asarray(poly, float)
-    if len(poly) < 2:
-        return 0.0
-    d = np.diff(poly, axis=0)
-    return float(leg_time(np.hypot(d[:, 0], d[:, 1]), d[:, 2], params).sum())
 
 
 class TravelGraph:
@@ -298,8 +236,8 @@ class TravelGraph:
         keep = fine[src] & fine[dst]
         pairs = np.stack([src[keep], dst[keep]], axis=1)
         del src, dst, keep  # GBs on large areas (127 M candidate pairs on 4096²)
-        checked = run_chunks(_checked_edges, _split(pairs, EDGE_CHUNK), (self, horizons),
-                             client, _part(progress, 0.15, 1.0))
+        checked = run_chunks(_checked_edges, chunks_of(pairs, EDGE_CHUNK), (self, horizons),
+                             client, progress_part(progress, 0.15, 1.0))
         if not checked:
             return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, bool)
         ok = np.concatenate([c[0] for c in checked])
@@ -324,9 +262,9 @@ class TravelGraph:
             hints = np.full((len(nodes), horizons.shape[1]), np.nan)
             has = hinted_by[nodes] >= 0
             hints[has] = horizons[hinted_by[nodes[has]]]
-            chunks = list(zip(_split(nodes, NODE_CHUNK), _split(hints, NODE_CHUNK)))
+            chunks = list(zip(chunks_of(nodes, NODE_CHUNK), chunks_of(hints, NODE_CHUNK)))
             for (part, _), (ok, found) in zip(chunks, run_chunks(
-                    _fine_nodes, chunks, (self,), client, _part(progress, lo, hi))):
+                    _fine_nodes, chunks, (self,), client, progress_part(progress, lo, hi))):
                 fine[part], horizons[part] = ok, found
         return fine, horizons if self.hints else np.full_like(horizons, np.nan)
 
@@ -516,8 +454,8 @@ class TravelGraph:
         if not len(sources):
             return np.empty((0, len(columns)))
         size = max(1, min(int(2e7 // max(1, self.n_nodes)), -(-len(sources) // 16)))
-        parts = run_chunks(_dijkstra_rows, _split(np.asarray(sources), size), (graph, columns),
-                           client, progress, threads=_n_threads())
+        parts = run_chunks(dijkstra_rows, chunks_of(np.asarray(sources), size), (graph, columns),
+                           client, progress, threads=n_threads())
         return np.vstack(parts)
 
     def time_matrix(self, xyz, method="auto", radius_factor=3.0, client=None,
@@ -546,16 +484,16 @@ class TravelGraph:
         if n < 2:
             return np.zeros((n, n))
         csr = self._local_search(nodes, radius_factor)
-        local = np.vstack(run_chunks(_bounded_rows, _split(nodes, -(-n // 8)), (csr,), client,
-                                     _part(progress, 0.0, 0.6)))
+        local = np.vstack(run_chunks(bounded_rows, chunks_of(nodes, -(-n // 8)), (csr,), client,
+                                     progress_part(progress, 0.0, 0.6)))
         indptr, nbr, w = K.dense_to_csr(local, K.undominated_edges(local))
         del local
         indptr, nbr, w = self._bridged(nodes, (indptr, nbr, w), csr[5],
-                                       _part(progress, 0.6, 0.7))
-        return _all_pairs(indptr, nbr, w, _part(progress, 0.7, 1.0))
+                                       progress_part(progress, 0.6, 0.7))
+        return all_pairs(indptr, nbr, w, progress_part(progress, 0.7, 1.0))
 
     def _local_search(self, nodes, radius_factor) -> tuple:
-        """What a bounded Dijkstra from each of ``nodes`` takes (`_bounded_rows`): the
+        """What a bounded Dijkstra from each of ``nodes`` takes (`bounded_rows`): the
         graph, the slot of each of the nodes, and the radius in time, so many typical
         spacings (median distance from a point to its nearest other one)."""
         xy = self.node_xyz[nodes, :2]
@@ -574,14 +512,14 @@ class TravelGraph:
         nodes = self.nodes_of(xyz)
         csr = self._local_search(nodes, radius_factor)
         size = max(1, int(3e7 // max(len(nodes), 1)))  # a dense chunk of rows stays small
-        rows = run_chunks(_bounded_sparse, _split(nodes, size), (csr,), client,
-                          _part(progress, 0.0, 0.9))
+        rows = run_chunks(bounded_sparse, chunks_of(nodes, size), (csr,), client,
+                          progress_part(progress, 0.0, 0.9))
         counts = np.concatenate([r[0] for r in rows] + [np.zeros(0, np.int64)])
         indptr = np.r_[0, np.cumsum(counts)].astype(np.int64)
         nbr = np.concatenate([r[1] for r in rows] + [np.zeros(0, np.int64)])
         w = np.concatenate([r[2] for r in rows] + [np.zeros(0)])
         return (nodes, *self._bridged(nodes, (indptr, nbr, w), csr[5],
-                                      _part(progress, 0.9, 1.0)))
+                                      progress_part(progress, 0.9, 1.0)))
 
     def overlay_times(self, overlay, ids, progress=None) -> np.ndarray:
         """[len(ids), len(ids)] times between those points of `overlay`: shortest
@@ -607,17 +545,17 @@ class TravelGraph:
         slot[nodes] = np.arange(len(nodes))
         reverse, limit = None, 2.0 * radius_s
         for round_ in range(BRIDGE_ROUNDS + 1):
-            hubs = _hubs(xy, part, overlay)
+            found = hubs(xy, part, overlay)
             if progress is not None:
                 progress(round_ / (BRIDGE_ROUNDS + 1))
-            if not hubs.size:
+            if not found.size:
                 break
             reverse = self._reverse() if reverse is None else reverse
             limit = np.inf if round_ == BRIDGE_ROUNDS else limit * 2.0
-            out = _hub_times(self.csr, nodes[hubs], slot, limit)
-            back = _hub_times(reverse, nodes[hubs], slot, limit)
-            overlay = _with_edges(overlay, [(hubs[out[0]], out[1], out[2]),
-                                            (back[1], hubs[back[0]], back[2])])
+            out = hub_times(self.csr, nodes[found], slot, limit)
+            back = hub_times(reverse, nodes[found], slot, limit)
+            overlay = with_edges(overlay, [(found[out[0]], out[1], out[2]),
+                                           (back[1], found[back[0]], back[2])])
         return overlay
 
     # --- paths ------------------------------------------------------------------------
@@ -634,9 +572,9 @@ class TravelGraph:
             flat, offsets = K.node_paths(self._indptr, self._nbr, self.csr.data, node_xy,
                                          self.params.speed_mps, pairs[idx, 0], pairs[idx, 1])
             return [flat[offsets[i]:offsets[i + 1]] for i in range(len(idx))]
-        chunks = _split(np.arange(len(pairs)), max(1, -(-len(pairs) // 16)))
+        chunks = chunks_of(np.arange(len(pairs)), max(1, -(-len(pairs) // 16)))
         # on a thread pool: the kernel releases the GIL
-        found = run_chunks(run, chunks, progress=progress, threads=_n_threads())
+        found = run_chunks(run, chunks, progress=progress, threads=n_threads())
         return [path for part in found for path in part]
 
     def _expand(self, nodes) -> np.ndarray:
@@ -668,8 +606,9 @@ class TravelGraph:
         smoothed all at once (`smooth_all`)."""
         routes = [np.atleast_2d(np.asarray(r, float)) for r in routes]
         pairs = [(p, q) for r in routes for p, q in zip(r[:-1], r[1:])]
-        raw = self._raw_paths(pairs, _part(progress, 0.0, 0.5))
-        smoothed = self.smooth_all([x for x in raw if x is not None], _part(progress, 0.5, 1.0))
+        raw = self._raw_paths(pairs, progress_part(progress, 0.0, 0.5))
+        smoothed = self.smooth_all([x for x in raw if x is not None],
+                                   progress_part(progress, 0.5, 1.0))
         legs = iter(smoothed)
         out, k = [], 0
         for r in routes:
@@ -793,26 +732,6 @@ def _segments_hidden(surface, a, b, slack_m, horizons=None, rows=None) -> np.nda
     return hidden
 
 
-def _dijkstra_rows(graph, columns, sources) -> np.ndarray:
-    return dijkstra(graph, directed=True, indices=sources)[:, columns]
-
-
-def _bounded_rows(csr, sources) -> np.ndarray:
-    """Exact times from each source up to the overlay's radius (inf beyond)."""
-    indptr, nbr, w, slot, n, limit = csr
-    return K.bounded_times(indptr, nbr, w, sources, slot, n, limit, _n_threads())
-
-
-def _bounded_sparse(csr, sources) -> tuple:
-    """`_bounded_rows` as sparse rows: (entries per row, columns, times), each
-    source's own zero left out."""
-    local = _bounded_rows(csr, sources)
-    local[np.arange(len(sources)), csr[3][sources]] = np.inf
-    found = np.isfinite(local)
-    rows, cols = np.nonzero(found)
-    return found.sum(axis=1), cols.astype(np.int64), local[rows, cols]
-
-
 def _fine_nodes(graph, chunk) -> tuple:
     """Which nodes pass the checks themselves (their track-tolerance disc), and the
     horizon of each from each outpost (`planner.exposure.segments_hidden`), which
@@ -847,105 +766,6 @@ def _checked_edges(graph, node_horizons, pairs):
         ok[idx[fine]] = True
         dipped[idx[fine]] = True
     return ok, dipped
-
-
-def _hubs(xy, part, overlay) -> np.ndarray:
-    """`HUBS_PER_PART` points per strongly connected part of the overlay that shares
-    its part of the graph with another: those nearest (horizontally, among their
-    `HUB_NEIGHBOURS` nearest points) a point of another overlay part there, the
-    likeliest ways out of a pocket. Empty when the overlay joins what the graph does."""
-    indptr, nbr, w = overlay
-    n = len(part)
-    label = connected_components(csr_matrix((w, nbr, indptr), shape=(n, n)), directed=True,
-                                 connection="strong")[1]
-    shared, count = np.unique(np.unique(np.stack([part, label]), axis=1)[0],
-                              return_counts=True)
-    ids = np.flatnonzero(np.isin(part, shared[count > 1]))
-    if not ids.size:
-        return ids
-    dist, near = cKDTree(xy[ids]).query(xy[ids], k=min(HUB_NEIGHBOURS, len(ids)))
-    near = ids[near]
-    other = (label[near] != label[ids, None]) & (part[near] == part[ids, None])
-    dist = np.where(other, dist, np.inf).min(axis=1)
-    order = np.lexsort((dist, label[ids]))
-    group = label[ids][order]
-    start = np.r_[0, np.flatnonzero(np.diff(group)) + 1]
-    rank = np.arange(len(group)) - np.repeat(start, np.diff(np.r_[start, len(group)]))
-    return ids[order][rank < HUBS_PER_PART]
-
-
-def _hub_times(csr, sources, slot, limit) -> tuple:
-    """(source index, point id, time) of every point a bounded search from each
-    source reaches within ``limit`` (rows of a few sources at a time, so that
-    the dense rows stay small)."""
-    n = int(slot.max()) + 1
-    found = []
-    for chunk in _split(np.arange(len(sources)), max(1, int(2e7 // max(n, 1)))):
-        t = K.bounded_times(csr.indptr, csr.indices, csr.data, sources[chunk], slot, n,
-                            limit, _n_threads())
-        r, c = np.nonzero(np.isfinite(t))
-        found.append((chunk[r], c, t[r, c]))
-    return tuple(np.concatenate([f[i] for f in found]) for i in range(3))
-
-
-def _with_edges(overlay, added) -> tuple:
-    """The overlay with the ``added`` (src, dst, time) edges, the shorter kept where
-    two join the same pair, none from a point to itself."""
-    indptr, nbr, w = overlay
-    n = len(indptr) - 1
-    src = np.concatenate([np.repeat(np.arange(n), np.diff(indptr))] + [a[0] for a in added])
-    dst = np.concatenate([nbr] + [a[1] for a in added]).astype(np.int64)
-    w = np.concatenate([w] + [a[2] for a in added])
-    keep = src != dst
-    src, dst, w = src[keep], dst[keep], w[keep]
-    order = np.lexsort((w, dst, src))
-    src, dst, w = src[order], dst[order], w[order]
-    first = np.ones(len(src), bool)
-    first[1:] = (np.diff(src) != 0) | (np.diff(dst) != 0)
-    counts = np.bincount(src[first], minlength=n)
-    return np.r_[0, np.cumsum(counts)].astype(np.int64), dst[first], w[first]
-
-
-def overlay_rows(overlay, ids, progress=None) -> np.ndarray:
-    """[len(ids), len(ids)] shortest times between those points of `TravelGraph.overlay`
-    over the whole overlay (through any of its points); inf where it has no path.
-    Needs only the overlay, not the graph."""
-    nodes, indptr, nbr, w = overlay
-    slot = np.full(len(nodes), -1, np.int64)
-    slot[ids] = np.arange(len(ids))
-    return _shortest_rows(indptr, nbr, w, np.asarray(ids, np.int64), slot, len(ids), progress)
-
-
-def _all_pairs(indptr, nbr, w, progress=None) -> np.ndarray:
-    """[n, n] shortest times over a small graph (the overlay)."""
-    every = np.arange(len(indptr) - 1)
-    return _shortest_rows(indptr, nbr, w, every, every, len(every), progress)
-
-
-def _shortest_rows(indptr, nbr, w, sources, slot, n_slots, progress=None) -> np.ndarray:
-    """[len(sources), n_slots] shortest times over a small graph (an overlay) to the
-    nodes given a slot: a Dijkstra from each source, on every core, in row chunks
-    so that progress moves."""
-    times = np.empty((len(sources), n_slots))
-
-    def rows(chunk):
-        times[chunk] = K.bounded_times(indptr, nbr, w, sources[chunk], slot, n_slots, np.inf,
-                                       _n_threads())
-    run_chunks(rows, _split(np.arange(len(sources)), max(1, -(-len(sources) // 16))),
-               progress=progress)
-    return times
-
-
-def _split(items, size) -> list:
-    """``items`` in consecutive chunks of at most ``size``."""
-    return [items[i:i + size] for i in range(0, len(items), size)]
-
-
-def _part(progress, lo, hi):
-    """A progress callback mapping [0, 1] onto [lo, hi] of ``progress``."""
-    if progress is None:
-        return None
-    return lambda f: progress(lo + (hi - lo) * f)
 
 
 def _string_pull(n):
@@ -983,6 +803,3 @@ def _dedupe(poly):
     return poly[np.concatenate([[True], d])]
 
 
-def _n_threads() -> int:
-    from numba import get_num_threads
-    return max(1, int(get_num_threads()))

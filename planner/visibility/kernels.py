@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from planner.exposure.los import _piece_max_slope, curvature_drop, next_patch
+from planner.exposure.los import curvature_drop, next_patch, piece_max_slope
 
 
 @njit(cache=True)
@@ -39,7 +39,7 @@ def sees_early_exit(h, cell, u0, v0, z0, u1, v1, z1, range_m, curv):
     t = 1e-12
     while t < 1.0:
         i, j, t_next = next_patch(u0, v0, du, dv, t, n_rows, n_cols)
-        s = _piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m, curv)
+        s = piece_max_slope(h, i, j, u0, v0, du, dv, t, t_next, z0, length_m, curv)
         if s > target:
             return False
         t = t_next
@@ -296,7 +296,7 @@ def _sweep_one(h, cell, r0, c0, z0, range_m, curv, target_height, tan_max, band_
         for k in range(n_pieces[q]):
             i = min(max(c0 + piece_i[q, k], 0), n_cols - 2)
             j = min(max(r0 + piece_j[q, k], 0), n_rows - 2)
-            s = _piece_max_slope(h, i, j, u0, v0, du[q], dv[q], piece_ta[q, k],
+            s = piece_max_slope(h, i, j, u0, v0, du[q], dv[q], piece_ta[q, k],
                                  piece_tb[q, k], z0, length[q], curv)
             if s > local:
                 local = s

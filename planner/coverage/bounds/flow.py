@@ -33,7 +33,7 @@ T cannot be on a route of time <= T.  The LP solved with those viewpoints
 left out gives f(T); every T with f(T) > T is a lower bound (bisection).
 
 **Size.** Targets seen from the same viewpoints give identical rows, so the
-LP is built on target classes (`classes.py`).  Classes beyond `MAX_TARGETS`
+LP is built on target classes (`model.classes`).  Classes beyond `MAX_TARGETS`
 are thinned evenly over their ids: a bound for fewer targets bounds the
 whole.  With launch points the bisection takes `BISECTION_STEPS` LPs.  HiGHS
 (highspy) solves it with its cover rows generated (`FlowLP.solve`: the value of
@@ -42,9 +42,9 @@ value is lowered by a relative 1e-6 for its tolerances.
 
 Not modelled (kept as relaxations): which UAV flies which leg (targets
 needing k+1 *distinct* UAVs are only counted), and balancing beyond the sum.
-Where at most 30 viewpoints see what is needed, `route_bound` says both (each
+Where at most 30 viewpoints see what is needed, `routes.route_bound` says both (each
 route counts a target once and lasts at most T, priced on every route set
-within a horizon) and `bounds` takes the larger.
+within a horizon) and `lower_bounds` takes the larger.
 """
 
 import math
@@ -58,10 +58,6 @@ import numpy as np
 from numba import njit
 from scipy.sparse import coo_matrix, csr_matrix, vstack
 from scipy.sparse.csgraph import dijkstra
-
-from .metrics import _packing_bound, _reach_bound
-from .problem import CoverageProblem, prepare
-from .route_bound import route_bound
 
 #: legs into each viewpoint kept as LP variables (its nearest in travel time)
 IN_ARCS = 24
@@ -393,27 +389,3 @@ def flow_bound(prep, max_targets=MAX_TARGETS, k_in=IN_ARCS, steps=BISECTION_STEP
         else:
             hi = probe
     return best
-
-
-def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
-    """The best lower bound on coverage time we have (seconds): the largest of
-    the reach and packing bounds (`metrics.lower_bound`, the "radius bound")
-    and, with ``strong``, the first-sighting flow LP (`flow_bound`; a few
-    seconds of HiGHS on the largest problems) and, where at most 30 viewpoints
-    see what is needed, the route-pricing bound (`route_bound.route_bound`:
-    0.3 s in the median case of 17-30, a budget of 4 s).  The bounds work on
-    target classes (`classes.target_classes`: identical rows, so the same bound
-    at a fraction of the size)."""
-    return bounds(problem, strong)[1]
-
-
-def bounds(problem: CoverageProblem, strong: bool = True, prep=None) -> tuple:
-    """(radius bound, best bound) in seconds: see `lower_bound`. ``prep``: the
-    problem already prepared (`problem.prepare`), to share its target classes."""
-    prep = prep if prep is not None else prepare(problem)
-    cprep = prep.classes[0] if problem.n_targets else prep
-    radius = max(_reach_bound(cprep), _packing_bound(cprep))
-    best = max(radius, flow_bound(cprep)) if strong else radius
-    if strong:
-        best = max(best, route_bound(cprep, best))
-    return float(radius), float(best)

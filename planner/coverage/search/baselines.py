@@ -23,19 +23,8 @@ from .gains import CoverState
 from .greedy import allocate
 from .insertion import improve_route, insert_cost
 from .local_search import local_search
-from .methods import register
 from .routing import default_time_limit, route_nodes
 from .setcover import dominating_set
-
-
-@register("b", "baseline B: greedy dominating set, then OR-Tools makespan routing")
-def _b(prep, params, progress):
-    return solve_b(prep, params), []
-
-
-@register("c", "baseline C: time clustering, then a dominating set and a tour per cluster")
-def _c(prep, params, progress):
-    return solve_c(prep, params), []
 
 
 def solve_b(prep, params):
@@ -74,8 +63,7 @@ def tour(prep, r, nodes):
     """A short open tour of ``nodes`` for UAV r: cheapest insertion, then 2-opt / or-opt."""
     route = np.zeros(0, dtype=np.int64)
     for e in nodes:
-        _, p = insert_cost(route, e, prep.travel, prep.frames[r], prep.sorties[r],
-                           prep.has_launch)
+        _, p = insert_cost(route, e, prep.travel, prep.battery(r), prep.has_launch)
         route = np.insert(route, p, e)
     return polish(prep, r, route)
 
@@ -94,8 +82,7 @@ def finish(prep, params, routes):
 
 def polish(prep, r, route):
     arr = np.asarray(route, dtype=np.int64)
-    return list(map(int, improve_route(arr, prep.travel, prep.frames[r], prep.sorties[r],
-                                       prep.has_launch)))
+    return list(map(int, improve_route(arr, prep.travel, prep.battery(r), prep.has_launch)))
 
 
 def state_of(prep, routes) -> CoverState:

@@ -18,19 +18,13 @@ import math
 import numpy as np
 from numba import njit
 
+from ..model.battery import unlimited
+from ..model.prepared import owners
+from ..model.problem import FREE
+from ..model.routes import nearest_other, route_time
 from .gains import CoverState
-from .insertion import (
-    UNLIMITED,
-    combine_ends,
-    insert_cost,
-    middle_costs_all,
-    nearest_other,
-    route_time,
-    update_middle_costs,
-)
-from .methods import register
+from .insertion import combine_ends, insert_cost, middle_costs_all, update_middle_costs
 from .objectives import PER_DISTANCE, PTV, PTV2, best_free_pair, best_pair, best_spread
-from .problem import FREE, owners
 
 
 def default_step_cap(travel: np.ndarray, factor: float) -> float:
@@ -55,7 +49,7 @@ class RouteSet:
     ``cost[r, e]``/``pos[r, e]``: Δt and slot of the edge-breaking insertion
     of e into r; the best edge is cached separately (``mid_*``) so that
     growing a route at either end never needs a rescan. A viewpoint in one
-    UAV's route is closed to the others (``cost`` inf: `problem.owners`), so no
+    UAV's route is closed to the others (``cost`` inf: `model.prepared.owners`), so no
     two UAVs photograph from one place.
     """
 
@@ -85,8 +79,9 @@ class RouteSet:
 
     def _finish(self, r, arr):
         p = self.prep
-        self.times[r] = route_time(arr, p.travel, p.frames[r], p.sorties[r], p.has_launch)
-        combine_ends(arr, p.travel, p.travel_t, p.frames[r], p.sorties[r], p.has_launch,
+        battery = p.battery(r)
+        self.times[r] = route_time(arr, p.travel, battery, p.has_launch)
+        combine_ends(arr, p.travel, p.travel_t, battery, p.has_launch,
                      self.mid_cost[r], self.mid_pos[r], self.cost[r],
                      self.pos[r])
         self.cost[r, (self.owner != FREE) & (self.owner != r)] = np.inf
@@ -110,6 +105,7 @@ def spread_out(prep, params, state, steps):
     if prep.has_launch:
         return routes
     chain = np.zeros(0, dtype=np.int64)
+    free = unlimited(prep.battery(0))       # the chain is not a route: no battery limits it
     closed = prep.owner0 != FREE            # and, as they are chosen, the other starts
     for r in range(n):
         if state.done:
@@ -119,7 +115,7 @@ def spread_out(prep, params, state, steps):
         e = best_spread(gains, chain, prep.travel, params.beta)
         if e < 0:
             break
-        _, p = insert_cost(chain, e, prep.travel, prep.frames[0], UNLIMITED, False)
+        _, p = insert_cost(chain, e, prep.travel, free, False)
         chain = np.insert(chain, p, e)
         routes[r].append(int(e))
         state.take(e, r)
@@ -140,7 +136,7 @@ def allocate(prep, params, objective="ptv", routes=None, state=None, progress=No
     rs = RouteSet(prep, routes)
     cap = step_cap(prep, params)
     metric = PTV if objective == "ptv" else PER_DISTANCE
-    adapt = params.threshold_adaptation and objective == "ptv"
+    adapt = objective == "ptv" and params.threshold_adaptation   # RD has no such setting
     total = max(state.remaining, 1)
     while not state.done:
         e, r, phase = _next_pair(rs, state, metric, params.alpha, cap)
@@ -152,16 +148,6 @@ def allocate(prep, params, objective="ptv", routes=None, state=None, progress=No
         if progress is not None:
             progress(1.0 - state.remaining / total)
     return rs.routes, steps
-
-
-@register("rt", "the paper's reduced-time method (PTV allocation, threshold adaptation)")
-def _rt(prep, params, progress):
-    return allocate(prep, params, "ptv", progress=progress)
-
-
-@register("rd", "the per-distance baseline (same starts, no threshold adaptation)")
-def _rd(prep, params, progress):
-    return allocate(prep, params, "per_distance", progress=progress)
 
 
 def _next_pair(rs, state, metric, alpha, cap):

@@ -6,7 +6,7 @@ its required sightings. Cut every route of an optimal plan after its last
 snapshot taken by then: nothing counted is lost, and no route lasts longer
 than the coverage time. So the optimum is the least *makespan* (the longest
 route's time to its last snapshot) over plans whose routes see every target
-from as many distinct UAVs at distinct places as it needs (`places`).
+from as many distinct UAVs at distinct places as it needs (`model.places`).
 
 **Choosing sets, then proving them flyable** (a logic-based Benders scheme).
 A route is a set of viewpoints flown in the best order; its least time is a
@@ -16,7 +16,7 @@ costs time). For a time T, a *master* (CP-SAT, boolean) chooses per UAV the set
 of viewpoints it flies such that every target class (`_needed_classes`) has a
 matching of ``required`` (UAV, viewpoint) pairs, distinct UAVs at distinct
 viewpoints among its viewers, each UAV flying its viewpoint (the rule
-`metrics.evaluate` counts by). Each chosen set is then timed: a set slower than
+`model.evaluation.evaluate` counts by). Each chosen set is then timed: a set slower than
 T is cut down to a minimal slow subset (deleting viewpoints while it stays
 slow) and forbidden to that UAV, and to every UAV with the same launch times.
 A choice that all UAVs fly within T is a plan: T drops below its makespan and
@@ -41,8 +41,10 @@ import numpy as np
 from numba import njit
 from ortools.sat.python import cp_model
 
-from .metrics import evaluate
-from .problem import CoverageProblem, prepare
+from ..model.classes import target_classes
+from ..model.evaluation import evaluate
+from ..model.prepared import prepare
+from ..model.problem import CoverageProblem
 
 #: a plan must beat the incumbent by this much (seconds) to count as better
 TOLERANCE_S = 1e-6
@@ -309,9 +311,9 @@ def _twins(prep):
 def _needed_classes(prep):
     """(viewers, need) per target class that must be covered and is not implied
     by another (a class whose viewers include another's and needs no more: a
-    matching for that one serves it too). Built on `classes.target_classes`
+    matching for that one serves it too). Built on `model.classes.target_classes`
     (targets seen from the same viewpoints), which the problem keeps anyway."""
-    cp, _, _ = prep.classes
+    cp, _, _ = target_classes(prep)
     need = cp.required
     seen = {}
     for t in range(len(need)):

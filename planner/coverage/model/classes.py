@@ -9,8 +9,9 @@ of targets a visit gains is the summed weight of the classes it gains.  On
 terrain there are far fewer classes than cells (neighbouring cells are seen
 from the same places), so the bookkeeping of a search shrinks with them.
 
-`target_classes` builds the class problem of a prepared problem; it is exact
-(lists compared element by element, hashes only sort them).
+`target_classes` builds the class problem of a prepared problem, once (it is
+kept on the problem: the search and the bounds of a plan share it); it is
+exact (lists compared element by element, hashes only sort them).
 """
 
 from dataclasses import replace
@@ -18,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 from numba import njit
 
-from .problem import Prepared, csc_transpose
+from .prepared import Prepared, csc_transpose
 
 
 @njit(cache=True)
@@ -72,12 +73,19 @@ def _set_hash(words, indptr, indices):
 
 
 def target_classes(prep: Prepared):
-    """(class problem, weight per class, class of each target).
+    """(class problem, weight per class, class of each target), built once per
+    prepared problem (`Prepared.classes_built`).
 
     The class problem is a `Prepared` whose targets are the classes: its
     visibility lists hold each class once, ``required`` and ``seen0`` are the
     members' (equal by construction).  Targets no viewpoint sees form classes
     too (kept so the counts line up; they need nothing)."""
+    if prep.classes_built is None:
+        prep.classes_built = _classes(prep)
+    return prep.classes_built
+
+
+def _classes(prep: Prepared):
     n_t = prep.problem.n_targets
     n_vp = prep.problem.n_viewpoints
     if n_t == 0:

@@ -1,4 +1,4 @@
-"""RT+LS: local search after RT that cuts the longest coverage time.
+"""A local search that cuts the longest coverage time (after RT: the method RT+LS).
 
 RT's greedy adds a viewpoint whenever its time-weighted gain is best, so it
 ends up visiting many more viewpoints than a set cover needs.  The moves, all
@@ -19,17 +19,13 @@ visits (plus an earlier snapshot) see t, ``dc[t]`` = distinct UAVs with
 ``cnt > 0``.  The result is never worse than the RT allocation it starts from.
 """
 
-from dataclasses import replace
-
 import numpy as np
 from numba import njit
 
+from ..model.problem import FREE
+from ..model.routes import route_time
 from .alns_kernels import apply_visit
-from .greedy import allocate
-from .insertion import improve_route, insert_cost, removal_saving, route_time
-from .methods import register
-from .metrics import evaluate
-from .problem import FREE
+from .insertion import improve_route, insert_cost, removal_saving
 
 _EPS = 1e-6
 
@@ -84,17 +80,15 @@ class Search:
                    for e in viewpoints)
 
     def _time(self, r, route):
-        return route_time(route, self.p.travel, self.p.frames[r], self.p.sorties[r],
-                          self.p.has_launch)
+        return route_time(route, self.p.travel, self.p.battery(r), self.p.has_launch)
 
     def _saving(self, r, i):
-        return removal_saving(self.routes[r], i, self.p.travel, self.p.frames[r], self.p.sorties[r],
+        return removal_saving(self.routes[r], i, self.p.travel, self.p.battery(r),
                               self.p.has_launch)
 
     def _insertion(self, r, route, e):
         self.budget -= len(route) + 1
-        return insert_cost(route, e, self.p.travel, self.p.frames[r], self.p.sorties[r],
-                           self.p.has_launch)
+        return insert_cost(route, e, self.p.travel, self.p.battery(r), self.p.has_launch)
 
     def _legal(self, removals, additions):
         """Apply removals/additions tentatively; keep them if coverage holds."""
@@ -118,7 +112,7 @@ class Search:
     def optimise_orders(self):
         improved = False
         for r in range(len(self.routes)):
-            new = improve_route(self.routes[r], self.p.travel, self.p.frames[r], self.p.sorties[r],
+            new = improve_route(self.routes[r], self.p.travel, self.p.battery(r),
                                 self.p.has_launch)
             t = self._time(r, new)
             if t < self.times[r] - _EPS:
@@ -268,26 +262,3 @@ def local_search(prep, routes, rounds=20, select="all", budget=None):
         if not changed or s.budget <= 0:
             break
     return [list(map(int, r)) for r in s.routes]
-
-
-@register("rt+ls", "RT, then our local search (drop, relocate, swap, replace, re-route)")
-def _rt_ls(prep, params, progress):
-    """RT, then local search; restarted with th_ra halved and doubled, best kept.
-
-    The first start is plain RT with ``params``, so the result is never worse
-    than RT.  Restarts only apply when th_ra comes from the factor.
-    """
-    factors = [params.step_cap_factor]
-    if params.step_time_cap is None:
-        factors += [params.step_cap_factor * f for f in (0.5, 2.0)][:max(params.ls_starts - 1, 0)]
-    best = first = None
-    for i, factor in enumerate(factors):
-        p = replace(params, step_cap_factor=factor)
-        routes, steps = allocate(prep, p, "ptv", progress=progress if i == 0 else None)
-        first = first or (routes, steps)
-        for r in (routes, local_search(prep, routes, params.ls_rounds)):
-            a = evaluate(prep, r, "rt+ls")
-            if a.covered and (best is None or a.coverage_time < best[0] - 1e-9):
-                best = (a.coverage_time, r, steps)
-    # none covering: RT's, left short by the one-UAV-a-viewpoint rule (`places.share`)
-    return (best[1], best[2]) if best is not None else first

@@ -9,7 +9,7 @@ to distinct UAVs is left to the assignment (and its repair).
 import numpy as np
 from numba import njit
 
-from .problem import FREE
+from ..model.problem import FREE
 
 
 @njit(cache=True)

@@ -21,7 +21,7 @@ its viewers outside U, so its rows ask q less that many of U.
 **Rows (W, b).** A viewpoint mask W and "at least b UAVs' routes fly a
 viewpoint of W": for a target with viewers V that needs q more sightings (its
 requirement less the UAVs that saw it before: those give at most one pair each
-of the matching of distinct UAVs at distinct places, `places`), W = V less j of
+of the matching of distinct UAVs at distinct places, `model.places`), W = V less j of
 them with b = q - j (0 <= j < q): of the q new pairs, at distinct places, at
 most j lie outside W, and the others are distinct UAVs flying W.
 
@@ -34,7 +34,7 @@ priced, `_values`); pi comes from column generation on the restricted master
 (routes as columns, least total shortfall): HiGHS only proposes pi, and the
 inequality is checked here, with a margin. This is the Dantzig-Wolfe (route)
 relaxation: each route counts a target once and lasts at most T, which the
-flow LP of `bounds` cannot say (it counts flow, so one route passing twice
+flow LP of `flow` cannot say (it counts flow, so one route passing twice
 counts twice, and bounds only the sum of the routes' times).
 
 **The bound.** The times T tried are the sets' own times
@@ -57,7 +57,7 @@ from numba import njit, types
 from numba.typed import Dict
 from scipy.optimize import linprog
 
-from .metrics import _packing_bound, _reach_bound
+from .radius import radius_bound
 
 #: built when at most this many viewpoints see a target that needs sightings
 ROUTE_MAX_VIEWPOINTS = 30
@@ -74,7 +74,7 @@ ROUTE_TIME_LIMIT_S = 4.0
 GROWTH = 1.06
 #: the horizon is extended this far past the time the search needs (two steps)
 HORIZON_AHEAD = GROWTH ** 2
-#: the value is lowered by this relative amount for HiGHS's tolerances (as `bounds`)
+#: the value is lowered by this relative amount for HiGHS's tolerances (as `flow`)
 _SAFETY = 1e-6
 
 
@@ -375,8 +375,8 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
     useful = np.flatnonzero(_useful(prep))
     if not len(useful) or len(useful) > ROUTE_MAX_VIEWPOINTS:
         return 0.0
-    if lower <= 0.0:  # `bounds` gives these and more; a caller on its own, not
-        lower = max(_reach_bound(prep), _packing_bound(prep))
+    if lower <= 0.0:  # `lower_bounds` gives these and more; a caller on its own, not
+        lower = radius_bound(prep)
     if lower <= 0.0:
         return 0.0
     into = _times_into(prep.travel_t, useful)   # once: every subset's columns are in it

@@ -12,11 +12,11 @@ its place), or, taken anywhere else, at a place of their own
 (`CoverageProblem.seen`).
 
 The methods keep a simpler invariant that implies the rule: each viewpoint is
-flown by one UAV (`problem.owners`), so distinct UAVs are distinct places and
+flown by one UAV (`prepared.owners`), so distinct UAVs are distinct places and
 the distinct-UAV counts are exact. On crowded problems that invariant can paint
 a search into a corner (a viewpoint that is the last free place of targets that
-each need a different UAV); `share` then lets a second UAV fly a viewpoint where
-that gives a short target one more matched sighting. Only targets seen from a
+each need a different UAV); `search.share.share` then lets a second UAV fly a
+viewpoint where that gives a short target one more matched sighting. Only targets seen from a
 viewpoint flown by two UAVs need the matching (`Places`); all others keep the
 distinct-UAV count, which is cheap on the largest areas.
 """
@@ -24,8 +24,7 @@ distinct-UAV count, which is cheap on the largest areas.
 import numpy as np
 from numba import njit
 
-from .insertion import arrival_times, insert_cost, route_time
-from .problem import CLOSED
+from .routes import arrival_times
 
 
 class Places:
@@ -48,8 +47,7 @@ class Places:
     @classmethod
     def of(cls, prep, routes, when=None) -> "Places":
         if when is None:
-            when = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.frames[u],
-                                  prep.sorties[u],
+            when = [arrival_times(np.asarray(r, np.int64), prep.travel, prep.battery(u),
                                   prep.has_launch) for u, r in enumerate(routes)]
         return cls(prep.problem.n_uavs, prep.problem.n_viewpoints, routes, when,
                    prep.visited0)
@@ -94,7 +92,7 @@ def matched_times(targets, at, tgt_indptr, tgt_indices, seen0, need):
         er, ep, et = er[order], ep[order], et[order]
         out[k] = np.inf
         for a in range(len(er)):
-            if _max_matching(er, ep, a + 1, at.shape[0], need[t]) >= need[t]:
+            if max_matching(er, ep, a + 1, at.shape[0], need[t]) >= need[t]:
                 out[k] = et[a]
                 break
     return out
@@ -108,7 +106,7 @@ def count_with(t, at, tgt_indptr, tgt_indices, seen0, r, e, cap):
     if r >= 0:
         er = np.append(er, r)
         ep = np.append(ep, e)
-    return _max_matching(er, ep, len(er), at.shape[0], cap)
+    return max_matching(er, ep, len(er), at.shape[0], cap)
 
 
 @njit(cache=True)
@@ -143,7 +141,7 @@ def _sightings(t, at, tgt_indptr, tgt_indices, seen0):
 
 
 @njit(cache=True)
-def _max_matching(er, ep, m, n, cap):
+def max_matching(er, ep, m, n, cap):
     """Size of a maximum matching (at most ``cap``) of the first m sightings
     (Kuhn's augmenting paths from each UAV)."""
     if m == 0:
@@ -173,46 +171,3 @@ def _augment(r, er, ep, m, places, owner, seen):
             owner[p] = r
             return True
     return False
-
-
-def share(prep, routes, counts) -> list:
-    """``routes`` with the fewest extra visits, each at its cheapest slot, that give
-    every short target its requirement by the exact count (``counts``: the
-    current count of every target): the longest route grows least first. A
-    target no visit can help stays short."""
-    routes = [np.asarray(r, np.int64) for r in routes]
-    counts = np.array(counts, np.int32)
-    n = prep.problem.n_uavs
-    while True:
-        short = np.flatnonzero(counts < prep.required)
-        if not len(short):
-            break
-        at = Places.of(prep, routes).at
-        times = np.array([route_time(r, prep.travel, prep.frames[u], prep.sorties[u],
-                                     prep.has_launch)
-                          for u, r in enumerate(routes)])
-        best = None
-        for t in short:
-            for e in prep.tgt_indices[prep.tgt_indptr[t]:prep.tgt_indptr[t + 1]]:
-                for r in range(n):
-                    if np.isfinite(at[r, e]) or prep.owner0[e] == CLOSED:
-                        continue
-                    if count_with(t, at, prep.tgt_indptr, prep.tgt_indices, prep.own0, r, e,
-                                  prep.required[t]) <= counts[t]:
-                        continue
-                    dt, pos = insert_cost(routes[r], e, prep.travel, prep.frames[r],
-                                          prep.sorties[r], prep.has_launch)
-                    if not np.isfinite(dt):     # beyond r's battery from its bases
-                        continue
-                    key = (max(times[r] + dt, times.max()), dt)
-                    if best is None or key < best[0]:
-                        best = (key, r, int(e), int(pos))
-        if best is None:
-            break
-        _, r, e, pos = best
-        routes[r] = np.insert(routes[r], pos, e)
-        at = Places.of(prep, routes).at
-        touched = prep.vis_indices[prep.vis_indptr[e]:prep.vis_indptr[e + 1]].astype(np.int64)
-        counts[touched] = np.maximum(counts[touched], matched_counts(
-            touched, at, prep.tgt_indptr, prep.tgt_indices, prep.own0, prep.required))
-    return [list(map(int, r)) for r in routes]

@@ -1,4 +1,7 @@
-"""Numba kernels of the ALNS (`alns.py`): repair, redundant-visit removal, route order.
+# Over 600 lines, knowingly: the ALNS kernels share one state layout (R, L, cnt, dc, pc,
+# fly and ex, below) and call each other inside numba; apart, that layout would be
+# described, and kept in step, in several places.
+"""Numba kernels of the ALNS (`search.alns`): repair, redundant-visit removal, route order.
 
 Routes are held in a padded matrix ``R[r, :L[r]]`` (viewpoint ids in flying
 order) so that the kernels need no Python lists.  Coverage bookkeeping:
@@ -6,7 +9,7 @@ order) so that the kernels need no Python lists.  Coverage bookkeeping:
 ``dc[t]`` = distinct UAVs with ``cnt > 0`` (the local search's), ``fly[e]`` =
 (how many UAVs fly viewpoint e or photographed from it before, the bit set of
 those UAVs), ``pc[t]`` = distinct places that see t (viewpoints so flown, and
-each earlier sighting from no viewpoint: a place of its own).  Target t counts the sightings of `places`: the largest
+each earlier sighting from no viewpoint: a place of its own).  Target t counts the sightings of `model.places`: the largest
 matching of UAVs to distinct places that see it (`met`), and is *short* while
 that is below ``req[t]``.  The matching is at most ``min(dc[t], pc[t])`` and
 equal to it up to two (König: a matching of size two exists unless one UAV or
@@ -26,15 +29,10 @@ Every kernel returns (or adds to) a count of elementary evaluations, the
 import numpy as np
 from numba import njit
 
-from .insertion import (
-    base_row,
-    insert_cost,
-    limited,
-    removal_saving,
-    route_time,
-    walked,
-)
-from .problem import CLOSED
+from ..model.battery import battery_of, leaving_after, limited
+from ..model.problem import CLOSED
+from ..model.routes import route_time, walked
+from .insertion import insert_cost, removal_saving
 
 START = -1  # a route's start: its launch point, or nowhere (free start) without one
 END = -2  # a route's end: free (coverage time stops at the last snapshot)
@@ -54,8 +52,8 @@ def leg(u, v, travel, lo, back, has_launch):
 
 
 @njit(cache=True, nogil=True)
-def time_of(R, L, r, travel, frames, sorties, has_launch):
-    return route_time(R[r, :L[r]], travel, frames[r], sorties[r], has_launch)
+def time_of(R, L, r, travel, batteries, has_launch):
+    return route_time(R[r, :L[r]], travel, battery_of(batteries, r), has_launch)
 
 
 @njit(cache=True, nogil=True)
@@ -213,7 +211,7 @@ def _score(mode, g, dt, t_r, t_max, alpha, lam, eps):
 
 @njit(cache=True, nogil=True)
 def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_indices,
-           tgt_indptr, tgt_indices, travel, frames, sorties, has_launch, mode, alpha, lam, eps,
+           tgt_indptr, tgt_indices, travel, batteries, has_launch, mode, alpha, lam, eps,
            noise, rnd, owner0, share, ex):
     """Insert visits until no target in ``short`` (and no other) is short.
 
@@ -227,7 +225,7 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
     time), REGRET (the short target whose best option is most ahead of its
     second best is covered first, by its best option, costed as MAKESPAN).
     ``noise`` in [0, 1) scales scores by 1 +- noise (``rnd``: uniforms).
-    ``weight[t]``: cells in target class t (`classes.py`; ones for plain targets);
+    ``weight[t]``: cells in target class t (`model.classes`; ones for plain targets);
     gains count cells.
     Returns (ok, work); ok is False if some short target has no option left.
     """
@@ -262,8 +260,8 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
     pos = np.zeros((nc, n), np.int64)
     work = 2 * len(short) + (tgt_indptr[short + 1] - tgt_indptr[short]).sum() * (n + 1)
     for r in range(n):
-        work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, frames,
-                       sorties, has_launch)
+        work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel,
+                       batteries, has_launch)
     k = 0
     while remaining > 0:
         t_max = times.max()
@@ -323,7 +321,7 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
         R[r, p] = x
         L[r] += 1
         on[r, x] = True
-        times[r] = time_of(R, L, r, travel, frames, sorties, has_launch)
+        times[r] = time_of(R, L, r, travel, batteries, has_launch)
         # coverage and gains: what x's targets gave, taken away, and given again
         lo, hi = vis_indptr[x], vis_indptr[x + 1]
         was = np.empty(hi - lo, np.bool_)  # which of x's targets were short
@@ -354,12 +352,12 @@ def repair(R, L, times, cnt, dc, pc, fly, req, weight, short, vis_indptr, vis_in
                 if q != r:
                     dt[bc, q] = np.inf
         work += _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel,
-                       frames, sorties, has_launch)
+                       batteries, has_launch)
     return True, work
 
 
 @njit(cache=True, nogil=True)
-def _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, frames, sorties,
+def _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, batteries,
            has_launch):
     """Cheapest insertion of each candidate into route r (``dt``, ``pos``; inf where
     it may not go). Without ``share`` only the pairs that gain now are costed (a
@@ -367,10 +365,10 @@ def _slots(R, L, r, cands, nc, gain, dt, pos, on, fly, owner0, share, travel, fr
     can make one gain). Returns work."""
     work = 0
     route = R[r, :L[r]]
+    battery = battery_of(batteries, r)
     for c in range(nc):
         if (gain[c, r] > 0 or share) and _open(cands[c], r, on, fly, owner0, share):
-            dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, frames[r], sorties[r],
-                                              has_launch)
+            dt[c, r], pos[c, r] = insert_cost(route, cands[c], travel, battery, has_launch)
             work += L[r] + 1
         else:
             dt[c, r] = np.inf
@@ -396,8 +394,8 @@ def _removable(cnt, dc, pc, fly, req, r, e, vis_indptr, vis_indices, ex):
 
 
 @njit(cache=True, nogil=True)
-def drop_redundant(R, L, times, cnt, dc, pc, fly, req, vis_indptr, vis_indices, travel, frames,
-                   sorties, has_launch, ex):
+def drop_redundant(R, L, times, cnt, dc, pc, fly, req, vis_indptr, vis_indices, travel,
+                   batteries, has_launch, ex):
     """Remove visits coverage does not need, largest saving first (the longest
     route's first); returns work."""
     n = R.shape[0]
@@ -407,9 +405,10 @@ def drop_redundant(R, L, times, cnt, dc, pc, fly, req, vis_indptr, vis_indices, 
         best, bi, br = -1.0, -1, -1
         for r in range(n):
             route = R[r, :L[r]]
+            battery = battery_of(batteries, r)
             work += L[r]
             for i in range(L[r]):
-                s = removal_saving(route, i, travel, frames[r], sorties[r], has_launch)
+                s = removal_saving(route, i, travel, battery, has_launch)
                 if s < -1e-9:
                     continue
                 key = s + (1e12 if r == r_max else 0.0)
@@ -428,7 +427,7 @@ def drop_redundant(R, L, times, cnt, dc, pc, fly, req, vis_indptr, vis_indices, 
         R[br, L[br]] = -1
         apply_visit(cnt, dc, br, e, -1, vis_indptr, vis_indices)
         apply_place(pc, fly, br, e, -1, vis_indptr, vis_indices)
-        times[br] = time_of(R, L, br, travel, frames, sorties, has_launch)
+        times[br] = time_of(R, L, br, travel, batteries, has_launch)
 
 
 @njit(cache=True, nogil=True)
@@ -529,16 +528,16 @@ NO_BACK = np.zeros(0)
 
 
 @njit(cache=True, nogil=True)
-def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
+def improve_sorties(R, L, r, travel, batteries, has_launch, max_passes):
     """`improve_order` on route r, one sortie at a time where a battery splits it:
     each keeps its base at both ends (the way home counted, but in the last,
     whose end is free as without sorties) and a reorder that would no longer
     fit the battery is undone. Returns work."""
-    if not limited(sorties[r]) or L[r] < 2:
-        return improve_order(R, L, r, travel, frames[r, 0], NO_BACK, has_launch, max_passes)
-    so = sorties[r]
+    battery = battery_of(batteries, r)
+    if not limited(battery) or L[r] < 2:
+        return improve_order(R, L, r, travel, battery.out, NO_BACK, has_launch, max_passes)
     route = R[r, :L[r]].copy()
-    _, sortie, _ = walked(route, travel, frames[r], so, True)
+    _, sortie, _ = walked(route, travel, battery, True)
     work = 0
     first = 0
     one = np.empty((1, L[r]), np.int64)
@@ -548,15 +547,15 @@ def improve_sorties(R, L, r, travel, frames, sorties, has_launch, max_passes):
         m = i - first
         one[0, :m] = route[first:i]
         # out of its start, or of the base the sortie before landed at
-        lo = frames[r, 0] if sortie[first] == 0 else \
-            base_row(frames[r], route[first - 1] if first > 0 else -1)
+        lo = battery.out if sortie[first] == 0 else \
+            leaving_after(battery, route[first - 1] if first > 0 else -1)
         last = i == L[r]
         work += improve_order(one, np.array([m]), 0, travel, lo,
-                              NO_BACK if last else frames[r, 2], True, max_passes)
+                              NO_BACK if last else battery.back, True, max_passes)
         trial = route.copy()
         trial[first:i] = one[0, :m]
-        if route_time(trial, travel, frames[r], so, True) <= \
-                route_time(route, travel, frames[r], so, True) + 1e-9:
+        if route_time(trial, travel, battery, True) <= \
+                route_time(route, travel, battery, True) + 1e-9:
             route = trial
         first = i
     R[r, :L[r]] = route
@@ -587,14 +586,15 @@ def restore_counts(R, L, R0, L0, cnt, dc, pc, fly, vis_indptr, vis_indices, mark
 
 
 @njit(cache=True, nogil=True)
-def savings_all(R, L, travel, frames, sorties, has_launch):
+def savings_all(R, L, travel, batteries, has_launch):
     """Removal saving of every visit, routes in order (the `visits` order)."""
     out = np.empty(L.sum())
     k = 0
     for r in range(R.shape[0]):
         route = R[r, :L[r]]
+        battery = battery_of(batteries, r)
         for i in range(L[r]):
-            out[k] = removal_saving(route, i, travel, frames[r], sorties[r], has_launch)
+            out[k] = removal_saving(route, i, travel, battery, has_launch)
             k += 1
     return out
 

@@ -1,158 +1,25 @@
-"""Route times, the edge-breaking insertion rule, and intra-route improvement.
-
-A route is an array of viewpoint ids in visiting order.  Its time runs from
-the launch point (``fr[0, e]`` = transit from launch to e) or, without launch
-points, from the first viewpoint (the paper's setting), to the last snapshot.
-Travel may be asymmetric, so every cost is taken in flight direction.
-
-**Sorties.** A UAV's frame ``fr`` [BASE_ROWS + n_bases, n_viewpoints] holds its
-times out from its start (row 0), out from its own base for a sortie after the
-start's way home (row 1, the climb included), back to the base a sortie ending
-at the viewpoint lands at (row 2, the landing included), which base that is
-(row 3: the nearest of the fleet's, or its own), and out from each base (rows
-BASE_ROWS + b: the sortie after one that landed at base b starts there,
-`base_row`); its sortie model ``so`` = (endurance, turnaround, used,
-start_back): the flight time one battery allows, the time on the ground
-between sorties, what the current battery has flown already (a re-plan in
-flight) and the time from the start back to its own base. A route is flown in
-sorties by the greedy split: the UAV flies on while the next viewpoint and the
-way home from it still fit the battery, and otherwise goes home, takes
-``turnaround`` and a new battery, and flies out to it (`walk`). With an
-unlimited endurance (inf) that is one flight, and every time is what it was
-without sorties.
+"""The edge-breaking insertion rule, removal savings and intra-route improvement.
 
 Edge-breaking rule: a viewpoint is inserted at either end of the route or into
 whichever edge gives the least increase in time (the cheapest of them all);
-with sorties, only where its sortie still fits the battery, or as a new sortie
-at the end.
+with sorties (a `Battery` that limits the flights), only where its sortie still
+fits the battery, or as a new sortie at the end. Route times are the model's
+(`planner.coverage.model.routes`: the greedy split into sorties).
 """
 
 import numpy as np
 from numba import njit
 
-#: the sortie model of a UAV whose battery does not limit it
-UNLIMITED = np.array([np.inf, 0.0, 0.0, 0.0])
-#: a frame's rows before its times out of each base (see above)
-BASE_ROWS = 4
+from ..model.battery import leaving_after, limited
+from ..model.routes import route_time, sortie_durations, walked
 
 
 @njit(cache=True)
-def limited(so) -> bool:
-    return so[0] < np.inf
-
-
-@njit(cache=True)
-def base_row(fr, a):
-    """The times out of the base that a sortie whose last viewpoint is ``a`` lands
-    at (a < 0: the start's way home, to its own base): where the next one leaves."""
-    if a < 0 or fr.shape[0] <= BASE_ROWS:      # no base rows: its own base only
-        return fr[1]
-    return fr[BASE_ROWS + int(fr[3, a])]
-
-
-@njit(cache=True)
-def walk(route, travel, fr, so, has_launch, arrive, sortie, flown) -> int:
-    """Fly ``route`` by the greedy split: ``arrive[i]`` the time of visit i since the
-    start (turnarounds included), ``sortie[i]`` its sortie (0: the flight under
-    way at the start; a route whose first viewpoint does not fit what is left
-    of that battery starts with sortie 1), ``flown[i]`` the flight time of its
-    sortie at the visit. Returns the number of sorties."""
-    m = len(route)
-    if m == 0:
-        return 0
-    endurance, turn = so[0], so[1]
-    t, s, j = 0.0, so[2], 0
-    for i in range(m):
-        e = route[i]
-        if i == 0:
-            out = fr[0, e] if has_launch else 0.0
-            home = so[3]
-        else:
-            out = travel[route[i - 1], e]
-            home = fr[2, route[i - 1]]
-        if s + out + fr[2, e] > endurance:      # home first, a new battery, out again
-            s = base_row(fr, route[i - 1] if i > 0 else -1)[e]
-            t += home + turn + s
-            j += 1
-        else:
-            t += out
-            s += out
-        arrive[i], sortie[i], flown[i] = t, j, s
-    return j + 1
-
-
-@njit(cache=True)
-def walked(route, travel, fr, so, has_launch):
-    """`walk`'s (arrive, sortie, flown) as new arrays."""
-    m = len(route)
-    arrive, sortie, flown = np.empty(m), np.empty(m, np.int64), np.empty(m)
-    walk(route, travel, fr, so, has_launch, arrive, sortie, flown)
-    return arrive, sortie, flown
-
-
-@njit(cache=True)
-def route_time(route, travel, fr, so, has_launch):
-    """Time of the route's last snapshot (0 for an empty route)."""
-    if len(route) == 0:
-        return 0.0
-    if not limited(so):
-        t = fr[0, route[0]] if has_launch else 0.0
-        for i in range(len(route) - 1):
-            t += travel[route[i], route[i + 1]]
-        return t
-    return walked(route, travel, fr, so, has_launch)[0][-1]
-
-
-@njit(cache=True)
-def sortie_durations(route, sortie, flown, fr) -> np.ndarray:
-    """Flight time of each sortie of a walked route, the way home included (a
-    sortie without a visit, the start's flight home, is left 0)."""
-    m = len(route)
-    out = np.zeros(sortie[m - 1] + 1 if m else 0)
-    for i in range(m):
-        if i == m - 1 or sortie[i + 1] != sortie[i]:
-            out[sortie[i]] = flown[i] + fr[2, route[i]]
-    return out
-
-
-@njit(cache=True)
-def nearest_other(travel, axis=1):
-    """Per viewpoint, the least time to (axis=1) or from (axis=0) another one
-    (the matrix is too large to copy with its diagonal masked)."""
-    n = travel.shape[0]
-    out = np.full(n, np.inf)
-    for a in range(n):
-        for b in range(n):
-            if a != b:
-                t = travel[a, b]
-                i = a if axis == 1 else b
-                if t < out[i]:
-                    out[i] = t
-    return out
-
-
-@njit(cache=True)
-def arrival_times(route, travel, fr, so, has_launch):
-    """Time of each snapshot along the route."""
-    if limited(so):
-        return walked(route, travel, fr, so, has_launch)[0]
-    out = np.empty(len(route))
-    t = 0.0
-    for i in range(len(route)):
-        if i == 0:
-            t = fr[0, route[0]] if has_launch else 0.0
-        else:
-            t += travel[route[i - 1], route[i]]
-        out[i] = t
-    return out
-
-
-@njit(cache=True)
-def insert_cost(route, e, travel, fr, so, has_launch):
+def insert_cost(route, e, travel, battery, has_launch):
     """(Δt, position) of the cheapest edge-breaking insertion of e; position p = before route[p]."""
-    if limited(so):
-        return _sortie_insert_cost(route, e, travel, fr, so)
-    lo = fr[0]
+    if limited(battery):
+        return _sortie_insert_cost(route, e, travel, battery)
+    lo = battery.out
     m = len(route)
     if m == 0:
         return (lo[e] if has_launch else 0.0), 0
@@ -177,26 +44,26 @@ def insert_cost(route, e, travel, fr, so, has_launch):
 
 
 @njit(cache=True)
-def _sortie_insert_cost(route, e, travel, fr, so):
+def _sortie_insert_cost(route, e, travel, battery):
     """`insert_cost` where a battery limits the sorties (launch points given): each
     slot only where its sortie still fits the battery with e in it, the greedy
     split's own choice at a sortie's ends, and a new sortie after the last."""
     m = len(route)
     if m == 0:
-        if so[2] + fr[0, e] + fr[2, e] <= so[0]:
-            return fr[0, e], 0
-        return so[3] + so[1] + base_row(fr, -1)[e], 0
-    arrive, sortie, flown = walked(route, travel, fr, so, True)
-    dur = sortie_durations(route, sortie, flown, fr)
+        if battery.used + battery.out[e] + battery.back[e] <= battery.endurance:
+            return battery.out[e], 0
+        return battery.start_back + battery.turnaround + leaving_after(battery, -1)[e], 0
+    arrive, sortie, flown = walked(route, travel, battery, True)
+    dur = sortie_durations(route, sortie, flown, battery)
     starts = np.flatnonzero(np.diff(sortie)) + 1
     best, pos = np.inf, -1
     for p in range(1, m):                   # the cheapest edge inside a sortie that fits
         if sortie[p - 1] == sortie[p]:
             a, b = route[p - 1], route[p]
             c = travel[a, e] + travel[e, b] - travel[a, b]
-            if c < best and dur[sortie[p]] + c <= so[0]:
+            if c < best and dur[sortie[p]] + c <= battery.endurance:
                 best, pos = c, p
-    return _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, best, pos)
+    return _sortie_slots(route, e, travel, battery, sortie, flown, dur, starts, best, pos)
 
 
 @njit(cache=True)
@@ -238,17 +105,17 @@ def middle_costs_all(route, travel, travel_t, lo, has_launch, mid_cost, mid_pos)
 # one of 2 cores) the whole sample's plan took 59 s instead of 32 s, 15 s of it
 # in each of the two.
 @njit(cache=True)
-def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos, cost, pos):
+def combine_ends(route, travel, travel_t, battery, has_launch, mid_cost, mid_pos, cost, pos):
     """Edge-breaking rule: the cheapest of front, best edge and back (with sorties:
     `_sortie_slots`)."""
     m = len(route)
-    lo = fr[0]
-    if limited(so) and m > 0:
-        arrive, sortie, flown = walked(route, travel, fr, so, True)
-        dur = sortie_durations(route, sortie, flown, fr)
+    lo = battery.out
+    if limited(battery) and m > 0:
+        arrive, sortie, flown = walked(route, travel, battery, True)
+        dur = sortie_durations(route, sortie, flown, battery)
         starts = np.flatnonzero(np.diff(sortie)) + 1
         for e in range(travel.shape[0]):
-            cost[e], pos[e] = _sortie_slots(route, e, travel, fr, so, sortie, flown, dur,
+            cost[e], pos[e] = _sortie_slots(route, e, travel, battery, sortie, flown, dur,
                                             starts, mid_cost[e], mid_pos[e])
         return
     for e in range(travel.shape[0]):
@@ -264,31 +131,31 @@ def combine_ends(route, travel, travel_t, fr, so, has_launch, mid_cost, mid_pos,
 
 
 @njit(cache=True)
-def _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, mid_c, mid_p):
+def _sortie_slots(route, e, travel, battery, sortie, flown, dur, starts, mid_c, mid_p):
     """(Δt, position) of e among the slots `_sortie_insert_cost` weighs, the edges
     inside sorties by their cached best (``mid_c`` at ``mid_p``) only: that edge
     if its sortie still fits, else the front, the sorties' ends and the back.
     Exact where travel keeps the triangle inequality, with one base; where a
     sortie's end decides the base the next one leaves from, that sortie may split
     anew and the cost is an estimate (`walk` times the route)."""
-    endurance, turn = so[0], so[1]
+    endurance, back = battery.endurance, battery.back
     m = len(route)
     best, pos = np.inf, m
     if 0 < mid_p < m and sortie[mid_p - 1] == sortie[mid_p] and \
             dur[sortie[mid_p]] + mid_c <= endurance:
         best, pos = mid_c, mid_p
     a = route[m - 1]
-    if flown[m - 1] + travel[a, e] + fr[2, e] <= endurance:
+    if flown[m - 1] + travel[a, e] + back[e] <= endurance:
         c = travel[a, e]
     else:
-        c = fr[2, a] + turn + base_row(fr, a)[e]
+        c = back[a] + battery.turnaround + leaving_after(battery, a)[e]
     if c < best:
         best, pos = c, m
     for k in range(len(starts) + 1):
         p = 0 if k == 0 else starts[k - 1]
         b, j = route[p], sortie[p]
         if p == 0 and j == 0:
-            c = fr[0, e] + travel[e, b] - fr[0, b]
+            c = battery.out[e] + travel[e, b] - battery.out[b]
             if dur[0] + c > endurance:
                 continue
             if c < best:
@@ -298,18 +165,18 @@ def _sortie_slots(route, e, travel, fr, so, sortie, flown, dur, starts, mid_c, m
         # out of the base e's way home lands at), or at the start of sortie j
         a = route[p - 1] if p > 0 else -1
         if p == 0:
-            end_c = fr[0, e] + fr[2, e] - so[3]
-            before = so[2] + fr[0, e] + fr[2, e] <= endurance
+            end_c = battery.out[e] + back[e] - battery.start_back
+            before = battery.used + battery.out[e] + back[e] <= endurance
         else:
-            end_c = travel[a, e] + fr[2, e] - fr[2, a]
+            end_c = travel[a, e] + back[e] - back[a]
             before = dur[sortie[p - 1]] + end_c <= endurance
-        moved = base_row(fr, e)[b] - base_row(fr, a)[b]     # sortie j's way out
+        moved = leaving_after(battery, e)[b] - leaving_after(battery, a)[b]  # sortie j's way out
         if before:      # the split flies e there: sortie j then leaves the base e's lands at
             if moved > 0 and dur[j] + moved > endurance:
                 continue
             c = end_c + moved
         else:
-            out = base_row(fr, a)
+            out = leaving_after(battery, a)
             c = out[e] + travel[e, b] - out[b]
             if dur[j] + c > endurance:
                 continue
@@ -365,15 +232,15 @@ def update_middle_costs(route, s, travel, travel_t, lo, has_launch, mid_cost, mi
 
 
 @njit(cache=True)
-def removal_saving(route, i, travel, fr, so, has_launch):
+def removal_saving(route, i, travel, battery, has_launch):
     """Time saved by removing route[i] and joining its neighbours (with sorties: the
     route walked again without it, its sorties split anew)."""
     m = len(route)
     e = route[i]
-    if limited(so):
+    if limited(battery):
         rest = np.concatenate((route[:i], route[i + 1:]))
-        return route_time(route, travel, fr, so, True) - route_time(rest, travel, fr, so, True)
-    lo = fr[0]
+        return route_time(route, travel, battery, True) - route_time(rest, travel, battery, True)
+    lo = battery.out
     if m == 1:
         return lo[e] if has_launch else 0.0
     if i == 0:
@@ -389,14 +256,14 @@ def removal_saving(route, i, travel, fr, so, has_launch):
 
 
 @njit(cache=True)
-def improve_route(route, travel, fr, so, has_launch):
+def improve_route(route, travel, battery, has_launch):
     """Or-opt (move segments of 1-3, also reversed) and 2-opt until no gain.
 
     Full re-evaluation per candidate keeps it exact for asymmetric travel;
     routes are short (tens to a few hundred snapshots).
     """
     best = route.copy()
-    best_t = route_time(best, travel, fr, so, has_launch)
+    best_t = route_time(best, travel, battery, has_launch)
     m = len(best)
     improved = True
     while improved:
@@ -406,7 +273,7 @@ def improve_route(route, travel, fr, so, has_launch):
             for j in range(i + 1, m):
                 cand = best.copy()
                 cand[i:j + 1] = best[i:j + 1][::-1]
-                t = route_time(cand, travel, fr, so, has_launch)
+                t = route_time(cand, travel, battery, has_launch)
                 if t < best_t - 1e-9:
                     best, best_t, improved = cand, t, True
         # or-opt: move a segment of length 1..3 elsewhere (optionally reversed)
@@ -421,7 +288,7 @@ def improve_route(route, travel, fr, so, has_launch):
                         if p == i and rev == 0:
                             continue
                         cand = np.concatenate((rest[:p], s, rest[p:]))
-                        t = route_time(cand, travel, fr, so, has_launch)
+                        t = route_time(cand, travel, battery, has_launch)
                         if t < best_t - 1e-9:
                             best, best_t, improved, moved = cand, t, True, True
                             break

@@ -20,7 +20,7 @@ again from its best with every route rebuilt at random (`RESTART_AFTER`):
 annealing that only accepts moves a percent or so worse does not leave a
 basin whose way out changes every route at once.  Every intermediate
 solution keeps every target seen by its required
-number of distinct UAVs at distinct places (`places`): a repair only inserts
+number of distinct UAVs at distinct places (`model.places`): a repair only inserts
 (viewpoint, UAV) pairs that give a short target one more such sighting, and
 the removal of a visit is only kept if coverage holds (`alns_kernels`).  Two
 UAVs may fly one viewpoint where targets need two sightings, and on small
@@ -33,7 +33,7 @@ is first repaired, or rebuilt, into one that does not (`_cover`); if none is
 found it is returned as it is, unsearched.
 
 **Budget and determinism.** The budget is given in seconds
-(``CoverageParams.time_budget_s``, ``--time-budget``) but counted in *work
+(``AlnsParams.time_budget_s``, ``--time-budget``) but counted in *work
 units* (elementary evaluations: insertion slots, target updates, order
 moves), converted at `WORK_PER_S`, the rate measured on the reference
 machine.  So a run is a pure function of the problem, the seed and the
@@ -48,6 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..model.classes import target_classes
+from ..model.routes import nearest_other
 from .alns_kernels import (
     MAKESPAN_MODE,
     MASK_UAVS,
@@ -65,8 +67,6 @@ from .alns_kernels import (
     short_targets,
     time_of,
 )
-from .insertion import nearest_other
-from .methods import method, register
 
 #: work units per nominal second of budget.  Measured on this 2-core machine
 #: (search() with 2e8 units, 2026-11-25): 3.2e8 units/s on a 98-viewpoint
@@ -201,8 +201,7 @@ class Alns:
 
     # -- state -------------------------------------------------------------------
     def _time(self, r):
-        return time_of(self.R, self.L, r, self.p.travel, self.p.frames, self.p.sorties,
-                       self.p.has_launch)
+        return time_of(self.R, self.L, r, self.p.travel, self.p.batteries, self.p.has_launch)
 
     def objective(self, times=None):
         t = self.times if times is None else times
@@ -241,7 +240,7 @@ class Alns:
     # -- destroy -----------------------------------------------------------------
     def _savings(self):
         p = self.p
-        return savings_all(self.R, self.L, p.travel, p.frames, p.sorties, p.has_launch)
+        return savings_all(self.R, self.L, p.travel, p.batteries, p.has_launch)
 
     def _pick_ranked(self, keys, q, power=3.0):
         """q distinct indices, biased to the largest keys (y^power rank draw)."""
@@ -299,7 +298,7 @@ class Alns:
         rnd = self.rng.random(257) if noise > 0 else np.zeros(1)
         ok, work = repair(self.R, self.L, self.times, self.cnt, self.dc, self.pc, self.fly,
                           p.required, self.weight, short, p.vis_indptr, p.vis_indices,
-                          p.tgt_indptr, p.tgt_indices, p.travel, p.frames, p.sorties,
+                          p.tgt_indptr, p.tgt_indices, p.travel, p.batteries,
                           p.has_launch, mode, self.params.alpha, lam, self.eps, noise, rnd,
                           p.owner0, self.share, self.ex)
         self.work += work + len(short)
@@ -310,9 +309,9 @@ class Alns:
         passes = ORDER_PASSES if passes is None else passes
         self.work += drop_redundant(self.R, self.L, self.times, self.cnt, self.dc, self.pc,
                                     self.fly, p.required, p.vis_indptr, p.vis_indices,
-                                    p.travel, p.frames, p.sorties, p.has_launch, self.ex)
+                                    p.travel, p.batteries, p.has_launch, self.ex)
         for r in routes_changed:
-            self.work += improve_sorties(self.R, self.L, r, p.travel, p.frames, p.sorties,
+            self.work += improve_sorties(self.R, self.L, r, p.travel, p.batteries,
                                          p.has_launch, passes)
             self.times[r] = self._time(r)
 
@@ -328,14 +327,14 @@ def search(prep, starts, params, units=None, progress=None, classes=True,
     worth (`WORK_PER_S`), in each of ``chains`` independent chains run at once
     (the first with the seed's own stream, so it is the single search of
     ``chains=1``; the best chain wins).  With ``classes`` the search runs on
-    target classes (`classes.target_classes`: cells seen from the same
+    target classes (`model.classes.target_classes`: cells seen from the same
     viewpoints, weighted), which decides coverage exactly as the cells do, at a
     fraction of the cost."""
     rng = np.random.default_rng(params.seed)
     weight = None
     n_cells = prep.problem.n_targets
     if classes:
-        prep, weight, _ = prep.classes
+        prep, weight, _ = target_classes(prep)
     s = None
     for routes in starts:
         cand = Alns(prep, routes, params, rng, weight)
@@ -483,18 +482,3 @@ def budget_s(params, n_visits: int, start_time: float, n_cells: int = 0) -> floa
     if params.budget_fraction is not None:
         seconds = min(seconds, params.budget_fraction * start_time)
     return max(float(seconds), 0.0)
-
-
-@register("alns", "ours: adaptive large-neighbourhood search from RT (and RT+LS), "
-                  "within --time-budget")
-def _alns(prep, params, progress):
-    """RT, polished; RT+LS too where it is affordable (so never worse than it
-    there); then the search from the better one."""
-    rt_progress = (lambda f: progress(0.2 * f)) if progress is not None else None
-    routes, _ = method("rt").run(prep, params, rt_progress)
-    starts = [routes]
-    if prep.problem.n_viewpoints * prep.problem.n_uavs <= LS_START_SIZE:
-        starts.append(method("rt+ls").run(prep, params, None)[0])
-    result = search(prep, starts, params, progress=(lambda f: progress(0.2 + 0.8 * f))
-                    if progress is not None else None)
-    return result.routes, []

@@ -1,0 +1,42 @@
+"""Lower bounds on coverage time, and the proven optimum of small problems.
+
+Modules, one bound each: radius (the reach and packing bounds: quick, for any
+problem), flow (the first-sighting flow LP), routes (route pricing, where at most
+30 viewpoints see what is needed), exact (the proven optimum of small plain
+problems: the oracle of the tests and of ``bench_coverage --optimal``).
+A new bound is a module here, taken into `lower_bounds`.
+"""
+
+from ..model.classes import target_classes
+from ..model.prepared import prepare
+from ..model.problem import CoverageProblem
+from .flow import flow_bound
+from .radius import radius_bound
+from .routes import route_bound
+
+
+def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
+    """The best lower bound on coverage time we have (seconds): the largest of
+    the reach and packing bounds (`radius.radius_bound`) and, with ``strong``,
+    the first-sighting flow LP (`flow.flow_bound`; a few seconds of HiGHS on the
+    largest problems) and, where at most 30 viewpoints see what is needed, the
+    route-pricing bound (`routes.route_bound`: 0.3 s in the median case of
+    17-30, a budget of 4 s).  The bounds work on target classes
+    (`model.classes.target_classes`: identical rows, so the same bound at a
+    fraction of the size)."""
+    return lower_bounds(problem, strong)[1]
+
+
+def lower_bounds(problem: CoverageProblem, strong: bool = True, prep=None) -> tuple:
+    """(radius bound, best bound) in seconds: see `lower_bound`. ``prep``: the
+    problem already prepared (`model.prepared.prepare`), to share its target classes."""
+    prep = prep if prep is not None else prepare(problem)
+    cprep = target_classes(prep)[0] if problem.n_targets else prep
+    radius = radius_bound(cprep)
+    best = max(radius, flow_bound(cprep)) if strong else radius
+    if strong:
+        best = max(best, route_bound(cprep, best))
+    return float(radius), float(best)
+
+
+__all__ = ["flow_bound", "lower_bound", "lower_bounds", "radius_bound", "route_bound"]
