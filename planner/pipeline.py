@@ -146,7 +146,7 @@ def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, 
             crop = s.area if s.area is None or not features else crop_around(s.area, features)
             terrain = (sample_terrain(resolution=s.resolution_m, area=crop) if s.sample else
                        load_dem(s.dem, area=crop, resolution=s.resolution_m,
-                                geoid_offset=s.geoid_offset_m))
+                                geoid_offset=s.geoid_offset_m, z_unit=s.z_unit))
             if crop != s.area and not (area_mask(terrain, [box_ring(s.area)])
                                        & terrain.valid).any():
                 raise InputError("--area", f"{','.join(f'{v:g}' for v in s.area)} does not "
@@ -784,6 +784,8 @@ def _make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, 
         "sorties": len(fleet.sorties),
         "battery": _battery_metrics(ctx, problem, fleet, required),
     }
+    if ctx.terrain.meta.get("z_units"):
+        metrics["z_units"] = ctx.terrain.meta["z_units"]
     if ctx.terrain.meta.get("filled_at"):
         metrics["filled_voids"] = {"at": ctx.terrain.meta["filled_at"],
                                    "margin_m": VOID_FILL_MARGIN_M}

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import Optional
 
 from common.errors import InputError
+from common.units import Z_UNITS
 from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
 
 FIRMWARES = ("ardupilot", "px4")
@@ -46,6 +47,7 @@ class Scenario:
     area_flight: bool = False  # and flight too: nothing flown outside the polygon
     resolution_m: Optional[float] = None  # default: the DEM's own spacing
     geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
+    z_unit: Optional[str] = None  # the DEM's height unit (m, ft, us-ft); None: as its files say
     # [outposts]
     outposts: Optional[str] = None  # GeoJSON file
     no_outposts: bool = False  # an explicit choice: plan with no observer posts at all
@@ -145,6 +147,8 @@ class Scenario:
             (self.geoid_offset_m is None or (isinstance(self.geoid_offset_m, (int, float))
                                              and math.isfinite(self.geoid_offset_m)),
              "geoid_offset_m must be a finite number of metres"),
+            (self.z_unit is None or self.z_unit in Z_UNITS,
+             f"z_unit must be one of {', '.join(Z_UNITS)}, got {self.z_unit!r}"),
             (self.endurance_min is None or self.launch, "endurance_min needs launch points "
              "(--launch): a sortie starts and ends at a base"),
         ]
@@ -234,7 +238,7 @@ def _positive(x) -> bool:
 # TOML section of each field; a key may also stand at the top level.
 SECTIONS = {
     "terrain": ("dem", "sample", "area", "area_file", "area_flight", "resolution_m",
-                "geoid_offset_m"),
+                "geoid_offset_m", "z_unit"),
     "outposts": ("outposts", "no_outposts"),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),

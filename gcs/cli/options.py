@@ -13,6 +13,7 @@ from dataclasses import fields
 
 from autopilots import NAMES as FIRMWARES
 from common.errors import InputError
+from common.units import Z_UNITS
 from planner.rates import defaults_text
 from planner.scenario import LAND_AT, METHODS, Scenario, make_scenario, read_scenario
 
@@ -22,6 +23,9 @@ HELP = {
     "resolution_m": "working grid spacing in metres (default: the DEM's own spacing)",
     "geoid_offset_m": "ellipsoid minus geoid height in metres, required for a DEM whose "
                       "heights are ellipsoidal (AMSL = h - offset)",
+    "z_unit": "unit of the DEM's heights, for every --dem file, whatever the files say "
+              "(default: each file's band unit or its CRS's vertical axis; metres when "
+              "neither says; feet are converted to metres and said)",
     "ceiling_agl_m": "highest altitude flown, metres above ground",
     "clearance_m": "lowest altitude flown, metres above the terrain surface",
     "hide_margin_m": "metres flown below the exposure surface",
@@ -120,6 +124,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                               "it, --outposts is required, except with --sample)")
     for name in ("resolution_m", "geoid_offset_m"):
         _add(terrain, name, float)
+    terrain.add_argument("--z-unit", dest="z_unit", choices=tuple(Z_UNITS), help=_help("z_unit"))
     fields_of = {
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),

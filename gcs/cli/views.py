@@ -13,6 +13,7 @@ from rich.live import Live
 from rich.table import Table
 from rich.text import Text
 
+from common.units import Z_UNIT_WORDS
 from gcs.progress import console
 from planner.rates import FIRMWARE_RATES, VERTICAL_RATES
 
@@ -126,6 +127,9 @@ def _area_lines(metrics, outposts: int) -> list:
     if not outposts:
         out.append("no observers: planned with no outposts, nothing is hidden from anyone "
                    "(the routes keep only the clearance and the ceiling)")
+    for z in metrics.get("z_units", []):
+        out.append(f"DEM heights of {z['file']} taken as {Z_UNIT_WORDS[z['unit']]} "
+                   f"({z['said_by']})" + (", converted to metres" if z["unit"] != "m" else ""))
     voids = metrics.get("filled_voids")
     if voids:
         at = ", ".join(f"{v['lat']:.5f},{v['lon']:.5f} ({v['cells']} cells)" for v in voids["at"])
