@@ -24,7 +24,7 @@ pytestmark = pytest.mark.slow
 #: what the source of a refusal may be: a file the user gave or an option / stage
 #: named in the user's terms (README, "Errors")
 USER_SOURCES = re.compile(r"^gcs plan: error: (\S+\.(tif|hgt|geojson)|launch|exposure|options|"
-                          r"--area|--launch|--resolution|plan): ")
+                          r"--[a-z-]+|plan): ")
 INTERNAL = re.compile(r"Traceback|Error\b|path:|node|kernel|numba|index", re.IGNORECASE)
 
 
