@@ -22,10 +22,10 @@ from matplotlib.patches import Patch  # noqa: E402
 from common.colours import vehicle_colour  # noqa: E402
 from gcs.guard import hold_spans  # noqa: E402
 from gcs.plots import (  # noqa: E402
-    lonlat_km,
-    save_figure,
     draw_background,
     draw_bases,
+    lonlat_km,
+    save_figure,
     symbol_legend,
 )
 from planner.terrain.grid import bilinear  # noqa: E402

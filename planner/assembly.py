@@ -52,6 +52,8 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
         "sorties": len(fleet.sorties),
         "battery": _battery_metrics(ctx, problem, fleet, required),
     }
+    if ctx.terrain.meta.get("z_units"):
+        metrics["z_units"] = ctx.terrain.meta["z_units"]
     if ctx.terrain.meta.get("filled_at"):
         metrics["filled_voids"] = {"at": ctx.terrain.meta["filled_at"],
                                    "margin_m": VOID_FILL_MARGIN_M}

@@ -46,7 +46,10 @@ def launch_xy(terrain, s: Scenario) -> Optional[np.ndarray]:
     inside = terrain.contains_xy(x, y)
     if not inside.all():
         i = int(np.flatnonzero(~inside)[0])
-        raise InputError("--launch", f"launch point {lat[i]:.6f},{lon[i]:.6f} is outside the DEM")
+        swapped = "; as LON,LAT it would be inside: --launch takes LAT,LON" \
+            if terrain.swapped_inside(lon[i], lat[i]) else ""
+        raise InputError("--launch", f"launch point {lat[i]:.6f},{lon[i]:.6f} is outside the DEM"
+                                     + swapped)
     return np.stack([x, y], axis=1)
 
 

@@ -150,7 +150,7 @@ def exposure_stages(scenario: Scenario, progress: Progress = None, timing=None, 
             crop = s.area if s.area is None or not features else crop_around(s.area, features)
             terrain = (sample_terrain(resolution=s.resolution_m, area=crop) if s.sample else
                        load_dem(s.dem, area=crop, resolution=s.resolution_m,
-                                geoid_offset=s.geoid_offset_m))
+                                geoid_offset=s.geoid_offset_m, z_unit=s.z_unit))
             if crop != s.area and not (area_mask(terrain, [box_ring(s.area)])
                                        & terrain.valid).any():
                 raise InputError("--area", f"{','.join(f'{v:g}' for v in s.area)} does not "

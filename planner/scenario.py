@@ -13,6 +13,7 @@ from typing import Optional
 
 from autopilots import DEFAULT, NAMES, PROFILES
 from common.errors import InputError
+from common.units import Z_UNITS
 from planner.coverage.methods import METHODS
 from planner.rates import VERTICAL_RATES
 
@@ -46,6 +47,7 @@ class Scenario:
     area_flight: bool = False  # and flight too: nothing flown outside the polygon
     resolution_m: Optional[float] = None  # default: the DEM's own spacing
     geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
+    z_unit: Optional[str] = None  # the DEM's height unit (m, ft, us-ft); None: as its files say
     # [outposts]
     outposts: Optional[str] = None  # GeoJSON file
     no_outposts: bool = False  # an explicit choice: plan with no observer posts at all
@@ -94,67 +96,81 @@ class Scenario:
             if getattr(self, name) is None and rates is not None:
                 setattr(self, name, getattr(rates, name))
 
-    def validate(self, source="scenario") -> "Scenario":
-        """Raise InputError for values no planner stage could use."""
-        checks = [
-            (self.sample or self.dem, "no DEM given (use --dem FILE or --sample)"),
-            (not (self.sample and self.dem), "give either --dem or --sample, not both"),
-            (not (self.outposts and self.no_outposts),
-             "give either --outposts or --no-outposts, not both"),
-            (self.outposts or self.sample or self.no_outposts,
-             "no outposts given: name the observer posts with --outposts FILE.geojson, or "
-             "say there are none with --no-outposts"),
-            (self.uavs >= 1, f"uavs must be at least 1, got {self.uavs}"),
-            (0 <= self.k < self.uavs,
-             f"k must satisfy 0 <= k < uavs (k = {self.k}, uavs = {self.uavs}): "
-             "each target must be seen by k+1 distinct UAVs"),
-            (self.method in METHODS, f"method must be one of {', '.join(METHODS)}"),
-            (self.visibility in ("hard", "soft"), "visibility must be hard or soft"),
-            (self.firmware in FIRMWARES, f"firmware must be one of {', '.join(FIRMWARES)}"),
-            (0.0 <= self.alpha <= 1.0, f"alpha must be in [0, 1], got {self.alpha}"),
-            (0.0 <= self.beta <= 1.0, f"beta must be in [0, 1], got {self.beta}"),
-            (self.time_budget_s is None or _positive(self.time_budget_s),
-             f"time_budget_s must be a positive number, got {self.time_budget_s}"),
-            (self.parts is None or (isinstance(self.parts, int) and self.parts >= 1),
-             f"parts must be a whole number of at least 1, got {self.parts}"),
-            (self.parts is None or self.parts * (self.k + 1) <= self.uavs,
-             f"{self.parts} parts need {self.k + 1} UAVs each (k + 1), "
-             f"{(self.k + 1) * (self.parts or 1)} in all; uavs = {self.uavs}"),
-            (self.area_file or not self.area_flight,
-             "area_flight restricts flight to the area_file polygon: give area_file too"),
-            (len(self.launch) in (0, 1, self.uavs),
-             f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
-             f"got {len(self.launch)}"),
-        ]
-        positive = ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2") + VERTICAL_RATES
-        checks += [(_positive(getattr(self, n)), f"{n} must be a positive number")
-                   for n in positive]
-        checks += [(getattr(self, n) >= 0, f"{n} must not be negative")
-                    for n in ("clearance_m", "hide_margin_m", "curvature_coeff",
-                              "track_tolerance_m", "separation_m")]
-        checks += [
-            (self.endurance_min is None or _positive(self.endurance_min),
-             "endurance_min must be a positive number of minutes (leave it out: unlimited)"),
-            (0 <= self.reserve_pct < 90, f"reserve_pct must be from 0 to 90, got "
-                                         f"{self.reserve_pct:g}"),
-            (self.turnaround_min >= 0, "turnaround_min must not be negative"),
-            (self.land_at in LAND_AT, f"land_at must be one of {', '.join(LAND_AT)}, got "
-                                      f"{self.land_at!r}"),
-            (self.resolution_m is None or _positive(self.resolution_m),
-             "resolution_m must be a positive number of metres (leave it out: the DEM's own)"),
-            (self.geoid_offset_m is None or (isinstance(self.geoid_offset_m, (int, float))
-                                             and math.isfinite(self.geoid_offset_m)),
-             "geoid_offset_m must be a finite number of metres"),
-            (self.endurance_min is None or self.launch, "endurance_min needs launch points "
-             "(--launch): a sortie starts and ends at a base"),
-        ]
-        checks.append((self.separation_m == 0 or self.separation_m >= MIN_SEPARATION_M,
-                       f"separation_m must be at least {MIN_SEPARATION_M:g} m (or 0: vehicles "
-                       f"not kept apart), got {self.separation_m:g}"))
-        for ok, problem in checks:
+    def validate(self, source="scenario", where=None) -> "Scenario":
+        """Raise InputError for values no planner stage could use, naming each field as
+        the user gave it: ``where(field)`` is (where its value came from, what the user
+        calls it), e.g. ("--endurance", "--endurance") for a flag or ("s.toml",
+        "[fleet] endurance_min") for a file's key (`make_scenario`); by default
+        (``source``, the field's name)."""
+        where = where or (lambda f: (source, f))
+        for key, ok, problem in self._checks(lambda f: where(f)[1]):
             if not ok:
-                raise InputError(source, problem)
+                src, name = where(key) if key else (source, None)
+                raise InputError(src, problem if name in (None, src) else f"{name} {problem}")
         return self
+
+    def _checks(self, n):
+        """(field or None, ok, what is wrong, after the field's name ``n(field)``), in
+        order: a check runs only when those before it passed (a value of the wrong
+        type in a file stops at its own check)."""
+        yield None, self.sample or self.dem, "no DEM given (use --dem FILE or --sample)"
+        yield None, not (self.sample and self.dem), "give either --dem or --sample, not both"
+        yield (None, not (self.outposts and self.no_outposts),
+               "give either --outposts or --no-outposts, not both")
+        yield (None, self.outposts or self.sample or self.no_outposts,
+               "no outposts given: name the observer posts with --outposts FILE.geojson, or "
+               "say there are none with --no-outposts")
+        yield ("uavs", _whole(self.uavs, 1),
+               f"must be a whole number of at least 1, got {self.uavs!r}")
+        yield ("k", _whole(self.k, 0) and self.k < self.uavs,
+               f"must be a whole number at least 0 and less than {n('uavs')} (k = {self.k!r}, "
+               f"uavs = {self.uavs}): each target must be seen by k+1 distinct UAVs")
+        for name, values in (("method", METHODS), ("visibility", ("hard", "soft")),
+                             ("firmware", FIRMWARES), ("land_at", LAND_AT),
+                             ("z_unit", (None, *Z_UNITS))):
+            value = getattr(self, name)
+            yield (name, isinstance(value, (str, type(None))) and value in values,
+                   f"must be one of {', '.join(v for v in values if v)}, got {_got(value)}")
+        for name in ("alpha", "beta"):
+            value = getattr(self, name)
+            yield (name, _number(value) and 0 <= value <= 1,
+                   f"must be in [0, 1], got {_got(value)}")
+        yield ("time_budget_s", self.time_budget_s is None or _positive(self.time_budget_s),
+               f"must be a positive number of seconds, got {_got(self.time_budget_s)}")
+        yield ("parts", self.parts is None or _whole(self.parts, 1),
+               f"must be a whole number of at least 1, got {self.parts!r}")
+        yield ("parts", self.parts is None or self.parts * (self.k + 1) <= self.uavs,
+               f"{self.parts} parts need {self.k + 1} UAVs each (k + 1), "
+               f"{(self.k + 1) * (self.parts or 1)} in all; uavs = {self.uavs}")
+        yield ("area_flight", self.area_file or not self.area_flight,
+               f"restricts flight to the {n('area_file')} polygon: give {n('area_file')} too")
+        yield ("launch", len(self.launch) in (0, 1, self.uavs),
+               f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
+               f"got {len(self.launch)}")
+        for name in ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2",
+                     *VERTICAL_RATES):
+            value = getattr(self, name)
+            yield name, _positive(value), f"must be a positive number, got {_got(value)}"
+        for name in ("clearance_m", "hide_margin_m", "curvature_coeff", "track_tolerance_m",
+                     "separation_m", "turnaround_min"):
+            value = getattr(self, name)
+            yield (name, _number(value) and value >= 0,
+                   f"must not be negative, got {_got(value)}")
+        yield ("endurance_min", self.endurance_min is None or _positive(self.endurance_min),
+               "must be a positive number of minutes (leave it out: unlimited), got "
+               f"{_got(self.endurance_min)}")
+        yield ("reserve_pct", _number(self.reserve_pct) and 0 <= self.reserve_pct < 90,
+               f"must be from 0 to 90, got {_got(self.reserve_pct)}")
+        yield ("resolution_m", self.resolution_m is None or _positive(self.resolution_m),
+               "must be a positive number of metres (leave it out: the DEM's own), got "
+               f"{_got(self.resolution_m)}")
+        yield ("geoid_offset_m", self.geoid_offset_m is None or _number(self.geoid_offset_m),
+               f"must be a finite number of metres, got {_got(self.geoid_offset_m)}")
+        yield ("endurance_min", self.endurance_min is None or self.launch,
+               f"needs launch points ({n('launch')}): a sortie starts and ends at a base")
+        yield ("separation_m", self.separation_m == 0 or self.separation_m >= MIN_SEPARATION_M,
+               f"must be at least {MIN_SEPARATION_M:g} m (or 0: vehicles not kept apart), "
+               f"got {_got(self.separation_m)}")
 
     # --- what each stage takes ---------------------------------------------------------
     def exposure_params(self):
@@ -228,14 +244,28 @@ def _firmware_rates(name):
     return None if found is None else found.rates
 
 
+def _number(x) -> bool:
+    """A finite number (not a bool, not a string from a file)."""
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
 def _positive(x) -> bool:
-    return isinstance(x, (int, float)) and math.isfinite(x) and x > 0
+    return _number(x) and x > 0
+
+
+def _got(x) -> str:
+    """A value as a problem quotes it: numbers short (-5, not -5.0), others quoted."""
+    return f"{x:g}" if _number(x) else repr(x)
+
+
+def _whole(x, least) -> bool:
+    return isinstance(x, int) and not isinstance(x, bool) and x >= least
 
 
 # TOML section of each field; a key may also stand at the top level.
 SECTIONS = {
     "terrain": ("dem", "sample", "area", "area_file", "area_flight", "resolution_m",
-                "geoid_offset_m"),
+                "geoid_offset_m", "z_unit"),
     "outposts": ("outposts", "no_outposts"),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
@@ -280,10 +310,15 @@ def read_scenario(path) -> dict:
     for name in ("outposts", "area_file"):
         if values.get(name):
             values[name] = str(_resolve(path, values[name]))
-    if values.get("area") is not None:
-        values["area"] = tuple(float(v) for v in values["area"])
-    if values.get("launch"):
-        values["launch"] = [tuple(float(c) for c in p) for p in values["launch"]]
+    for name, shape, degrees in (
+            ("area", "[south, west, north, east]", lambda a: tuple(float(v) for v in a)),
+            ("launch", "[[lat, lon], ...]", lambda a: [tuple(float(c) for c in p) for p in a])):
+        if values.get(name) is not None:
+            try:
+                values[name] = degrees(values[name])
+            except (TypeError, ValueError):
+                raise InputError(path, f"{toml_key(name)} must be {shape} in degrees, got "
+                                       f"{values[name]!r}") from None
     return values
 
 
@@ -292,10 +327,27 @@ def _resolve(toml_path: Path, p) -> Path:
     return p if p.is_absolute() else toml_path.parent / p
 
 
-def make_scenario(file_values: dict, overrides: dict, source="scenario") -> Scenario:
-    """Defaults, then the file's values, then flags (None = not given)."""
-    merged = {**file_values, **{k: v for k, v in overrides.items() if v is not None}}
+def make_scenario(file_values: dict, overrides: dict, source="scenario", flags=None) -> Scenario:
+    """Defaults, then the file's values, then flags (None = not given). A value no
+    stage could use is named as the user gave it: by its flag (``flags``: {field:
+    flag}), or as ``source``'s ``[section] key``; a default by its flag."""
+    given = {k: v for k, v in overrides.items() if v is not None}
+    merged = {**file_values, **given}
+    flags = flags or {}
+
+    def where(field):
+        if field in file_values and field not in given:
+            return source, toml_key(field)
+        return (flags[field], flags[field]) if field in flags else (source, field)
+
     try:
-        return Scenario(**merged).validate(source)
+        return Scenario(**merged).validate(source, where)
     except TypeError as exc:
         raise InputError(source, f"bad scenario value: {exc}") from None
+
+
+def toml_key(field: str) -> str:
+    """``[section] key`` of a `Scenario` field in a scenario file."""
+    section = next((s for s, names in SECTIONS.items() if field in names), None)
+    key = "file" if field == "outposts" else field  # as examples/reference.toml writes it
+    return f"[{section}] {key}" if section else key

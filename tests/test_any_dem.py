@@ -24,7 +24,7 @@ pytestmark = pytest.mark.slow
 #: what the source of a refusal may be: a file the user gave or an option / stage
 #: named in the user's terms (README, "Errors")
 USER_SOURCES = re.compile(r"^gcs plan: error: (\S+\.(tif|hgt|geojson)|launch|exposure|options|"
-                          r"--area|--launch|--resolution|plan): ")
+                          r"--[a-z-]+|plan): ")
 INTERNAL = re.compile(r"Traceback|Error\b|path:|node|kernel|numba|index", re.IGNORECASE)
 
 
@@ -148,3 +148,98 @@ def test_plans_or_refuses_in_the_users_terms(tmp_path_factory, capsys, kind, see
         return
     assert main(["export", str(tmp / "out"), "-o", str(tmp / "again")]) == 0, \
         capsys.readouterr().err
+
+
+# --- heights in feet -----------------------------------------------------------------------------
+#: metres per foot, by definition (not the code's table)
+FOOT, US_FOOT = 0.3048, 1200 / 3937
+#: (what says the unit: CRS, band unit; metres per unit): EPSG 8050 is MSL height (ft),
+#: 6360 NAVD88 height (ftUS)
+FEET = {"band unit ft": ("EPSG:32633", "ft", FOOT),
+        "compound CRS ft": ("EPSG:32633+8050", None, FOOT),
+        "compound CRS ftUS": ("EPSG:32633+6360", None, US_FOOT)}
+#: the spot of the issue's DEM (UTM 33N), where the feet DEM's home was 1.6 km too high
+HOME = (46.133187, 14.392527)
+
+
+def _utm33(path, heights_m, crs="EPSG:32633", unit=None, per_unit=1.0):
+    from pyproj import Transformer
+    x, y = Transformer.from_crs("EPSG:4326", "EPSG:32633", always_xy=True).transform(
+        HOME[1], HOME[0])
+    n = heights_m.shape[0]
+    with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float64",
+                       crs=crs, transform=Affine(30, 0, round(x) - n * 15, 0, -30,
+                                                 round(y) + n * 15)) as ds:
+        ds.write(heights_m / per_unit, 1)
+        if unit:
+            ds.units = (unit,)
+    return path
+
+
+def _plan_home(capsys, dem, out, *extra):
+    """(exit status, stdout, stderr, the plan's home altitude, plan.json) of a one-UAV plan
+    from HOME."""
+    status = main(["plan", "--dem", str(dem), "--no-outposts", "--uavs", "1", "--launch",
+                   f"{HOME[0]},{HOME[1]}", "--sensor-range", "500", "--viewpoint-spacing",
+                   "250", "-o", str(out), *extra])
+    text = capsys.readouterr()
+    if status:
+        return status, text.out, text.err, None, None
+    home = json.loads((out / "vehicle-1.plan").read_text())["mission"]["plannedHomePosition"]
+    return status, text.out, text.err, home[2], json.loads((out / "plan.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def metric_home(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("metric")
+    heights = _terrain(5, 50, 50, 30.0)
+    heights += 745.0 - np.nanmean(heights)
+    status = main(["plan", "--dem", str(_utm33(tmp / "m.tif", heights)), "--no-outposts",
+                   "--uavs", "1", "--launch", f"{HOME[0]},{HOME[1]}", "--sensor-range", "500",
+                   "--viewpoint-spacing", "250", "-o", str(tmp / "out")])
+    assert status == 0
+    plan = json.loads((tmp / "out" / "vehicle-1.plan").read_text())
+    return heights, plan["mission"]["plannedHomePosition"][2]
+
+
+@pytest.mark.parametrize("kind", sorted(FEET))
+def test_a_plan_on_a_dem_in_feet_is_the_plan_on_metres_and_says_so(tmp_path, capsys,
+                                                                    metric_home, kind):
+    heights, home_m = metric_home
+    crs, unit, per_unit = FEET[kind]
+    dem = _utm33(tmp_path / "feet.tif", heights, crs, unit, per_unit)
+    status, out, err, home, plan = _plan_home(capsys, dem, tmp_path / "out")
+    assert status == 0, err
+    assert abs(home - home_m) < 1e-3  # was about 1.6 km higher, the feet taken as metres
+    words = "US survey feet" if per_unit == US_FOOT else "feet"
+    said = [line for line in err.splitlines() if "warning" in line]
+    assert len(said) == 1 and said[0].startswith(f"gcs plan: warning: {dem}: heights taken as "
+                                                 f"{words} (") \
+        and said[0].endswith(f") and converted to metres (x {per_unit:.10g})"), err
+    assert f"DEM heights of {dem} taken as {words}" in err  # the summary (on stderr too)
+    assert plan["metrics"]["z_units"][0]["unit"] == ("us-ft" if per_unit == US_FOOT else "ft")
+    assert plan["params"]["z_unit"] is None
+
+
+def test_z_unit_overrides_the_files_unit_and_the_plan_keeps_it(tmp_path, capsys, metric_home):
+    heights, home_m = metric_home
+    unlabelled = _utm33(tmp_path / "unlabelled.tif", heights, per_unit=FOOT)
+    status, out, err, home, plan = _plan_home(capsys, unlabelled, tmp_path / "out",
+                                              "--z-unit", "ft")
+    assert status == 0, err
+    assert abs(home - home_m) < 1e-3
+    assert plan["params"]["z_unit"] == "ft"
+    assert "heights taken as feet (--z-unit ft) and converted to metres" in err
+
+
+@pytest.mark.parametrize("unit", ["furlong", "degC"])
+def test_a_dem_in_an_unknown_unit_is_refused_in_one_line(tmp_path, capsys, unit):
+    dem = _utm33(tmp_path / "odd.tif", np.full((20, 20), 300.0), unit=unit)
+    status, out, err, _, _ = _plan_home(capsys, dem, tmp_path / "out")
+    lines = err.strip().splitlines()  # the stages begun, then one error line
+    assert status == 2 and [line for line in lines if "error" in line] == lines[-1:]
+    assert lines[-1] == (
+        f"gcs plan: error: {dem}: heights in an unknown unit: band unit {unit!r} is not "
+        "metres, feet or US survey feet (give --z-unit m, ft or us-ft if they are one of "
+        "these)")
+    assert not (tmp_path / "out").exists()

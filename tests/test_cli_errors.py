@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rasterio
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 from rasterio.transform import from_origin
 
 from gcs.cli import main
@@ -98,7 +100,7 @@ def test_k_not_below_the_number_of_uavs(tmp_path, capsys):
 def test_negative_track_tolerance(tmp_path, capsys):
     out = tmp_path / "out"
     status, err = _run(capsys, "plan", "--sample", "--track-tolerance", "-1", "-o", str(out))
-    _assert_clean_failure(status, err, out, "track_tolerance_m must not be negative")
+    _assert_clean_failure(status, err, out, "--track-tolerance: must not be negative")
 
 
 def test_a_scheduler_address_nobody_answers_at(tmp_path, capsys):
@@ -211,11 +213,11 @@ def _gcs_in_a_fresh_process(*argv):
 
 @pytest.mark.parametrize("command", ["exposure", "plan"])
 @pytest.mark.parametrize("bad, message", [
-    (["--ceiling-agl", "-5"], "gcs {}: error: options: ceiling_agl_m must be a positive number"),
-    (["--clearance", "-1"], "gcs {}: error: options: clearance_m must not be negative"),
+    (["--ceiling-agl", "-5"], "gcs {}: error: --ceiling-agl: must be a positive number, got -5"),
+    (["--clearance", "-1"], "gcs {}: error: --clearance: must not be negative, got -1"),
     (["--area", "1,2,0,3"], "gcs {}: error: --area: '1,2,0,3': need south < north"),
-    (["--resolution", "-3"], "gcs {}: error: options: resolution_m must be a positive number"),
-    (["--geoid-offset", "nan"], "gcs {}: error: options: geoid_offset_m must be a finite"),
+    (["--resolution", "-3"], "gcs {}: error: --resolution: must be a positive number"),
+    (["--geoid-offset", "nan"], "gcs {}: error: --geoid-offset: must be a finite"),
 ], ids=["negative-ceiling", "negative-clearance", "empty-area", "negative-resolution",
         "nan-geoid-offset"])
 def test_a_bad_option_value_is_one_line_before_any_heavy_import(tmp_path, command, bad,
@@ -236,9 +238,8 @@ def test_an_unknown_option_or_a_non_number_is_refused_before_any_heavy_import(tm
                                                                               message):
     status, err, heavy = _gcs_in_a_fresh_process("exposure", "--sample", *bad,
                                                  "-o", str(tmp_path / "e.tif"))
-    assert status == 2 and err[-1].startswith("gcs exposure: error: ") and message in err[-1]
-    assert [line for line in err if "error" in line.lower()] == err[-1:]  # argparse's usage
-    assert err[0].startswith("usage: gcs exposure")                       # above, no traceback
+    assert status == 2 and len(err) == 1, err  # no usage block above it, no traceback
+    assert err[0].startswith("gcs exposure: error: ") and message in err[0]
     assert heavy == []
     assert not (tmp_path / "e.tif").exists()
 
@@ -252,3 +253,181 @@ def test_the_probe_sees_heavy_imports(tmp_path):
                                                  str(posts), "-o", str(tmp_path / "e.tif"))
     assert status == 2 and err[-1].startswith(f"gcs exposure: error: {posts}: no outposts")
     assert "planner.pipeline" in heavy and "numba" in heavy
+
+
+# --- in the operator's words (issue 61) ---------------------------------------------------------
+def _one_error_line(err, command="plan") -> str:
+    """The one error line of ``err`` (stage lines may come before it), checked to be
+    the only one and the last."""
+    lines = err.strip().splitlines()
+    assert [line for line in lines if "error" in line.lower()] == lines[-1:], err
+    assert lines[-1].startswith(f"gcs {command}: error: "), err
+    return lines[-1]
+
+
+#: values no planner stage can use, per Scenario field (independent of the code's checks)
+BAD_VALUES = {
+    "uavs": [0, -2], "k": [-1, 4], "alpha": [1.5, -0.1], "beta": [2.0],
+    "time_budget_s": [0, -1.0], "parts": [0], "ceiling_agl_m": [0, -5], "sensor_range_m": [0],
+    "speed_mps": [0, -3], "accel_mps2": [0], "climb_mps": [0], "descent_mps": [-1],
+    "takeoff_mps": [0], "land_mps": [0], "clearance_m": [-1], "hide_margin_m": [-0.5],
+    "curvature_coeff": [-1], "track_tolerance_m": [-1], "separation_m": [-1, 5],
+    "turnaround_min": [-1], "endurance_min": [0, -5], "reserve_pct": [95, -1],
+    "resolution_m": [0, -3], "method": ["foo"], "visibility": ["medium"],
+    "firmware": ["inav"], "land_at": ["there"], "z_unit": ["furlong"],
+}
+SECTION_OF = {"fleet": ("uavs", "speed_mps", "accel_mps2", "climb_mps", "descent_mps",
+                        "takeoff_mps", "land_mps", "track_tolerance_m", "separation_m",
+                        "turnaround_min", "endurance_min", "reserve_pct", "firmware", "land_at"),
+              "method": ("k", "alpha", "beta", "time_budget_s", "parts", "method", "visibility"),
+              "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
+              "sensor": ("sensor_range_m",), "terrain": ("resolution_m", "z_unit")}
+#: the flags as `gcs plan --help` prints them, by field
+FLAG_OF = {"uavs": "--uavs", "k": "--k", "alpha": "--alpha", "beta": "--beta",
+           "time_budget_s": "--time-budget", "parts": "--parts", "ceiling_agl_m": "--ceiling-agl",
+           "sensor_range_m": "--sensor-range", "speed_mps": "--speed", "accel_mps2": "--accel",
+           "climb_mps": "--climb", "descent_mps": "--descent", "takeoff_mps": "--takeoff",
+           "land_mps": "--land", "clearance_m": "--clearance", "hide_margin_m": "--hide-margin",
+           "curvature_coeff": "--curvature-coeff", "track_tolerance_m": "--track-tolerance",
+           "separation_m": "--separation", "turnaround_min": "--turnaround",
+           "endurance_min": "--endurance", "reserve_pct": "--reserve",
+           "resolution_m": "--resolution", "method": "--method", "visibility": "--visibility",
+           "firmware": "--firmware", "land_at": "--land-at", "z_unit": "--z-unit"}
+
+
+def test_the_flag_table_is_the_helps(capsys):
+    """FLAG_OF above is what `gcs plan --help` shows for each field's option."""
+    with pytest.raises(SystemExit):
+        main(["plan", "--help"])
+    shown = capsys.readouterr().out
+    for flag in FLAG_OF.values():
+        assert f"  {flag} " in shown, flag
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(pick=st.sampled_from([(f, v) for f, vs in BAD_VALUES.items() for v in vs]),
+       from_file=st.booleans(), file_too=st.booleans())
+def test_a_bad_value_is_named_as_the_user_gave_it(tmp_path_factory, capsys, pick, from_file,
+                                                  file_too):
+    """From the command line the message names the flag (a flag overrides the file's
+    value); from a scenario file, the file and its [section] key; never the internal
+    field name alone."""
+    field, value = pick
+    tmp = tmp_path_factory.mktemp("named")
+    section = next(s for s, names in SECTION_OF.items() if field in names)
+    toml = tmp / "s.toml"
+    lines = ["[terrain]", "sample = true"]
+    if from_file or file_too:  # the file holds the bad value, or a good one a flag overrides
+        good = {"method": '"rt"', "visibility": '"hard"', "firmware": '"px4"',
+                "land_at": '"own"', "z_unit": '"m"', "k": 0, "uavs": 4, "parts": 1}
+        shown = json.dumps(value) if from_file else good.get(field, 1)
+        lines += [f"[{section}]" if section != "terrain" else "", f"{field} = {shown}"]
+    toml.write_text("\n".join(lines) + "\n")
+    argv = ["plan", str(toml), "-o", str(tmp / "out")]
+    if not from_file:
+        argv += [FLAG_OF[field], str(value)]
+    try:
+        status = main(argv)
+    except SystemExit as exc:  # argparse's own refusal (a choice it does not offer)
+        status = exc.code
+    line = _one_error_line(capsys.readouterr().err)
+    assert status == 2 and not (tmp / "out").exists()
+    if from_file:
+        assert line.startswith(f"gcs plan: error: {toml}: [{section}] {field} "), line
+    elif field in ("method", "visibility", "firmware", "land_at", "z_unit"):
+        assert line.startswith(f"gcs plan: error: argument {FLAG_OF[field]}: invalid choice")
+    else:
+        assert line.startswith(f"gcs plan: error: {FLAG_OF[field]}: "), line
+        assert field not in line.replace(FLAG_OF[field], "") or field in ("k", "uavs"), line
+
+
+def test_a_value_of_the_wrong_type_in_a_file_is_named_too(tmp_path, capsys):
+    toml = tmp_path / "s.toml"
+    toml.write_text('[terrain]\nsample = true\n[fleet]\nuavs = "four"\n')
+    assert main(["plan", str(toml), "-o", str(tmp_path / "out")]) == 2
+    assert _one_error_line(capsys.readouterr().err) == \
+        f"gcs plan: error: {toml}: [fleet] uavs must be a whole number of at least 1, got 'four'"
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["plan", "--sample", "--uav", "3"],
+     "gcs plan: error: unrecognized arguments: --uav (did you mean --uavs?)"),
+    (["plan", "--sample", "--endurace", "20"],
+     "gcs plan: error: unrecognized arguments: --endurace (did you mean --endurance?)"),
+    (["bases", "--sample", "--ceilng-agl", "90"],
+     "gcs bases: error: unrecognized arguments: --ceilng-agl (did you mean --ceiling-agl?)"),
+    (["plan", "--sample", "--uavs", "four"], "gcs plan: error: argument --uavs: invalid int "
+                                             "value: 'four'"),
+    (["plan", "--sample", "--z-unit", "yards"], "gcs plan: error: argument --z-unit: invalid "
+                                                "choice: 'yards' (choose from 'm', 'ft', 'us-ft')"),
+    (["plan", "--sample"], "gcs plan: error: the following arguments are required: -o/--output"),
+    ([], "gcs: error: the following arguments are required: COMMAND (gcs --help lists them)"),
+], ids=["misspelt", "misspelt-with-value", "other-command", "not-a-number", "not-a-choice",
+        "missing", "no-command"])
+def test_a_command_line_mistake_is_one_line_not_a_usage_block(tmp_path, capsys, argv, line):
+    out = ["-o", str(tmp_path / "out")] if argv and argv[-1] != "--sample" else []
+    with pytest.raises(SystemExit) as exc:
+        main(argv + out)
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.splitlines() == [line]
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_launch_point_given_as_lon_lat_is_said_to_be_swapped(tmp_path, capsys):
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--sample", "--area", "36.49,-84.28,36.56,-84.18",
+                       "--uavs", "2", "--launch", "-84.2300,36.5200", "-o", str(out))
+    _assert_clean_failure(status, err, out)
+    assert _one_error_line(err) == (
+        "gcs plan: error: --launch: launch point -84.230000,36.520000 is outside the DEM; as "
+        "LON,LAT it would be inside: --launch takes LAT,LON")
+
+
+def test_a_launch_point_outside_the_dem_either_way_gets_no_swap_hint(tmp_path, capsys):
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--sample", "--area", "36.49,-84.28,36.56,-84.18",
+                       "--uavs", "2", "--launch", "36.0,-85.0", "-o", str(out))
+    _assert_clean_failure(status, err, out)
+    assert _one_error_line(err) == ("gcs plan: error: --launch: launch point 36.000000,"
+                                    "-85.000000 is outside the DEM")
+
+
+def test_an_impossible_launch_pair_names_the_order(tmp_path, capsys):
+    status, err = _run(capsys, "plan", "--sample", "--launch", "120.5,36.5", "-o",
+                       str(tmp_path / "out"))
+    assert status == 2 and err.strip().splitlines() == [
+        "gcs plan: error: --launch: '120.5,36.5' is not a latitude,longitude pair (as LON,LAT "
+        "it would be one): --launch takes LAT,LON"]
+
+
+@pytest.mark.parametrize("area", [None, "36.49,-84.28,36.56,-84.18"], ids=["whole", "area"])
+def test_an_outpost_given_as_lat_lon_is_said_to_be_swapped(tmp_path, capsys, area):
+    """Without --area the post falls outside the DEM; with one it would have been
+    left out as too far from the area (or the DEM read out to it)."""
+    posts = tmp_path / "posts.geojson"
+    posts.write_text(json.dumps({"type": "FeatureCollection", "features": [
+        {"type": "Feature", "properties": {"name": "Knob", "range_m": 5000},
+         "geometry": {"type": "Point", "coordinates": [36.5235, -84.2553]}}]}))
+    out = tmp_path / "out"
+    status, err = _run(capsys, "plan", "--sample", "--outposts", str(posts),
+                       *(["--area", area] if area else []), "-o", str(out))
+    _assert_clean_failure(status, err, out)
+    line = _one_error_line(err)
+    assert line.startswith(f"gcs plan: error: {posts}: feature 0 (Knob): lon 36.523500, lat "
+                           "-84.255300 is "), line
+    assert line.endswith("as lat,lon it would be inside" + (" it" if area else "")
+                         + ": GeoJSON coordinates are lon,lat"), line
+
+
+@pytest.mark.parametrize("lines, line", [
+    ('[fleet]\nlaunch = [["a", 1]]', "[fleet] launch must be [[lat, lon], ...] in degrees, got "
+                                     "[['a', 1]]"),
+    ('area = "north"', "[terrain] area must be [south, west, north, east] in degrees, got "
+                       "'north'"),
+])
+def test_coordinates_that_are_no_numbers_in_a_file_are_one_line(tmp_path, capsys, lines, line):
+    toml = tmp_path / "s.toml"
+    toml.write_text(f"[terrain]\nsample = true\n{lines}\n")
+    assert main(["plan", str(toml), "-o", str(tmp_path / "out")]) == 2
+    assert capsys.readouterr().err.strip().splitlines() == [f"gcs plan: error: {toml}: {line}"]

@@ -86,8 +86,8 @@ def _bad_cases(tmp_path):
         (["--dem", str(dem)], "--outposts"),
         (["--sample", "--dem", str(dem)], "not both"),
         ([], "no DEM given"),
-        (["--sample", "--clearance", "-1"], "clearance_m must not be negative"),
-        (["--sample", "--resolution", "0"], "resolution_m must be a positive number"),
+        (["--sample", "--clearance", "-1"], "--clearance: must not be negative"),
+        (["--sample", "--resolution", "0"], "--resolution: must be a positive number"),
         ([*ok, "--area", "north"], "--area"),
         ([*ok, "--area", "1,2,3,4"], "does not overlap"),
     ]

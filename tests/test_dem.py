@@ -251,6 +251,115 @@ def test_ellipsoidal_heights_need_and_use_the_geoid_offset(tmp_path):
             pytest.approx(470.0, abs=0.01)
 
 
+# --- vertical units ----------------------------------------------------------------------------
+#: metres per unit, from their definitions (not the code's table): the international
+#: foot (1959) and the US survey foot (1200/3937 m, EPSG:9003)
+FOOT, US_FOOT = 0.3048, 1200 / 3937
+#: how a file may say its heights are in feet: (horizontal + vertical CRS, band unit,
+#: metres per unit); the CRS codes are EPSG's MSL height (ft) 8050 and NAVD88
+#: height (ftUS) 6360. GDAL reports a vertical CRS's unit as the band unit too.
+FEET_FILES = {
+    "band unit ft": ("EPSG:32616", "ft", FOOT),
+    "band unit US survey foot": ("EPSG:32616", "US survey foot", US_FOOT),
+    "compound CRS ft": ("EPSG:32616+8050", None, FOOT),
+    "compound CRS ftUS": ("EPSG:32616+6360", None, US_FOOT),
+    "geographic + ftUS": ("EPSG:4326+6360", None, US_FOOT),
+}
+
+
+def unit_tif(path, crs, heights_m, unit=None, per_unit=1.0, scale=1.0, offset=0.0):
+    """``heights_m`` (metres, on a 30 m UTM 16N lattice or a 1" geographic one) written
+    in a unit of ``per_unit`` metres, as ``raw * scale + offset``."""
+    geographic = crs.startswith("EPSG:4326")
+    t = Affine(1 / 3600, 0, -84.4, 0, -1 / 3600, 36.6) if geographic else \
+        Affine(30, 0, 750000, 0, -30, 4050000)
+    path = write_tif(path, crs, t, (heights_m / per_unit - offset) / scale, dtype="float64")
+    if unit or (scale, offset) != (1.0, 0.0):
+        with rasterio.open(path, "r+") as ds:
+            ds.units = (unit,) if unit else ds.units
+            ds.scales, ds.offsets = (scale,), (offset,)
+    return path
+
+
+@settings(max_examples=25, deadline=None)
+@given(kind=st.sampled_from(sorted(FEET_FILES)), seed=st.integers(0, 2**16),
+       base=st.floats(-400, 8000), relief=st.floats(0, 1500))
+def test_a_dem_in_feet_gives_the_heights_of_the_same_dem_in_metres(tmp_path_factory, kind,
+                                                                   seed, base, relief):
+    tmp = tmp_path_factory.mktemp("feet")
+    heights = base + relief * np.random.default_rng(seed).random((40, 50))
+    crs, unit, per_unit = FEET_FILES[kind]
+    metric = load_dem([unit_tif(tmp / "m.tif", crs.split("+")[0], heights)], resolution=30)
+    feet = unit_tif(tmp / "ft.tif", crs, heights, unit, per_unit)
+    with pytest.warns(UserWarning) as said:
+        terrain = load_dem([feet], resolution=30)
+    np.testing.assert_allclose(terrain.height, metric.height, atol=1e-3, equal_nan=True)
+    np.testing.assert_allclose(terrain.upper, metric.upper, atol=1e-3, equal_nan=True)
+    words = "US survey feet" if per_unit == US_FOOT else "feet"
+    assert [str(w.message) for w in said] == [
+        f"{feet}: heights taken as {words} ({terrain.meta['z_units'][0]['said_by']}) and "
+        f"converted to metres (x {per_unit:.10g})"]
+    assert terrain.meta["z_units"][0]["metres_per_unit"] == per_unit
+
+
+def test_metres_said_or_unsaid_are_taken_silently(tmp_path):
+    heights = np.full((20, 20), 812.5)
+    files = [unit_tif(tmp_path / "plain.tif", "EPSG:32616", heights),
+             unit_tif(tmp_path / "m.tif", "EPSG:32616", heights, "m"),
+             unit_tif(tmp_path / "metre.tif", "EPSG:32616", heights, "metre"),
+             unit_tif(tmp_path / "egm96.tif", "EPSG:32616+5773", heights)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        for path in files:
+            assert np.nanmax(np.abs(load_dem([path]).height - 812.5)) < 1e-9, path
+
+
+def test_the_bands_scale_and_offset_are_applied_before_the_unit(tmp_path):
+    heights = 700 + 50 * np.random.default_rng(4).random((20, 20))
+    path = unit_tif(tmp_path / "dft.tif", "EPSG:32616", heights, "ft", FOOT, scale=0.1,
+                    offset=1000.0)
+    with pytest.warns(UserWarning, match="heights taken as feet"):
+        np.testing.assert_allclose(load_dem([path]).height, heights, atol=1e-6)
+
+
+def test_z_unit_overrides_what_the_file_says(tmp_path):
+    heights = np.full((20, 20), 640.0)
+    mislabelled = unit_tif(tmp_path / "mislabelled.tif", "EPSG:32616", heights, "ft")
+    with pytest.warns(UserWarning, match=r"mislabelled.tif: heights taken as metres \(--z-unit "
+                                         r"m\), although the file says otherwise \(band unit "
+                                         r"'ft'\)"):
+        assert np.nanmax(np.abs(load_dem([mislabelled], z_unit="m").height - 640)) < 1e-9
+    unsaid = unit_tif(tmp_path / "unsaid.tif", "EPSG:32616", heights, per_unit=US_FOOT)
+    with pytest.warns(UserWarning, match=r"unsaid.tif: heights taken as US survey feet "
+                                         r"\(--z-unit us-ft\) and converted"):
+        terrain = load_dem([unsaid], z_unit="us-ft")
+    assert np.nanmax(np.abs(terrain.height - 640)) < 1e-9
+    odd = unit_tif(tmp_path / "odd.tif", "EPSG:32616", heights, "furlong", FOOT)
+    with pytest.warns(UserWarning, match="although the file says otherwise"):
+        assert np.nanmax(np.abs(load_dem([odd], z_unit="ft").height - 640)) < 1e-9
+    hgt = write_hgt(tmp_path, "N36W085.hgt", 36, -85)  # SRTM: metres, unless overridden
+    area = (36.40, -84.60, 36.41, -84.59)
+    with pytest.warns(UserWarning, match="N36W085.hgt: heights taken as feet"):
+        np.testing.assert_allclose(load_dem([hgt], area=area, z_unit="ft").height,
+                                   load_dem([hgt], area=area).height * FOOT, rtol=1e-6)
+
+
+@pytest.mark.parametrize("crs, unit, problem", [
+    ("EPSG:32616", "furlong", "heights in an unknown unit: band unit 'furlong' is not metres, "
+                              "feet or US survey feet (give --z-unit m, ft or us-ft"),
+    ("EPSG:32616", "degC", "band unit 'degC' is not metres"),
+    ("EPSG:32616+8050", "m", "band unit 'm' but vertical CRS 'MSL height (ft)' in foot: which "
+                             "unit are the heights in? Give --z-unit"),
+    ("EPSG:32616+6358", None, "vertical axis (NAVD88 depth (ftUS)) is a depth"),
+])
+def test_an_unknown_or_contradicted_unit_is_refused(tmp_path, crs, unit, problem):
+    path = unit_tif(tmp_path / "z.tif", crs, np.full((10, 10), 300.0), unit)
+    with pytest.raises(InputError) as err:
+        load_dem([path])
+    assert str(err.value).startswith(f"{path}: ") and problem in str(err.value), str(err.value)
+    assert "\n" not in str(err.value)
+
+
 # --- bad input ---------------------------------------------------------------------------------
 
 

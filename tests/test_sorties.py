@@ -218,10 +218,10 @@ def test_upload_of_a_plan_folder_of_several_sorties_is_refused(sortied):
 
 
 @pytest.mark.parametrize("flags,message", [
-    (["--endurance", "0"], "endurance_min must be a positive number"),
-    (["--endurance", "nan"], "endurance_min must be a positive number"),
-    (["--reserve", "95"], "reserve_pct must be from 0 to 90"),
-    (["--turnaround", "-1"], "turnaround_min must not be negative"),
+    (["--endurance", "0"], "--endurance: must be a positive number of minutes"),
+    (["--endurance", "nan"], "--endurance: must be a positive number"),
+    (["--reserve", "95"], "--reserve: must be from 0 to 90"),
+    (["--turnaround", "-1"], "--turnaround: must not be negative"),
 ])
 def test_bad_battery_flags_are_one_line_errors(planned, tmp_path, capsys, flags, message):
     lat, lon, _ = planned.launch
@@ -234,7 +234,7 @@ def test_bad_battery_flags_are_one_line_errors(planned, tmp_path, capsys, flags,
 def test_an_endurance_needs_a_base(tmp_path, capsys):
     code = main(["plan", "--sample", "--endurance", "20", "-o", str(tmp_path / "p")])
     err = capsys.readouterr().err.strip().splitlines()
-    assert code == 2 and "endurance_min needs launch points" in err[-1]
+    assert code == 2 and "--endurance: needs launch points (--launch)" in err[-1]
 
 
 def test_summary_says_the_sorties(sortied):

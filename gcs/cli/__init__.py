@@ -37,7 +37,16 @@ class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-class _Parser(argparse.ArgumentParser):
+class _OneLineErrors(argparse.ArgumentParser):
+    """A command line error is one line, ``gcs plan: error: ...``, and exit status 2,
+    as every other bad input: not argparse's usage block above it (``--help``
+    shows that)."""
+
+    def error(self, message):
+        self.exit(2, f"{self.prog}: error: {message}\n")
+
+
+class _Parser(_OneLineErrors):
     """argparse without abbreviations (a flight tool does not guess which option was
     meant: ``--uav`` is not ``--uavs``), and an unknown option reported by its own
     command's parser, with the options it could have meant."""
@@ -45,6 +54,11 @@ class _Parser(argparse.ArgumentParser):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, allow_abbrev=False, **kwargs)
         self.commands = {}
+
+    def error(self, message):
+        if message.endswith("required: COMMAND"):  # a bare `gcs`
+            message += " (gcs --help lists them)"
+        super().error(message)
 
     def parse_args(self, args=None, namespace=None):
         parsed, extra = self.parse_known_args(args, namespace)
@@ -74,7 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"gcs {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
-                                parser_class=argparse.ArgumentParser)
+                                parser_class=_OneLineErrors)
     for name, module in _available_commands():
         cmd = sub.add_parser(name, help=module.HELP, description=module.HELP,
                              formatter_class=_HelpFormatter, allow_abbrev=False)

@@ -144,7 +144,7 @@ def bases_figure(ctx, bases):
     from matplotlib.lines import Line2D
 
     from common.colours import BASE_COLOUR
-    from gcs.plots import lonlat_km, draw_background, symbol_legend
+    from gcs.plots import draw_background, lonlat_km, symbol_legend
 
     terrain = ctx.terrain
     fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)

@@ -9,10 +9,13 @@ Only light modules are imported here: `gcs --help` builds every command's
 flags without loading the planner's kernels or pymavlink.
 """
 
+import argparse
+import functools
 from dataclasses import fields
 
 from autopilots import NAMES as FIRMWARES
 from common.errors import InputError
+from common.units import Z_UNITS
 from planner.coverage.methods import method
 from planner.rates import defaults_text
 from planner.scenario import LAND_AT, METHODS, Scenario, make_scenario, read_scenario
@@ -23,6 +26,9 @@ HELP = {
     "resolution_m": "working grid spacing in metres (default: the DEM's own spacing)",
     "geoid_offset_m": "ellipsoid minus geoid height in metres, required for a DEM whose "
                       "heights are ellipsoidal (AMSL = h - offset)",
+    "z_unit": "unit of the DEM's heights, for every --dem file, whatever the files say "
+              "(default: each file's band unit or its CRS's vertical axis; metres when "
+              "neither says; feet are converted to metres and said)",
     "ceiling_agl_m": "highest altitude flown, metres above ground",
     "clearance_m": "lowest altitude flown, metres above the terrain surface",
     "hide_margin_m": "metres flown below the exposure surface",
@@ -80,7 +86,10 @@ def _latlon(text: str) -> tuple:
     except ValueError:
         raise InputError("--launch", f"expected LAT,LON in degrees, got {text!r}") from None
     if not (-90 <= lat <= 90 and -180 <= lon <= 180):
-        raise InputError("--launch", f"{text!r} is not a latitude,longitude pair")
+        swapped = " (as LON,LAT it would be one)" if -90 <= lon <= 90 and -180 <= lat <= 180 \
+            else ""
+        raise InputError("--launch", f"{text!r} is not a latitude,longitude pair{swapped}: "
+                                     "--launch takes LAT,LON")
     return lat, lon
 
 
@@ -121,6 +130,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                               "it, --outposts is required, except with --sample)")
     for name in ("resolution_m", "geoid_offset_m"):
         _add(terrain, name, float)
+    terrain.add_argument("--z-unit", dest="z_unit", choices=tuple(Z_UNITS), help=_help("z_unit"))
     fields_of = {
         "hidden volume": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
@@ -175,14 +185,26 @@ def _help(name: str) -> str:
 
 
 def scenario_from_args(args) -> "Scenario":
-    """Merge defaults, the scenario file (if any) and the flags."""
+    """Merge defaults, the scenario file (if any) and the flags; a value no stage
+    could use is named by the flag the user typed, or the file and its key."""
     file_values = read_scenario(args.scenario) if getattr(args, "scenario", None) else {}
     overrides = {f.name: getattr(args, f.name, None) for f in fields(Scenario)}
     if args.area is not None:
         overrides["area"] = _area(args.area)
     if getattr(args, "launch", None) is not None:
         overrides["launch"] = [_latlon(p) for p in args.launch]
-    return make_scenario(file_values, overrides, source=getattr(args, "scenario", None) or "options")
+    return make_scenario(file_values, overrides, getattr(args, "scenario", None) or "options",
+                         flags={f: flag for f, flag in scenario_flags().items()
+                                if hasattr(args, f)})
+
+
+@functools.cache
+def scenario_flags() -> dict:
+    """{`Scenario` field: the flag that sets it}, as `add_scenario_arguments` defines
+    them (and the help shows them)."""
+    parser = argparse.ArgumentParser(add_help=False)
+    add_scenario_arguments(parser, with_scenario_file=False)
+    return {a.dest: max(a.option_strings, key=len) for a in parser._actions if a.option_strings}
 
 
 # -- MAVLink connections and the mission protocol ----------------------------------------

@@ -14,6 +14,7 @@ from rich.table import Table
 from rich.text import Text
 
 from autopilots import DEFAULT, PROFILES, firmware_of, profile
+from common.units import Z_UNIT_WORDS
 from gcs.progress import console
 from planner.rates import VERTICAL_RATES
 
@@ -127,6 +128,9 @@ def _area_lines(metrics, outposts: int) -> list:
     if not outposts:
         out.append("no observers: planned with no outposts, nothing is hidden from anyone "
                    "(the routes keep only the clearance and the ceiling)")
+    for z in metrics.get("z_units", []):
+        out.append(f"DEM heights of {z['file']} taken as {Z_UNIT_WORDS[z['unit']]} "
+                   f"({z['said_by']})" + (", converted to metres" if z["unit"] != "m" else ""))
     voids = metrics.get("filled_voids")
     if voids:
         at = ", ".join(f"{v['lat']:.5f},{v['lon']:.5f} ({v['cells']} cells)" for v in voids["at"])

@@ -39,6 +39,9 @@ class Outpost:
 SAMPLE_FILE = "sample_outposts.geojson"
 #: around an outpost outside the area of operations, the DEM is read this far too
 CROP_MARGIN_M = 500.0
+#: a post this far from the area whose swapped coordinates lie in it was given as
+#: lat, lon (near the area, on the diagonal lat = lon, a swap stays near it too)
+SWAPPED_FAR_M = 100_000.0
 #: what an outpost Feature's properties may hold
 KNOWN_PROPERTIES = frozenset({"name", "height_m", "range_m"})
 #: styling that map tools add (simplestyle-spec, as geojson.io and our routes.geojson write)
@@ -117,10 +120,16 @@ def place_outposts(features, terrain) -> list:
 def reaching(features, area) -> tuple:
     """([(post, distance m)] of the posts whose detection range reaches the area
     (south, west, north, east), the same of the others). A post outside the area
-    still sees into it: only one whose range ends short of it can be left out."""
+    still sees into it: only one whose range ends short of it can be left out.
+    InputError for a post far from the area whose coordinates swapped lie in it
+    (given lat, lon: it would be left out, or the DEM read out to it)."""
     kept, dropped = [], []
     for f in features:
         d = _distance_to_box(f.lon, f.lat, area)
+        if d > SWAPPED_FAR_M and -90 <= f.lon <= 90 and _distance_to_box(f.lat, f.lon, area) == 0:
+            raise InputError(f.source, f"{f.label}: lon {f.lon:.6f}, lat {f.lat:.6f} is "
+                                       f"{d / 1000:.0f} km from the area; as lat,lon it would "
+                                       "be inside it: GeoJSON coordinates are lon,lat")
         (kept if d <= f.range_m else dropped).append((f, d))
     return kept, dropped
 
@@ -222,7 +231,9 @@ def _placed(f: PostFeature, terrain) -> Outpost:
 
     x, y = terrain.from_lonlat(f.lon, f.lat)
     if not terrain.contains_xy(x, y):
-        fail(f"lon {f.lon:.6f}, lat {f.lat:.6f} is outside the DEM")
+        fail(f"lon {f.lon:.6f}, lat {f.lat:.6f} is outside the DEM" + (
+            "; as lat,lon it would be inside: GeoJSON coordinates are lon,lat"
+            if terrain.swapped_inside(f.lon, f.lat) else ""))
     ground = float(terrain.exact_ground(x, y)[0])
     if not (np.isfinite(terrain.ground(x, y)[0]) and np.isfinite(ground)):
         fail(f"lon {f.lon:.6f}, lat {f.lat:.6f} is on a void of the DEM (no ground height)")

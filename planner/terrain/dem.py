@@ -7,7 +7,9 @@ mosaicked, cropped, void-filled and reprojected to a `Terrain` in local UTM.
 The pipeline, the same for every input:
 
 1. Each file is read (only the window covering ``area`` plus a small margin),
-   nodata becomes NaN and ellipsoidal heights are shifted to AMSL.
+   nodata becomes NaN, the band's scale and offset are applied, heights in feet
+   become metres (the unit the band or the CRS's vertical axis gives, or
+   ``z_unit``) and ellipsoidal heights are shifted to AMSL.
 2. Files on the same source grid (adjacent SRTM tiles, tiles of one GeoTIFF
    set) are placed into one array, so voids and seams across tile edges are
    handled as if the tiles were one file.
@@ -38,6 +40,7 @@ from scipy import ndimage, sparse
 from scipy.sparse.linalg import spsolve
 
 from common.errors import InputError
+from common.units import Z_UNIT_WORDS, Z_UNITS, z_unit_of, z_unit_of_factor
 
 from . import dem_kernels
 from .grid import Terrain, bilinear
@@ -67,6 +70,7 @@ class _Grid:
     crs: RioCRS  # horizontal CRS
     source: str
     covered: np.ndarray = None
+    z_unit: dict = None  # the heights' unit, when said (`_to_metres`)
 
     def __post_init__(self):
         if self.covered is None:
@@ -76,7 +80,7 @@ class _Grid:
 # --- public API --------------------------------------------------------------------------
 
 
-def load_dem(paths, area=None, resolution=None, geoid_offset=None) -> Terrain:
+def load_dem(paths, area=None, resolution=None, geoid_offset=None, z_unit=None) -> Terrain:
     """Load DEM files and return them as one `Terrain` in the local UTM zone.
 
     ``paths``: GeoTIFFs (any CRS GDAL reads) and/or SRTM ``.hgt`` tiles.
@@ -86,6 +90,11 @@ def load_dem(paths, area=None, resolution=None, geoid_offset=None) -> Terrain:
     ``geoid_offset``: N = ellipsoid height - geoid height in metres; heights of
     a DEM that is not known to be AMSL are shifted to ``h - N``. Required for a
     DEM whose CRS says its heights are ellipsoidal.
+    ``z_unit``: the unit of every file's heights ("m", "ft" or "us-ft",
+    `common.units.Z_UNITS`), whatever the files say; by default each file's
+    band unit or its CRS's vertical axis says it (metres when neither does).
+    Heights in feet are converted to metres with a warning naming the file and
+    the unit; a unit that is no length of those is refused.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
@@ -94,7 +103,10 @@ def load_dem(paths, area=None, resolution=None, geoid_offset=None) -> Terrain:
         raise InputError("--dem", "no DEM file given")
     area = _check_area(area)
     names = ", ".join(str(p) for p in paths)
-    grids = [g for g in (_read_file(p, area, geoid_offset) for p in paths) if g is not None]
+    if z_unit is not None and z_unit not in Z_UNITS:
+        raise InputError("--z-unit", f"must be one of {', '.join(Z_UNITS)}, got {z_unit!r}")
+    grids = [g for g in (_read_file(p, area, geoid_offset, z_unit) for p in paths)
+             if g is not None]
     if not grids:
         raise InputError(names, f"area {_fmt_area(area)} does not overlap the DEM "
                                 "(or holds only nodata there)")
@@ -169,18 +181,19 @@ def fill_small_voids(height: np.ndarray, covered=None, max_cells=MAX_FILLED_VOID
 # --- reading files -------------------------------------------------------------------------
 
 
-def _read_file(path: Path, area, geoid_offset):
+def _read_file(path: Path, area, geoid_offset, z_unit=None):
     if not path.exists():
         raise InputError(path, "no such file")
     if path.is_dir():
         raise InputError(path, "is a folder, not a DEM file")
     if path.suffix.lower() == ".hgt":
         grid = _read_hgt(path, area)
-        vertical = "orthometric"  # SRTM heights are EGM96 geoid heights
+        vertical, said = "orthometric", []  # SRTM heights are EGM96 geoid metres
     else:
-        grid, vertical = _read_raster(path, area)
+        grid, vertical, said = _read_raster(path, area)
     if grid is None:
         return None
+    _to_metres(grid, path, said, z_unit)
     if vertical == "ellipsoidal" and geoid_offset is None:
         raise InputError(path, "heights are ellipsoidal (its CRS says so); give --geoid-offset N "
                                "(ellipsoid minus geoid height, m) to convert them to AMSL")
@@ -221,7 +234,9 @@ def _read_hgt(path: Path, area):
 
 
 def _read_raster(path: Path, area):
-    """Any raster GDAL reads; returns (grid or None, vertical datum kind)."""
+    """Any raster GDAL reads; returns (grid or None, vertical datum kind, what the
+    file says of its heights' unit: [(who says it, the unit's name, metres per unit
+    or None)]). The band's scale and offset are applied, as GDAL defines them."""
     try:
         with warnings.catch_warnings():  # a missing CRS is reported below, as an error
             warnings.simplefilter("ignore", NotGeoreferencedWarning)
@@ -234,23 +249,74 @@ def _read_raster(path: Path, area):
                                    "-a_srs EPSG:4326)")
         if ds.count < 1:
             raise InputError(path, "raster has no bands")
-        crs, vertical = _horizontal_crs(ds.crs)
+        crs, vertical, said = _horizontal_crs(ds.crs, path)
+        if ds.units and ds.units[0]:
+            said.insert(0, (f"band unit {ds.units[0]!r}", ds.units[0], None))
         if ds.transform.b or ds.transform.d:  # rotated grid: read it all, the warp crops
             window = Window(0, 0, ds.width, ds.height)
         else:
             window = _area_window(crs, ds.transform, ds.shape, area)
             if window is None:
-                return None, vertical
+                return None, vertical, said
         data = ds.read(1, window=window, masked=True, out_dtype="float64")
         height = np.ma.filled(data, np.nan)
+        scale, offset = ds.scales[0], ds.offsets[0]
+        if (scale, offset) != (1.0, 0.0):  # GDAL's value = raw * scale + offset
+            height = height * scale + offset
         height[~np.isfinite(height)] = np.nan
         transform = _window_transform(ds.transform, window)
-    return _check_not_empty(_Grid(height, transform, crs, str(path)), area), vertical
+    return _check_not_empty(_Grid(height, transform, crs, str(path)), area), vertical, said
 
 
-def _horizontal_crs(crs: RioCRS):
-    """(2-D CRS for warping, "ellipsoidal" | "orthometric" | "unknown" heights)."""
+def _to_metres(grid: _Grid, path, said, z_unit) -> None:
+    """Convert ``grid``'s heights to metres, in place: in ``z_unit`` if given, else in
+    the unit the file says (``said``: `_read_raster`'s), metres if it says none.
+    Warns naming the file and the unit whenever heights are not taken as metres or
+    ``z_unit`` overrides what the file says; InputError for a unit that is none of
+    `Z_UNITS` or for a band and a CRS that disagree."""
+    units = []
+    for who, name, factor in said:
+        unit = z_unit_of(name) if factor is None else z_unit_of_factor(factor)
+        if unit is None and z_unit is None:
+            raise InputError(path, f"heights in an unknown unit: {who} is not metres, feet or "
+                                   "US survey feet (give --z-unit m, ft or us-ft if they are "
+                                   "one of these)")
+        units.append((who, unit))
+    known = {u for _, u in units if u is not None}
+    if z_unit is None and len(known) > 1:
+        raise InputError(path, f"{' but '.join(who for who, _ in units)}: which unit are the "
+                               "heights in? Give --z-unit m, ft or us-ft")
+    unit = z_unit or (known.pop() if known else "m")
+    says = "; ".join(f"{who}" for who, u in units if u != unit)
+    if unit == "m" and not says:
+        return
+    by = "--z-unit " + z_unit if z_unit else units[-1][0]  # the CRS's, where both agree
+    text = f"heights taken as {Z_UNIT_WORDS[unit]} ({by})"
+    if unit != "m":
+        grid.height *= Z_UNITS[unit]
+        text += f" and converted to metres (x {Z_UNITS[unit]:.10g})"
+    if says:
+        text += f", although the file says otherwise ({says})"
+    grid.z_unit = {"file": str(path), "unit": unit, "metres_per_unit": Z_UNITS[unit],
+                   "said_by": by}
+    warnings.warn(f"{path}: {text}", stacklevel=4)
+
+
+def _horizontal_crs(crs: RioCRS, path=None):
+    """(2-D CRS for warping, "ellipsoidal" | "orthometric" | "unknown" heights, what
+    its vertical axis says of the heights' unit: [] or [(who, unit name, metres per
+    unit)]). InputError for a vertical axis pointing down (depths)."""
     full = CRS.from_wkt(crs.to_wkt())
+    said = []
+    for axis in full.axis_info:
+        if axis.direction in ("up", "down"):
+            vertical_crs = full.sub_crs_list[-1] if full.is_compound else full
+            if axis.direction == "down":
+                raise InputError(path, f"its CRS's vertical axis ({vertical_crs.name}) is "
+                                       "a depth, positive down: heights are needed")
+            said = [(f"vertical CRS {vertical_crs.name!r} in {axis.unit_name}",
+                     axis.unit_name, axis.unit_conversion_factor)]
+            break
     axes = [a.name.lower() for c in [full, *full.sub_crs_list] for a in c.axis_info]
     if "ellipsoidal height" in axes:
         vertical = "ellipsoidal"
@@ -259,8 +325,8 @@ def _horizontal_crs(crs: RioCRS):
     else:
         vertical = "unknown"
     if len(full.axis_info) > 2 or full.is_compound:
-        return RioCRS.from_wkt(full.to_2d().to_wkt()), vertical
-    return crs, vertical
+        return RioCRS.from_wkt(full.to_2d().to_wkt()), vertical, said
+    return crs, vertical, said
 
 
 def _check_not_empty(grid: _Grid, area):
@@ -315,7 +381,8 @@ def _to_terrain(grids, area, resolution, source: str) -> Terrain:
     meta = {"filled_voids": sum(f[0] for f in filled),
             "filled_cells": sum(f[1] for f in filled),
             "unfilled_voids": sum(f[2] for f in filled),
-            "sources": [g.source for g in grids]}
+            "sources": [g.source for g in grids],
+            "z_units": [g.z_unit for g in grids if g.z_unit]}
     terrain = _working_terrain(groups, area, resolution, source, meta)
     if meta["filled_voids"]:
         terrain = _mark_filled(terrain, groups, [f[3] for f in filled])

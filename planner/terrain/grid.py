@@ -106,6 +106,13 @@ class Terrain:
         n_rows, n_cols = self.shape
         return (row >= 0) & (row <= n_rows - 1) & (col >= 0) & (col <= n_cols - 1)
 
+    def swapped_inside(self, lon: float, lat: float) -> bool:
+        """Whether the point (lon, lat) would lie on the grid with its two coordinates
+        swapped: a LAT,LON given as LON,LAT, or the other way round."""
+        if not (-90 <= lon <= 90 and -180 <= lat <= 180):
+            return False
+        return bool(self.contains_xy(*self.from_lonlat(lat, lon)))
+
     def exact_ground(self, x, y) -> np.ndarray:
         """The source DEM's own surface at projected (x, y) (m AMSL; NaN outside)."""
         if self.source_surface is not None:
