@@ -228,8 +228,10 @@ class SeparationGuard:
         return not self.fleet.short(sysid), self.priority.get(sysid, 99), sysid
 
     def _fixed(self, sysid) -> bool:
-        """Held by the guard, or by a re-plan until its time: not the guard's to move."""
-        return sysid in self.held or self.fleet.waiting(sysid) is not None
+        """Held by the guard, by a re-plan until its time, or out of contact (no command
+        reaches it: it flies its plan): not the guard's to move."""
+        return sysid in self.held or self.fleet.waiting(sysid) is not None or \
+            self.monitor.planned_at(sysid) is not None
 
     def _held_long_enough(self, sysid) -> bool:
         """Held for `MIN_HOLD_LOOPS` of the guard's loops at least: a hold and its
@@ -242,7 +244,9 @@ class SeparationGuard:
         """Where ``sysid`` flies from now, after standing ``wait_s``: the rest of its
         route, its landing included (``land``: only its landing, from where it is)."""
         v = self.monitor.vehicles[sysid]
-        rest = [] if land else [w for i, w in enumerate(v.route.waypoints) if i not in v.done]
+        silent_at = self.monitor.planned_at(sysid)    # out of contact: where its plan is
+        rest = [] if land else [w for i, w in enumerate(v.route.waypoints) if i not in v.done
+                                and (silent_at is None or w.t_s > silent_at)]
         poly = frame.project([(w.lon, w.lat, w.alt_amsl) for w in rest])
         base = v.route.landing          # the base this flight lands at
         ground = None if base is None else \
@@ -473,6 +477,10 @@ class _Frame:
                 continue
             if self.local is None:
                 self.local = LocalFrame(s.lat, s.lon)
+            planned = monitor.planned_position(sysid)
+            if planned is not None:     # out of contact, as planned: it flies its plan
+                self._p[sysid] = self.project([planned])[0]
+                continue
             north, east, up = s.velocity
             p = self.project([(s.lon, s.lat, s.alt_amsl)])[0]
             self._p[sysid] = p + np.array([east, north, up]) * (mono - s.position_at) * rate

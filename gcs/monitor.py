@@ -18,6 +18,9 @@ Loss detection (`check_losses`, on the wall clock, by the flight loop and by a
 thread of its own while the flight computes or waits: `watch_losses`):
 a vehicle is lost when no HEARTBEAT has arrived for ``lost_after_s`` seconds,
 or when it disarms in the air. A link that comes back earlier is not a loss.
+A silence that starts where the plan predicts a radio shadow (`gcs.contact`) is
+an event, out of contact as planned; the vehicle is lost only when it is not heard
+by the shadow's end at its measured pace, with a margin (overdue).
 
 A vehicle in the air further from its route's proven legs than the plan's track
 tolerance (`gcs.corridor`) flies where nothing was proven: an event when it
@@ -37,7 +40,10 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+import numpy as np
+
 from common.geo import distance_m
+from gcs.contact import Contact, Expected
 from gcs.corridor import POSITION_MARGIN_M, ProvenPath
 from gcs.link import has_position
 from gcs.mavlink import M
@@ -55,6 +61,10 @@ LANDED_AGL_M = 3.0
 #: reports it, which a fleet's takeoffs are timed on (seconds after the command that
 #: sent it up, with arming and spool-up: `gcs.flight.departures`)
 LIFTOFF_M = 1.0
+#: a vehicle's clock rate (a sped-up simulator, slower on a busy machine) is measured
+#: over its latest reports kept in the track, when they span this many monitor seconds
+CLOCK_SPAN_S = 2.0
+CLOCK_REPORTS = 20
 #: keep one track sample per this many wall seconds (telemetry comes at a few Hz)
 TRACK_PERIOD_S = 0.2
 #: position reports above LANDED_AGL_M after a disarm that make it a fall
@@ -132,6 +142,10 @@ class VehicleProgress:
     proven: object = None  # gcs.corridor.ProvenPath of the route flown now
     off_route: list = field(default_factory=list)  # [[from t_s, to t_s or None, max m]]
     powered_down_at_s: float | None = None  # silent at its base for a battery swap since
+    contact: Contact | None = None  # its predicted radio shadows, on this monitor's clock
+    quiet: Expected | None = None  # the predicted silence it is in now, if heard silent
+    silences: list = field(default_factory=list)  # [{"from_s", "to_s", "due_s", ...}] flown
+    heard_after_loss_s: float | None = None  # its first HEARTBEAT after it was declared lost
 
     @property
     def snapshot_total(self) -> int:
@@ -234,6 +248,7 @@ class Monitor:
         the start: a vehicle on the ground given another plan)."""
         progress = VehicleProgress(link.sysid, vehicle_id, link.flavour, route, mission)
         progress.proven = ProvenPath(route)
+        progress.contact = Contact(route.silences, trajectory=route.trajectory)
         with self._lock:
             known = link.sysid in self.links
             self.vehicles[link.sysid] = progress
@@ -289,6 +304,9 @@ class Monitor:
             v.route, v.mission, v.proven = route, mission, ProvenPath(route, held)
             v.generation += 1
             v.reached, v.done = set(), set()
+            v.contact.restart(route.silences, route.trajectory)
+            if v.airborne:      # it flies on from its takeoff time on the re-plan's clock
+                v.contact.mark(self.now(), getattr(route, "takeoff_s", 0.0))
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
 
     def set_mission(self, sysid: int, mission) -> None:
@@ -338,9 +356,17 @@ class Monitor:
                 v = self.vehicles.get(sysid)
                 if v is not None and v.state != LOST:
                     handler(self, v, msg)
+                elif v is not None and kind == "HEARTBEAT" and v.heard_after_loss_s is None:
+                    v.heard_after_loss_s = round(self.now(), 3)
+                    self.event(sysid, "heard again after it was declared lost "
+                                      f"({v.lost_reason}): it is not re-tasked or guarded "
+                                      "by this flight; bring it home by hand",
+                               heard_after_loss=True)
 
     def _heartbeat(self, v, msg) -> None:
         v.last_heartbeat_s = self.now()
+        if v.quiet is not None:
+            self._back_in_contact(v)
         armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
         agl = self.links[v.sysid].state.relative_alt
         _note_airborne(v, armed, agl)
@@ -435,6 +461,8 @@ class Monitor:
         _note_airborne(v, armed, agl)
         if armed and agl > LIFTOFF_M and v.lifted_at_s is None:
             v.lifted_at_s = t
+            if not v.done:          # the route's takeoff: its first progress on the fleet clock
+                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0))
         if v.airborne and v.state not in (LANDED, LOST):
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:
@@ -451,6 +479,9 @@ class Monitor:
         boot = getattr(msg, "time_boot_ms", None)
         v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3,
                         None if boot is None else round(boot * 1e-3, 3)))
+        back = v.track[max(0, len(v.track) - CLOCK_REPORTS)]
+        if boot is not None and back[4] is not None and t - back[0] > CLOCK_SPAN_S:
+            v.contact.set_clock_rate((boot * 1e-3 - back[4]) / (t - back[0]))
 
     def _judge_route(self, v, lat, lon, alt, t) -> None:
         """Off its proven legs (beyond the track tolerance and the position's own
@@ -494,6 +525,7 @@ class Monitor:
         for index in reversed(passed):
             v.done.add(index)
             w = v.route.waypoints[index]
+            v.contact.mark(self.now(), w.t_s)
             if w.snapshot:
                 v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
                                             v.generation, index))
@@ -543,6 +575,14 @@ class Monitor:
                 age, stalled = self._silence(sysid)
                 swap = sysid in swapping
                 self._note_power(v, age - stalled, swap)
+                silent = age - stalled > self.lost_after_s
+                if silent and not swap and self._as_planned(v, age):
+                    continue
+                if v.quiet is not None:     # heard again: its HEARTBEAT handler says so
+                    if silent:
+                        self._lose_overdue(v)
+                        lost.append(sysid)
+                    continue
                 if age - stalled > (max(self.swap_silence_s, self.lost_after_s) if swap
                                     else self.lost_after_s):
                     v.lost_stalled_s = round(stalled, 3)
@@ -552,6 +592,41 @@ class Monitor:
                     lost.append(sysid)
             self._untaken.extend(lost)
         return lost
+
+    def _as_planned(self, v, age) -> bool:
+        """A silence inside a predicted radio shadow, not yet overdue: said once (out of
+        contact, as planned, and when it is due back), not a loss."""
+        if v.quiet is None:
+            s = self.links[v.sysid].state
+            lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)
+            v.quiet = v.contact.expected(self.now() - age, self.lost_after_s,
+                                         None if lat is None else (lat, lon))
+            if v.quiet is None:
+                return False
+            a, b = v.quiet.window
+            self.event(v.sysid, f"out of contact, as planned: a radio shadow of {b - a:.0f} s "
+                                f"predicted; due back by {v.quiet.due_s:.0f} s, overdue "
+                                f"after {v.quiet.overdue_s:.0f} s", out_of_contact=True,
+                       heard_s=round(v.quiet.heard_s, 3), due_s=round(v.quiet.due_s, 3))
+        return self.now() <= v.quiet.overdue_s + self.stalls.stalled(v.quiet.heard_s + self.t0)
+
+    def _back_in_contact(self, v) -> None:
+        q, v.quiet = v.quiet, None
+        now = self.now()
+        v.silences.append({"from_s": round(q.heard_s, 3), "to_s": round(now, 3),
+                           "due_s": round(q.due_s, 3), "window": list(q.window)})
+        self.event(v.sysid, f"back in contact after {now - q.heard_s:.0f} s out of contact, "
+                            f"{abs(now - q.due_s):.0f} s {'before' if now <= q.due_s else 'after'}"
+                            f" it was due (overdue after {q.overdue_s:.0f} s)")
+
+    def _lose_overdue(self, v) -> None:
+        q = v.quiet
+        v.silences.append({"from_s": round(q.heard_s, 3), "to_s": None,
+                           "due_s": round(q.due_s, 3), "window": list(q.window)})
+        self._lose(v, f"overdue: last heard at {q.heard_s:.0f} s entering a predicted radio "
+                      f"shadow, due back by {q.due_s:.0f} s, not heard by "
+                      f"{q.overdue_s:.0f} s", due_s=round(q.due_s, 3))
+        v._reported = True
 
     def _note_power(self, v, silent_s, swap) -> None:
         """Say when a vehicle down for its battery swap falls silent (powered down,
@@ -590,6 +665,25 @@ class Monitor:
             return age, 0.0
         return age, self.stalls.stalled(time.monotonic() - age)
 
+    def planned_at(self, sysid) -> float | None:
+        """Where on its plan's clock a vehicle out of contact as planned is now (its
+        planned trajectory stays its own until it is declared lost); None for one
+        heard."""
+        v = self.vehicles.get(sysid)
+        if v is None or v.quiet is None or v.state == LOST:
+            return None
+        return v.contact.fleet_time(self.now())
+
+    def planned_position(self, sysid) -> tuple | None:
+        """(lon, lat, alt AMSL) of a vehicle out of contact as planned, on its planned
+        trajectory (`planned_at`); None for one heard."""
+        at = self.planned_at(sysid)
+        rows = getattr(self.vehicles[sysid].route, "trajectory", None) if at is not None else None
+        if not rows:
+            return None
+        t = [r[0] for r in rows]
+        return tuple(float(np.interp(at, t, [r[k] for r in rows])) for k in (1, 2, 3))
+
     def take_losses(self) -> list:
         """Vehicles found lost since the last call, by any `check_losses` (a loss
         found while waiting on other vehicles is not forgotten): the flight
@@ -603,11 +697,11 @@ class Monitor:
         with self._lock:
             return bool(self._untaken)
 
-    def _lose(self, v, reason: str) -> None:
+    def _lose(self, v, reason: str, **extra) -> None:
         v.state = LOST
         v.lost_at_s = round(self.now(), 3)
         v.lost_reason = reason
-        self.event(v.sysid, LOST, reason=reason, last_heartbeat_s=v.last_heartbeat_s)
+        self.event(v.sysid, LOST, reason=reason, last_heartbeat_s=v.last_heartbeat_s, **extra)
 
     # -- views ------------------------------------------------------------------------
     def survivors(self) -> list:

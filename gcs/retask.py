@@ -64,6 +64,7 @@ class Retask:
     t_s: float
     lost: list  # system ids lost so far when it was made
     survivors: list = field(default_factory=list)  # system ids re-tasked
+    left_out: list = field(default_factory=list)  # out of contact as planned: flying their plan
     stranded: list = field(default_factory=list)  # held: no hidden leg joins them
     relaunched: list = field(default_factory=list)  # of them, landed ones sent up again
     attempts: int = 0
@@ -191,12 +192,14 @@ class Retasker:
 
     def flying(self) -> list:
         """Vehicles to re-task: not lost, not landed, not still waiting for their
-        takeoff, and not disarmed after flying (touched down at the end of a
-        mission: it stays down unless re-launched)."""
+        takeoff, not disarmed after flying (touched down at the end of a mission:
+        it stays down unless re-launched), and heard: one out of contact as its
+        plan predicts cannot be commanded, and flies its plan on (`Monitor.planned_at`)."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
                 if v.state not in (LOST, LANDED, STRANDED, WAITING)
-                and not (v.airborne and not m.links[s].state.armed)]
+                and not (v.airborne and not m.links[s].state.armed)
+                and m.planned_at(s) is None]
 
     def landed_at_launch(self) -> list:
         """Landed survivors sitting at their base (`_base`), still heard from: they
@@ -251,6 +254,10 @@ class Retasker:
             record.survivors, record.relaunched, self.later = [], [], {}
             m.take_losses()  # this attempt re-tasks for every loss so far
             sysids = self.flying()
+            record.left_out = [s for s in sorted(m.vehicles) if m.planned_at(s) is not None]
+            for s in record.left_out:
+                m.event(s, "out of contact as planned: not re-tasked, it flies its plan on "
+                           "(re-planned with the others once heard again)")
             landed = [] if home else self._relaunchable(sysids)
             if not sysids and not landed:
                 m.event(None, "re-plan skipped: no survivor in the air or able to go up")
@@ -423,6 +430,11 @@ class Retasker:
         gone = [s for s in sysids if self.monitor.vehicles[s].state == LOST]
         if gone or newly:
             raise _LostDuring(sorted(set(gone) | set(newly)))
+        # gone into a predicted radio shadow meanwhile: it flies its plan, the others
+        # are re-planned without it (it may have taken the command: said by the event)
+        quiet = [s for s in failed if self.monitor.planned_at(s) is not None]
+        if quiet:
+            raise _LostDuring(quiet, "out of contact")
         if failed:
             s, exc = next(iter(failed.items()))
             raise RetaskError(f"vehicle {s}: {exc}")
@@ -448,7 +460,8 @@ class Retasker:
 
 
 class _LostDuring(Exception):
-    """Survivors ``what`` ("lost" or "landed") while re-tasking: start again."""
+    """Survivors ``what`` ("lost", "landed" or "out of contact") while re-tasking:
+    start again."""
 
     def __init__(self, sysids, what="lost"):
         self.sysids, self.what = sysids, what

@@ -12,6 +12,8 @@ from typing import Optional
 
 import numpy as np
 
+from common.errors import InputError
+from planner.link import silences
 from planner.terrain.dem import VOID_FILL_MARGIN_M
 from planner.visibility.unseen import area_summary
 
@@ -30,6 +32,7 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
     ranks = list(dict.fromkeys(fleet.sorties[i].uav for i in fleet.schedule.order))
     vehicles = [_vehicle(ctx, r, fleet, starts[r] if starts else None, ranks)
                 for r in range(len(allocation.routes))]
+    link = _link(ctx, fleet, vehicles)
     lengths = [v.path_length_m for v in vehicles]
     sched = fleet.schedule
     closest = None if sched.closest is None else \
@@ -52,6 +55,8 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
         "sorties": len(fleet.sorties),
         "battery": _battery_metrics(ctx, problem, fleet, required),
     }
+    if link is not None:
+        metrics["link"] = link
     if ctx.terrain.meta.get("z_units"):
         metrics["z_units"] = ctx.terrain.meta["z_units"]
     if ctx.terrain.meta.get("filled_at"):
@@ -128,6 +133,40 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
                         priority=ranks.index(r) + 1,
                         sorties=sorties if len(sorties) > 1 else [],
                         land=land if land != launch else None)
+
+
+def _link(ctx, fleet, vehicles) -> Optional[dict]:
+    """Each vehicle's predicted silences (`VehicleRoute.silences`, set here) and the
+    metrics of the link: None without an antenna (no --antenna, no --launch)."""
+    antennas, radio = ctx.scenario.link()
+    if not antennas:
+        return None
+    per_vehicle = []
+    for r, v in enumerate(vehicles):
+        sorties = fleet.of(r)
+        if not sorties:
+            continue
+        timings = [fleet.schedule.timings[i] for i in sorties]
+        rows = np.concatenate([np.column_stack([t.trajectory.t, t.trajectory.xyz])
+                               for t in timings])
+        airborne = [(_leaves(fleet.profiles[i], t), float(t.trajectory.end))
+                    for i, t in zip(sorties, timings)]
+        try:
+            quiet = silences(ctx.terrain, antennas, radio, rows, airborne)
+        except ValueError as exc:
+            raise InputError("--antenna", str(exc)) from None
+        v.silences = [[round(a, 1), round(b, 1)] for a, b in quiet.windows]
+        per_vehicle.append({"vehicle": v.id, "share": round(quiet.share, 4),
+                            "silent_s": quiet.silent_s, "longest_s": quiet.longest_s,
+                            "airborne_s": quiet.airborne_s})
+    airborne = sum(x["airborne_s"] for x in per_vehicle)
+    return {"antennas": [[a.lat, a.lon, a.mast_m] for a in antennas],
+            "radio": {"mhz": radio.frequency_mhz, "range_m": radio.range_m,
+                      "fresnel": radio.fresnel, "near_m": radio.near_m},
+            "share": round(sum(x["silent_s"] for x in per_vehicle) / airborne, 4)
+            if airborne else 0.0,
+            "longest_s": max((x["longest_s"] for x in per_vehicle), default=0.0),
+            "vehicles": per_vehicle}
 
 
 def _geo(ctx, ground) -> Optional[GeoPoint]:

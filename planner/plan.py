@@ -66,6 +66,9 @@ class VehicleRoute:
     # "lands_at" (the base it lands at: the next sortie's "base"); empty: one flight
     sorties: list = field(default_factory=list)
     land: Optional[GeoPoint] = None  # where it lands, when not at ``launch`` (another base)
+    # predicted out of the ground station's radio contact: [[from s, to s]] on the fleet
+    # clock (planner.link); empty: in contact throughout, or no antenna to predict from
+    silences: list = field(default_factory=list)
 
     @property
     def landing(self) -> Optional[GeoPoint]:
@@ -134,6 +137,7 @@ class Plan:
                     priority=int(v.get("priority", v["id"])),
                     sorties=[_sortie(s) for s in v.get("sorties", [])],
                     land=GeoPoint(**v["land"]) if v.get("land") else None,
+                    silences=[list(map(float, w)) for w in v.get("silences", [])],
                 )
                 for v in data["vehicles"]
             ]

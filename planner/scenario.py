@@ -78,6 +78,11 @@ class Scenario:
     reserve_pct: float = RESERVE_PCT  # of the endurance, never planned
     turnaround_min: float = 5.0  # on the ground between sorties: landing, battery swap, checks
     land_at: str = "any"  # a sortie lands at: "any" of the fleet's bases (the nearest), or its "own"
+    # [link]: the ground station's radio (planner.link)
+    antennas: list = field(default_factory=list)  # [(lat, lon, mast m)]; []: at the first base
+    mast_m: float = 2.0  # the default antenna's mast above the ground at the first base
+    radio_mhz: float = 915.0  # SiK telemetry radios (RFD900, Holybro); 433 MHz in Europe
+    radio_range_m: float = 5000.0  # stock dipoles: a few km in the field
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
     k: int = 0
@@ -148,11 +153,11 @@ class Scenario:
                f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
                f"got {len(self.launch)}")
         for name in ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2",
-                     *VERTICAL_RATES):
+                     "radio_mhz", "radio_range_m", *VERTICAL_RATES):
             value = getattr(self, name)
             yield name, _positive(value), f"must be a positive number, got {_got(value)}"
         for name in ("clearance_m", "hide_margin_m", "curvature_coeff", "track_tolerance_m",
-                     "separation_m", "turnaround_min"):
+                     "separation_m", "turnaround_min", "mast_m"):
             value = getattr(self, name)
             yield (name, _number(value) and value >= 0,
                    f"must not be negative, got {_got(value)}")
@@ -173,6 +178,16 @@ class Scenario:
                f"got {_got(self.separation_m)}")
 
     # --- what each stage takes ---------------------------------------------------------
+    def link(self) -> tuple:
+        """(antennas, radio) of `planner.link`: the --antenna sites (a mast not given:
+        ``mast_m``), or one at the first launch point; ([], radio) without either."""
+        from planner.link import Antenna, Radio
+        sites = self.antennas or [(*p, None) for p in self.launch_points[:1]]
+        antennas = [Antenna(float(a[0]), float(a[1]),
+                            self.mast_m if len(a) < 3 or a[2] is None else float(a[2]))
+                    for a in sites]
+        return antennas, Radio(self.radio_mhz, self.radio_range_m)
+
     def exposure_params(self):
         from planner.exposure import ExposureParams
         return ExposureParams(ceiling_agl_m=self.ceiling_agl_m, clearance_m=self.clearance_m,
@@ -206,6 +221,7 @@ class Scenario:
         values = {k: v for k, v in params.items() if k in known and k not in _RENAMED}
         values["outposts"] = params.get("outposts_file")
         values["launch"] = [tuple(p) for p in params.get("launch", [])]
+        values["antennas"] = [tuple(p) for p in params.get("antennas", [])]
         if values.get("area") is not None:
             values["area"] = tuple(values["area"])
         try:
@@ -273,6 +289,7 @@ SECTIONS = {
               "land_mps", "track_tolerance_m",
               "separation_m", "accel_mps2", "firmware", "endurance_min", "reserve_pct",
               "turnaround_min", "land_at"),
+    "link": ("antennas", "mast_m", "radio_mhz", "radio_range_m"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
                "seed", "parts"),
 }
@@ -312,7 +329,8 @@ def read_scenario(path) -> dict:
             values[name] = str(_resolve(path, values[name]))
     for name, shape, degrees in (
             ("area", "[south, west, north, east]", lambda a: tuple(float(v) for v in a)),
-            ("launch", "[[lat, lon], ...]", lambda a: [tuple(float(c) for c in p) for p in a])):
+            ("launch", "[[lat, lon], ...]", lambda a: [tuple(float(c) for c in p) for p in a]),
+            ("antennas", "[[lat, lon, mast m], ...]", _antennas)):
         if values.get(name) is not None:
             try:
                 values[name] = degrees(values[name])
@@ -320,6 +338,17 @@ def read_scenario(path) -> dict:
                 raise InputError(path, f"{toml_key(name)} must be {shape} in degrees, got "
                                        f"{values[name]!r}") from None
     return values
+
+
+def _antennas(points) -> list:
+    """[[lat, lon], [lat, lon, mast m], ...] -> [(lat, lon, mast m or None)]."""
+    out = []
+    for p in points:
+        values = [float(c) for c in p]
+        if len(values) not in (2, 3):
+            raise ValueError(p)
+        out.append(tuple(values) if len(values) == 3 else (*values, None))
+    return out
 
 
 def _resolve(toml_path: Path, p) -> Path:

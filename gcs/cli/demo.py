@@ -67,12 +67,24 @@ def run(args) -> int:
     return 0 if survivors.get("fraction_k_covered", 0) >= 0.999 else 1
 
 
+def _in_shadow(victim, mission, item) -> str:
+    """What the operator will see of a loss at ``item``: inside a predicted radio
+    shadow it is found only once the vehicle is overdue."""
+    index = next((w for w in mission.waypoint_of_item[item:] if w is not None), None)
+    t = None if index is None else victim.waypoints[index].t_s
+    for a, b in victim.silences:
+        if t is not None and a <= t <= b:
+            return (f", inside its predicted radio shadow ({a:.0f}-{b:.0f} s of the plan): "
+                    "the loss is found when it is overdue, not at once")
+    return ""
+
+
 def _fly(ctx, plan, plan_dir, flight_dir, args):
     """Fly the plan on simulated vehicles, with the planning context in memory."""
     from gcs.cli.views import fly_plan, summary
     from gcs.flight import FlightError, FlyOptions
     from gcs.progress import console
-    from gcs.sim import FaultPlan, fleet_for_plan, terrain_ground
+    from gcs.sim import FaultPlan, fleet_for_plan, radio_for_plan, terrain_ground
     from missions.build import vehicle_mission
 
     faults = {}
@@ -81,14 +93,17 @@ def _fly(ctx, plan, plan_dir, flight_dir, args):
         if victim is None:
             raise InputError("--kill", f"the plan has no vehicle {args.kill}")
         # by mission item, not by time: the simulators' clocks start at boot
-        items = vehicle_mission(victim, args.firmware).items
+        mission = vehicle_mission(victim, args.firmware)
+        items = mission.items
         item = max(2, int(args.kill_at * len(items)))
         faults[args.kill] = FaultPlan(kill_at_item=item)
         console.print(f"vehicle {args.kill} will be shot down on reaching mission item "
-                      f"{item} of {len(items)}")
+                      f"{item} of {len(items)}" + _in_shadow(victim, mission, item))
+    # the radio: each link cut while the plan's antenna cannot see its vehicle
     fleet = fleet_for_plan(plan, firmware=args.firmware, speedup=args.speedup, faults=faults,
                            track_dir=flight_dir / "tracks", base_port=args.base_port,
-                           terrain=terrain_ground(ctx.terrain))
+                           terrain=terrain_ground(ctx.terrain),
+                           radio=radio_for_plan(plan, ctx.terrain))
     longest = max(v.mission_time_s for v in plan.vehicles)
     options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
     try:

@@ -91,6 +91,10 @@ def add_arguments(parser) -> None:
                      help="each battery swap powers a simulated vehicle down for S wall "
                           "seconds (its link silent, its TCP port closed), then it boots "
                           "again; 0 = a hot swap")
+    sim.add_argument("--sim-no-radio", action="store_true",
+                     help="the simulated links are never cut by the terrain (by default each "
+                          "is cut while its vehicle is out of the plan's antennas' radio "
+                          "line of sight, as the plan predicts)")
     sim.add_argument("--sim-capacity", type=int, metavar="N",
                      help="mission items each simulated vehicle holds (default: the "
                           "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
@@ -126,7 +130,7 @@ def options_from_args(args):
 def sim_fleet(plan, plan_dir, args, output: Path):
     """The built-in fleet for a dry run: one vehicle per plan route, homes at its
     launch, flying over the plan's own terrain."""
-    from gcs.sim import FaultPlan, fleet_for_plan, parse_kill, terrain_ground
+    from gcs.sim import FaultPlan, fleet_for_plan, parse_kill, radio_for_plan, terrain_ground
     from planner.plan import TERRAIN_FILE
     from planner.terrain import read_terrain
 
@@ -151,12 +155,13 @@ def sim_fleet(plan, plan_dir, args, output: Path):
     for text in args.drain:
         sysid, factor = _drain(text, n)
         faults[sysid] = replace(faults.get(sysid, FaultPlan()), drain=factor)
+    terrain = read_terrain(Path(plan_dir) / TERRAIN_FILE)
     try:
         return fleet_for_plan(plan, n, firmware=firmware_of(plan.params, args.firmware),
             speedup=args.speedup, base_port=args.sim_base_port,
             gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
-            swap_reboot_s=args.swap_reboot,
-            terrain=terrain_ground(read_terrain(Path(plan_dir) / TERRAIN_FILE)))
+            swap_reboot_s=args.swap_reboot, terrain=terrain_ground(terrain),
+            radio=None if args.sim_no_radio else radio_for_plan(plan, terrain))
     except ValueError as exc:
         raise InputError("--sim", str(exc)) from None
     except OSError as exc:

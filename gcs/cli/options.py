@@ -38,6 +38,11 @@ HELP = {
     "viewpoint_spacing_m": "lattice spacing of candidate viewpoints in metres "
                            "(default: from the sensor range)",
     "uavs": "number of UAVs",
+    "mast_m": "height of the ground station's antenna above the ground at the first base, "
+              "metres, when no --antenna is given",
+    "radio_mhz": "frequency of the telemetry radio, MHz: its Fresnel zone must clear the "
+                 "terrain",
+    "radio_range_m": "range of the telemetry radio, metres",
     "speed_mps": "horizontal cruise speed, m/s",
     "climb_mps": f"climb rate, m/s (default: the firmware's, {defaults_text('climb_mps')})",
     "descent_mps": f"descent rate, m/s (default: the firmware's, "
@@ -93,6 +98,24 @@ def _latlon(text: str) -> tuple:
     return lat, lon
 
 
+def parse_antenna(text: str) -> tuple:
+    """``LAT,LON[,MAST_M]`` -> (lat, lon, mast m or None)."""
+    parts = text.split(",")
+    if len(parts) not in (2, 3):
+        raise InputError("--antenna", f"expected LAT,LON or LAT,LON,MAST_M, got {text!r}")
+    try:
+        mast = float(parts[2]) if len(parts) == 3 else None
+    except ValueError:
+        raise InputError("--antenna", f"the mast of {text!r} is no number of metres") from None
+    if mast is not None and not 0 <= mast < 1000:
+        raise InputError("--antenna", f"the mast of {text!r} must be 0 to 1000 m")
+    try:
+        lat, lon = _latlon(",".join(parts[:2]))
+    except InputError as e:
+        raise InputError("--antenna", e.problem.replace("--launch", "--antenna")) from None
+    return lat, lon, mast
+
+
 def _area(text: str) -> tuple:
     try:
         s, w, n, e = (float(v) for v in text.split(","))
@@ -104,7 +127,8 @@ def _area(text: str) -> tuple:
 
 
 #: the flag groups of a scenario, by title
-SCENARIO_GROUPS = ("terrain and outposts", "hidden volume", "sensor", "fleet", "method")
+SCENARIO_GROUPS = ("terrain and outposts", "hidden volume", "sensor", "fleet", "radio link",
+                   "method")
 
 
 def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROUPS) -> None:
@@ -138,6 +162,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                   "track_tolerance_m",
                   "separation_m", "accel_mps2", "endurance_min", "reserve_pct",
                   "turnaround_min"),
+        "radio link": ("mast_m", "radio_mhz", "radio_range_m"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }
     for title, names in fields_of.items():
@@ -154,6 +179,13 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
             group.add_argument("--firmware", choices=FIRMWARES, help=_help("firmware"))
             group.add_argument("--land-at", dest="land_at", choices=LAND_AT,
                                help=_help("land_at"))
+        if title == "radio link":
+            group.add_argument("--antenna", dest="antennas", action="append",
+                               metavar="LAT,LON[,MAST_M]",
+                               help="the ground station's antenna, or a relay's, repeatable: "
+                                    "the plan predicts where each vehicle is out of their "
+                                    "line of sight (default: at the first --launch, --mast "
+                                    "above the ground)")
         if title == "method":
             group.add_argument("--method", choices=METHODS, help=_help("method"))
             group.add_argument("--visibility", choices=("hard", "soft"), help=_help("visibility"))
@@ -193,6 +225,8 @@ def scenario_from_args(args) -> "Scenario":
         overrides["area"] = _area(args.area)
     if getattr(args, "launch", None) is not None:
         overrides["launch"] = [_latlon(p) for p in args.launch]
+    if getattr(args, "antennas", None) is not None:
+        overrides["antennas"] = [parse_antenna(p) for p in args.antennas]
     return make_scenario(file_values, overrides, getattr(args, "scenario", None) or "options",
                          flags={f: flag for f, flag in scenario_flags().items()
                                 if hasattr(args, f)})

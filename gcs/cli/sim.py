@@ -85,6 +85,14 @@ def add_arguments(parser) -> None:
                          "working-grid GeoTIFF): vehicles stand on it at home, land on it "
                          "and crash into it; default: flat ground at each home altitude, as "
                          "in SITL")
+    radio = parser.add_argument_group("radio (with --terrain)")
+    radio.add_argument("--antenna", action="append", default=[], metavar="LAT,LON[,MAST_M]",
+                       help="the ground station's antenna, repeatable: each vehicle's link "
+                            "is cut while no antenna has it in radio line of sight on the "
+                            "--terrain (default: a plan directory's antennas; a GeoTIFF: "
+                            "none, no shadows)")
+    radio.add_argument("--no-radio", action="store_true",
+                       help="no radio shadows, even with a plan directory's antennas")
     io.add_argument("--pty", action="store_true",
                     help="serve each vehicle on a pseudo-terminal (a serial link: connect "
                          "with DEVICE,BAUD) instead of its SITL network endpoint")
@@ -131,7 +139,7 @@ def config_from_args(args):
         raise InputError("--speedup", "must be positive")
     if not 0 <= args.drop <= 100:
         raise InputError("--drop", "must be a percentage between 0 and 100")
-    terrain = _terrain(args.terrain)
+    terrain, radio = _terrain(args.terrain, args)
     homes = None
     if args.homes:
         homes = [_point(p, "--homes", terrain) for p in args.homes.split(";") if p.strip()]
@@ -177,24 +185,40 @@ def config_from_args(args):
         **({} if args.capacity is None else {"mission_capacity": args.capacity or None}),
         auto_disarm_s=args.auto_disarm, camera=not args.no_camera, battery_min=args.battery,
         auto_options=args.auto_options, drop_pct=args.drop, faults=faults,
-        track_dir=args.track_dir, seed=args.seed, terrain=terrain,
+        track_dir=args.track_dir, seed=args.seed, terrain=terrain, radio=radio,
         transport="pty" if args.pty else None)
 
 
-def _terrain(path):
+def _terrain(path, args) -> tuple:
+    """(ground, radio) of FleetConfig from --terrain and the radio flags."""
     if path is None:
-        return None
+        if args.antenna:
+            raise InputError("--antenna", "needs --terrain: the radio's shadows are the terrain's")
+        return None, None
     from pathlib import Path
 
-    from gcs.sim import terrain_ground
-    from planner.plan import TERRAIN_FILE
+    from gcs.cli.options import parse_antenna
+    from gcs.sim import radio_for_plan, terrain_ground
+    from planner.link import Antenna, Radio, contact_at
+    from planner.plan import PLAN_FILE, TERRAIN_FILE, Plan
     from planner.terrain import read_terrain
 
     path = Path(path)
     file = path / TERRAIN_FILE if path.is_dir() else path
     if not file.is_file():
         raise InputError(file, "no such file (give a plan directory or a working-grid GeoTIFF)")
-    return terrain_ground(read_terrain(file))
+    terrain = read_terrain(file)
+    radio = None
+    if args.antenna and not args.no_radio:
+        antennas = [Antenna(lat, lon, 2.0 if mast is None else mast)
+                    for lat, lon, mast in map(parse_antenna, args.antenna)]
+        try:
+            radio = contact_at(terrain, antennas, Radio())
+        except ValueError as exc:
+            raise InputError("--antenna", str(exc)) from None
+    elif path.is_dir() and (path / PLAN_FILE).is_file() and not args.no_radio:
+        radio = radio_for_plan(Plan.load(path), terrain)
+    return terrain_ground(terrain), radio
 
 
 def run(args) -> int:

@@ -50,8 +50,8 @@ def plan_summary(plan) -> Group:
     if impossible:
         targets += (f"; of them {impossible} have fewer places than k+1 (two UAVs at one "
                     "place share one fate): seen once from each of their places")
-    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)), Text(rates_line(plan)),
-             Text(battery_line(plan))] + [Text(t) for t in area_lines(plan)]
+    lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)), Text(link_line(plan)),
+             Text(rates_line(plan)), Text(battery_line(plan))] + [Text(t) for t in area_lines(plan)]
     return Group(*lines)
 
 
@@ -66,6 +66,24 @@ def fleet_line(plan) -> str:
         else f"closest approach {closest:.1f} m"
     return (f"takeoffs: {takeoffs}; waits {m.get('wait_s', 0):.0f} s in all; {proven} "
             f"(separation {sep:g} m)")
+
+
+def link_line(plan) -> str:
+    """How much of the flight each vehicle is out of the ground station's radio line of
+    sight (`planner.link`), which `gcs fly` then expects rather than calls a loss."""
+    link = plan.metrics.get("link")
+    if not link:
+        return ("radio link: not predicted (no --antenna and no --launch): every silence "
+                "in flight will read as a loss after --lost-after")
+    sites = "; ".join(f"{lat:.5f},{lon:.5f} mast {mast:g} m" for lat, lon, mast in
+                      link["antennas"])
+    quiet = [v for v in link["vehicles"] if v["silent_s"] > 0]
+    each = ", ".join(f"{v['vehicle']}: {100 * v['share']:.0f} % (longest "
+                     f"{v['longest_s']:.0f} s)" for v in quiet) or "none"
+    radio = link["radio"]
+    return (f"radio link ({sites}; {radio['mhz']:g} MHz, {radio['range_m'] / 1000:g} km): "
+            f"out of contact {100 * link['share']:.0f} % of the fleet's airborne time; "
+            f"by vehicle {each}")
 
 
 def rates_line(plan) -> str:

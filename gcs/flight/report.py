@@ -30,6 +30,7 @@ def report(flight) -> dict:
     vehicles = [_vehicle_report(flight, v) for _, v in sorted(m.vehicles.items())]
     losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
                "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason,
+               "due_s": next((s["due_s"] for s in v.silences if s["to_s"] is None), None),
                "stalled_s": v.lost_stalled_s}
               for _, v in sorted(m.vehicles.items()) if v.state == LOST]
     covered = coverage(flight.state)
@@ -114,6 +115,9 @@ def _vehicle_report(flight, v) -> dict:
         "snapshots": [asdict(s) for s in v.snapshots],
         "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],
         "off_route": [list(e) for e in v.off_route],
+        "out_of_contact": list(v.silences)
+        + ([{"from_s": round(v.quiet.heard_s, 3), "to_s": None, "due_s": round(v.quiet.due_s, 3),
+             "window": list(v.quiet.window)}] if v.quiet is not None else []),
         "pace": {str(j): p for j, p in flight.batteries.paces.get(v.sysid, {}).items()},
     }
 

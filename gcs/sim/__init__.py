@@ -16,6 +16,7 @@ _EXPORTS = {
     "DEFAULT_HOME": "physics", "Limits": "physics",
     "FleetConfig": "fleet", "SimFleet": "fleet", "fleet_for_plan": "fleet",
     "free_base_port": "fleet", "free_fleet_ports": "fleet", "terrain_ground": "fleet",
+    "radio_for_plan": "fleet",
     "vehicle_url": "fleet", "vehicle_port": "fleet",
     "Track": "track", "read_track": "track", "track_path": "track",
     "SimVehicle": "vehicle", "VehicleConfig": "vehicle",

@@ -55,6 +55,7 @@ class LinkFaults:
         self.drop_pct = drop_pct
         self._rng = random.Random(seed)
         self._cut_until = 0.0          # wall clock (time.monotonic)
+        self.shadowed = False          # out of the radio's line of sight (the vehicle says)
         self._lock = threading.Lock()
 
     def cut(self, now: float, seconds: float) -> None:
@@ -62,7 +63,7 @@ class LinkFaults:
             self._cut_until = max(self._cut_until, now + seconds)
 
     def is_cut(self, now: float) -> bool:
-        return now < self._cut_until
+        return self.shadowed or now < self._cut_until
 
     def passes(self, now: float) -> bool:
         """Whether one packet gets through, in either direction."""

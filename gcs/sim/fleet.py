@@ -61,6 +61,8 @@ class FleetConfig:
     signing_key: bytes | None = None
     terrain: object = None                      # (lat, lon) -> ground m AMSL; None: flat
                                                 # at each home's altitude, as SITL
+    radio: object = None                        # (lat, lon, alt) -> heard: the radio's
+                                                # shadows (planner.link.contact_at)
     transport: str | None = None                # "pty": each vehicle on a serial line
     serial_baud: int = 57600                    # what urls() asks a pty link for
     mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
@@ -89,6 +91,7 @@ class FleetConfig:
                 faults=replace(self.faults.get(sysid, FaultPlan())),
                 track_path=track_path(self.track_dir, sysid) if self.track_dir else None,
                 seed=self.seed, signing_key=self.signing_key, terrain=self.terrain,
+                radio=self.radio,
                 transport=self.transport, mission_capacity=self.mission_capacity,
                 battery_min=self.battery_min, swap_s=self.swap_s,
                 swap_reboot_s=self.swap_reboot_s))
@@ -214,6 +217,19 @@ def fleet_for_plan(plan, vehicles: int | None = None, **config) -> SimFleet:
     config.setdefault("limits", Limits(**{name: plan.params[name] for name in PLANNED_RATES
                                           if plan.params.get(name) is not None}))
     return SimFleet(FleetConfig(vehicles=n, homes=homes, **config)).start()
+
+
+def radio_for_plan(plan, terrain):
+    """FleetConfig.radio for a plan: its antennas and radio (plan.json metrics.link)
+    on ``terrain``; None when the plan predicts no link (no antenna)."""
+    from planner.link import Antenna, Radio, contact_at
+
+    link = (plan.metrics or {}).get("link")
+    if not link:
+        return None
+    r = link["radio"]
+    return contact_at(terrain, [Antenna(*a) for a in link["antennas"]],
+                      Radio(r["mhz"], r["range_m"], r["fresnel"], r.get("near_m", 100.0)))
 
 
 def terrain_ground(terrain):

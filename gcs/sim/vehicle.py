@@ -33,6 +33,7 @@ from planner.rates import waypoint_stop_s
 M = mavlink
 TICK_S = 0.02            # wall period of the vehicle loop
 PHYSICS_STEP_S = 0.05    # largest mission-time step of the point mass
+RADIO_PERIOD_S = 0.5     # mission s between two looks of the radio's line of sight
 STEP_BUDGET_S = TICK_S   # wall time one tick may spend stepping mission time
 #: wall seconds after a landing before a swap may power the autopilot down: a crew
 #: needs that long (at a speed-up, `swap_s` of mission time can be less than the
@@ -73,6 +74,8 @@ class VehicleConfig:
     seed: int = 0
     signing_key: bytes | None = None           # sign what we send, require signed input
     terrain: Callable | None = None            # (lat, lon) -> ground m AMSL; None: flat
+    radio: Callable | None = None              # (lat, lon, alt AMSL) -> the ground station
+    #                                            hears it (planner.link.contact_at); None: always
     transport: str | None = None               # "pty": a serial line; None: the flavour's
     mission_capacity: int | None | str = FIRMWARE_CAPACITY   # items held; None: no limit
     battery_min: float = 60.0                  # flight time from a full battery to empty
@@ -137,6 +140,7 @@ class SimVehicle:
         self._ready_announced = False
         self._idle_since = None
         self._cuts_done = set()
+        self._radio_next_t = 0.0       # mission time of the radio's next look
         self._periods = {}
         self._streams_requested = False
         self._warm = (math.inf, math.inf, math.inf)   # gps, origin, ready: wall s after boot
@@ -284,6 +288,7 @@ class SimVehicle:
             self._physics(dt)
             self._update_task()
             self._scheduled_faults(now)
+            self._radio_shadow()
             self._sample()
         if self.dead:
             return
@@ -388,6 +393,18 @@ class SimVehicle:
                 self._cuts_done.add(k)
                 self.link_faults.cut(now, seconds)
                 self.track.event(self.t, f"link cut for {seconds:g} s (wall)")
+
+    def _radio_shadow(self) -> None:
+        """Out of the ground station's radio line of sight, the link is cut both ways
+        (looked at every `RADIO_PERIOD_S` of mission time), and the track says when."""
+        if self.cfg.radio is None or self.t < self._radio_next_t:
+            return
+        self._radio_next_t = self.t + RADIO_PERIOD_S
+        shadowed = not self.cfg.radio(*self.position())
+        if shadowed != self.link_faults.shadowed:
+            self.link_faults.shadowed = shadowed
+            self.track.event(self.t, "out of radio contact" if shadowed
+                             else "back in radio contact")
 
     def _kill_at_item(self, seq: int) -> bool:
         if self.plan.kill_at_item is not None and seq == self.plan.kill_at_item:

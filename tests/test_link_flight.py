@@ -1,0 +1,137 @@
+"""Flights through radio shadows (issue 59): the simulator cuts each vehicle's link
+while the terrain hides it from the plan's antenna (`gcs.sim` radio,
+`planner.link.contact_at`), and the flight tells a silence the plan predicts from
+a loss. The plan is tests/conftest.py's: an antenna at its base, 2 m up, and
+every vehicle out of its line of sight for 3-7 minutes of flight (its
+predicted silences); the references are the simulator's own tracks."""
+
+import json
+import threading
+import time
+
+import pytest
+
+from gcs.contact import EARLY_LATE_S
+from gcs.flight import Flight, FlyOptions
+from gcs.sim import (
+    fleet_for_plan,
+    free_base_port,
+    radio_for_plan,
+    read_track,
+    terrain_ground,
+    track_path,
+)
+
+pytestmark = pytest.mark.timeout(240)
+
+SPEEDUP = 20.0
+LOST_AFTER_S = 2.0
+
+
+def _fleet(planned, tmp_path, radio=True):
+    return fleet_for_plan(planned.plan, speedup=SPEEDUP, base_port=free_base_port(10, 3),
+                          track_dir=tmp_path / "tracks", terrain=terrain_ground(planned.terrain),
+                          radio=radio_for_plan(planned.plan, planned.terrain) if radio else None)
+
+
+def _fly(planned, tmp_path, fleet, during=None) -> dict:
+    flight = Flight(planned.dir, fleet.urls(), FlyOptions(
+        output=tmp_path / "f", lost_after_s=LOST_AFTER_S, plot=False))
+    if during is not None:
+        threading.Thread(target=during, args=(flight,), daemon=True).start()
+    try:
+        return flight.run()
+    finally:
+        fleet.stop()
+
+
+def _shadows(tmp_path, sysid) -> list:
+    """[(from, to)] mission s the simulator had the vehicle out of radio contact."""
+    events = read_track(track_path(tmp_path / "tracks", sysid)).events
+    out, start = [], None
+    for e in events:
+        if e["event"] == "out of radio contact":
+            start = e["t"]
+        elif e["event"] == "back in radio contact" and start is not None:
+            out.append((start, e["t"]))
+            start = None
+    return out
+
+
+def test_the_plan_predicts_shadows_for_the_flight_tests(planned):
+    """Every vehicle of the flight tests' plan meets a shadow longer than a loss takes
+    to declare at their speed-up: the tests below test something."""
+    for v in planned.plan.vehicles:
+        assert max(b - a for a, b in v.silences) > 3 * LOST_AFTER_S * SPEEDUP, v.silences
+
+
+def test_a_flight_through_its_predicted_shadows_loses_nobody(planned, tmp_path):
+    report = _fly(planned, tmp_path, _fleet(planned, tmp_path))
+    events = [e["event"] for e in report["events"]]
+    assert report["losses"] == [] and not report["replans"], events
+    assert report["outcome"]["coverage_reached"]
+    quiet = 0
+    for v in report["vehicles"]:
+        flown = _shadows(tmp_path, v["sysid"])
+        assert flown, f"vehicle {v['sysid']}: the simulator never cut its link"
+        assert v["state"] == "landed"
+        # each silence longer than --lost-after was told as planned, and ended
+        long = [(a, b) for a, b in flown if (b - a) / SPEEDUP > 2 * LOST_AFTER_S]
+        assert len(v["out_of_contact"]) >= len(long) > 0
+        assert all(s["to_s"] is not None for s in v["out_of_contact"])
+        quiet += len(v["out_of_contact"])
+    assert sum("out of contact, as planned" in e for e in events) == quiet
+
+
+def test_a_vehicle_shot_down_in_a_shadow_is_lost_when_overdue(planned, tmp_path):
+    """Killed a few seconds into its longest shadow: declared lost once overdue (after
+    its due time, never later than its margin allows), the others re-tasked, nobody
+    else lost."""
+    fleet = _fleet(planned, tmp_path)
+    victim = max(planned.plan.vehicles, key=lambda v: max(b - a for a, b in v.silences)).id
+    killed = {}
+
+    def kill_in_the_shadow(flight):
+        sim = fleet.vehicle(victim)
+        while not sim.link_faults.shadowed:
+            time.sleep(0.05)
+        time.sleep(0.5)
+        killed["at"] = flight.monitor.now()
+        fleet.kill(victim)
+    report = _fly(planned, tmp_path, fleet, during=kill_in_the_shadow)
+    assert [x["sysid"] for x in report["losses"]] == [victim]
+    loss = report["losses"][0]
+    assert loss["reason"].startswith("overdue") and loss["due_s"] is not None
+    told = next(e for e in report["events"] if e.get("out_of_contact") and
+                e["sysid"] == victim)
+    overdue = next(e for e in report["events"] if e["sysid"] == victim and
+                   e["event"] == "lost")
+    assert loss["due_s"] <= loss["detected_s"] <= told["due_s"] + (
+        overdue["t_s"] - told["t_s"])                 # (the margin, as the event said)
+    assert report["replans"] and victim not in report["replans"][0]["survivors"]
+    assert all(v["state"] == "landed" for v in report["vehicles"] if v["sysid"] != victim)
+
+
+def test_a_vehicle_shot_down_in_contact_is_lost_after_lost_after(planned, tmp_path):
+    fleet = _fleet(planned, tmp_path)
+    victim = planned.plan.vehicles[0].id
+    killed = {}
+
+    def far_from_shadows(flight) -> bool:
+        v = flight.monitor.vehicles.get(victim)
+        at = None if v is None or not v.done else v.contact.fleet_time(flight.monitor.now())
+        return at is not None and all(at < a - 3 * EARLY_LATE_S or at > b + EARLY_LATE_S
+                                      for a, b in v.contact.windows)
+
+    def kill_in_contact(flight):
+        sim = fleet.vehicle(victim)
+        while sim.landed or sim.link_faults.shadowed or not far_from_shadows(flight):
+            time.sleep(0.02)
+        killed["at"] = flight.monitor.now()
+        fleet.kill(victim)
+    report = _fly(planned, tmp_path, fleet, during=kill_in_contact)
+    loss = next(x for x in report["losses"] if x["sysid"] == victim)
+    assert loss["reason"].startswith("no HEARTBEAT")
+    assert loss["detected_s"] - killed["at"] <= LOST_AFTER_S + 2.0 + loss["stalled_s"]
+    assert [x["sysid"] for x in report["losses"]] == [victim]
+    json.dumps(report)
