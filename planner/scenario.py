@@ -48,6 +48,7 @@ class Scenario:
     resolution_m: Optional[float] = None  # default: the DEM's own spacing
     geoid_offset_m: Optional[float] = None  # ellipsoid minus geoid height, for ellipsoidal DEMs
     z_unit: Optional[str] = None  # the DEM's height unit (m, ft, us-ft); None: as its files say
+    min_area_pct: Optional[float] = None  # refuse a plan that plans less of the area (%)
     # [outposts]
     outposts: Optional[str] = None  # GeoJSON file
     no_outposts: bool = False  # an explicit choice: plan with no observer posts at all
@@ -164,6 +165,9 @@ class Scenario:
         yield ("resolution_m", self.resolution_m is None or _positive(self.resolution_m),
                "must be a positive number of metres (leave it out: the DEM's own), got "
                f"{_got(self.resolution_m)}")
+        yield ("min_area_pct", self.min_area_pct is None or
+               (_number(self.min_area_pct) and 0 <= self.min_area_pct <= 100),
+               f"must be a percentage from 0 to 100, got {_got(self.min_area_pct)}")
         yield ("geoid_offset_m", self.geoid_offset_m is None or _number(self.geoid_offset_m),
                f"must be a finite number of metres, got {_got(self.geoid_offset_m)}")
         yield ("endurance_min", self.endurance_min is None or self.launch,
@@ -265,7 +269,7 @@ def _whole(x, least) -> bool:
 # TOML section of each field; a key may also stand at the top level.
 SECTIONS = {
     "terrain": ("dem", "sample", "area", "area_file", "area_flight", "resolution_m",
-                "geoid_offset_m", "z_unit"),
+                "geoid_offset_m", "z_unit", "min_area_pct"),
     "outposts": ("outposts", "no_outposts"),
     "exposure": ("ceiling_agl_m", "clearance_m", "hide_margin_m", "curvature_coeff"),
     "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),

@@ -227,3 +227,20 @@ def test_the_flight_summary_says_what_of_the_area_its_targets_are(planned, capsy
     assert f"plan: area of operations {a['area_km2']:.2f} km²" in text
     assert f"{a['planned']['km2']:.2f} km²" in text
     assert ("plan: no observers: planned with no outposts" in text) == (outposts == 0)
+
+
+def test_a_piped_flight_prints_a_progress_line_every_so_often(monkeypatch):
+    """With output not a terminal, the status table is one line every `PROGRESS_S`
+    wall seconds (the flight was silent for minutes between takeoff and landing)."""
+    from gcs.cli import views
+
+    now = [100.0]
+    monkeypatch.setattr(views.time, "monotonic", lambda: now[0])
+    lines = []
+    status = views.progress_lines(lines.append, every_s=15.0)
+    row = {"sysid": 2, "state": "flying", "item": "7/40", "snapshots": "3 (3/12)",
+           "battery": 81}
+    for t in (100.0, 105.0, 114.9, 115.0, 129.0, 130.0):
+        now[0] = t
+        status([row])
+    assert lines == ["progress: vehicle 2 flying, item 7/40, snapshots 3 (3/12), battery 81 %"] * 3

@@ -29,6 +29,9 @@ HELP = {
     "z_unit": "unit of the DEM's heights, for every --dem file, whatever the files say "
               "(default: each file's band unit or its CRS's vertical axis; metres when "
               "neither says; feet are converted to metres and said)",
+    "min_area_pct": "refuse the plan (exit 2, nothing written) when it plans less than "
+                    "this percentage of the area of operations (default: a warning below "
+                    "10 %%)",
     "ceiling_agl_m": "highest altitude flown, metres above ground",
     "clearance_m": "lowest altitude flown, metres above the terrain surface",
     "hide_margin_m": "metres flown below the exposure surface",
@@ -128,7 +131,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
     terrain.add_argument("--no-outposts", action="store_true", default=None,
                          help="plan with no observer posts at all (an explicit choice: without "
                               "it, --outposts is required, except with --sample)")
-    for name in ("resolution_m", "geoid_offset_m"):
+    for name in ("resolution_m", "geoid_offset_m", "min_area_pct"):
         _add(terrain, name, float)
     terrain.add_argument("--z-unit", dest="z_unit", choices=tuple(Z_UNITS), help=_help("z_unit"))
     fields_of = {
