@@ -268,24 +268,26 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
     draw_bases(ax, terrain, plan)
 
 
-def draw_area(ax, terrain, plan) -> None:
+def draw_area(ax, terrain, plan):
     """The plan's area of operations polygon (``--area-file``), dashed, when its file
-    is still there; labelled for the legend."""
+    is still there; labelled for the legend. Its legend handle (None: not drawn)."""
     from pathlib import Path
 
     name = plan.params.get("area_file")
     if not name or not Path(name).is_file():
-        return
+        return None
     from planner.terrain.area import read_area
 
     label = "area of operations (targets" + (" and flight" if plan.params.get("area_flight")
                                               else "") + " inside)"
+    handle = None
     for polygon in read_area(name):
         for ring in polygon:
             x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
-            ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
-                    label=label)
-            label = None
+            line, = ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4,
+                            zorder=4, label=label)
+            handle, label = handle or line, None
+    return handle
 
 
 def draw_bases(ax, terrain, plan) -> None:

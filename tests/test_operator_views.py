@@ -244,3 +244,19 @@ def test_a_piped_flight_prints_a_progress_line_every_so_often(monkeypatch):
         now[0] = t
         status([row])
     assert lines == ["progress: vehicle 2 flying, item 7/40, snapshots 3 (3/12), battery 81 %"] * 3
+
+
+def test_flight_figure_draws_the_area_polygon(planned, tmp_path):
+    """flight.png draws the plan's --area-file polygon, as overview.png does."""
+    from dataclasses import replace
+
+    ctx = planned.ctx
+    rows, cols = ctx.terrain.shape
+    corners = [ctx.terrain.to_lonlat(*ctx.terrain.xy(r, c))
+               for r, c in ((5, 5), (5, cols - 6), (rows - 6, cols - 6), (rows - 6, 5), (5, 5))]
+    area = tmp_path / "area.geojson"
+    area.write_text(json.dumps({"type": "Polygon", "coordinates": [
+        [[float(lon), float(lat)] for lon, lat in corners]]}))
+    plan = replace(planned.plan, params={**planned.plan.params, "area_file": str(area)})
+    fig = flight_figure(ctx.terrain, ctx.surface, plan, _report(planned))
+    assert "area of operations (targets inside)" in _legend(fig)
