@@ -53,6 +53,9 @@ HELP = {
                          "every point that close to a leg is proven hidden too",
     "separation_m": "least distance between two airborne vehicles, metres, proven on their "
                     "trajectories and kept by waits (0: vehicles are not kept apart)",
+    "separation_margin_m": "metres the plan keeps beyond --separation, so that the "
+                           "separation guard acts only when a flight goes wrong, not on "
+                           "its usual spread from the plan",
     "accel_mps2": "horizontal acceleration, m/s²: a vehicle slows at each waypoint, which "
                   "the schedule counts",
     "firmware": "the firmware flown: its missions, rates and stops at waypoints",
@@ -139,7 +142,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps",
                   "track_tolerance_m",
-                  "separation_m", "accel_mps2", "endurance_min", "reserve_pct",
+                  "separation_m", "separation_margin_m", "accel_mps2", "endurance_min",
+                  "reserve_pct",
                   "turnaround_min"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }

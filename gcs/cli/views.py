@@ -61,7 +61,9 @@ def plan_summary(plan) -> Group:
 
 
 def fleet_line(plan) -> str:
-    """When each vehicle takes off, what the fleet waits, and the proven separation."""
+    """When each vehicle takes off, what the fleet waits, and the proven separation
+    with the margin the plan kept beyond it (so that the guard acts only when a
+    flight goes wrong)."""
     m = plan.metrics
     takeoffs = ", ".join(f"{v.id} at {v.takeoff_s:.0f} s" for v in
                          sorted(plan.vehicles, key=lambda v: (v.takeoff_s, v.id)) if v.waypoints)
@@ -69,8 +71,10 @@ def fleet_line(plan) -> str:
     closest = m.get("min_separation_m")
     proven = "never two airborne at once" if closest is None or closest == float("inf") \
         else f"closest approach {closest:.1f} m"
+    margin = plan.params.get("separation_margin_m") or 0.0
+    kept = f", planned with {margin:g} m more" if sep and margin else ""
     return (f"takeoffs: {takeoffs}; waits {m.get('wait_s', 0):.0f} s in all; {proven} "
-            f"(separation {sep:g} m)")
+            f"(separation {sep:g} m{kept})")
 
 
 def rates_line(plan) -> str:
