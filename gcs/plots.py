@@ -367,7 +367,9 @@ def overview_figure(terrain, surface, plan, unseen=None):
     m = plan.metrics
     title = (f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "
              f"coverage time {m.get('coverage_time_s', float('nan')) / 60:.1f} min "
-             f"(lower bound {m.get('lower_bound_s', float('nan')) / 60:.1f} min)")
+             f"(lower bound {m.get('lower_bound_s', float('nan')) / 60:.1f} min"
+             + (f" over the {m['bound_targets_pct']:.0f} % of targets one battery reaches"
+                if m.get("bound_targets_pct", 100.0) < 100.0 else "") + ")")
     a = m.get("area")
     if a:
         title += (f"\narea {a['area_km2']:.1f} km²: {a['visible']['pct']:.0f} % seen from "
