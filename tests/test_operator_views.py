@@ -260,3 +260,46 @@ def test_flight_figure_draws_the_area_polygon(planned, tmp_path):
     plan = replace(planned.plan, params={**planned.plan.params, "area_file": str(area)})
     fig = flight_figure(ctx.terrain, ctx.surface, plan, _report(planned))
     assert "area of operations (targets inside)" in _legend(fig)
+
+
+def test_the_north_arrow_keeps_off_the_points_a_map_draws_on_top(planned):
+    """A base standing where the arrow goes (upper left): the arrow stands elsewhere,
+    clear of it (bases.png had base squares on the arrow); with nothing to avoid it
+    stays in the upper left."""
+    import matplotlib.pyplot as plt
+
+    from gcs.plots import NORTH_CLEAR, NORTH_PLACES, draw_background
+
+    ctx = planned.ctx
+
+    def north(avoid):
+        fig, ax = plt.subplots()
+        draw_background(ax, ctx.terrain, ctx.surface, avoid=avoid)
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        [n] = [t for t in ax.texts if t.get_text() == "N"]
+        plt.close(fig)
+        return np.array(n.get_position()), (x0, x1, y0, y1)
+
+    alone, (x0, x1, y0, y1) = north(())
+    fx, fy = NORTH_PLACES[0]
+    upper_left = (x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))
+    assert math.dist(alone, upper_left) < 0.15 * (x1 - x0)
+    moved, _ = north([upper_left])
+    assert math.dist(moved, upper_left) > NORTH_CLEAR * min(x1 - x0, y1 - y0)
+
+
+def test_no_graticule_labels_in_the_lower_left_corner(planned):
+    """The corner where a longitude label along the bottom and a latitude label up
+    the left side collided keeps none."""
+    from gcs.plots import GRATICULE_CORNER
+
+    ctx = planned.ctx
+    fig = overview_figure(ctx.terrain, ctx.surface, planned.plan)
+    ax = fig.axes[0]
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    labels = [t.get_position() for t in ax.texts if "°" in t.get_text()]
+    assert labels
+    assert not [(x, y) for x, y in labels if x < x0 + GRATICULE_CORNER * (x1 - x0)
+                and y < y0 + GRATICULE_CORNER * (y1 - y0)]
