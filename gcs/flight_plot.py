@@ -22,6 +22,7 @@ from matplotlib.patches import Patch  # noqa: E402
 from common.colours import vehicle_colour  # noqa: E402
 from gcs.guard import hold_spans  # noqa: E402
 from gcs.plots import (  # noqa: E402
+    draw_area,
     draw_background,
     draw_bases,
     lonlat_km,
@@ -96,6 +97,10 @@ class MissionClock:
 
 
 # -- the picture ----------------------------------------------------------------------------
+#: inches at the top of flight.png for its title and the timeline's legend
+TITLE_ROOM_IN = 1.6
+
+
 def flight_png(path, terrain, surface, plan, report: dict) -> None:
     """The map (recorded tracks solid, planned routes faint, re-planned routes
     dashed, snapshots taken, losses), the timeline and the altitude profiles."""
@@ -106,9 +111,12 @@ def flight_figure(terrain, surface, plan, report: dict):
     vehicles = report["vehicles"]
     clock = MissionClock(report)
     n = max(len(vehicles), 1)
-    fig = plt.figure(figsize=(17, max(9.5, 2.0 + 1.9 * (n + 1))), dpi=100)
+    height = max(9.5, 2.0 + 1.9 * (n + 1)) + TITLE_ROOM_IN
+    fig = plt.figure(figsize=(17, height), dpi=100)
+    # the title's two lines and the timeline's legend above its panel get room of
+    # their own at the top (the legend stood on the title)
     grid = fig.add_gridspec(n + 1, 2, width_ratios=[1.05, 1], height_ratios=[1.3] + [1] * n,
-                            wspace=0.12, hspace=0.45)
+                            wspace=0.12, hspace=0.45, top=1.0 - TITLE_ROOM_IN / height)
     ax = fig.add_subplot(grid[:, 0])
     im = draw_background(ax, terrain, surface)
     draw_flight_map(ax, terrain, surface, plan, report, clock)
@@ -121,7 +129,7 @@ def flight_figure(terrain, surface, plan, report: dict):
         pax = fig.add_subplot(grid[i + 1, 1], sharex=timeline if first is None else first)
         first = first or pax
         draw_altitude_profile(pax, terrain, surface, v, clock, last=i == len(vehicles) - 1)
-    fig.suptitle(_title(report, clock), fontsize=12)
+    fig.suptitle(_title(report, clock), fontsize=12, y=1.0 - 0.15 / height, va="top")
     return fig
 
 
@@ -146,6 +154,8 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
             ax.plot(x, y, "-", color="white", linewidth=3.2, alpha=0.8, zorder=6)
             ax.plot(x, y, linestyle=(0, (4, 2)), color=c, linewidth=1.8, zorder=7)
     draw_bases(ax, terrain, plan)
+    area = draw_area(ax, terrain, plan)
+    handles += [area] if area is not None else []
     handles += [Line2D([], [], color="grey", linewidth=0.9, alpha=0.5,
                        label="planned route (faint)"),
                 Line2D([], [], color="grey", linewidth=1.8, linestyle=(0, (4, 2)),
@@ -329,8 +339,15 @@ def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
     ax.grid(alpha=0.3)
     ax.set_ylabel("m AMSL", fontsize=8)
     if last:
+        # one legend for every panel, under the last: on a panel it covered its top,
+        # where a flight comes closest to the ceiling
         ax.set_xlabel(clock.label, fontsize=8)
-    ax.legend(loc="upper right", fontsize=7, ncol=3, framealpha=0.8)
+        handles, labels = ax.get_legend_handles_labels()
+        # the flown line in no one vehicle's colour: the legend is every panel's
+        handles = [Line2D([], [], color="grey", linewidth=1.6) if label == "flown altitude"
+                   else h for h, label in zip(handles, labels)]
+        ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.42),
+                  fontsize=7.5, ncol=3, framealpha=0.9)
 
 
 def _title(report, clock) -> str:

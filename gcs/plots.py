@@ -58,9 +58,10 @@ def lonlat_km(terrain, lon, lat):
     return _to_km(terrain, x, y)
 
 
-def draw_background(ax, terrain, surface, names=True):
+def draw_background(ax, terrain, surface, names=True, avoid=()):
     """Hillshade, the hidden ceiling height above ground, outposts (named) and their
-    ranges, a graticule, a scale bar and a north arrow. Returns the ceiling image."""
+    ranges, a graticule, a scale bar and a north arrow (clear of the points
+    ``avoid``, km: `draw_north_arrow`). Returns the ceiling image."""
     h = np.where(np.isfinite(terrain.height), terrain.height, np.nanmin(terrain.height))
     shade = LightSource(azdeg=315, altdeg=45).hillshade(h, vert_exag=2, dx=terrain.cell_size,
                                                         dy=terrain.cell_size)
@@ -97,7 +98,7 @@ def draw_background(ax, terrain, surface, names=True):
     ax.set_aspect("equal")
     draw_graticule(ax, terrain)
     draw_scale_bar(ax, extent)
-    draw_north_arrow(ax, terrain)
+    draw_north_arrow(ax, terrain, avoid)
     return im
 
 
@@ -135,6 +136,12 @@ def _fmt_deg(value: float, step: float, pos: str, neg: str) -> str:
     return f"{abs(value):.{decimals}f}°{pos if value >= 0 else neg}"
 
 
+#: the part of a map's width (and height) at its lower-left corner left without
+#: graticule labels: there a longitude label along the bottom and a latitude label
+#: up the left side overlapped
+GRATICULE_CORNER = 0.1
+
+
 def draw_graticule(ax, terrain) -> None:
     """Latitude and longitude lines (WGS 84), labelled where they leave the map."""
     x0, x1, y0, y1 = _extent_km(terrain)
@@ -145,12 +152,14 @@ def draw_graticule(ax, terrain) -> None:
     style = dict(color="black", linewidth=0.5, alpha=0.45, zorder=3, linestyle="--")
     label = dict(fontsize=7, color="black", zorder=9,
                  bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.75))
+    corner = GRATICULE_CORNER
     fine = np.linspace(lat.min() - step, lat.max() + step, 60)
     for value in np.arange(math.floor(lon.min() / step) * step, lon.max() + step, step):
         x, y = lonlat_km(terrain, np.full_like(fine, value), fine)
         ax.plot(x, y, **style)
         bottom = _crossing(x, y, y0, along_y=True)
-        if bottom is not None and x0 < bottom < x1:
+        # none in the corners, where a longitude and a latitude label would collide
+        if bottom is not None and x0 + corner * (x1 - x0) < bottom < x1:
             ax.text(bottom, y0, _fmt_deg(value, step, "E", "W"), ha="center", va="bottom",
                     **label)
     fine = np.linspace(lon.min() - step, lon.max() + step, 60)
@@ -158,7 +167,7 @@ def draw_graticule(ax, terrain) -> None:
         x, y = lonlat_km(terrain, fine, np.full_like(fine, value))
         ax.plot(x, y, **style)
         left = _crossing(y, x, x0, along_y=True)
-        if left is not None and y0 < left < y1:
+        if left is not None and y0 + corner * (y1 - y0) < left < y1:
             ax.text(x0, left, _fmt_deg(value, step, "N", "S"), ha="left", va="center",
                     rotation=90, **label)
     ax.set_xlim(x0, x1)
@@ -212,13 +221,32 @@ def north_angle(terrain) -> float:
     return math.atan2(-(nx - cx), ny - cy)
 
 
-def draw_north_arrow(ax, terrain) -> None:
-    """An arrow to true north in the upper left, with "N"."""
+#: where a north arrow may stand, as fractions of a map's width and height, in the
+#: order tried: the upper left, the upper right, the lower right
+NORTH_PLACES = ((0.07, 0.83), (0.93, 0.83), (0.93, 0.12))
+#: the part of a map's smaller side that a north arrow keeps from the points it avoids
+NORTH_CLEAR = 0.12
+
+
+def draw_north_arrow(ax, terrain, avoid=()) -> None:
+    """An arrow to true north, with "N": in the upper left unless one of the points
+    ``avoid`` ((x, y) km: what the map draws on top, bases) stands there, then at
+    the first place of `NORTH_PLACES` clear of them (bases sat on the arrow)."""
     x0, x1, y0, y1 = _extent_km(terrain)
-    size = 0.07 * min(x1 - x0, y1 - y0)
+    side = min(x1 - x0, y1 - y0)
+    size = 0.07 * side
     a = north_angle(terrain)
-    bx, by = x0 + 0.07 * (x1 - x0), y1 - 0.17 * (y1 - y0)
+    points = np.asarray(list(avoid), float).reshape(-1, 2)
     dx, dy = -size * math.sin(a), size * math.cos(a)
+    for fx, fy in NORTH_PLACES:
+        bx, by = x0 + fx * (x1 - x0), y0 + fy * (y1 - y0)
+        # the arrow from its foot to its "N"
+        along = np.linspace(0.0, 1.4, 8)[:, None] * np.array([dx, dy]) + np.array([bx, by])
+        if not len(points) or np.min(np.hypot(*(points[:, None, :] - along[None]).T)) \
+                > NORTH_CLEAR * side:
+            break
+    else:
+        bx, by = x0 + NORTH_PLACES[0][0] * (x1 - x0), y0 + NORTH_PLACES[0][1] * (y1 - y0)
     ax.annotate("", xy=(bx + dx, by + dy), xytext=(bx, by), zorder=10,
                 arrowprops=dict(arrowstyle="-|>", color="black", lw=2, mutation_scale=15))
     ax.text(bx + 1.25 * dx, by + 1.25 * dy, "N", ha="center", va="bottom", fontsize=11,
@@ -268,24 +296,26 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
     draw_bases(ax, terrain, plan)
 
 
-def draw_area(ax, terrain, plan) -> None:
+def draw_area(ax, terrain, plan):
     """The plan's area of operations polygon (``--area-file``), dashed, when its file
-    is still there; labelled for the legend."""
+    is still there; labelled for the legend. Its legend handle (None: not drawn)."""
     from pathlib import Path
 
     name = plan.params.get("area_file")
     if not name or not Path(name).is_file():
-        return
+        return None
     from planner.terrain.area import read_area
 
     label = "area of operations (targets" + (" and flight" if plan.params.get("area_flight")
                                               else "") + " inside)"
+    handle = None
     for polygon in read_area(name):
         for ring in polygon:
             x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
-            ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
-                    label=label)
-            label = None
+            line, = ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4,
+                            zorder=4, label=label)
+            handle, label = handle or line, None
+    return handle
 
 
 def draw_bases(ax, terrain, plan) -> None:
@@ -365,7 +395,9 @@ def overview_figure(terrain, surface, plan, unseen=None):
     m = plan.metrics
     title = (f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "
              f"coverage time {m.get('coverage_time_s', float('nan')) / 60:.1f} min "
-             f"(lower bound {m.get('lower_bound_s', float('nan')) / 60:.1f} min)")
+             f"(lower bound {m.get('lower_bound_s', float('nan')) / 60:.1f} min"
+             + (f" over the {m['bound_targets_pct']:.0f} % of targets one battery reaches"
+                if m.get("bound_targets_pct", 100.0) < 100.0 else "") + ")")
     a = m.get("area")
     if a:
         title += (f"\narea {a['area_km2']:.1f} km²: {a['visible']['pct']:.0f} % seen from "

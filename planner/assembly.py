@@ -15,7 +15,7 @@ import numpy as np
 from common.errors import InputError
 from planner.link import silences
 from planner.terrain.dem import VOID_FILL_MARGIN_M
-from planner.visibility.unseen import area_summary
+from planner.visibility.unseen import OUTSIDE, area_summary
 
 from .context import outposts_json
 from .coverage.model import achievable, beyond_battery
@@ -29,6 +29,7 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
     # target only a viewpoint beyond one battery sees still counts as not covered
     places = achievable(replace(problem, endurance_s=np.inf))
     required = np.minimum(problem.needs(), places)
+    short = _short_of_battery(ctx, problem, required)
     ranks = list(dict.fromkeys(fleet.sorties[i].uav for i in fleet.schedule.order))
     vehicles = [_vehicle(ctx, r, fleet, starts[r] if starts else None, ranks)
                 for r in range(len(allocation.routes))]
@@ -53,7 +54,7 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
         {"vehicles": [closest[0] + 1, closest[1] + 1], "t_s": closest[2]},
         "wait_s": sched.wait_s,
         "sorties": len(fleet.sorties),
-        "battery": _battery_metrics(ctx, problem, fleet, required),
+        "battery": _battery_metrics(ctx, problem, fleet, short),
     }
     if link is not None:
         metrics["link"] = link
@@ -64,8 +65,12 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
                                    "margin_m": VOID_FILL_MARGIN_M}
     if ctx.unseen is not None:
         metrics["area"] = area_summary(ctx.terrain.cell_size, ctx.unseen,
-                                       ctx.visibility.target_cells, counts, required)
+                                       ctx.visibility.target_cells, counts, required, short)
     metrics["radius_bound_s"], metrics["lower_bound_s"] = bounds
+    # under a battery the bounds ask of each target only what one battery reaches:
+    # they are bounds over that share of the targets, said beside them
+    metrics["bound_targets_pct"] = 100.0 if short is None or not len(short) else \
+        round(100.0 * (1.0 - np.count_nonzero(short) / len(short)), 2)
     metrics["ratio_to_lower_bound"] = (metrics["coverage_time_s"] / metrics["lower_bound_s"]
                                        if metrics["lower_bound_s"] > 0 else None)
     timing["total"] = float(sum(timing.values()))
@@ -74,22 +79,44 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
                 vehicles=vehicles, metrics=metrics, timing_s=timing)
 
 
-def _battery_metrics(ctx, problem, fleet, required) -> dict:
+def _short_of_battery(ctx, problem, required):
+    """bool per target: the sightings it needs only viewpoints beyond one battery
+    give (fewer places a base reaches and leaves on one battery than required);
+    None without a battery."""
+    if ctx.scenario.endurance_min is None:
+        return None
+    return achievable(replace(problem, endurance_s=ctx.scenario.usable_s)) < required
+
+
+def _battery_metrics(ctx, problem, fleet, short) -> dict:
     """What the battery allows and what the sorties take (plan.json ``battery``):
     the viewpoints no base reaches and leaves on one battery (``beyond_battery_at``:
-    [lat, lon] of each), and the targets that lose sightings for it."""
+    [lat, lon] of each), and the targets that lose sightings for it (``short``:
+    `_short_of_battery`)."""
     s = ctx.scenario
     longest = max((fleet.flight_s(i) for i in range(len(fleet.sorties))), default=0.0)
     if s.endurance_min is None:
         return {"endurance_min": None, "longest_flight_s": longest}
     problem = replace(problem, endurance_s=s.usable_s)
-    far = beyond_battery(problem)
+    far = _telling(ctx, problem, beyond_battery(problem))
     return {"endurance_min": s.endurance_min, "reserve_pct": s.reserve_pct,
             "usable_s": s.usable_s, "turnaround_min": s.turnaround_min,
             "longest_flight_s": longest, "beyond_battery": int(len(far)),
             "beyond_battery_at": [[round(float(b), 7), round(float(a), 7)] for a, b in
                                   zip(*_lonlat(ctx, ctx.viewpoints.xyz[far]))],
-            "targets_short": int(np.count_nonzero(achievable(problem) < required))}
+            "targets_short": int(np.count_nonzero(short))}
+
+
+def _telling(ctx, problem, far) -> np.ndarray:
+    """Of the viewpoints ``far`` (ids), those that tell the operator something: they
+    see a target, and they stand in the area of operations (a map full of far
+    points that see nothing, outside the area, said nothing)."""
+    indptr = np.asarray(problem.vis_indptr)
+    keep = indptr[far + 1] > indptr[far]
+    if ctx.unseen is not None:
+        r, c = ctx.viewpoints.indices[far].T
+        keep &= ctx.unseen[r, c] != OUTSIDE
+    return far[keep]
 
 
 def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:

@@ -289,3 +289,23 @@ def test_site_builds_strictly(tmp_path):
     assert p.returncode == 0, p.stdout + p.stderr
     assert (tmp_path / "site" / "index.html").is_file()
     assert (tmp_path / "site" / "api" / "pipeline" / "index.html").is_file()
+
+
+def test_planning_lists_every_scenario_key_in_its_section():
+    """docs/planning.md's scenario files paragraph names each key of `SECTIONS` in its
+    section, and examples/reference.toml has each (set or commented out)."""
+    from planner.scenario import SECTIONS
+
+    text = (ROOT / "docs/planning.md").read_text()
+    para = " ".join(text[text.index("Sections: `[terrain]`"):].split("\n\n")[0].split())
+    reference = (ROOT / "examples/reference.toml").read_text()
+    aliases = {("outposts", "outposts"): "file", ("method", "method"): "method",
+               ("outposts", "no_outposts"): None}
+    for section, keys in SECTIONS.items():
+        part = para[para.index(f"`[{section}]`") + 1:].split("`[")[0]   # to the next section
+        for key in keys:
+            name = aliases.get((section, key), key)
+            if name is None:
+                continue
+            assert f"`{name}`" in part, (section, name)
+            assert re.search(rf"^#? ?{name} =", reference, re.M), name

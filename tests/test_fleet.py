@@ -250,12 +250,12 @@ def test_a_vehicle_in_the_air_never_waits_for_anothers_later_sorties():
 
 
 # -- every method, on generated terrains ----------------------------------------------
-def _plan(method, k, seed, separation_m=30.0):
+def _plan(method, k, seed, separation_m=30.0, **more):
     terrain = synthetic_terrain(56, 56, cell=30.0, seed=seed, family="hills")
     post = central_outpost(terrain)
     s = Scenario(sample=True, uavs=3, k=k, sensor_range_m=500.0, ceiling_agl_m=150.0,
                  clearance_m=20.0, hide_margin_m=5.0, method=method,
-                 separation_m=separation_m, time_budget_s=0.2)
+                 separation_m=separation_m, time_budget_s=0.2, **more)
     # one base for the fleet: the flyable cell nearest a corner with room around it
     flyable = exposure_stages(s.validate(), terrain=terrain, outposts=[post]).flyable
     room = ndimage.binary_erosion(flyable, np.ones((5, 5), bool))
@@ -314,3 +314,28 @@ def test_the_separation_costs_waits_and_zero_keeps_none():
     assert apart.plan.metrics["coverage_time_s"] >= close.plan.metrics["coverage_time_s"]
     assert separation([Trajectory(np.array([0.0, 1.0]), np.zeros((2, 3)),
                                   np.ones(1, bool))])[1] is None
+
+
+def _flown_closest(ctx, plan) -> float:
+    """The closest two of plan.json's trajectories come, sampled every 0.05 s."""
+    trajs = []
+    for v in plan.vehicles:
+        rows = np.array(v.trajectory, float)
+        x, y = ctx.terrain.from_lonlat(rows[:, 1], rows[:, 2])
+        trajs.append(Trajectory(rows[:, 0], np.column_stack([x, y, rows[:, 3]]),
+                                np.ones(len(rows) - 1, bool)))
+    return min(sampled_closest(a, b, 0.05) for a, b in itertools.combinations(trajs, 2))
+
+
+def test_plans_keep_the_margin_beyond_the_separation():
+    """A plan is timed for the separation and its margin (params say both), so the
+    guard has nothing to do on a flight that keeps to its usual spread; margin 0
+    times it for the separation alone."""
+    ctx, kept = _plan("rt", 1, seed=12, separation_margin_m=20.0)
+    ctx0, bare = _plan("rt", 1, seed=12, separation_margin_m=0.0)
+    assert kept.plan.params["separation_m"] == 30.0
+    assert kept.plan.params["separation_margin_m"] == 20.0
+    assert _flown_closest(ctx, kept.plan) >= 50.0 - 0.05
+    assert kept.plan.metrics["min_separation_m"] >= 50.0 - 1e-6
+    assert _flown_closest(ctx0, bare.plan) >= 30.0 - 0.05
+    assert kept.plan.metrics["wait_s"] >= bare.plan.metrics["wait_s"]

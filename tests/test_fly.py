@@ -509,3 +509,19 @@ def test_takeoffs_are_timed_on_the_liftoff_the_vehicle_reports():
     d._anchor_clock()
     assert d.pending[3].due == pytest.approx(42.0)
     assert any("12 s after its planned takeoff" in text for _, text in events)
+
+
+@pytest.mark.parametrize("text,failsafe", [
+    ("Battery 1 is low 10.50V used 2200 mAh", True),          # ArduPilot AP_BattMonitor
+    ("Battery 1 is critical 9.90V used 2600 mAh", True),
+    ("Battery 1 is low 20%", True),                           # the built-in simulator
+    ("Low battery level! Return advised", True),              # PX4 commander
+    ("Critical battery level! Land now!", True),
+    ("Emergency battery level! Land immediately", True),
+    ("PreArm: Battery 1 below minimum arming voltage", False),
+    ("battery swap confirmed by the operator", False),
+])
+def test_battery_failsafe_announcements_are_told_apart(text, failsafe):
+    from gcs.flight.batteries import BATTERY_FAILSAFE_TEXT
+
+    assert bool(BATTERY_FAILSAFE_TEXT.search(text)) == failsafe

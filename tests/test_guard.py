@@ -10,8 +10,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from gcs.flight.report import outcome
 from gcs.guard import GuardFleet, SeparationGuard, closest_ahead
-from gcs.monitor import Monitor
+from gcs.monitor import LANDED, Monitor
 from planner.plan import GeoPoint, VehicleRoute, Waypoint
 from planner.travel import TravelParams
 
@@ -393,3 +394,48 @@ def test_two_held_at_the_top_of_a_column_the_one_above_leaves_first():
     # 2 went once 1 was a separation away across the ground (out of the column)
     assert one.p[0] >= 30.0 and two.p[2] == ALT and two.p[1] > 100.0
     assert resumed > 0.0
+
+
+def _landed_flight(monitor, guard):
+    """A flight as its report judges it: every vehicle landed, the coverage reached,
+    no battery trouble; the guard and monitor of a scripted run."""
+    for sysid in monitor.vehicles:
+        monitor.set_state(sysid, LANDED)
+    batteries = SimpleNamespace(emptied={}, failsafes={})
+    return SimpleNamespace(monitor=monitor, guard=guard, batteries=batteries, error=None,
+                           timed_out=False, stopped=None)
+
+
+REACHED = {"coverable_targets": 10, "survivors": {"k_covered": 10, "required_uavs": 2}}
+
+
+def test_holds_that_kept_the_separation_are_notes_and_the_flight_succeeds():
+    """The crossing above: vehicle 2 held and flown on, the pair never closer than
+    the separation (by the scripted positions): the outcome is ok (gcs fly exits
+    0), the hold is a note. It was a problem: 'held by the separation guard: flown
+    off the proven schedule', exit 1, for every routine hold."""
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, -240.0), (0.0, 12.0), _route(0, 400))
+    monitor, guard = _guard([one, two], {1: 1, 2: 2})
+    least = _run([one, two], guard, 60.0)
+    assert least >= 30.0 and [a["action"] for a in guard.actions] == ["hold", "resume"]
+    verdict = outcome(_landed_flight(monitor, guard), REACHED)
+    assert verdict["ok"] and verdict["problems"] == []
+    assert len(verdict["notes"]) == 1 and "held vehicle(s) 2 (1 hold(s))" in verdict["notes"][0]
+
+
+def test_a_pair_flown_closer_than_the_separation_is_a_problem():
+    """The crossing above judged against a separation 20 m beyond what the pair
+    kept (by the scripted positions): the pair is a problem, at the distance the
+    scripted vehicles came to."""
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, -240.0), (0.0, 12.0), _route(0, 400))
+    monitor, guard = _guard([one, two], {1: 1, 2: 2})
+    least = _run([one, two], guard, 60.0)
+    guard.separation_m = least + 20.0          # declared more than they kept
+    verdict = outcome(_landed_flight(monitor, guard), REACHED)
+    assert not verdict["ok"]
+    [problem] = verdict["problems"]
+    assert problem.startswith("vehicles 1 and 2 flew ") and "closer than the separation" in problem
+    flown = float(problem.split(" flew ")[1].split(" m apart")[0])
+    assert flown == pytest.approx(least, abs=13.0)              # sampled every 0.25 s

@@ -227,3 +227,79 @@ def test_the_flight_summary_says_what_of_the_area_its_targets_are(planned, capsy
     assert f"plan: area of operations {a['area_km2']:.2f} km²" in text
     assert f"{a['planned']['km2']:.2f} km²" in text
     assert ("plan: no observers: planned with no outposts" in text) == (outposts == 0)
+
+
+def test_a_piped_flight_prints_a_progress_line_every_so_often(monkeypatch):
+    """With output not a terminal, the status table is one line every `PROGRESS_S`
+    wall seconds (the flight was silent for minutes between takeoff and landing)."""
+    from gcs.cli import views
+
+    now = [100.0]
+    monkeypatch.setattr(views.time, "monotonic", lambda: now[0])
+    lines = []
+    status = views.progress_lines(lines.append, every_s=15.0)
+    row = {"sysid": 2, "state": "flying", "item": "7/40", "snapshots": "3 (3/12)",
+           "battery": 81}
+    for t in (100.0, 105.0, 114.9, 115.0, 129.0, 130.0):
+        now[0] = t
+        status([row])
+    assert lines == ["progress: vehicle 2 flying, item 7/40, snapshots 3 (3/12), battery 81 %"] * 3
+
+
+def test_flight_figure_draws_the_area_polygon(planned, tmp_path):
+    """flight.png draws the plan's --area-file polygon, as overview.png does."""
+    from dataclasses import replace
+
+    ctx = planned.ctx
+    rows, cols = ctx.terrain.shape
+    corners = [ctx.terrain.to_lonlat(*ctx.terrain.xy(r, c))
+               for r, c in ((5, 5), (5, cols - 6), (rows - 6, cols - 6), (rows - 6, 5), (5, 5))]
+    area = tmp_path / "area.geojson"
+    area.write_text(json.dumps({"type": "Polygon", "coordinates": [
+        [[float(lon), float(lat)] for lon, lat in corners]]}))
+    plan = replace(planned.plan, params={**planned.plan.params, "area_file": str(area)})
+    fig = flight_figure(ctx.terrain, ctx.surface, plan, _report(planned))
+    assert "area of operations (targets inside)" in _legend(fig)
+
+
+def test_the_north_arrow_keeps_off_the_points_a_map_draws_on_top(planned):
+    """A base standing where the arrow goes (upper left): the arrow stands elsewhere,
+    clear of it (bases.png had base squares on the arrow); with nothing to avoid it
+    stays in the upper left."""
+    import matplotlib.pyplot as plt
+
+    from gcs.plots import NORTH_CLEAR, NORTH_PLACES, draw_background
+
+    ctx = planned.ctx
+
+    def north(avoid):
+        fig, ax = plt.subplots()
+        draw_background(ax, ctx.terrain, ctx.surface, avoid=avoid)
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        [n] = [t for t in ax.texts if t.get_text() == "N"]
+        plt.close(fig)
+        return np.array(n.get_position()), (x0, x1, y0, y1)
+
+    alone, (x0, x1, y0, y1) = north(())
+    fx, fy = NORTH_PLACES[0]
+    upper_left = (x0 + fx * (x1 - x0), y0 + fy * (y1 - y0))
+    assert math.dist(alone, upper_left) < 0.15 * (x1 - x0)
+    moved, _ = north([upper_left])
+    assert math.dist(moved, upper_left) > NORTH_CLEAR * min(x1 - x0, y1 - y0)
+
+
+def test_no_graticule_labels_in_the_lower_left_corner(planned):
+    """The corner where a longitude label along the bottom and a latitude label up
+    the left side collided keeps none."""
+    from gcs.plots import GRATICULE_CORNER
+
+    ctx = planned.ctx
+    fig = overview_figure(ctx.terrain, ctx.surface, planned.plan)
+    ax = fig.axes[0]
+    x0, x1 = ax.get_xlim()
+    y0, y1 = ax.get_ylim()
+    labels = [t.get_position() for t in ax.texts if "°" in t.get_text()]
+    assert labels
+    assert not [(x, y) for x, y in labels if x < x0 + GRATICULE_CORNER * (x1 - x0)
+                and y < y0 + GRATICULE_CORNER * (y1 - y0)]

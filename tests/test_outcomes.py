@@ -15,6 +15,7 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from flown import problems_beside_guard
 from rich.console import Console
 from sim_fleet import quick_fleet
 
@@ -229,6 +230,40 @@ def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp
         snaps.append(np.stack([x, y, s[:, 2]], axis=1))
     cov = coverage_summary(ctx, snaps, ctx.scenario.k)
     assert cov["k_covered"] == coverable_targets(ctx)       # from what they really shot
+
+
+def test_an_empty_battery_in_the_air_is_a_problem(planned, tmp_path):
+    """The plan has no --endurance; its simulated copters carry batteries good for
+    half the shortest mission (`gcs sim --battery`). Each runs empty in the air and
+    flies on (the simulator's ArduPilot has its battery failsafe off): the outcome
+    names every vehicle whose battery the simulator's own track saw run empty, no
+    other, and `gcs fly` exits 1 (it said `landed battery_pct=0`, then "required
+    coverage reached, no vehicle lost, all landed", exit 0)."""
+    assert planned.plan.params.get("endurance_min") is None
+    shortest = min(v.mission_time_s for v in planned.plan.vehicles)
+    base = free_base_port(10, 3)
+    out = tmp_path / "flight"
+    lat, lon, _ = planned.launch
+    args = build_parser().parse_args([
+        "sim", "--vehicles", "3", "--home", f"{lat},{lon}", "--terrain", str(planned.dir),
+        "--speedup", "100", "--base-port", str(base), "--warmup", "0.5",
+        "--battery", f"{shortest / 120:.3f}", "--track-dir", str(out / "tracks")])
+    fleet = SimFleet(sim_cli.config_from_args(args)).start()
+    try:
+        code = main(["fly", str(planned.dir), *[a for i in range(3) for a in
+                     ("--connect", f"tcp:127.0.0.1:{base + 10 * i}")],
+                     "--lost-after", "2", "--timeout", "90", "-o", str(out)])
+    finally:
+        fleet.stop()
+    report = json.loads((out / "flight.json").read_text())
+    emptied = {s for s, t in _flown(out, [1, 2, 3]).items()
+               if any(e["event"] == "battery empty" for e in t.events)}
+    assert emptied == {1, 2, 3}
+    assert code == 1 and not report["outcome"]["ok"]
+    said = {s for s in (1, 2, 3) for p in report["outcome"]["problems"]
+            if p.startswith(f"vehicle {s}'s battery reported empty in the air")}
+    assert said == emptied, report["outcome"]["problems"]
+    assert not [p for p in problems_beside_guard(report) if "battery" not in p]
 
 
 def test_timeout_brings_everyone_home_when_nobody_can_be_asked(planned, tmp_path):

@@ -188,6 +188,14 @@ def test_viewpoints_beyond_one_battery_are_reported_and_never_flown(sortied):
     # the targets only they see are not counted as covered
     assert b["targets_short"] > 0
     assert m["k_covered"] <= m["targets"] - b["targets_short"]
+    # each one said sees a target (by the context's own visibility sets): a far
+    # point that sees nothing tells the operator nothing
+    ctx = sortied.ctx
+    lon, lat = np.array(b["beyond_battery_at"], float)[:, ::-1].T
+    x, y = ctx.terrain.from_lonlat(lon, lat)
+    xy = ctx.viewpoints.xyz[:, :2]
+    ids = [int(np.argmin(np.hypot(xy[:, 0] - a, xy[:, 1] - c))) for a, c in zip(x, y)]
+    assert all(len(ctx.visibility.seen_by(i)) for i in ids)
 
 
 def test_the_overview_draws_the_viewpoints_beyond_one_battery(sortied):
@@ -201,6 +209,9 @@ def test_the_overview_draws_the_viewpoints_beyond_one_battery(sortied):
     b = plan.metrics["battery"]
     assert len(drawn) == 1 and len(drawn[0].get_xdata()) == b["beyond_battery"]
     assert f"battery {ENDURANCE_MIN:g} min" in ax.get_title()
+    share = plan.metrics["bound_targets_pct"]
+    assert share < 100 and f"over the {share:.0f} % of targets one battery reaches" in \
+        ax.get_title()
     assert any("sorties" in (line.get_label() or "") for line in ax.lines)
 
 

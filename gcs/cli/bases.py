@@ -148,9 +148,9 @@ def bases_figure(ctx, bases):
 
     terrain = ctx.terrain
     fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)
-    im = draw_background(ax, terrain, ctx.surface)
-    _draw_area(ax, terrain, ctx.scenario)
     x, y = lonlat_km(terrain, [b.lon for b in bases], [b.lat for b in bases])
+    im = draw_background(ax, terrain, ctx.surface, avoid=zip(x, y))
+    _draw_area(ax, terrain, ctx.scenario)
     for b, bx, by in zip(reversed(bases), x[::-1], y[::-1]):   # the best drawn on top
         best = b.rank == 1
         ax.plot(bx, by, marker="s", color="#ffd700" if best else BASE_COLOUR,

@@ -29,6 +29,9 @@ HELP = {
     "z_unit": "unit of the DEM's heights, for every --dem file, whatever the files say "
               "(default: each file's band unit or its CRS's vertical axis; metres when "
               "neither says; feet are converted to metres and said)",
+    "min_area_pct": "refuse the plan (exit 2, nothing written) when it plans less than "
+                    "this percentage of the area of operations (default: a warning below "
+                    "10 %%)",
     "ceiling_agl_m": "highest altitude flown, metres above ground",
     "clearance_m": "lowest altitude flown, metres above the terrain surface",
     "hide_margin_m": "metres flown below the exposure surface",
@@ -55,6 +58,9 @@ HELP = {
                          "every point that close to a leg is proven hidden too",
     "separation_m": "least distance between two airborne vehicles, metres, proven on their "
                     "trajectories and kept by waits (0: vehicles are not kept apart)",
+    "separation_margin_m": "metres the plan keeps beyond --separation, so that the "
+                           "separation guard acts only when a flight goes wrong, not on "
+                           "its usual spread from the plan",
     "accel_mps2": "horizontal acceleration, m/s²: a vehicle slows at each waypoint, which "
                   "the schedule counts",
     "firmware": "the firmware flown: its missions, rates and stops at waypoints",
@@ -152,7 +158,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
     terrain.add_argument("--no-outposts", action="store_true", default=None,
                          help="plan with no observer posts at all (an explicit choice: without "
                               "it, --outposts is required, except with --sample)")
-    for name in ("resolution_m", "geoid_offset_m"):
+    for name in ("resolution_m", "geoid_offset_m", "min_area_pct"):
         _add(terrain, name, float)
     terrain.add_argument("--z-unit", dest="z_unit", choices=tuple(Z_UNITS), help=_help("z_unit"))
     fields_of = {
@@ -160,7 +166,8 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
         "sensor": ("sensor_range_m", "max_off_nadir_deg", "viewpoint_spacing_m"),
         "fleet": ("uavs", "speed_mps", "climb_mps", "descent_mps", "takeoff_mps", "land_mps",
                   "track_tolerance_m",
-                  "separation_m", "accel_mps2", "endurance_min", "reserve_pct",
+                  "separation_m", "separation_margin_m", "accel_mps2", "endurance_min",
+                  "reserve_pct",
                   "turnaround_min"),
         "radio link": ("mast_m", "radio_mhz", "radio_range_m"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),

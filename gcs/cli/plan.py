@@ -27,6 +27,7 @@ def run(args) -> int:
     with stage_progress() as progress:
         ctx, outcome = plan_mission(scenario, progress, scheduler=args.scheduler or "auto",
                                     log=lambda text: console.print(text, markup=False))
+        _refuse_little(outcome.plan, scenario.min_area_pct)
         progress("write", 0.0)
         written = write_plan_folder(args.output, ctx, outcome)
         progress("write", 1.0)
@@ -34,3 +35,16 @@ def run(args) -> int:
     for path, what in written:
         console.print(f"  {path}  [dim]{what}[/dim]")
     return 0
+
+
+def _refuse_little(plan, min_pct) -> None:
+    """InputError, before anything is written, when the plan plans less of the area
+    of operations than ``min_pct`` (--min-area) asks for."""
+    from common.errors import InputError
+    from gcs.cli.views import planned_pct, why_unplanned
+
+    pct = planned_pct(plan)
+    if min_pct is None or pct is None or pct >= min_pct:
+        return
+    raise InputError("--min-area", f"the plan plans {pct:.1f} % of the area of operations, "
+                                   f"less than {min_pct:g} %: {why_unplanned(plan)}")

@@ -6,6 +6,7 @@ Shared by the commands (`gcs plan` and `gcs demo` show a plan; `gcs fly` and
 
 import sys
 import threading
+import time
 from pathlib import Path
 
 from rich.console import Group
@@ -40,23 +41,29 @@ def plan_summary(plan) -> Group:
     radius = m.get("radius_bound_s")
     beside = (f"; radius bound {_minutes(radius)}" if radius is not None
               and radius < m["lower_bound_s"] - 0.5 else "")
+    share = m.get("bound_targets_pct", 100.0)
+    over = (f" over the {share:.1f} % of targets one battery reaches as asked"
+            if share < 100.0 else "")
     cover = (f"coverage time {_minutes(m['coverage_time_s'])} (lower bound "
-             f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f}{beside})" if ratio else
+             f"{_minutes(m['lower_bound_s'])}{over}, ratio {ratio:.2f}{beside})" if ratio else
              f"coverage time {_minutes(m['coverage_time_s'])}")
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
                f"UAVs at k+1 places ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of "
                f"the targets); planned in {plan.timing_s.get('total', 0):.1f} s")
     impossible = m.get("k_impossible", 0)
     if impossible:
-        targets += (f"; of them {impossible} have fewer places than k+1 (two UAVs at one "
-                    "place share one fate): seen once from each of their places")
+        targets += (f"; {impossible} of them can be photographed from fewer than k+1 = "
+                    f"{m['k'] + 1} separate places, so they are seen once from each place "
+                    "there is (two UAVs photographing from one place could be lost together)")
     lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)), Text(link_line(plan)),
              Text(rates_line(plan)), Text(battery_line(plan))] + [Text(t) for t in area_lines(plan)]
     return Group(*lines)
 
 
 def fleet_line(plan) -> str:
-    """When each vehicle takes off, what the fleet waits, and the proven separation."""
+    """When each vehicle takes off, what the fleet waits, and the proven separation
+    with the margin the plan kept beyond it (so that the guard acts only when a
+    flight goes wrong)."""
     m = plan.metrics
     takeoffs = ", ".join(f"{v.id} at {v.takeoff_s:.0f} s" for v in
                          sorted(plan.vehicles, key=lambda v: (v.takeoff_s, v.id)) if v.waypoints)
@@ -64,8 +71,10 @@ def fleet_line(plan) -> str:
     closest = m.get("min_separation_m")
     proven = "never two airborne at once" if closest is None or closest == float("inf") \
         else f"closest approach {closest:.1f} m"
+    margin = plan.params.get("separation_margin_m") or 0.0
+    kept = f", planned with {margin:g} m more" if sep and margin else ""
     return (f"takeoffs: {takeoffs}; waits {m.get('wait_s', 0):.0f} s in all; {proven} "
-            f"(separation {sep:g} m)")
+            f"(separation {sep:g} m{kept})")
 
 
 def link_line(plan) -> str:
@@ -158,13 +167,43 @@ def _area_lines(metrics, outposts: int) -> list:
     if not a:
         return out
     k = metrics.get("k", 0)
-    out.append(f"area of operations {a['area_km2']:.2f} km²: {_part(a['visible'])} seen from "
-               f"some reachable hidden viewpoint, {_part(a['planned'])} planned (seen by "
-               f"k+1 = {k + 1} UAVs)")
+    out.append(f"area of operations {a['area_km2']:.2f} km²: {_part(a['planned'])} planned "
+               f"(seen by k+1 = {k + 1} UAVs), {_part(a['visible'])} seen from some "
+               "reachable hidden viewpoint")
+    unplanned = [f"{_part(p)} {why}" for why, p in a.get("unplanned", {}).items()
+                 if p["km2"] > 0]
+    if unplanned:
+        out.append("seen but not planned: " + "; ".join(unplanned))
     unseen = [f"{_part(p)} {why}" for why, p in a["unseen"].items() if p["km2"] > 0]
     if unseen:
         out.append("not seen: " + "; ".join(unseen))
+    if a["planned"]["pct"] < LOW_AREA_PCT:
+        out.append(f"warning: only {a['planned']['pct']:.1f} % of the area of operations is "
+                   f"planned; the largest part of the rest: {_largest(a)} (--min-area PCT refuses "
+                   "such a plan)")
     return out
+
+
+#: a plan that plans less of its area of operations than this (%) says so
+LOW_AREA_PCT = 10.0
+
+
+def planned_pct(plan):
+    """The share of the area of operations the plan plans (%), None without an area."""
+    a = plan.metrics.get("area")
+    return None if not a else a["planned"]["pct"]
+
+
+def why_unplanned(plan) -> str:
+    """The largest share of the plan's area that is not planned, and why."""
+    return "the largest part of the rest: " + _largest(plan.metrics["area"])
+
+
+def _largest(a) -> str:
+    """The largest share of the area that is not planned, with its reason."""
+    reasons = {**a.get("unplanned", {}), **a["unseen"]}
+    why = max(reasons, key=lambda r: reasons[r]["km2"])
+    return f"{_part(reasons[why])} {why}"
 
 
 def _part(p) -> str:
@@ -200,7 +239,29 @@ def fly_flight(flight, live: bool) -> dict:
             return flight.run(lambda rows: view.update(status_table(rows)),
                               lambda: ask(view, "interrupted"),
                               lambda: ask(view, f"timed out after {timeout:g} s"))
-    return flight.run(on_interrupt=lambda: "leave", on_timeout=lambda: "home")
+    return flight.run(progress_lines(lambda text: print(text, file=sys.stderr, flush=True)),
+                      on_interrupt=lambda: "leave", on_timeout=lambda: "home")
+
+
+#: wall seconds between two progress lines of a flight whose output is not a terminal
+PROGRESS_S = 15.0
+
+
+def progress_lines(write, every_s=PROGRESS_S):
+    """A flight's ``status`` callback for piped output: the status table as one line
+    every ``every_s`` wall seconds, so that a log shows the flight going on between
+    its events (it was silent for minutes between takeoff and landing)."""
+    last = [-float("inf")]
+
+    def status(rows):
+        now = time.monotonic()
+        if now - last[0] < every_s or not rows:
+            return
+        last[0] = now
+        write("progress: " + "; ".join(
+            f"vehicle {r['sysid']} {r['state']}, item {r['item']}, snapshots {r['snapshots']}"
+            + ("" if r["battery"] is None else f", battery {r['battery']} %") for r in rows))
+    return status
 
 
 def _read_battery_swaps(flight) -> None:
@@ -288,6 +349,8 @@ def summary(report, output=None) -> None:
         console.print("outcome: required coverage reached, no vehicle lost, all landed")
     for problem in outcome.get("problems", []):
         console.print(f"outcome: {problem}", style="red", markup=False, highlight=False)
+    for note in outcome.get("notes", []):
+        console.print(f"note: {note}", markup=False, highlight=False)
     if output is not None:
         console.print(f"  {Path(output) / 'flight.json'}  [dim]flight report[/dim]")
         console.print(f"  {Path(output) / 'flight.png'}  [dim]map of the flight[/dim]")

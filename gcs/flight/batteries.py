@@ -7,12 +7,17 @@ vehicle whose battery will not last the rest of its sortie from where it is
 kept is brought home early by its hidden path, its work re-planned. Between
 sorties a vehicle flies its next one once its battery is fresh and, unless the
 flight turns them around by itself, the operator has said it is swapped.
+
+Whatever the plan (with an endurance or none), every battery that reports empty in
+the air, and every battery failsafe the autopilot announces, is recorded
+(`emptied`, `failsafes`): the flight's report counts them as problems.
 """
 
+import re
 from dataclasses import dataclass
 
 from common.geo import distance_m
-from gcs.monitor import FLYING, HOLDING, LANDED
+from gcs.monitor import FLYING, HOLDING, LANDED, RETURNING
 from planner.travel import leg_time
 
 from .state import homebound, next_waypoint, own_clock
@@ -30,6 +35,13 @@ FAST_DRAIN = 1.25
 #: the simulator's battery draws so). A sortie's first minutes are mostly its takeoff
 #: climb: judged by time alone, batteries drawing as rated read 1.4 times faster.
 CLIMB_S_PER_M = 0.08
+#: a charge reported at or below this (%) in the air is an empty battery
+EMPTY_PCT = 0
+#: the autopilots' battery failsafe announcements: ArduPilot's "Battery 1 is low
+#: 10.50V used 2200 mAh" / "... is critical ...", PX4's "Low battery level!",
+#: "Critical battery level!", "Emergency battery level!"
+BATTERY_FAILSAFE_TEXT = re.compile(
+    r"battery \d* ?is (low|critical)|(low|critical|emergency) battery", re.IGNORECASE)
 #: how near (m) a vehicle stands to a waypoint it holds at: there it spends the hold
 #: its plan gives it (autopilots hold within their 2 m acceptance radius by default)
 AT_WAYPOINT_M = 5.0
@@ -85,6 +97,9 @@ class Batteries:
         self.late = {}            # the same, for those the watch brought home
         self._late_acted = set()  # ... in their sortie now: once a sortie (`watch`)
         self._began = {}          # sysid -> SortieDraw since its last liftoff
+        self.emptied = {}         # sysid -> fleet s its battery first reported empty aloft
+        self.failsafes = {}       # sysid -> [(fleet s, the autopilot's text)]
+        self._listening = set()   # sysids whose battery reports `_heard` reads
 
     @property
     def endurance_min(self):
@@ -99,6 +114,27 @@ class Batteries:
             track[-1][3] if track else None, route.waypoints[0].sortie,
             route.mission_time_s - route.takeoff_s)
         self._late_acted.discard(sysid)
+        if sysid not in self._listening:
+            self._listening.add(sysid)
+            m.links[sysid].subscribe(lambda msg, s=sysid: self._heard(s, msg))
+
+    def _heard(self, sysid, msg) -> None:
+        """Record an empty battery reported in the air, and a battery failsafe the
+        autopilot announces (from the link's reader thread): each is said as an
+        event once, and the report counts it as a problem."""
+        m = self.state.monitor
+        kind = msg.get_type()
+        aloft = m.vehicles[sysid].state in (FLYING, HOLDING, RETURNING)
+        if kind in ("SYS_STATUS", "BATTERY_STATUS") and aloft and sysid not in self.emptied:
+            pct = m.links[sysid].state.battery_pct
+            if pct is not None and pct <= EMPTY_PCT:
+                self.emptied[sysid] = m.now()
+                m.event(sysid, f"battery empty in the air ({pct} % reported)")
+        elif kind == "STATUSTEXT" and BATTERY_FAILSAFE_TEXT.search(msg.text or ""):
+            said = self.failsafes.setdefault(sysid, [])
+            if msg.text not in (text for _, text in said):      # autopilots repeat it
+                said.append((round(m.now(), 1), msg.text))
+                m.event(sysid, f"battery failsafe: the autopilot says '{msg.text}'")
 
     def short(self, sysid) -> bool:
         """Sent home by the battery watch on this sortie, or down to the plan's reserve:

@@ -3,8 +3,10 @@
 Coverage at the end is re-evaluated from the snapshot positions with the
 planner's own sensor model; a lost vehicle's snapshots count as lost. The
 ``outcome`` says whether the flight did its job: the required coverage reached,
-no vehicle lost, none left in the air; ``problems`` says what went wrong, one
-line each.
+no vehicle lost, none left in the air, no battery run empty or failsafe, no two
+vehicles closer than the separation, nothing flown off its proof; ``problems``
+says what went wrong, one line each, and ``notes`` what happened and did no
+harm (the separation guard's holds that kept the separation).
 """
 
 import json
@@ -79,11 +81,8 @@ def outcome(flight, covered: dict) -> dict:
     if stranded:
         problems.append(f"vehicle(s) {', '.join(map(str, stranded))} stranded: held in "
                         "the air where no hidden leg joins them, left to the operator")
-    held = sorted({a["sysid"] for a in (flight.guard.actions if flight.guard else [])
-                   if a["action"] == "hold"})
-    if held:
-        problems.append(f"vehicle(s) {', '.join(map(str, held))} held by the separation "
-                        "guard: flown off the proven schedule")
+    problems += battery_problems(flight.batteries)
+    problems += separation_problems(flight.guard)
     for sysid, v in sorted(m.vehicles.items()):
         if v.off_route:
             worst = max(e[2] for e in v.off_route)
@@ -101,7 +100,44 @@ def outcome(flight, covered: dict) -> dict:
         problems.append(f"vehicle(s) {', '.join(map(str, grounded))} never took off")
     return {"ok": not problems, "coverage_reached": reached, "lost": lost,
             "timed_out": flight.timed_out, "in_air": sorted(flying + stranded),
-            "stranded": stranded, "problems": problems}
+            "stranded": stranded, "problems": problems, "notes": guard_notes(flight.guard)}
+
+
+def battery_problems(batteries) -> list:
+    """An empty battery in the air, and a battery failsafe the autopilot announced:
+    with or without a battery in the plan, the vehicle flew on what it did not have."""
+    lines = [f"vehicle {sysid}'s battery reported empty in the air at {t:.0f} s"
+             for sysid, t in sorted(batteries.emptied.items())]
+    lines += [f"vehicle {sysid}'s battery failsafe at {said[0][0]:.0f} s: "
+              + "; ".join(f"'{text}'" for _, text in said)
+              for sysid, said in sorted(batteries.failsafes.items())]
+    return lines
+
+
+def separation_problems(guard) -> list:
+    """Each pair that flew closer than the declared separation (the closest approach
+    the guard measured on their position reports)."""
+    if guard is None or not guard.active:
+        return []
+    return [f"vehicles {a} and {b} flew {d:.1f} m apart at {t:.0f} s, closer than the "
+            f"separation ({guard.separation_m:g} m)"
+            for (a, b), (d, t) in sorted(guard.closest.items()) if d < guard.separation_m]
+
+
+def guard_notes(guard) -> list:
+    """The guard's holds, when the separation was kept: events, not problems (a hold
+    stops a vehicle on its proven leg, hidden where it stands)."""
+    if guard is None:
+        return []
+    held = sorted({a["sysid"] for a in guard.actions if a["action"] == "hold"})
+    if not held:
+        return []
+    holds = sum(a["action"] == "hold" for a in guard.actions)
+    closest = min((d for d, _ in guard.closest.values()), default=None)
+    flown = f", the closest two flew {closest:.1f} m apart" if closest is not None else ""
+    return [f"the separation guard held vehicle(s) {', '.join(map(str, held))} "
+            f"({holds} hold(s)) on their proven legs{flown} "
+            f"(separation {guard.separation_m:g} m)"]
 
 
 def _vehicle_report(flight, v) -> dict:

@@ -60,7 +60,7 @@ def _on_ground(start) -> bool:
 
 def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
     """Every sortie on the fleet clock with the waits that keep the fleet separated
-    (`planner.fleet.schedule`, ``separation_m`` of the scenario), a vehicle's
+    (`planner.fleet.schedule`, the scenario's separation and its margin), a vehicle's
     sorties a turnaround apart, the waits chosen for the earliest coverage time."""
     s = ctx.scenario
     profiles = []
@@ -82,7 +82,7 @@ def fleet_clock(ctx, sorties, starts, problem, routes) -> Fleet:
     # flies home before all): a hold draws what it has left
     urgency = [-math.inf if f.first and starts and starts[f.uav].retired else
                -(starts[f.uav].flown_s if f.first and starts else 0.0) for f in sorties]
-    sched = schedule(profiles, s.separation_m, coverage_time, after,
+    sched = schedule(profiles, s.planned_separation_m, coverage_time, after,
                      60.0 * s.turnaround_min, s.usable_s, urgency)
     return Fleet(sorties, sched, profiles, coverage_time(sched.timings) if sorties else 0.0)
 

@@ -85,24 +85,40 @@ def _seen_from_elsewhere(surface, viewpoints, sensor, spacing_m) -> np.ndarray:
     return seen
 
 
-def area_summary(cell_size, unseen, cells, counts, needed) -> dict:
-    """The area accounting of a plan, km² and % of the area of operations.
+#: why a target (ground some reachable hidden viewpoint sees) is not planned as
+#: asked: ``area_summary``'s ``unplanned``
+UNPLANNED = {"battery": "seen as asked only from viewpoints beyond one battery",
+             "fewer": "seen by fewer UAVs than k+1",
+             "none": "seen by no UAV of the plan"}
+
+
+def area_summary(cell_size, unseen, cells, counts, needed, short=None) -> dict:
+    """The area accounting of a plan, km² and % of the area of operations: every
+    cell of it is in exactly one of ``planned``, ``unplanned`` (`UNPLANNED`'s
+    reasons) and ``unseen`` (`REASONS`), so that they add up to the whole area.
 
     ``unseen``: `unseen_reasons` (the area of operations is where it is not
     `OUTSIDE`); ``cells`` (flat ids of the target cells) and ``counts`` (distinct
     UAVs seeing each): the plan's coverage; ``needed``: distinct UAVs each target
-    needs. ``visible``: ground some reachable hidden viewpoint sees (the
-    targets); ``planned``: ground the plan sees as often as required."""
+    needs; ``short``: bool per target, the sightings it needs only viewpoints
+    beyond one battery give (None: no battery). ``visible``: ground some reachable
+    hidden viewpoint sees (the targets); ``planned``: ground the plan sees as
+    often as required."""
     km2 = cell_size ** 2 / 1e6
     inside = unseen != OUTSIDE
     total = int(inside.sum())
     in_area = inside.ravel()[cells]
-    visible = int(in_area.sum())
-    planned = int((in_area & (np.asarray(counts) >= needed)).sum())
+    counts = np.asarray(counts)
+    done = counts >= needed
+    short = np.zeros(len(counts), bool) if short is None else np.asarray(short, bool)
+    missed = {"battery": ~done & short, "fewer": ~done & ~short & (counts > 0),
+              "none": ~done & ~short & (counts == 0)}
 
     def part(n):
         return {"km2": round(n * km2, 3), "pct": round(100.0 * n / total, 2) if total else 0.0}
 
-    return {"area_km2": round(total * km2, 3), "visible": part(visible),
-            "planned": part(planned),
+    return {"area_km2": round(total * km2, 3), "visible": part(int(in_area.sum())),
+            "planned": part(int((in_area & done).sum())),
+            "unplanned": {UNPLANNED[key]: part(int((in_area & m).sum()))
+                          for key, m in missed.items()},
             "unseen": {REASONS[code]: part(int((unseen == code).sum())) for code in REASONS}}
