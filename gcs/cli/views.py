@@ -4,6 +4,7 @@ Shared by the commands (`gcs plan` and `gcs demo` show a plan; `gcs fly` and
 `gcs demo` fly one), so that no command imports another.
 """
 
+import math
 import sys
 import threading
 from pathlib import Path
@@ -41,7 +42,8 @@ def plan_summary(plan) -> Group:
     beside = (f"; radius bound {_minutes(radius)}" if radius is not None
               and radius < m["lower_bound_s"] - 0.5 else "")
     cover = (f"coverage time {_minutes(m['coverage_time_s'])} (lower bound "
-             f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f}{beside})" if ratio else
+             f"{_minutes(m['lower_bound_s'])}, ratio {ratio:.2f}{beside}): at most "
+             f"{math.ceil(100 * (ratio - 1) - 1e-9)} % above optimal" if ratio else
              f"coverage time {_minutes(m['coverage_time_s'])}")
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
                f"UAVs at k+1 places ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of "
