@@ -35,6 +35,10 @@ against the proven optima of N small generated problems (benchmarks/optimality.p
 against the same bound with the LP whole (scipy's HiGHS, every row, as before
 2026-11-29), on seeded problems of 150-800 viewpoints: values and seconds.
 
+**At scale** (``--at-scale``, alone): plan, lower bound and their ratio on
+generated terrains of hundreds of viewpoints, the bound before the scattered route
+bound beside it (benchmarks/at_scale.py).
+
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
 (planner.coverage.model.instances), ``--sweep`` the step-cap (th_ra) sweep,
 ``--large`` RT and ALNS on a 3,000-viewpoint x 50,000-target x 8-UAV problem.
@@ -52,7 +56,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from benchmarks import optimality  # noqa: E402
+from benchmarks import at_scale, optimality  # noqa: E402
 from planner.coverage import METHODS, lower_bound, solve  # noqa: E402
 from planner.coverage.bounds import flow as bounds_mod  # noqa: E402
 from planner.coverage.model.instances import FAMILIES, random_problem  # noqa: E402
@@ -508,10 +512,17 @@ def main(argv=None):
                     help="the exact solver's time per instance not yet in the cache")
     ap.add_argument("--bound", action="store_true",
                     help="only the flow bound with its rows generated against the LP whole")
+    ap.add_argument("--at-scale", action="store_true",
+                    help="only plan, bound and ratio on generated terrains of hundreds of "
+                         "viewpoints (benchmarks/at_scale.py)")
     ap.add_argument("--separation", action="store_true",
                     help="only the separation table (coverage at --separation 0 vs default)")
     args, _ = ap.parse_known_args(argv)  # options of other benchmarks run with it
     t0 = time.perf_counter()
+    if args.at_scale:
+        at_scale.run()
+        print(f"\n(total {time.perf_counter() - t0:.0f} s)")
+        return 0
     if args.bound:
         bound_rows(args.quick)
         print(f"\n(total {time.perf_counter() - t0:.0f} s)")

@@ -24,6 +24,7 @@ STAGE_TEXT = {
     "candidate bases": "candidate bases: quick bounds",
     "launch checks": "candidate bases: proving their takeoffs",
     "allocation": "allocating viewpoints",
+    "lower bound": "lower bound: how far from optimal",
     "routes": "hidden routes",
     "write": "writing files",
 }

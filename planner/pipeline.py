@@ -205,6 +205,17 @@ class Outcome:
     counts: np.ndarray  # per target: distinct UAVs that see it
 
 
+#: the scattered route bound's share of the search's time (`coverage.bounds.scatter`),
+#: and its least time: what proving a plan's quality may add to planning it
+BOUND_SHARE = 0.25
+BOUND_MIN_S = 2.0
+
+
+def bound_budget_s(search_s: float) -> float:
+    """Seconds the plan's strongest lower bound may take, given the search's."""
+    return max(BOUND_MIN_S, BOUND_SHARE * search_s)
+
+
 def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required=None,
              method=None, progress: Progress = None, budget_fraction=None,
              strong_bound=True, scheduler=None, log=None, visited=None) -> Outcome:
@@ -227,8 +238,10 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
     problem, allocation, prep, sorties, counts, fleet = _fleet(request, parts, timing,
                                                                 progress)
     # only the reach bound holds for the whole of an area planned in parts
-    bounds = ((split.reach_bound(problem),) * 2 if parts > 1
-              else coverage.lower_bounds(problem, strong_bound, prep))
+    with _stage("lower bound", timing, progress):
+        bounds = ((split.reach_bound(problem),) * 2 if parts > 1
+                  else coverage.lower_bounds(problem, strong_bound, prep,
+                                             bound_budget_s(allocation.planning_s)))
     plan = make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds)
     over = over_battery(fleet, s.usable_s, starts)
     if over.any():

@@ -219,7 +219,7 @@ def test_route_bound_on_subsets_never_exceeds_the_exhaustive_optimum(monkeypatch
                 problem, visited=rng.random((n_uavs, n_vp)) < 0.3,
                 seen=rng.random((n_uavs, problem.n_targets)) < 0.15)
         prep = prepare(problem)
-        if rb._useful(prep).sum() <= 3:
+        if rb.useful_viewpoints(prep).sum() <= 3:
             continue
         opt = exhaustive_optimum(problem)
         value = route_bound(prep)

@@ -4,6 +4,7 @@ Shared by the commands (`gcs plan` and `gcs demo` show a plan; `gcs fly` and
 `gcs demo` fly one), so that no command imports another.
 """
 
+import math
 import sys
 import threading
 import time
@@ -45,7 +46,8 @@ def plan_summary(plan) -> Group:
     over = (f" over the {share:.1f} % of targets one battery reaches as asked"
             if share < 100.0 else "")
     cover = (f"coverage time {_minutes(m['coverage_time_s'])} (lower bound "
-             f"{_minutes(m['lower_bound_s'])}{over}, ratio {ratio:.2f}{beside})" if ratio else
+             f"{_minutes(m['lower_bound_s'])}{over}, ratio {ratio:.2f}{beside}): at most "
+             f"{math.ceil(100 * (ratio - 1) - 1e-9)} % above optimal" if ratio else
              f"coverage time {_minutes(m['coverage_time_s'])}")
     targets = (f"targets {m['targets']}: {m['k_covered']} seen by k+1 = {m['k'] + 1} "
                f"UAVs at k+1 places ({100 * m['k_covered'] / max(m['targets'], 1):.1f} % of "

@@ -2,7 +2,8 @@
 
 Modules, one bound each: radius (the reach and packing bounds: quick, for any
 problem), flow (the first-sighting flow LP), routes (route pricing, where at most
-30 viewpoints see what is needed), exact (the proven optimum of small plain
+30 viewpoints see what is needed), scatter (route pricing on a few far-apart places
+of a larger problem), exact (the proven optimum of small plain
 problems: the oracle of the tests and of ``bench_coverage --optimal``).
 A new bound is a module here, taken into `lower_bounds`.
 """
@@ -13,6 +14,7 @@ from ..model.problem import CoverageProblem
 from .flow import flow_bound
 from .radius import radius_bound
 from .routes import route_bound
+from .scatter import SCATTER_TIME_LIMIT_S, scatter_bound
 
 
 def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
@@ -21,22 +23,27 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
     the first-sighting flow LP (`flow.flow_bound`; a few seconds of HiGHS on the
     largest problems) and, where at most 30 viewpoints see what is needed, the
     route-pricing bound (`routes.route_bound`: 0.3 s in the median case of
-    17-30, a budget of 4 s).  The bounds work on target classes
-    (`model.classes.target_classes`: identical rows, so the same bound at a
-    fraction of the size)."""
+    17-30, a budget of 4 s), and beyond, the route-pricing bound on far-apart
+    places (`scatter.scatter_bound`, within ``budget_s``).  The bounds work on
+    target classes (`model.classes.target_classes`: identical rows, so the same
+    bound at a fraction of the size)."""
     return lower_bounds(problem, strong)[1]
 
 
-def lower_bounds(problem: CoverageProblem, strong: bool = True, prep=None) -> tuple:
+def lower_bounds(problem: CoverageProblem, strong: bool = True, prep=None,
+                 budget_s: float = SCATTER_TIME_LIMIT_S) -> tuple:
     """(radius bound, best bound) in seconds: see `lower_bound`. ``prep``: the
-    problem already prepared (`model.prepared.prepare`), to share its target classes."""
+    problem already prepared (`model.prepared.prepare`), to share its target classes;
+    ``budget_s``: the scattered bound's time (a plan gives a share of its search's)."""
     prep = prep if prep is not None else prepare(problem)
     cprep = target_classes(prep)[0] if problem.n_targets else prep
     radius = radius_bound(cprep)
     best = max(radius, flow_bound(cprep)) if strong else radius
     if strong:
         best = max(best, route_bound(cprep, best))
+        best = max(best, scatter_bound(cprep, best, budget_s))
     return float(radius), float(best)
 
 
-__all__ = ["flow_bound", "lower_bound", "lower_bounds", "radius_bound", "route_bound"]
+__all__ = ["flow_bound", "lower_bound", "lower_bounds", "radius_bound", "route_bound",
+           "scatter_bound"]

@@ -79,7 +79,7 @@ _SAFETY = 1e-6
 
 
 @njit(cache=True)
-def _times_into(travel_t, vps):
+def times_into(travel_t, vps):
     """[n, len(vps)]: the shortest time from every viewpoint to each of ``vps``
     over ``travel`` (given transposed), through any viewpoint: a dense Dijkstra
     per viewpoint of ``vps`` (the shortest-path closure, only the columns needed:
@@ -210,15 +210,15 @@ def _values(sets, masks, pi):
     return out
 
 
-def _still_needed(prep) -> np.ndarray:
+def still_needed(prep) -> np.ndarray:
     """Per target, the sightings needed beyond the UAVs that saw it before."""
     return prep.required.astype(np.int64) - prep.seen0.sum(axis=0)
 
 
-def _useful(prep) -> np.ndarray:
+def useful_viewpoints(prep) -> np.ndarray:
     """Per viewpoint, whether it sees a target that still needs sightings."""
     useful = np.zeros(prep.problem.n_viewpoints, bool)
-    needed = np.repeat(_still_needed(prep) > 0, np.diff(prep.tgt_indptr))
+    needed = np.repeat(still_needed(prep) > 0, np.diff(prep.tgt_indptr))
     useful[prep.tgt_indices[needed]] = True
     return useful
 
@@ -228,9 +228,14 @@ def _hit_rows(prep, vps, max_subset_rows=64):
     has at least b UAVs whose routes visit a viewpoint of W (see `route_bound`)."""
     local = np.full(prep.problem.n_viewpoints, -1, np.int64)
     local[vps] = np.arange(len(vps))
-    need = _still_needed(prep)
+    need = still_needed(prep)
+    # only targets with fewer viewers outside ``vps`` than sightings needed give a row:
+    # found at once (a large problem priced on a few of its viewpoints has many targets)
+    degree = np.diff(prep.tgt_indptr)
+    counted = np.r_[0, np.cumsum(local[prep.tgt_indices] >= 0)]
+    inside = counted[prep.tgt_indptr[1:]] - counted[prep.tgt_indptr[:-1]]
     rows = {}
-    for c in np.flatnonzero(need > 0):
+    for c in np.flatnonzero((need > 0) & (inside > 0) & (need - degree + inside > 0)):
         viewers = local[prep.tgt_indices[prep.tgt_indptr[c]:prep.tgt_indptr[c + 1]]]
         # a viewer left out of ``vps`` gives at most one of the q pairs (distinct places)
         q = int(need[c]) - int(np.count_nonzero(viewers < 0))
@@ -258,8 +263,8 @@ class RouteMaster:
     on the route sets within a horizon (`extend`)."""
 
     def __init__(self, prep, vps, into):
-        """``vps``: the useful viewpoints (`_useful`) priced, sorted; ``into``: the
-        times from every viewpoint to each of them (`_times_into`)."""
+        """``vps``: the useful viewpoints (`useful_viewpoints`) priced, sorted; ``into``: the
+        times from every viewpoint to each of them (`times_into`)."""
         p = prep.problem
         self.prep = prep
         self.vps = vps
@@ -372,28 +377,28 @@ def route_bound(prep, lower=0.0, rel_tol=1e-3, time_limit=ROUTE_TIME_LIMIT_S) ->
     p = prep.problem
     if p.n_viewpoints == 0 or p.n_targets == 0 or math.isfinite(p.endurance_s):
         return 0.0
-    useful = np.flatnonzero(_useful(prep))
+    useful = np.flatnonzero(useful_viewpoints(prep))
     if not len(useful) or len(useful) > ROUTE_MAX_VIEWPOINTS:
         return 0.0
     if lower <= 0.0:  # `lower_bounds` gives these and more; a caller on its own, not
         lower = radius_bound(prep)
     if lower <= 0.0:
         return 0.0
-    into = _times_into(prep.travel_t, useful)   # once: every subset's columns are in it
-    _compiled()
+    into = times_into(prep.travel_t, useful)   # once: every subset's columns are in it
+    compile_kernels()
     deadline = time.perf_counter() + time_limit
     whole = RouteMaster(prep, useful, into)
-    best = _refute(whole, lower, rel_tol, deadline)
+    best = refute(whole, lower, rel_tol, deadline)
     if whole.overflowed and len(useful) > SUBSET_VIEWPOINTS:
         for pick in _subsets(prep, useful, into):
             if time.perf_counter() >= deadline:
                 break
             rm = RouteMaster(prep, useful[pick], into[:, pick])
-            best = max(best, _refute(rm, max(lower, best), rel_tol, deadline))
+            best = max(best, refute(rm, max(lower, best), rel_tol, deadline))
     return best
 
 
-def _compiled() -> None:
+def compile_kernels() -> None:
     """The kernels compiled (or loaded from numba's cache) before the budget starts:
     the first bound of a process after a change would spend it in the compiler
     (about 5 s on 2 cores) and fall back to the flow bound."""
@@ -403,7 +408,7 @@ def _compiled() -> None:
 
 def _subsets(prep, useful, into):
     """Viewpoint sets to price where the whole set has too many route sets, as
-    sorted positions in ``useful`` (``into``: the times to each, `_times_into`):
+    sorted positions in ``useful`` (``into``: the times to each, `times_into`):
     of `SUBSET_VIEWPOINTS` each, the viewers of the targets that need the most
     sightings from the fewest viewers (first), and the viewpoints farthest from the
     bases (or from each other). Any subset U gives a valid bound: a plan's pairs
@@ -411,7 +416,7 @@ def _subsets(prep, useful, into):
     (`_hit_rows`), and a route's time through S is at least its time through the
     part of S in U (shortcut in the closure)."""
     size = SUBSET_VIEWPOINTS
-    need = _still_needed(prep)
+    need = still_needed(prep)
     degree = np.diff(prep.tgt_indptr)
     hard = []
     for c in np.lexsort((degree - need, -need)):
@@ -423,7 +428,7 @@ def _subsets(prep, useful, into):
     return [np.searchsorted(useful, np.sort(hard)), np.sort(np.argsort(-far)[:size])]
 
 
-def _refute(rm, lower, rel_tol, deadline) -> float:
+def refute(rm, lower, rel_tol, deadline) -> float:
     """The least route-set time of ``rm`` above every time it certifies (see
     `route_bound`), searched from ``lower`` (> 0) up by `GROWTH`, the horizon
     extended as it goes, then by bisection; 0 when none is certified."""

@@ -1,0 +1,105 @@
+"""Plan quality at scale (`bench_coverage --at-scale`): per generated problem, the
+default plan (ALNS), the lower bound the plan prints, plan / bound, and the bound
+without the scattered route bound (`planner.coverage.bounds.scatter`) beside it:
+the ratio as it was, on the same plan, in the same run. RT+LS is the other of our
+own methods run beside it (its own time, not a time budget).
+
+The problems: seeded synthetic terrains of `SIZE`² cells (30 m), three outposts,
+one or two hidden bases (the roomiest spots of the largest hidden region, the
+second far from the first), fleets of 3-8 UAVs, k = 0, 1, 2.
+"""
+
+import time
+import warnings
+
+import numpy as np
+
+#: terrain side in cells, and the viewpoint spacing: a few hundred viewpoints each
+SIZE = 300
+SPACING_M = 250.0
+#: (family, seed) of the terrains, and per terrain the (UAVs, k, bases) planned
+TERRAINS = (("ridges", 7), ("hills", 9))
+CASES = ((3, 0, 1), (5, 1, 1), (4, 2, 2), (8, 1, 2))
+
+
+def context(family, seed):
+    """Planning context of one terrain, with two bases (stages up to travel times)."""
+    from scipy.ndimage import minimum_filter
+
+    from planner.exposure import Outpost, compute_exposure
+    from planner.pipeline import prepare
+    from planner.scenario import Scenario
+    from planner.terrain import synthetic_terrain
+
+    warnings.simplefilter("ignore")
+    terrain = synthetic_terrain(SIZE, SIZE, cell=30.0, seed=seed, family=family)
+    rng = np.random.default_rng(seed)
+    posts = []
+    for i in range(3):
+        x, y = terrain.xy(*rng.integers(SIZE // 5, 4 * SIZE // 5, 2))
+        lon, lat = terrain.to_lonlat(x, y)
+        posts.append(Outpost(float(x), float(y), 5.0, 3000.0, float(lon), float(lat), f"P{i}"))
+    surface = compute_exposure(terrain, posts)
+    largest = np.bincount(surface.regions.ravel())[1:].argmax() + 1
+    room = np.where(surface.regions == largest, surface.ceiling - surface.floor, -np.inf)
+    room = minimum_filter(room, size=5)
+    first = np.unravel_index(np.argmax(room), room.shape)
+    # the second base: the roomiest spot at least a third of the terrain away
+    rows, cols = np.indices(room.shape)
+    far = np.hypot(rows - first[0], cols - first[1]) >= SIZE / 3
+    second = np.unravel_index(np.argmax(np.where(far, room, -np.inf)), room.shape)
+    launch = [tuple(reversed(terrain.to_lonlat(*terrain.xy(*rc)))) for rc in (first, second)]
+    # one start per base (the scenario's fleet: its size takes one launch point each)
+    scenario = Scenario(sample=True, uavs=2, sensor_range_m=700.0,
+                        viewpoint_spacing_m=SPACING_M,
+                        launch=[(float(a), float(b)) for a, b in launch]).validate()
+    return prepare(scenario, terrain=terrain, outposts=posts)
+
+
+def run_case(ctx, starts, n, k, bases) -> dict:
+    """One problem: the plan, its bounds before and after, RT+LS."""
+    from planner.coverage import lower_bounds, prepare, solve
+    from planner.pipeline import bound_budget_s, coverage_problem
+
+    fleet = [starts[r % bases] for r in range(n)]
+    p = coverage_problem(ctx, n, fleet, k, "soft")
+    row = dict(n=n, k=k, bases=bases, viewpoints=p.n_viewpoints)
+    a = solve(p, "alns")
+    row["alns"], row["alns_s"] = a.coverage_time, a.planning_s
+    prep = prepare(p)
+    t0 = time.perf_counter()
+    row["radius"], row["before"] = lower_bounds(p, True, prep, budget_s=0.0)
+    row["before_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    row["bound"] = lower_bounds(p, True, prep, budget_s=bound_budget_s(a.planning_s))[1]
+    row["bound_s"] = time.perf_counter() - t0
+    b = solve(p, "rt+ls")
+    row["rt_ls"], row["rt_ls_s"] = b.coverage_time, b.planning_s
+    return row
+
+
+def run() -> list:
+    from planner.pipeline import launch_starts
+
+    rows = []
+    print("| terrain | vps | UAVs | k | bases | ALNS s (time) | bound s (time) | ratio | "
+          "bound before | ratio before | RT+LS s (time) |\n|---|---|---|---|---|---|---|"
+          "---|---|---|---|", flush=True)
+    for family, seed in TERRAINS:
+        ctx = context(family, seed)
+        starts = launch_starts(ctx)
+        for n, k, bases in CASES:
+            r = run_case(ctx, starts, n, k, bases)
+            r["terrain"] = f"{family} s{seed}"
+            rows.append(r)
+            print(f"| {r['terrain']} | {r['viewpoints']} | {n} | {k} | {bases} | "
+                  f"{r['alns']:.0f} ({r['alns_s']:.0f} s) | {r['bound']:.0f} "
+                  f"({r['bound_s']:.1f} s) | {r['alns'] / r['bound']:.2f} | {r['before']:.0f} "
+                  f"| {r['alns'] / r['before']:.2f} | {r['rt_ls']:.0f} ({r['rt_ls_s']:.0f} s) |",
+                  flush=True)
+    ratios = [r["alns"] / r["bound"] for r in rows]
+    before = [r["alns"] / r["before"] for r in rows]
+    print(f"\nplan / bound: median {np.median(ratios):.2f}, worst {max(ratios):.2f} "
+          f"(before: median {np.median(before):.2f}, worst {max(before):.2f}); "
+          f"{len(rows)} problems")
+    return rows
