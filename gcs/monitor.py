@@ -75,6 +75,19 @@ SETTLE_S = 3.0
 SETTLED_MPS = 0.5
 
 
+
+def _uncommanded_said(profile, mode: str) -> str:
+    """The event of a flying vehicle seen in ``mode``, which gcs did not command: a
+    failsafe's mode (the profile's ``failsafe_modes``) says what the firmware flies
+    in it."""
+    flies = profile.failsafe_modes.get(mode)
+    if flies is not None:
+        return (f"failsafe: flying in {mode}, a mode gcs did not command ({flies}): the "
+                "autopilot's own action, proven hidden only where `gcs fly` found its "
+                "failsafes hidden")
+    return (f"flying in {mode}, a mode gcs did not command (a pilot's or a failsafe's): "
+            "what it flies there is not proven hidden")
+
 def _note_airborne(v, armed: bool, agl) -> None:
     """Armed away from home height, above it or below it (a route over lower ground
     than the launch point): flying. Judged on every position report too: at a high
@@ -363,8 +376,7 @@ class Monitor:
             return
         if not v.uncommanded or v.uncommanded[-1][1] != mode:
             v.uncommanded.append((round(self.now(), 3), mode))
-            self.event(v.sysid, f"flying in {mode}, a mode gcs did not command (a pilot's or "
-                                "a failsafe's): what it flies there is not proven hidden")
+            self.event(v.sysid, _uncommanded_said(profile, mode))
 
     def _judge_disarm(self, v, agl) -> None:
         """Disarmed after flying: on the ground or still falling? On the ground it

@@ -61,7 +61,7 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     lost_after = REAL_LOST_AFTER_S if backend in REAL_BACKENDS else LOST_AFTER_S
     options = FlyOptions(**{"output": out, "lost_after_s": lost_after,
                             "timeout_s": 120.0 + 4.0 * longest / speedup,
-                            "live": False, **options})
+                            "live": False, "set_failsafes": True, **options})
     flight = Flight(planned.directory, be.urls(), options)
     killed = {}
     stop = threading.Event()

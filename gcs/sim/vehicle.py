@@ -21,6 +21,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from autopilots import ARDUPILOT
 from common.geo import LocalFrame
 from gcs.sim import flavours as fl
+from gcs.sim import params as sim_params
 from gcs.sim import telemetry
 from gcs.sim.battery import Battery
 from gcs.sim.faults import FaultPlan, LinkFaults
@@ -604,7 +605,10 @@ class SimVehicle:
         names = list(self.params)
         kind = msg.get_type()
         if kind == "PARAM_SET" and msg.param_id in self.params:
-            self.params[msg.param_id] = float(msg.param_value)
+            value = sim_params.value_set(self.flavour, msg)
+            if value is None:               # PX4 refuses a type mismatch, unanswered
+                return
+            self.params[msg.param_id] = value
         if kind == "PARAM_REQUEST_LIST":
             wanted = names
         elif kind == "PARAM_REQUEST_READ" and msg.param_index >= 0:
@@ -612,9 +616,9 @@ class SimVehicle:
         else:
             wanted = [msg.param_id] if msg.param_id in self.params else []
         for name in wanted:
+            wire, param_type = sim_params.wire(self.flavour, name, self.params[name])
             self._send(self.mav.param_value_encode(
-                name.encode(), self.params[name], M.MAV_PARAM_TYPE_REAL32, len(names),
-                names.index(name)))
+                name.encode(), wire, param_type, len(names), names.index(name)))
 
     # -- modes, arming ----------------------------------------------------------------
     def behaviour(self) -> str:
