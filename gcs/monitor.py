@@ -394,7 +394,8 @@ class Monitor:
         if away is not None and away > LAUNCH_RADIUS_M:
             return self._lose(v, f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
-        if final is not None and (progress is None or progress < final):
+        if final is not None and (progress is None or progress < final) and \
+                not self._failsafe_return(v):
             where = "nothing" if progress is None else f"item {progress}"
             return self._lose(v, f"crashed: touched the ground before its last item "
                                  f"({where} of {final} reached)")
@@ -408,6 +409,12 @@ class Monitor:
             return None
         ground = self.ground(s.lat, s.lon)
         return None if ground is None or not math.isfinite(ground) else s.alt_amsl - ground
+
+    def _failsafe_return(self, v) -> bool:
+        """Its last mode was a failsafe's (SmartRTL, RTL, LAND): down at a base before
+        its last item, it came home on the autopilot's own, not crashed."""
+        modes = getattr(getattr(self.links.get(v.sysid), "profile", None), "failsafe_modes", {})
+        return bool(v.uncommanded) and v.uncommanded[-1][1] in modes
 
     @staticmethod
     def _from_base(v, s):

@@ -7,15 +7,19 @@ preflight against the simulated vehicles, by what they hold afterwards and by
 their own tracks (nothing armed when refused)."""
 
 import json
+import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pytest
+from sampled_sight import sampled_lowest
 from sim_fleet import quick_fleet
 
-from autopilots import profile
+from autopilots import ACCEPT_RADIUS_M, profile
 from gcs.cli import main
 from gcs.sim import read_track, track_path
+from gcs.sim.battery import CAPACITY_MAH
 from gcs.sim.flavours import flavour
 
 pytestmark = pytest.mark.timeout(180)
@@ -212,3 +216,102 @@ def test_restore_without_a_flight_report_is_one_line(tmp_path, capsys):
     assert main(["failsafes", "--restore", str(tmp_path), "--connect", "tcp:127.0.0.1:1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "flight.json: no such file" in err[0]
+
+
+# -- a failsafe in flight, on the simulator -----------------------------------------------
+def _seen(planned, xyz) -> np.ndarray:
+    """bool per point: some outpost sees it, by dense sampling of the terrain along
+    each sight line (`sampled_sight`), not by the planner's kernels."""
+    terrain, k = planned.terrain, float(planned.plan.params.get("curvature_coeff", 0.85714))
+    cell = abs(terrain.transform.a)
+    seen = np.zeros(len(xyz), bool)
+    for o in planned.ctx.outposts:
+        row0, col0 = terrain.rowcol(o.x, o.y)
+        z0 = float(terrain.ground(o.x, o.y)[0]) + o.height_m
+        for i, (x, y, z) in enumerate(xyz):
+            if math.hypot(x - o.x, y - o.y) > o.range_m:
+                continue
+            row, col = terrain.rowcol(x, y)
+            lowest = sampled_lowest(terrain.height, cell, float(col0), float(row0), z0,
+                                    float(col), float(row), k, n=2001)
+            seen[i] |= z >= lowest
+    return seen
+
+
+def _to_polyline(points, line) -> np.ndarray:
+    """Each point's distance (m) to the polyline ``line`` (3-D)."""
+    a, b = line[:-1], line[1:]
+    ab = b - a
+    out = []
+    for p in points:
+        t = np.clip(np.einsum("ij,ij->i", p - a, ab) / np.maximum(
+            np.einsum("ij,ij->i", ab, ab), 1e-9), 0.0, 1.0)
+        out.append(np.linalg.norm(a + t[:, None] * ab - p, axis=1).min())
+    return np.array(out)
+
+
+def test_a_low_battery_mid_sortie_flies_smartrtl_the_proven_way_home(planned, tmp_path):
+    """ArduPilot with --set-failsafes (BATT_FS_LOW_ACT 4, SmartRTL or Land): its
+    battery crosses the low level halfway through its route; it retraces its own
+    flown path to its base and lands there. Judged on the simulator's true track:
+    every point after the failsafe within SRTL_ACCURACY of the path flown before it,
+    hidden from the outpost by dense sampling of each sight line, down at home."""
+    from gcs.sim import terrain_ground
+
+    lat, lon, alt = planned.launch
+    fleet = quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
+                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    route = planned.plan.vehicles[0]
+    hover_s = fleet.config.battery_min * 60.0
+    # the low level, in mAh left, crossed about halfway through route 1
+    fleet.vehicle(1).params["BATT_LOW_MAH"] = CAPACITY_MAH * (1.0 - 0.5 * route.mission_time_s
+                                                              / hover_s)
+    out = tmp_path / "flight"
+    try:
+        main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
+              "--lost-after", "3", "--timeout", "120", "-o", str(out)])
+    finally:
+        fleet.stop()
+    track = read_track(track_path(tmp_path / "tracks", 1))
+    fired = next(e["t"] for e in track.events
+                 if e["event"] == "battery failsafe: low, SMART_RTL or LAND")
+    x, y = planned.terrain.from_lonlat(track.lon, track.lat)
+    xyz = np.stack([x, y, track.alt], axis=1)
+    before, after = xyz[track.t <= fired], xyz[track.t > fired]
+    assert len(after) > 10
+    # on the path it flew: its points SRTL_ACCURACY apart, each turned at within the
+    # acceptance radius; or braking on the leg it flew when the failsafe fired
+    # (within the plan's track tolerance of its route)
+    near = 2.0 + ACCEPT_RADIUS_M
+    planned_xyz = np.array([(*planned.terrain.from_lonlat(w.lon, w.lat), w.alt_amsl)
+                            for w in route.waypoints])
+    off = np.minimum(_to_polyline(after, before), _to_polyline(after, planned_xyz))
+    assert off.max() <= max(near, float(planned.plan.params["track_tolerance_m"]))
+    assert _to_polyline(after[len(after) // 4:], before).max() <= near
+    assert not _seen(planned, after[::max(1, len(after) // 150)]).any()
+    o = planned.ctx.outposts[0]           # the judge sees: 400 m up beside the post
+    assert _seen(planned, [(o.x + 60.0, o.y, float(planned.terrain.ground(o.x, o.y)[0]) + 400)])
+    home = np.array(planned.terrain.from_lonlat(track.home[1], track.home[0]))
+    assert np.hypot(*(xyz[-1, :2] - home)) < 2.0 and abs(track.alt[-1] - track.home[2]) < 1.0
+    assert "landed" in [e["event"] for e in track.events if e["t"] > fired]
+    report = json.loads((out / "flight.json").read_text())
+    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
+    assert v1["state"] == "landed"                        # home on its own, not lost
+    assert [m["mode"] for m in v1["failsafe_modes"]] == ["SMART_RTL"]
+    assert any(e["sysid"] == 1 and e["event"].startswith("failsafe: flying in SMART_RTL")
+               for e in report["events"])
+
+
+def test_the_smartrtl_buffer_simplifies_straight_legs_and_overflows_on_corners():
+    """AP_SmartRTL's rules: points SRTL_ACCURACY apart, simplified within half of it
+    when the buffer nears full; a path with more corners than room deactivates it."""
+    from gcs.sim.smartrtl import SmartPath
+
+    straight = SmartPath(30, 2.0, (0.0, 0.0, 0.0))
+    for i in range(1, 1000):                     # 2 km in a line, in 2 m steps
+        assert not straight.add((2.0 * i, 0.0, 50.0))
+    assert straight.active and len(straight.points) < 30
+    assert straight.way_back()[-1] == (0.0, 0.0, 2.0)       # home, 2 m above
+    zigzag = SmartPath(30, 2.0, (0.0, 0.0, 0.0))
+    full = [zigzag.add((10.0 * i, 40.0 * (i % 2), 50.0)) for i in range(1, 40)]
+    assert full.count(True) == 1 and not zigzag.active      # 31 corners: no room

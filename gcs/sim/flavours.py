@@ -22,6 +22,7 @@ from gcs.sim.battery import CAPACITY_MAH, ardupilot_levels, px4_levels
 
 # What a mode makes the vehicle do (see vehicle.py).
 MANUAL, GUIDED, AUTO, RTL, LAND, TAKEOFF = "manual", "guided", "auto", "rtl", "land", "takeoff"
+SMARTRTL = "smartrtl"              # its own saved path back (`gcs.sim.smartrtl`)
 
 
 @dataclass(frozen=True)
@@ -156,7 +157,7 @@ class Flavour:
 ARDUPILOT = Flavour(
     profile=profile(ARDUPILOT_NAME),
     behaviour={"STABILIZE": MANUAL, "AUTO": AUTO, "GUIDED": GUIDED, "LOITER": GUIDED,
-               "RTL": RTL, "LAND": LAND},
+               "RTL": RTL, "LAND": LAND, "SMART_RTL": SMARTRTL},
     initial_mode="STABILIZE",
     armable=frozenset({"STABILIZE", "GUIDED", "LOITER"}),
     legacy_request=True,

@@ -22,7 +22,7 @@ from autopilots import ARDUPILOT
 from common.geo import LocalFrame
 from gcs.sim import flavours as fl
 from gcs.sim import params as sim_params
-from gcs.sim import telemetry
+from gcs.sim import smartrtl, telemetry
 from gcs.sim.battery import Battery
 from gcs.sim.faults import FaultPlan, LinkFaults
 from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
@@ -122,6 +122,7 @@ class SimVehicle:
         if "AUTO_OPTIONS" in self.params:
             self.params["AUTO_OPTIONS"] = float(cfg.auto_options)
         self.track = TrackRecorder(cfg.track_path, cfg.sysid, cfg.firmware, cfg.home)
+        self.smart_path = None        # ArduPilot's SmartRTL path, from arming
         self.link = None
         self.mission = None
         self.mode = self.flavour.initial_mode
@@ -283,6 +284,7 @@ class SimVehicle:
             remaining -= dt
             self.t += dt
             self._physics(dt)
+            self._save_path()
             self._update_task()
             self._scheduled_faults(now)
             self._sample()
@@ -373,8 +375,24 @@ class SimVehicle:
                                      f"{level.action or 'a warning'}")
             if level.action == "fall":
                 self._disarm(force=True, reason="battery failsafe: terminate")
-            elif level.action is not None and level.action != self.mode:
-                self._set_mode(level.action)
+            elif level.action is not None:
+                self._failsafe_mode(level.action.split(" or "))
+
+    def _failsafe_mode(self, choices) -> None:
+        """The first of ``choices`` the vehicle can fly (SmartRTL only with its path),
+        as ArduCopter's set_mode_SmartRTL_or_RTL / _or_land_with_pause do."""
+        for mode in choices:
+            if mode == self.mode:
+                return
+            if self.flavour.behaviour[mode] == fl.SMARTRTL and not self._smart_ok():
+                self._say(M.MAV_SEVERITY_WARNING, "SmartRTL Unavailable, Trying "
+                                                  f"{choices[-1].title()} Mode")
+                continue
+            self._set_mode(mode)
+            return
+
+    def _smart_ok(self) -> bool:
+        return self.smart_path is not None and self.smart_path.active
 
     def _sample(self, force=False) -> None:
         lat, lon, alt = self.position()
@@ -626,6 +644,8 @@ class SimVehicle:
 
     def _set_mode(self, name: str) -> int:
         flying = self.armed and not self.landed      # a falling vehicle obeys nothing
+        if self.flavour.behaviour[name] == fl.SMARTRTL and not self._smart_ok():
+            return M.MAV_RESULT_FAILED              # ModeSmartRTL::init: no path
         if flying and self.behaviour() == fl.AUTO and self.flavour.behaviour[name] != fl.AUTO:
             self._left_at = self.current
         self.mode = name
@@ -646,6 +666,10 @@ class SimVehicle:
         elif behaviour == fl.RTL:
             if flying:
                 self._start_rtl(None)
+        elif behaviour == fl.SMARTRTL:
+            if flying:
+                self.task = {"kind": "smartrtl", "seq": None, "back": self.smart_path.way_back()}
+                self._update_smartrtl(self.task)
         elif behaviour == fl.TAKEOFF:
             if self.armed:
                 self._start_takeoff(self._takeoff_alt)
@@ -668,6 +692,7 @@ class SimVehicle:
             self._say(M.MAV_SEVERITY_CRITICAL, problem)
             return self.flavour.deny_result
         self.armed = True
+        self.smart_path = smartrtl.path_of(self.flavour, self.params, self.body.pos)
         self._idle_since = self.t
         x, y, z = self.body.pos                 # home is where the vehicle arms
         self.home = (x, y, self.ground)
@@ -753,6 +778,8 @@ class SimVehicle:
                 self.body.go_to((x, y, self.ground - 1.0))   # aim below: touch down firmly
         elif kind == "rtl":
             self._update_rtl(task)
+        elif kind == "smartrtl":
+            self._update_smartrtl(task)
 
     def _takeoff_done(self, task) -> None:
         if task["seq"] is not None:
@@ -772,6 +799,24 @@ class SimVehicle:
         elif task["phase"] == "return":
             seq = task["seq"]
             self._start_land(None, seq)
+
+    def _update_smartrtl(self, task) -> None:
+        """SmartRTL: to each saved point newest first, then land (mode_smart_rtl.cpp)."""
+        if task.get("to") is not None and self.body.distance_to_dest() > self.cfg.wp_radius_m:
+            return
+        if not task["back"]:
+            return self._start_land(None, None)
+        task["to"] = task["back"].pop(0)
+        self.body.go_to(task["to"])
+
+    def _save_path(self) -> None:
+        """ArduPilot saves its flown path for SmartRTL while armed, in any other mode."""
+        if self.smart_path is None or not self.armed or self.landed or \
+                self.flavour.behaviour[self.mode] == fl.SMARTRTL:
+            return
+        if self.smart_path.add(tuple(self.body.pos)):
+            self._say(M.MAV_SEVERITY_WARNING, "SmartRTL deactivated: buffer full")
+            self.track.event(self.t, "SmartRTL deactivated: buffer full")
 
     def _idle_check(self) -> None:
         """Armed on the ground with nothing to do: disarm, as both autopilots do."""
