@@ -392,7 +392,8 @@ class Monitor:
             return
         away = self._from_base(v, s)
         if away is not None and away > LAUNCH_RADIUS_M:
-            return self._lose(v, f"crashed: touched the ground {away:.0f} m from its base")
+            return self._lose(v, self._down_said(v, away) or
+                              f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
         if final is not None and (progress is None or progress < final) and \
                 not self._failsafe_return(v):
@@ -412,9 +413,18 @@ class Monitor:
 
     def _failsafe_return(self, v) -> bool:
         """Its last mode was a failsafe's (SmartRTL, RTL, LAND): down at a base before
-        its last item, it came home on the autopilot's own, not crashed."""
+        its last item, it came home on the autopilot's own; elsewhere, it is down in
+        the field (lost to the flight all the same), not crashed."""
         modes = getattr(getattr(self.links.get(v.sysid), "profile", None), "failsafe_modes", {})
         return bool(v.uncommanded) and v.uncommanded[-1][1] in modes
+
+    def _down_said(self, v, away) -> str | None:
+        """A vehicle a failsafe put down away from its bases: why it is lost to the
+        flight (None when no failsafe did)."""
+        if not self._failsafe_return(v):
+            return None
+        return (f"down in the field: a failsafe's {v.uncommanded[-1][1]} put it on the ground "
+                f"{away or 0.0:.0f} m from its base")
 
     @staticmethod
     def _from_base(v, s):
@@ -442,8 +452,8 @@ class Monitor:
             return
         away = self._from_base(v, s)
         if away is None or away > LAUNCH_RADIUS_M:
-            self._lose(v, f"crashed: {height:.1f} m above the terrain "
-                          f"({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
+            self._lose(v, self._down_said(v, away) or f"crashed: {height:.1f} m above the "
+                          f"terrain ({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
 
     def _position(self, v, msg) -> None:
         if not has_position(msg):

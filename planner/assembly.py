@@ -12,12 +12,14 @@ from typing import Optional
 
 import numpy as np
 
+from autopilots import firmware_of
 from planner.terrain.dem import VOID_FILL_MARGIN_M
 from planner.visibility.unseen import area_summary
 
 from .context import outposts_json
 from .coverage.model import achievable, beyond_battery
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
+from .returns import returns
 
 
 def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds):
@@ -51,6 +53,8 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
         "wait_s": sched.wait_s,
         "sorties": len(fleet.sorties),
         "battery": _battery_metrics(ctx, problem, fleet, required),
+        # what the firmware's own return flies; for SmartRTL, each sortie's buffer
+        "returns": returns(vehicles, firmware_of(s.params())),
     }
     if ctx.terrain.meta.get("z_units"):
         metrics["z_units"] = ctx.terrain.meta["z_units"]

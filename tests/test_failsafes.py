@@ -315,3 +315,69 @@ def test_the_smartrtl_buffer_simplifies_straight_legs_and_overflows_on_corners()
     zigzag = SmartPath(30, 2.0, (0.0, 0.0, 0.0))
     full = [zigzag.add((10.0 * i, 40.0 * (i % 2), 50.0)) for i in range(1, 40)]
     assert full.count(True) == 1 and not zigzag.active      # 31 corners: no room
+
+
+def test_a_smartrtl_buffer_too_small_is_predicted_and_its_fallback_reported(planned, tmp_path):
+    """SRTL_POINTS 30 on vehicle 1 (the plan counts its route at about 80): the
+    preflight says where the buffer fills, the simulated autopilot fills it no
+    sooner ("SmartRTL deactivated: buffer full"), and a low battery after that
+    takes BATT_FS_LOW_ACT 4's fallback, LAND where it is: said, and in the report."""
+    from gcs.sim import terrain_ground
+
+    lat, lon, alt = planned.launch
+    fleet = quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
+                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    route = planned.plan.vehicles[0]
+    fleet.vehicle(1).params["SRTL_POINTS"] = 30.0
+    fleet.vehicle(1).params["BATT_LOW_MAH"] = CAPACITY_MAH * (
+        1.0 - 0.8 * route.mission_time_s / (fleet.config.battery_min * 60.0))
+    out = tmp_path / "flight"
+    try:
+        main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
+              "--lost-after", "3", "--timeout", "120", "-o", str(out)])
+    finally:
+        fleet.stop()
+    report = json.loads((out / "flight.json").read_text())
+    risk = next(r for r in report["failsafes"]["1"]["risks"] if r.startswith("SmartRTL buffer"))
+    full_at = int(re.search(r"full at its waypoint (\d+)", risk).group(1))
+    assert "SRTL_POINTS = 30" in risk and not any(
+        r.startswith("SmartRTL buffer") for r in report["failsafes"]["2"]["risks"])
+    track = read_track(track_path(tmp_path / "tracks", 1))
+    at = {e["event"]: e["t"] for e in track.events}
+    takeoff = at["takeoff"]
+    full = at["SmartRTL deactivated: buffer full"]
+    # the prediction is conservative: the buffer had room past the waypoint before
+    # the one named (the simulator flies the plan's pace within 10 %)
+    before = route.waypoints[full_at - 2]
+    assert full - takeoff >= 0.9 * (before.t_s - route.takeoff_s)
+    assert at["battery failsafe: low, SMART_RTL or LAND"] > full
+    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
+    assert [m["mode"] for m in v1["failsafe_modes"]] == ["LAND"]
+    loss = next(x for x in report["losses"] if x["sysid"] == 1)
+    assert loss["reason"].startswith("down in the field: a failsafe's LAND")
+
+
+def test_the_plan_counts_each_sortie_s_smartrtl_points_no_lower_than_they_fill(planned):
+    """plan.json's ``returns``: each sortie's SmartRTL points, counted from its
+    polyline, against the buffer; never fewer, at any waypoint, than the
+    simulator's buffer holds after flying that polyline in 0.5 m steps."""
+    from gcs.sim.smartrtl import SmartPath, simplified
+    from planner.returns import returns_said, smartrtl_points, sortie_polyline
+
+    r = planned.plan.metrics["returns"]
+    assert r["srtl_points"] == 300 and r["too_long"] == [] and returns_said(planned.plan.metrics) \
+        is None
+    assert [s["vehicle"] for s in r["sorties"]] == [v.id for v in planned.plan.vehicles]
+    for v in planned.plan.vehicles:
+        xyz = sortie_polyline(v)
+        counted = smartrtl_points(xyz, 2.0)
+        path = SmartPath(10_000, 2.0, tuple(xyz[0]))
+        for i in range(1, len(xyz)):
+            steps = max(1, int(np.linalg.norm(xyz[i] - xyz[i - 1]) / 0.5))
+            for t in np.linspace(0, 1, steps + 1)[1:]:
+                path.add(tuple(xyz[i - 1] + t * (xyz[i] - xyz[i - 1])))
+            assert len(simplified(path.points, 1.0)) <= counted[i], (v.id, i)
+    said = returns_said({"returns": dict(r, too_long=[dict(vehicle=2, sortie=1, points=400,
+                                                            full_at=70)])})
+    assert said.startswith("warning: SmartRTL buffer: vehicle 2 sortie 1 (400 points, full at "
+                           "its waypoint 70) need more than SRTL_POINTS 300")

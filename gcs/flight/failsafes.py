@@ -8,13 +8,16 @@ profile (`autopilots.failsafe`), and made hidden when the operator says so.
   reads each back (a vehicle that keeps another value is refused), and returns
   what it changed, so that `restore` can put the previous values back;
 - `risks`: what stays a risk with the hidden values (a landing away from the
-  base), said in the preflight and in the report.
+  base), said in the preflight and in the report;
+- `buffer_risks`: where a route outgrows the vehicle's own SmartRTL buffer
+  (`planner.returns`): from there a failsafe's SmartRTL is gone.
 """
 
 from dataclasses import dataclass
 
 from autopilots.failsafe import parameter_names
 from gcs import params
+from planner.returns import smartrtl_budget
 
 #: how to fix a refusal, said with it
 FIX = ("add --set-failsafes to this gcs fly command: it writes the hidden-safe values, "
@@ -146,3 +149,24 @@ def _error(link, problem: str, changes) -> FailsafeError:
     error.changes = changes
     return error
 
+
+
+def buffer_risks(link, profile, route) -> list:
+    """Where ``route`` outgrows the SmartRTL buffer the vehicle holds (its own
+    SRTL_POINTS and SRTL_ACCURACY), one line per sortie; [] for a firmware whose
+    return is not its own track, or a route that fits."""
+    srtl = profile.smartrtl
+    if srtl is None or route is None:
+        return []
+    points, accuracy = (params.read(link, name) for name in (srtl.points_param,
+                                                             srtl.accuracy_param))
+    if points is None or accuracy is None:
+        return [f"SmartRTL buffer: {srtl.points_param} / {srtl.accuracy_param} not answered: "
+                "whether a failsafe's SmartRTL holds its whole path is unknown"]
+    held = min(int(points.value), srtl.points_max)
+    return [f"SmartRTL buffer: {srtl.points_param} = {held} holds less than sortie "
+            f"{s['sortie']} of route {route.id} needs (about {s['points']} points at "
+            f"{srtl.accuracy_param} {accuracy.value:g}): full at its waypoint {s['full_at']}, "
+            "past which a failsafe's SmartRTL is gone and it takes its fallback (LAND where "
+            "it is)"
+            for s in smartrtl_budget(route, held, accuracy.value) if s["full_at"] is not None]

@@ -117,12 +117,18 @@ class Preflight:
                 m.event(sysid, "refused: " + refused[sysid])
             else:
                 m.event(sysid, "failsafes hidden: " + "; ".join(s.said() for s in settings))
-            said = failsafes.risks(profile, settings)
+            said = failsafes.risks(profile, settings) + \
+                failsafes.buffer_risks(link, profile, self._planned_route(v))
             self.failsafes[sysid]["risks"] = said
             if said:
                 m.event(sysid, "known risk: " + "; ".join(said))
         if refused:
             raise FailsafeRefused(failsafes.by_vehicles(refused) + ": " + failsafes.FIX)
+
+    def _planned_route(self, v):
+        """The plan's whole route of a vehicle, every sortie (the monitor's is the one
+        it flies now)."""
+        return next((r for r in self.state.plan.vehicles if r.id == v.vehicle_id), v.route)
 
     def _make_hidden(self, sysid, link, profile) -> list:
         """--set-failsafes: the hidden-safe values written and read back; the settings
