@@ -269,6 +269,10 @@ PROFILE = ArduPilot(
                     "RTL": "RTL: a climb to RTL_ALT and a straight line home",
                     "LAND": "LAND where it is", "BRAKE": "brake where it is"},
     smartrtl=SmartRTL(),
+    # Copter::announce_failsafe ("Battery Failsafe - ..."); AP_SmartRTL::deactivate,
+    # Copter::set_mode_SmartRTL_or_* ("SmartRTL deactivated: buffer full", "SmartRTL
+    # Unavailable, Trying RTL Mode")
+    failsafe_texts=r"\bFailsafe\b|^SmartRTL (deactivated|Unavailable)",
     # the mission's DO_CHANGE_SPEED sets the speed; climbs and descents keep these
     # (defaults 250, 150, 50 cm/s: ``rates``)
     rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01), ("WPNAV_SPEED_DN", "descent_mps", 0.01),

@@ -91,6 +91,8 @@ class Autopilot:
     failsafes: tuple = ()
     #: mode name -> what the vehicle flies in it, for the modes a failsafe puts it in
     failsafe_modes: dict = field(default_factory=dict)
+    #: a STATUSTEXT that says a failsafe fired, or its return is gone (a regex)
+    failsafe_texts: str | None = None
     #: the SmartRTL buffer (`autopilots.ardupilot.SmartRTL`); None: the firmware's
     #: return is not its own track
     smartrtl: object = None

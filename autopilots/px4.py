@@ -69,7 +69,11 @@ FAILSAFES = (
                "point",
             4: "the mission path, forward to its landing or reversed to home, whichever "
                "is closer"},
-        frozenset({2, 4}), 4, "src/modules/navigator/rtl_params.c RTL_TYPE"),)),
+        frozenset({2, 4}), 4, "src/modules/navigator/rtl_params.c RTL_TYPE",
+        # rtl_mission_fast(_reverse).cpp on_activation: from the mission it goes on from
+        # its current item; from any other mode (a hold) setMissionToClosestItem
+        risks={v: "a Return from outside the mission (a hold) first flies straight to the "
+                  "mission item closest to it" for v in (2, 4)}),)),
     Failsafe("ground-station link loss", (
         FailsafeParameter("NAV_DLL_ACT", {
             0: "disabled: it flies on", 1: "Hold where it is", 2: _RETURN,
@@ -192,6 +196,9 @@ PROFILE = PX4(
     capacity_advice="a board keeps missions in its dataman: on the SD card (SYS_DM_BACKEND 0) "
                     "it holds more than in RAM",
     failsafes=FAILSAFES,
+    # commander/failsafe/framework.cpp: "Failsafe activated: ..." (most of its failsafe
+    # notices travel as events, which gcs does not read)
+    failsafe_texts=r"^Failsafe",
     params_bytewise=True,       # src/modules/mavlink/mavlink_main.cpp: ENCODE_BYTEWISE
     failsafe_modes={"AUTO.RTL": "Return (RTL_TYPE: along the mission path, or a climb "
                                 "and a straight line home)",

@@ -33,6 +33,7 @@ or not it disarms.
 
 import collections
 import math
+import re
 import threading
 import time
 from dataclasses import dataclass, field
@@ -411,6 +412,13 @@ class Monitor:
         ground = self.ground(s.lat, s.lon)
         return None if ground is None or not math.isfinite(ground) else s.alt_amsl - ground
 
+    def in_failsafe(self, sysid) -> bool:
+        """Flying in a failsafe's mode now (SmartRTL, RTL, LAND): the autopilot's own
+        return, which no command of the ground station should undo."""
+        link = self.links.get(sysid)
+        modes = getattr(getattr(link, "profile", None), "failsafe_modes", {})
+        return link is not None and link.state.mode in modes
+
     def _failsafe_return(self, v) -> bool:
         """Its last mode was a failsafe's (SmartRTL, RTL, LAND): down at a base before
         its last item, it came home on the autopilot's own; elsewhere, it is down in
@@ -534,9 +542,18 @@ class Monitor:
             lat, lon, alt = msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3
         v.camera.append((round(self.now(), 3), lon, lat, alt))
 
+    def _text(self, v, msg) -> None:
+        """A STATUSTEXT in which the autopilot says a failsafe fired or its return is
+        gone (the profile's ``failsafe_texts``): an event, in its words."""
+        profile = getattr(self.links.get(v.sysid), "profile", None)
+        pattern = getattr(profile, "failsafe_texts", None)
+        text = str(getattr(msg, "text", ""))
+        if pattern and re.search(pattern, text):
+            self.event(v.sysid, f"failsafe: the autopilot says \"{text}\"")
+
     _HANDLERS = {"HEARTBEAT": _heartbeat, "GLOBAL_POSITION_INT": _position,
                  "MISSION_ITEM_REACHED": _reached, "CAMERA_FEEDBACK": _camera,
-                 "CAMERA_IMAGE_CAPTURED": _camera}
+                 "CAMERA_IMAGE_CAPTURED": _camera, "STATUSTEXT": _text}
 
     # -- losses (flight loop) ---------------------------------------------------------
     def wait_settled(self, sysids, vertical: bool = True, timeout_s: float = SETTLE_S) -> None:

@@ -355,6 +355,9 @@ def test_a_smartrtl_buffer_too_small_is_predicted_and_its_fallback_reported(plan
     assert [m["mode"] for m in v1["failsafe_modes"]] == ["LAND"]
     loss = next(x for x in report["losses"] if x["sysid"] == 1)
     assert loss["reason"].startswith("down in the field: a failsafe's LAND")
+    said = [e["event"] for e in report["events"] if e["sysid"] == 1]
+    assert 'failsafe: the autopilot says "SmartRTL deactivated: buffer full"' in said
+    assert 'failsafe: the autopilot says "SmartRTL Unavailable, Trying Land Mode"' in said
 
 
 def test_the_plan_counts_each_sortie_s_smartrtl_points_no_lower_than_they_fill(planned):
@@ -381,3 +384,45 @@ def test_the_plan_counts_each_sortie_s_smartrtl_points_no_lower_than_they_fill(p
                                                             full_at=70)])})
     assert said.startswith("warning: SmartRTL buffer: vehicle 2 sortie 1 (400 points, full at "
                            "its waypoint 70) need more than SRTL_POINTS 300")
+
+
+def test_a_px4_battery_failsafe_mid_sortie_returns_along_the_mission(planned, tmp_path):
+    """PX4 with --set-failsafes (COM_LOW_BAT_ACT 3, RTL_TYPE 4): its battery reaches
+    the critical level halfway through route 1; its Return flies the mission's
+    legs, forward to its landing or back to home, and lands at its base. Judged on
+    the simulator's true track: within the track tolerance of the planned route,
+    seen by no outpost by dense sampling, down at home."""
+    from gcs.sim import terrain_ground
+
+    lat, lon, alt = planned.launch
+    fleet = quick_fleet(3, "px4", homes=[(lat, lon, alt)] * 3,
+                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    route = planned.plan.vehicles[0]
+    fleet.vehicle(1).params["BAT_CRIT_THR"] = 1.0 - 0.5 * route.mission_time_s / (
+        fleet.config.battery_min * 60.0)
+    out = tmp_path / "flight"
+    try:
+        main(["fly", str(planned.dir), *_urls(fleet, "px4"), "--set-failsafes",
+              "--lost-after", "3", "--timeout", "120", "-o", str(out)])
+    finally:
+        fleet.stop()
+    track = read_track(track_path(tmp_path / "tracks", 1))
+    fired = next(e["t"] for e in track.events
+                 if e["event"] == "battery failsafe: critical, AUTO.RTL")
+    assert any(e["event"].startswith("return along the mission") for e in track.events)
+    x, y = planned.terrain.from_lonlat(track.lon, track.lat)
+    xyz = np.stack([x, y, track.alt], axis=1)
+    after = xyz[track.t > fired]
+    planned_xyz = np.array([(*planned.terrain.from_lonlat(w.lon, w.lat), w.alt_amsl)
+                            for w in route.waypoints])
+    home = np.array(planned.terrain.from_lonlat(track.home[1], track.home[0]))
+    column = np.array([[*home, track.home[2]], [*home, planned_xyz[0, 2]]])
+    legs = np.concatenate([column, planned_xyz])
+    tolerance = float(planned.plan.params["track_tolerance_m"])
+    assert _to_polyline(after, legs).max() <= tolerance + ACCEPT_RADIUS_M
+    assert not _seen(planned, after[::max(1, len(after) // 150)]).any()
+    assert np.hypot(*(xyz[-1, :2] - home)) < 2.0 and abs(track.alt[-1] - track.home[2]) < 1.0
+    report = json.loads((out / "flight.json").read_text())
+    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
+    assert v1["state"] == "landed"
+    assert [m["mode"] for m in v1["failsafe_modes"]] == ["AUTO.RTL"]

@@ -668,8 +668,8 @@ class SimVehicle:
                 self._start_rtl(None)
         elif behaviour == fl.SMARTRTL:
             if flying:
-                self.task = {"kind": "smartrtl", "seq": None, "back": self.smart_path.way_back()}
-                self._update_smartrtl(self.task)
+                self.task = {"kind": "retrace", "seq": None, "back": self.smart_path.way_back()}
+                self._update_retrace(self.task)
         elif behaviour == fl.TAKEOFF:
             if self.armed:
                 self._start_takeoff(self._takeoff_alt)
@@ -750,9 +750,44 @@ class SimVehicle:
         self.body.go_to((x, y, z))
 
     def _start_rtl(self, seq) -> None:
+        back = self._mission_return()
+        if back:
+            self.track.event(self.t, f"return along the mission ({len(back)} points)")
+            self.task = {"kind": "retrace", "seq": seq, "back": back}
+            return self._update_retrace(self.task)
         self.task = {"kind": "rtl", "seq": seq, "phase": "climb"}
         x, y, z = self.body.pos
         self.body.go_to((x, y, max(z, self.home[2] + self.cfg.rtl_alt_m)))
+
+    def _mission_return(self) -> list:
+        """PX4's Return with RTL_TYPE 2 or 4 (navigator/rtl.cpp init_rtl_mission_type):
+        the mission's position items forward from the current one to its landing, or
+        back from the one before to home, at their altitudes, ending above where it
+        lands; [] for any other return (a climb and a straight line)."""
+        rtl_type = int(self.params.get("RTL_TYPE", 0))
+        if rtl_type not in (2, 4) or self.mission is None:     # ArduPilot has no RTL_TYPE
+            return []
+        items = [it for it in self.mission.items if it is not None and it.is_nav
+                 and (it.x, it.y) != (0, 0)]
+        land = next((it.seq for it in items if it.command == M.MAV_CMD_NAV_LAND), None)
+        cur = self.current
+        # RTL_TYPE 2: forward when the mission lands; 4: whichever counts fewer items
+        # (rtl.cpp reverseIsFurther: land - current < current)
+        forward = land is not None and (rtl_type == 2 or land - cur < cur)
+        if forward:
+            way = [it for it in items if cur <= it.seq <= land]
+        else:
+            way = [it for it in reversed(items) if it.seq < cur
+                   and it.command != M.MAV_CMD_NAV_LAND]
+        points = [(*self.frame.to_local(it.lat, it.lon),
+                   self.body.pos[2] if it.command == M.MAV_CMD_NAV_LAND
+                   else self._alt(it.z, it.frame)) for it in way]
+        if not forward:            # and then home, at the altitude it came to
+            z = points[-1][2] if points else self.body.pos[2]
+            points.append((self.home[0], self.home[1], z))
+        elif points:               # the landing: approached at the last altitude
+            points[-1] = (*points[-1][:2], points[-2][2] if len(points) > 1 else self.body.pos[2])
+        return points
 
     def _update_task(self) -> None:
         task = self.task
@@ -778,8 +813,8 @@ class SimVehicle:
                 self.body.go_to((x, y, self.ground - 1.0))   # aim below: touch down firmly
         elif kind == "rtl":
             self._update_rtl(task)
-        elif kind == "smartrtl":
-            self._update_smartrtl(task)
+        elif kind == "retrace":
+            self._update_retrace(task)
 
     def _takeoff_done(self, task) -> None:
         if task["seq"] is not None:
@@ -800,8 +835,10 @@ class SimVehicle:
             seq = task["seq"]
             self._start_land(None, seq)
 
-    def _update_smartrtl(self, task) -> None:
-        """SmartRTL: to each saved point newest first, then land (mode_smart_rtl.cpp)."""
+    def _update_retrace(self, task) -> None:
+        """A return along known points (ArduPilot's SmartRTL: its saved path newest
+        first, mode_smart_rtl.cpp; PX4's mission-path Return): to each in turn, then
+        land where the last one is."""
         if task.get("to") is not None and self.body.distance_to_dest() > self.cfg.wp_radius_m:
             return
         if not task["back"]:
