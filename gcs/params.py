@@ -47,9 +47,17 @@ def _bytewise(link) -> bool:
     return bool(getattr(profile, "params_bytewise", False))
 
 
+def _drain(link, name: str) -> None:
+    """Drop the PARAM_VALUEs of ``name`` already queued: PX4 answers a PARAM_SET and
+    also announces the change, so a later read would otherwise take a stale one."""
+    while link.recv("PARAM_VALUE", 0.0, lambda m: m.param_id == name) is not None:
+        pass
+
+
 def read(link, name: str, timeout_s: float = TIMEOUT_S, retries: int = RETRIES):
     """`Value` of parameter ``name``; None when the vehicle does not answer (it has
     no such parameter)."""
+    _drain(link, name)
     for _ in range(retries + 1):
         link.send("PARAM_REQUEST_READ", param_id=name.encode(), param_index=-1)
         msg = link.recv("PARAM_VALUE", timeout_s, lambda m: m.param_id == name)
@@ -64,6 +72,7 @@ def write(link, name: str, value: float, kind: int, timeout_s: float = TIMEOUT_S
     """Set ``name`` to ``value`` in its type ``kind``; the `Value` the vehicle answers
     with (what it now holds), or None when it does not answer."""
     wire = encode(value, kind, _bytewise(link))
+    _drain(link, name)
     for _ in range(retries + 1):
         link.send("PARAM_SET", param_id=name.encode(), param_value=wire, param_type=kind)
         msg = link.recv("PARAM_VALUE", timeout_s, lambda m: m.param_id == name)
