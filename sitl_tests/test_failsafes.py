@@ -61,3 +61,27 @@ def test_failsafes_refused_then_set_read_back_and_restored(planned, tmp_path, ba
             flight.link.close()
         be.stop()
 
+
+
+def test_a_low_battery_mid_mission_flies_smartrtl_home_on_ardupilot_sitl(planned, tmp_path):
+    """Real ArduPilot SITL with --set-failsafes (BATT_FS_LOW_ACT 4): its simulated
+    battery sags below BATT_LOW_VOLT (10.5 V, the copter default) 40 % into vehicle
+    1's route (SIM_BATT_VOLTAGE 10 V, set on the judge's link); after BATT_LOW_TIMER
+    the firmware's own battery failsafe flies SmartRTL, retracing its path, and
+    lands at its base. Judged by the autopilot's own positions on its second link:
+    hidden and clear all along, down at its launch point; the monitor says the
+    failsafe's mode and the report lists it."""
+    from test_end_to_end import assert_hidden_and_clear, assert_landed_at_launch, fly_case
+
+    skip_unless_configured("ardupilot")
+    case = planned(0, "ardupilot")
+    result = fly_case(case, "ardupilot", tmp_path,
+                      at=[(1, 0.4, lambda be: be.judges[1].set_param("SIM_BATT_VOLTAGE", 10.0))])
+    report, tracks = result["report"], result["tracks"]
+    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
+    print("vehicle 1:", v1["state"], v1["failsafe_modes"],
+          [e["event"] for e in report["events"] if e["sysid"] == 1 and "ailsafe" in e["event"]])
+    assert [m["mode"] for m in v1["failsafe_modes"]] == ["SMART_RTL"]
+    assert v1["state"] == "landed"
+    assert_hidden_and_clear(case, {1: tracks[1]})
+    assert_landed_at_launch(case.ctx, tracks, [1], "ardupilot")

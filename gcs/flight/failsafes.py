@@ -53,6 +53,17 @@ class Setting:
             return None
         return self.parameter.risk(self.value)
 
+    @property
+    def to_set(self) -> bool:
+        """What --set-failsafes writes: a value out of the proof, and a hidden one that
+        leaves a known risk its firmware's chosen value does not share (a low battery
+        that only warns: the vehicle flies on toward an empty pack)."""
+        if not self.hidden:
+            return True
+        p = self.parameter
+        return self.risk is not None and not p.bits and int(self.value) != int(p.safe) \
+            and p.risk(p.safe) != self.risk
+
     def said(self) -> str:
         if self.value is None:
             return f"{self.name} not answered (what the {self.failsafe} failsafe does is unknown)"
@@ -111,12 +122,12 @@ def risks(profile, settings) -> list:
 
 
 def make_hidden(link, settings) -> list:
-    """Write the hidden-safe value of each setting that is not hidden, and read it
-    back; [{parameter, previous, value, type}] of what was changed. FailsafeError
+    """Write the hidden-safe value of each setting `Setting.to_set` names, and read
+    it back; [{parameter, previous, value, type}] of what was changed. FailsafeError
     when one is not answered or reads back otherwise (the changes made so far are
     in the error's ``changes``)."""
     changes = []
-    for s in unproven(settings):
+    for s in [s for s in settings if s.to_set]:
         if s.value is None:
             raise _error(link, f"{s.name} not answered: cannot be set", changes)
         value = s.parameter.safe_value(s.value)

@@ -110,7 +110,7 @@ class Preflight:
                 continue
             settings = failsafes.read(link, profile)
             self.failsafes[sysid] = {"read": [s.report() for s in settings]}
-            if failsafes.unproven(settings) and self.state.options.set_failsafes:
+            if any(s.to_set for s in settings) and self.state.options.set_failsafes:
                 settings = self._make_hidden(sysid, link, profile)
             if failsafes.unproven(settings):
                 refused[sysid] = failsafes.refusal(settings)
