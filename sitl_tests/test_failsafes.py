@@ -85,3 +85,26 @@ def test_a_low_battery_mid_mission_flies_smartrtl_home_on_ardupilot_sitl(planned
     assert v1["state"] == "landed"
     assert_hidden_and_clear(case, {1: tracks[1]})
     assert_landed_at_launch(case.ctx, tracks, [1], "ardupilot")
+
+
+def test_a_critical_battery_mid_mission_returns_along_the_mission_on_px4_sitl(planned,
+                                                                               tmp_path):
+    """Real PX4 SITL with --set-failsafes (COM_LOW_BAT_ACT 3, RTL_TYPE 4): 40 % into
+    vehicle 1's route its simulated pack is let down to 6 % (SIM_BAT_MIN_PCT, on the
+    judge's link: below BAT_CRIT_THR 7 %, above BAT_EMERGEN_THR 5 %); the firmware's
+    battery failsafe Returns along the mission and lands at a base. Judged by the
+    autopilot's own positions: hidden and clear all along, down at its launch."""
+    from test_end_to_end import assert_hidden_and_clear, assert_landed_at_launch, fly_case
+
+    skip_unless_configured("px4")
+    case = planned(0, "px4")
+    result = fly_case(case, "px4", tmp_path,
+                      at=[(1, 0.4, lambda be: be.judges[1].set_param("SIM_BAT_MIN_PCT", 6.0))])
+    report, tracks = result["report"], result["tracks"]
+    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
+    print("vehicle 1:", v1["state"], v1["failsafe_modes"],
+          [e["event"] for e in report["events"] if e["sysid"] == 1 and "ailsafe" in e["event"]])
+    assert [m["mode"] for m in v1["failsafe_modes"]] == ["AUTO.RTL"]
+    assert v1["state"] == "landed"
+    assert_hidden_and_clear(case, {1: tracks[1]})
+    assert_landed_at_launch(case.ctx, tracks, [1], "px4")
