@@ -34,6 +34,7 @@ import struct
 from dataclasses import dataclass
 
 from .base import Autopilot, Rates, Step
+from .failsafe import Failsafe, FailsafeParameter
 from .mavlink import (
     DO_DIGICAM_CONTROL,
     FRAME_GLOBAL,
@@ -120,18 +121,118 @@ class ArduPilot(Autopilot):
         return out
 
 
-#: BATT_FS_LOW_ACT and BATT_FS_CRT_ACT (Copter's values for both), in words that say
-#: where the vehicle would fly
+#: BATT_FS_LOW_ACT and BATT_FS_CRT_ACT (Copter's values for both: Copter::FailsafeAction,
+#: ArduCopter/Copter.h; libraries/AP_BattMonitor/AP_BattMonitor_Params.cpp), in words
+#: that say where the vehicle would fly. A battery failsafe has no "continue in AUTO"
+#: (ArduCopter/events.cpp, handle_battery_failsafe)
 _BATTERY_ACTIONS = {
     0: "a warning only: it flies on",
     1: "LAND where it is",
     2: "RTL: a climb to RTL_ALT and a straight line home",
-    3: "SmartRTL (its own track back) or RTL",
-    4: "SmartRTL (its own track back) or LAND",
-    5: "terminate: motors off where it is",
-    6: "the mission's DO_LAND_START (ours have none) or RTL",
+    3: "SmartRTL (its own track back) or, its buffer full, RTL: a climb to RTL_ALT and a "
+       "straight line home",
+    4: "SmartRTL (its own track back) or, its buffer full, LAND where it is",
+    5: "terminate: motors off, it falls where it is",
+    6: "the mission's DO_LAND_START (ours have none) or RTL: a climb to RTL_ALT and a "
+       "straight line home",
     7: "brake where it is, then LAND",
 }
+#: what a hidden value still leaves to chance (ArduCopter/events.cpp)
+_LANDS_AWAY = "it lands where it is: hidden (straight down under its proven route), but " \
+              "down in the field, away from its base"
+_SMARTRTL_OR_LAND = "if SmartRTL is unavailable (its buffer full, SRTL_POINTS 0) it lands " \
+                    "where it is, away from its base"
+_RISKS = {1: _LANDS_AWAY, 4: _SMARTRTL_OR_LAND, 5: _LANDS_AWAY, 7: _LANDS_AWAY}
+_BATTERY_SOURCE = "ArduCopter/events.cpp handle_battery_failsafe; AP_BattMonitor_Params.cpp"
+
+FAILSAFES = (
+    Failsafe("low battery", (FailsafeParameter(
+        "BATT_FS_LOW_ACT", _BATTERY_ACTIONS, frozenset({0, 1, 4, 7}), 4, _BATTERY_SOURCE,
+        risks={**_RISKS, 0: "it flies on to the critical level"}),)),
+    # the critical level comes after the low one fired: a second SmartRTL would race an
+    # empty pack; straight down is hidden (its risk said)
+    Failsafe("critical battery", (FailsafeParameter(
+        "BATT_FS_CRT_ACT", _BATTERY_ACTIONS, frozenset({0, 1, 4, 7}), 1, _BATTERY_SOURCE,
+        risks={**_RISKS, 0: "it flies on until the pack is empty"}),)),
+    Failsafe("ground-station link loss", (
+        # ArduCopter/Parameters.cpp FS_GCS_ENABLE, ArduCopter/defines.h FS_GCS_ENABLED_*
+        FailsafeParameter("FS_GCS_ENABLE", {
+            0: "disabled: it flies on",
+            1: "RTL: a climb to RTL_ALT and a straight line home",
+            2: "RTL (2 was 'continue in AUTO', removed in 4.0: FS_OPTIONS does it)",
+            3: "SmartRTL (its own track back) or RTL: a climb to RTL_ALT and a straight "
+               "line home",
+            4: "SmartRTL (its own track back) or LAND where it is",
+            5: "LAND where it is",
+            6: "the mission's DO_LAND_START (ours have none) or RTL: a climb to RTL_ALT "
+               "and a straight line home",
+            7: "brake where it is, then LAND"},
+            frozenset({0, 4, 5, 7}), 4,
+            "ArduCopter/Parameters.cpp FS_GCS_ENABLE; events.cpp failsafe_gcs_on_event",
+            risks=_RISKS),)),
+    Failsafe("RC loss", (
+        # ArduCopter/Parameters.cpp FS_THR_ENABLE, ArduCopter/defines.h FS_THR_ENABLED_*
+        FailsafeParameter("FS_THR_ENABLE", {
+            0: "disabled: it flies on",
+            1: "RTL: a climb to RTL_ALT and a straight line home",
+            2: "RTL (2 was 'continue in AUTO', removed in 4.0: FS_OPTIONS does it)",
+            3: "LAND where it is",
+            4: "SmartRTL (its own track back) or RTL: a climb to RTL_ALT and a straight "
+               "line home",
+            5: "SmartRTL (its own track back) or LAND where it is",
+            6: "the mission's DO_LAND_START (ours have none) or RTL: a climb to RTL_ALT "
+               "and a straight line home",
+            7: "brake where it is, then LAND"},
+            frozenset({0, 3, 5, 7}), 5,
+            "ArduCopter/Parameters.cpp FS_THR_ENABLE; events.cpp failsafe_radio_on_event",
+            risks={3: _LANDS_AWAY, 5: _SMARTRTL_OR_LAND, 7: _LANDS_AWAY}),)),
+    # a link or RC loss in AUTO changes nothing: the mission flies on, hidden (bits 0
+    # and 1 of Copter::FailsafeOption, ArduCopter/Copter.h; events.cpp checks them
+    # before the action); a battery failsafe has no such option
+    Failsafe("RC or link loss in a mission", (FailsafeParameter(
+        "FS_OPTIONS", {0: "an RC loss in AUTO flies the mission on",
+                       1: "a link loss in AUTO flies the mission on",
+                       2: "an RC loss in GUIDED flies on", 3: "a landing lands on",
+                       4: "a link loss in a pilot's mode flies on",
+                       5: "releases the gripper"},
+        frozenset(), 0, "ArduCopter/Copter.h FailsafeOption; Parameters.cpp FS_OPTIONS",
+        bits=0b11),)),
+    Failsafe("geofence breach", (FailsafeParameter(
+        # libraries/AC_Fence/AC_Fence.cpp ACTION, AC_Fence.h AC_FENCE_ACTION_*
+        "FENCE_ACTION", {0: "report only: it flies on",
+                         1: "RTL: a climb to RTL_ALT and a straight line home, or LAND",
+                         2: "LAND where it is",
+                         3: "SmartRTL (its own track back), or RTL: a climb to RTL_ALT "
+                            "and a straight line home",
+                         4: "brake where it is, then LAND",
+                         5: "SmartRTL (its own track back) or LAND where it is"},
+        frozenset({0, 2, 4, 5}), 5, "libraries/AC_Fence/AC_Fence.cpp ACTION",
+        risks={2: _LANDS_AWAY, 4: _LANDS_AWAY, 5: _SMARTRTL_OR_LAND},
+        off=(("FENCE_ENABLE", lambda v: int(v) == 0),)),)),
+    Failsafe("EKF (position) failure", (FailsafeParameter(
+        # ArduCopter/Parameters.cpp FS_EKF_ACTION, defines.h FS_EKF_ACTION_*
+        "FS_EKF_ACTION", {1: "LAND where it is",
+                          2: "ALT_HOLD: it holds its height and drifts with the wind",
+                          3: "LAND where it is (even in STABILIZE)"},
+        frozenset({1, 3}), 1, "ArduCopter/Parameters.cpp FS_EKF_ACTION"),),
+        risk="without a position no path is flown as proven: it lands where the wind "
+             "takes it as it descends"),
+)
+
+
+@dataclass(frozen=True)
+class SmartRTL:
+    """ArduPilot's SmartRTL buffer (libraries/AP_SmartRTL/AP_SmartRTL.h, .cpp): it
+    keeps the flown path as points no closer than SRTL_ACCURACY metres, simplified
+    (Ramer-Douglas-Peucker at half of it) and loop-pruned; with the buffer full for
+    15 s (SMARTRTL_TIMEOUT) SmartRTL is deactivated for the flight ("SmartRTL
+    deactivated: buffer full") and its failsafes take their fallback."""
+
+    points_param: str = "SRTL_POINTS"
+    accuracy_param: str = "SRTL_ACCURACY"
+    points: int = 300                 # SMARTRTL_POINTS_DEFAULT
+    points_max: int = 500             # SMARTRTL_POINTS_MAX (@Range 0 500)
+    accuracy_m: float = 2.0           # SMARTRTL_ACCURACY_DEFAULT
 
 
 def _float32(value: float) -> float:
@@ -162,8 +263,16 @@ PROFILE = ArduPilot(
     capacity_text=r"Only (\d+) items are supported",
     capacity_advice="raise it with the parameter BRD_SD_MISSION (kB of the SD card kept for "
                     "missions: 64 holds about 4,368 items), then reboot",
-    battery_failsafes=(("BATT_FS_LOW_ACT", _BATTERY_ACTIONS),
-                       ("BATT_FS_CRT_ACT", _BATTERY_ACTIONS)),
+    failsafes=FAILSAFES,
+    # Mode::Number (ArduCopter/mode.h): the modes a failsafe puts it in
+    failsafe_modes={"SMART_RTL": "SmartRTL: its own flown track back",
+                    "RTL": "RTL: a climb to RTL_ALT and a straight line home",
+                    "LAND": "LAND where it is", "BRAKE": "brake where it is"},
+    smartrtl=SmartRTL(),
+    # Copter::announce_failsafe ("Battery Failsafe - ..."); AP_SmartRTL::deactivate,
+    # Copter::set_mode_SmartRTL_or_* ("SmartRTL deactivated: buffer full", "SmartRTL
+    # Unavailable, Trying RTL Mode")
+    failsafe_texts=r"\bFailsafe\b|^SmartRTL (deactivated|Unavailable)",
     # the mission's DO_CHANGE_SPEED sets the speed; climbs and descents keep these
     # (defaults 250, 150, 50 cm/s: ``rates``)
     rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01), ("WPNAV_SPEED_DN", "descent_mps", 0.01),

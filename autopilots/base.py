@@ -13,7 +13,7 @@ a vehicle, so `planner`, `missions`, `gcs` and the simulator can all import it.
 """
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 #: a waypoint counts as reached this close (m): ArduPilot's WPNAV_RADIUS and PX4's
 #: NAV_ACC_RAD defaults, and the built-in simulator's
@@ -86,9 +86,19 @@ class Autopilot:
     #: vehicle is found: what the ground station reads at its rate, and the heavy
     #: streams it does not read slowed down (PX4 SITL sends 50 Hz streams)
     message_rates: tuple = ()
-    #: (parameter, {value: what it does}) for each parameter that says what the
-    #: autopilot does on a low battery (in words that say where the vehicle would fly)
-    battery_failsafes: tuple = ()
+    #: every failsafe that can fire in flight (`autopilots.failsafe.Failsafe`): its
+    #: parameters, what each value flies, and the values that keep the vehicle hidden
+    failsafes: tuple = ()
+    #: mode name -> what the vehicle flies in it, for the modes a failsafe puts it in
+    failsafe_modes: dict = field(default_factory=dict)
+    #: a STATUSTEXT that says a failsafe fired, or its return is gone (a regex)
+    failsafe_texts: str | None = None
+    #: the SmartRTL buffer (`autopilots.ardupilot.SmartRTL`); None: the firmware's
+    #: return is not its own track
+    smartrtl: object = None
+    #: an integer parameter's bytes travel in PARAM_VALUE's float (PX4); else its value
+    #: cast to a float (ArduPilot)
+    params_bytewise: bool = False
     #: a held mission, flown on, goes back first to the position item before the one
     #: it was flying to (PX4 re-flies a leg its camera was triggering on), unless its
     #: current item was set since the hold

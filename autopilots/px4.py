@@ -24,6 +24,7 @@
 from dataclasses import dataclass
 
 from .base import Autopilot, Rates, Step
+from .failsafe import Failsafe, FailsafeParameter
 from .mavlink import IMAGE_START_CAPTURE, MAV_AUTOPILOT_PX4
 
 MAIN = {"MANUAL": 1, "ALTCTL": 2, "POSCTL": 3, "AUTO": 4, "ACRO": 5, "OFFBOARD": 6,
@@ -33,6 +34,87 @@ AUTO_SUB = {"READY": 1, "TAKEOFF": 2, "LOITER": 3, "MISSION": 4, "RTL": 5, "LAND
 #: mode name -> (main, sub)
 MODES = {name: (main, 0) for name, main in MAIN.items() if name != "AUTO"}
 MODES.update({f"AUTO.{sub}": (MAIN["AUTO"], num) for sub, num in AUTO_SUB.items()})
+
+
+#: what a hidden value still leaves to chance
+_LANDS_AWAY = "it lands where it is: hidden (straight down under its proven route), but " \
+              "down in the field, away from its base"
+#: "Return" as RTL_TYPE 2 or 4 flies it (navigator/rtl.cpp init_rtl_mission_type: the
+#: mission forward to its landing, or reversed to home, at the items' altitudes): the
+#: path the plan proved; RTL_TYPE is checked as a failsafe of its own
+_RETURN = "Return along the mission path (RTL_TYPE)"
+_COMMANDER = "src/modules/commander/commander_params.c"
+
+FAILSAFES = (
+    Failsafe("low battery", (FailsafeParameter(
+        # commander_params.c COM_LOW_BAT_ACT; failsafe/failsafe.cpp
+        # fromBatteryWarningActParam: nothing at the low level, the action at the
+        # critical (BAT_CRIT_THR) and emergency (BAT_EMERGEN_THR) levels
+        "COM_LOW_BAT_ACT", {
+            0: "a warning only: it flies on until the pack is empty",
+            1: f"{_RETURN} at the critical and the emergency level (deprecated)",
+            2: "LAND where it is at the critical level",
+            3: f"{_RETURN} at the critical level, LAND where it is at the emergency level"},
+        frozenset({0, 1, 2, 3}), 3, f"{_COMMANDER} COM_LOW_BAT_ACT; failsafe/failsafe.cpp",
+        risks={0: "it flies on until the pack is empty", 2: _LANDS_AWAY,
+               3: "at the emergency level " + _LANDS_AWAY}),)),
+    Failsafe("return path", (FailsafeParameter(
+        # src/modules/navigator/rtl_params.c RTL_TYPE, rtl.cpp init_rtl_mission_type
+        "RTL_TYPE", {
+            0: "a climb to RTL_RETURN_ALT and a straight line to home or a rally point",
+            1: "a climb to RTL_RETURN_ALT and a straight line to the mission landing or a "
+               "rally point",
+            2: "the mission path forward to its landing, else reversed to home",
+            3: "a straight line to the closest of home, the mission landing or a rally "
+               "point",
+            4: "the mission path, forward to its landing or reversed to home, whichever "
+               "is closer"},
+        frozenset({2, 4}), 4, "src/modules/navigator/rtl_params.c RTL_TYPE",
+        # rtl_mission_fast(_reverse).cpp on_activation: from the mission it goes on from
+        # its current item; from any other mode (a hold) setMissionToClosestItem
+        risks={v: "a Return from outside the mission (a hold) first flies straight to the "
+                  "mission item closest to it" for v in (2, 4)}),)),
+    Failsafe("ground-station link loss", (
+        FailsafeParameter("NAV_DLL_ACT", {
+            0: "disabled: it flies on", 1: "Hold where it is", 2: _RETURN,
+            3: "LAND where it is", 5: "terminate: motors off, it falls where it is",
+            6: "disarm: it falls where it is"},
+            frozenset({0, 1, 2, 3}), 2, f"{_COMMANDER} NAV_DLL_ACT",
+            risks={3: _LANDS_AWAY}),
+        # failsafe/failsafe.cpp: dll_loss_ignored_mission, DatalinkLossExceptionBits
+        FailsafeParameter("COM_DLL_EXCEPT", {0: "in a mission it flies the mission on",
+                                             1: "in Hold it holds on",
+                                             2: "in Offboard it flies on"},
+                          frozenset(), 0, f"{_COMMANDER} COM_DLL_EXCEPT", bits=0b1))),
+    Failsafe("RC loss", (
+        FailsafeParameter("NAV_RCL_ACT", {
+            1: "Hold where it is", 2: _RETURN, 3: "LAND where it is",
+            5: "terminate: motors off, it falls where it is",
+            6: "disarm: it falls where it is"},
+            frozenset({1, 2, 3}), 2, f"{_COMMANDER} NAV_RCL_ACT", risks={3: _LANDS_AWAY}),
+        FailsafeParameter("COM_RCL_EXCEPT", {0: "in a mission it flies the mission on",
+                                             1: "in Hold it holds on",
+                                             2: "in Offboard it flies on",
+                                             3: "in an external mode it flies on",
+                                             4: "in Altitude Cruise it flies on"},
+                          frozenset(), 0, f"{_COMMANDER} COM_RCL_EXCEPT", bits=0b1))),
+    Failsafe("geofence breach", (FailsafeParameter(
+        "GF_ACTION", {0: "none: it flies on", 1: "a warning: it flies on",
+                      2: "Hold where it is", 3: _RETURN,
+                      4: "terminate: motors off, it falls where it is",
+                      5: "LAND where it is"},
+        frozenset({0, 1, 2, 3, 5}), 3, "src/modules/navigator/geofence_params.c GF_ACTION",
+        risks={5: _LANDS_AWAY}),)),
+    Failsafe("low position accuracy", (FailsafeParameter(
+        # only with COM_POS_LOW_EPH set (-1, its default, turns it off)
+        "COM_POS_LOW_ACT", {0: "none: it flies on", 1: "a warning: it flies on",
+                            2: "Hold where it is", 3: _RETURN, 4: "terminate: it falls",
+                            5: "LAND where it is"},
+        frozenset({5}), 5, f"{_COMMANDER} COM_POS_LOW_ACT, COM_POS_LOW_EPH",
+        risks={5: _LANDS_AWAY}, off=(("COM_POS_LOW_EPH", lambda v: v < 0),)),),
+        risk="without a good position no path is flown as proven: it lands where it "
+             "drifts as it descends"),
+)
 
 
 def custom_mode(main: int, sub: int = 0) -> int:
@@ -113,12 +195,14 @@ PROFILE = PX4(
                 land_mps=0.7, land_band_m=7.5, jerk_mps3=4.0),
     capacity_advice="a board keeps missions in its dataman: on the SD card (SYS_DM_BACKEND 0) "
                     "it holds more than in RAM",
-    battery_failsafes=(("COM_LOW_BAT_ACT", {
-        0: "a warning only: it flies on",
-        2: "LAND where it is",
-        3: "RTL at the critical level (a climb to RTL_RETURN_ALT and a straight line "
-           "home), LAND at the emergency level",
-    }),),
+    failsafes=FAILSAFES,
+    # commander/failsafe/framework.cpp: "Failsafe activated: ..." (most of its failsafe
+    # notices travel as events, which gcs does not read)
+    failsafe_texts=r"^Failsafe",
+    params_bytewise=True,       # src/modules/mavlink/mavlink_main.cpp: ENCODE_BYTEWISE
+    failsafe_modes={"AUTO.RTL": "Return (RTL_TYPE: along the mission path, or a climb "
+                                "and a straight line home)",
+                    "AUTO.LAND": "LAND where it is", "AUTO.LOITER": "Hold where it is"},
     # GLOBAL_POSITION_INT at the ground station's rate; POSITION_TARGET_LOCAL_NED,
     # LOCAL_POSITION_NED, ATTITUDE, ATTITUDE_QUATERNION, ATTITUDE_TARGET,
     # SERVO_OUTPUT_RAW, RC_CHANNELS, OPTICAL_FLOW_RAD (unread) at 1 Hz

@@ -228,10 +228,11 @@ class SeparationGuard:
         return not self.fleet.short(sysid), self.priority.get(sysid, 99), sysid
 
     def _fixed(self, sysid) -> bool:
-        """Held by the guard, by a re-plan until its time, or out of contact (no command
-        reaches it: it flies its plan): not the guard's to move."""
+        """Held by the guard, by a re-plan until its time, out of contact (no command
+        reaches it: it flies its plan), or flying a failsafe's return (a hold and resume
+        would send it back to its mission): not the guard's to move."""
         return sysid in self.held or self.fleet.waiting(sysid) is not None or \
-            self.monitor.planned_at(sysid) is not None
+            self.monitor.planned_at(sysid) is not None or self.monitor.in_failsafe(sysid)
 
     def _held_long_enough(self, sysid) -> bool:
         """Held for `MIN_HOLD_LOOPS` of the guard's loops at least: a hold and its

@@ -36,6 +36,7 @@ or not it disarms.
 
 import collections
 import math
+import re
 import threading
 import time
 from dataclasses import dataclass, field
@@ -84,6 +85,19 @@ SWAP_SILENCE_S = 600.0
 SETTLE_S = 3.0
 SETTLED_MPS = 0.5
 
+
+
+def _uncommanded_said(profile, mode: str) -> str:
+    """The event of a flying vehicle seen in ``mode``, which gcs did not command: a
+    failsafe's mode (the profile's ``failsafe_modes``) says what the firmware flies
+    in it."""
+    flies = profile.failsafe_modes.get(mode)
+    if flies is not None:
+        return (f"failsafe: flying in {mode}, a mode gcs did not command ({flies}): the "
+                "autopilot's own action, proven hidden only where `gcs fly` found its "
+                "failsafes hidden")
+    return (f"flying in {mode}, a mode gcs did not command (a pilot's or a failsafe's): "
+            "what it flies there is not proven hidden")
 
 def _note_airborne(v, armed: bool, agl) -> None:
     """Armed away from home height, above it or below it (a route over lower ground
@@ -389,8 +403,7 @@ class Monitor:
             return
         if not v.uncommanded or v.uncommanded[-1][1] != mode:
             v.uncommanded.append((round(self.now(), 3), mode))
-            self.event(v.sysid, f"flying in {mode}, a mode gcs did not command (a pilot's or "
-                                "a failsafe's): what it flies there is not proven hidden")
+            self.event(v.sysid, _uncommanded_said(profile, mode))
 
     def _judge_disarm(self, v, agl) -> None:
         """Disarmed after flying: on the ground or still falling? On the ground it
@@ -406,9 +419,11 @@ class Monitor:
             return
         away = self._from_base(v, s)
         if away is not None and away > LAUNCH_RADIUS_M:
-            return self._lose(v, f"crashed: touched the ground {away:.0f} m from its base")
+            return self._lose(v, self._down_said(v, away) or
+                              f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
-        if final is not None and (progress is None or progress < final):
+        if final is not None and (progress is None or progress < final) and \
+                not self._failsafe_return(v):
             where = "nothing" if progress is None else f"item {progress}"
             return self._lose(v, f"crashed: touched the ground before its last item "
                                  f"({where} of {final} reached)")
@@ -422,6 +437,28 @@ class Monitor:
             return None
         ground = self.ground(s.lat, s.lon)
         return None if ground is None or not math.isfinite(ground) else s.alt_amsl - ground
+
+    def in_failsafe(self, sysid) -> bool:
+        """Flying in a failsafe's mode now (SmartRTL, RTL, LAND): the autopilot's own
+        return, which no command of the ground station should undo."""
+        link = self.links.get(sysid)
+        modes = getattr(getattr(link, "profile", None), "failsafe_modes", {})
+        return link is not None and link.state.mode in modes
+
+    def _failsafe_return(self, v) -> bool:
+        """Its last mode was a failsafe's (SmartRTL, RTL, LAND): down at a base before
+        its last item, it came home on the autopilot's own; elsewhere, it is down in
+        the field (lost to the flight all the same), not crashed."""
+        modes = getattr(getattr(self.links.get(v.sysid), "profile", None), "failsafe_modes", {})
+        return bool(v.uncommanded) and v.uncommanded[-1][1] in modes
+
+    def _down_said(self, v, away) -> str | None:
+        """A vehicle a failsafe put down away from its bases: why it is lost to the
+        flight (None when no failsafe did)."""
+        if not self._failsafe_return(v):
+            return None
+        return (f"down in the field: a failsafe's {v.uncommanded[-1][1]} put it on the ground "
+                f"{away or 0.0:.0f} m from its base")
 
     @staticmethod
     def _from_base(v, s):
@@ -449,8 +486,8 @@ class Monitor:
             return
         away = self._from_base(v, s)
         if away is None or away > LAUNCH_RADIUS_M:
-            self._lose(v, f"crashed: {height:.1f} m above the terrain "
-                          f"({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
+            self._lose(v, self._down_said(v, away) or f"crashed: {height:.1f} m above the "
+                          f"terrain ({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
 
     def _position(self, v, msg) -> None:
         if not has_position(msg):
@@ -537,9 +574,18 @@ class Monitor:
             lat, lon, alt = msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3
         v.camera.append((round(self.now(), 3), lon, lat, alt))
 
+    def _text(self, v, msg) -> None:
+        """A STATUSTEXT in which the autopilot says a failsafe fired or its return is
+        gone (the profile's ``failsafe_texts``): an event, in its words."""
+        profile = getattr(self.links.get(v.sysid), "profile", None)
+        pattern = getattr(profile, "failsafe_texts", None)
+        text = str(getattr(msg, "text", ""))
+        if pattern and re.search(pattern, text):
+            self.event(v.sysid, f"failsafe: the autopilot says \"{text}\"")
+
     _HANDLERS = {"HEARTBEAT": _heartbeat, "GLOBAL_POSITION_INT": _position,
                  "MISSION_ITEM_REACHED": _reached, "CAMERA_FEEDBACK": _camera,
-                 "CAMERA_IMAGE_CAPTURED": _camera}
+                 "CAMERA_IMAGE_CAPTURED": _camera, "STATUSTEXT": _text}
 
     # -- losses (flight loop) ---------------------------------------------------------
     def wait_settled(self, sysids, vertical: bool = True, timeout_s: float = SETTLE_S) -> None:

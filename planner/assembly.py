@@ -12,6 +12,7 @@ from typing import Optional
 
 import numpy as np
 
+from autopilots import firmware_of
 from common.errors import InputError
 from planner.link import silences
 from planner.terrain.dem import VOID_FILL_MARGIN_M
@@ -20,6 +21,7 @@ from planner.visibility.unseen import OUTSIDE, area_summary
 from .context import outposts_json
 from .coverage.model import achievable, beyond_battery
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
+from .returns import returns
 
 
 def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds):
@@ -55,6 +57,8 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
         "wait_s": sched.wait_s,
         "sorties": len(fleet.sorties),
         "battery": _battery_metrics(ctx, problem, fleet, short),
+        # what the firmware's own return flies; for SmartRTL, each sortie's buffer
+        "returns": returns(vehicles, firmware_of(s.params())),
     }
     if link is not None:
         metrics["link"] = link

@@ -37,7 +37,7 @@ pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collect
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
              capacity=None, late=None, crew=False, held=None, below_base_m=0.0, spool=None,
-             arm_delay=None, **options):
+             arm_delay=None, at=(), **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
@@ -61,7 +61,7 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     lost_after = REAL_LOST_AFTER_S if backend in REAL_BACKENDS else LOST_AFTER_S
     options = FlyOptions(**{"output": out, "lost_after_s": lost_after,
                             "timeout_s": 120.0 + 4.0 * longest / speedup,
-                            "live": False, **options})
+                            "live": False, "set_failsafes": True, **options})
     flight = Flight(planned.directory, be.urls(), options)
     killed = {}
     stop = threading.Event()
@@ -84,6 +84,9 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
 
     for sysid, when in kills:
         threading.Thread(target=when_due, args=(sysid, when, lambda s=sysid: kill(s)),
+                         daemon=True).start()
+    for sysid, when, action in at:      # ``at``: (sysid, fraction, action(backend))
+        threading.Thread(target=when_due, args=(sysid, when, lambda a=action: a(be)),
                          daemon=True).start()
     if late is not None:
         sysid, seconds = late

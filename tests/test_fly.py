@@ -266,7 +266,8 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
     try:
         with pytest.raises(FlightError, match="start failed"):
             Flight(planned.dir, fleet.urls(), FlyOptions(
-                output=tmp_path / "f", lost_after_s=3.0, plot=False, ready_timeout_s=4.0)).run()
+                output=tmp_path / "f", lost_after_s=3.0, plot=False, ready_timeout_s=4.0,
+                set_failsafes=True)).run()
     finally:
         fleet.stop()
     report = json.loads((tmp_path / "f" / "flight.json").read_text())
@@ -420,7 +421,7 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
         fleet = fleet_for_plan(planned.plan, speedup=20.0, base_port=free_base_port(10, 3),
                                firmware=firmware, limits=limits)
         flight = Flight(planned.dir, fleet.urls(), FlyOptions(output=tmp_path / str(descent),
-                                                              plot=False))
+                                                              plot=False, set_failsafes=True))
         try:
             flight.prepare()
             flight.connect()

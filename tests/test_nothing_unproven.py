@@ -116,7 +116,7 @@ def test_a_vehicle_away_from_its_launch_point_is_refused_before_arming(planned, 
     out = tmp_path / "flight"
     try:
         code = main(["fly", str(planned.dir), "--connect", fleet.urls()[0],
-                     "--connect-timeout", "30", "-o", str(out)])
+                     "--connect-timeout", "30", "--set-failsafes", "-o", str(out)])
         err = capsys.readouterr().err
     finally:
         fleet.stop()
@@ -154,7 +154,7 @@ def test_without_launch_points_a_vehicle_away_from_its_first_waypoint_is_refused
     out, empty = tmp_path / "flight", _stored(fleet)
     try:
         code = main(["fly", str(folder), "--connect", fleet.urls()[0], "--assign", "1=1",
-                     "--connect-timeout", "30", "-o", str(out)])
+                     "--connect-timeout", "30", "--set-failsafes", "-o", str(out)])
         err = capsys.readouterr().err
     finally:
         fleet.stop()
@@ -177,7 +177,8 @@ def test_from_where_they_stand_the_fleet_is_planned_again_there_and_flies_hidden
     out = tmp_path / "flight"
     try:
         code = main(["fly", str(planned.dir), *[a for u in fleet.urls() for a in ("--connect", u)],
-                     "--connect-timeout", "30", "--from-where-they-stand", "-o", str(out)])
+                     "--connect-timeout", "30", "--from-where-they-stand", "--set-failsafes",
+                     "-o", str(out)])
         err = capsys.readouterr().err
     finally:
         fleet.stop()
@@ -218,7 +219,8 @@ def test_from_where_they_stand_no_hidden_takeoff_is_refused_by_name(planned, tmp
     out, empty = tmp_path / "flight", _stored(fleet)
     try:
         code = main(["fly", str(planned.dir), "--connect", fleet.urls()[0], "--assign", "1=1",
-                     "--connect-timeout", "30", "--from-where-they-stand", "-o", str(out)])
+                     "--connect-timeout", "30", "--from-where-they-stand", "--set-failsafes",
+                     "-o", str(out)])
         err = capsys.readouterr().err
     finally:
         fleet.stop()

@@ -140,7 +140,7 @@ def test_flat_ground_above_the_valleys_is_a_loss_not_a_landing(planned, tmp_path
     try:
         code = main(["fly", str(planned.dir), *[a for i in range(3) for a in
                      ("--connect", f"tcp:127.0.0.1:{base + 10 * i}")],
-                     "--lost-after", "2", "--timeout", "60", "-o", str(out)])
+                     "--lost-after", "2", "--timeout", "60", "--set-failsafes", "-o", str(out)])
     finally:
         fleet.stop()
     report = json.loads((out / "flight.json").read_text())
@@ -206,7 +206,7 @@ def test_readme_recipe_with_a_late_loss_relaunches_a_landed_vehicle(planned, tmp
     try:
         code = main(["fly", str(planned.dir), *[a for i in range(3) for a in
                      ("--connect", f"tcp:127.0.0.1:{base + 10 * i}")],
-                     "--lost-after", "2", "--timeout", "90", "-o", str(out)])
+                     "--lost-after", "2", "--timeout", "90", "--set-failsafes", "-o", str(out)])
     finally:
         fleet.stop()
     report = json.loads((out / "flight.json").read_text())

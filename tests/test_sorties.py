@@ -461,11 +461,14 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
         if not replanned:   # the pace the battery watch timed, against the track's
             _assert_paces_as_flown(report, v, track, SPEEDUP)
             _assert_landings_as_forecast(report, v.id, track)
-    # what each autopilot would do on a low battery, said before anything flies
-    said = [e for e in report["events"] if e["event"].startswith("battery failsafe: ")]
+    # the failsafes made hidden before anything flies (--sim sets them), what stays a
+    # risk said (issue 60)
+    said = [e for e in report["events"] if e["event"].startswith("failsafes set: ")]
     assert sorted(e["sysid"] for e in said) == [1, 2, 3]
-    assert all("BATT_FS_LOW_ACT = 2, RTL" in e["event"] and "BATT_FS_CRT_ACT = 1, LAND where"
-               in e["event"] and "not proven hidden" in e["event"] for e in said)
+    assert all("BATT_FS_LOW_ACT 2 -> 4" in e["event"] for e in said)
+    risks = [e for e in report["events"] if e["event"].startswith("known risk: ")]
+    assert sorted(e["sysid"] for e in risks) == [1, 2, 3]
+    assert all("BATT_FS_CRT_ACT = 1: it lands where it is" in e["event"] for e in risks)
     uploads = [e for e in report["events"] if "uploaded and verified" in e["event"]
                and e["event"].startswith("sortie ")]
     assert len(uploads) >= (sum(len(v.sorties) - 1 for v in twelve.plan.vehicles)
@@ -610,7 +613,8 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
                            terrain=terrain_ground(planned.terrain))
     try:
         flight = Flight(twelve.dir, fleet.urls(), FlyOptions(output=tmp_path / "f",
-                                                             lost_after_s=3.0, plot=False))
+                                                             lost_after_s=3.0, plot=False,
+                                                             set_failsafes=True))
         done = threading.Event()
 
         def confirm_when_asked():       # once per sortie waiting, as an operator would
@@ -663,7 +667,7 @@ def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve,
     try:
         report = Flight(twelve.dir, fleet.urls(),
                         FlyOptions(output=tmp_path / "f", lost_after_s=3.0, plot=False,
-                                   auto_turnaround=True)).run()
+                                   auto_turnaround=True, set_failsafes=True)).run()
     finally:
         fleet.stop()
     assert calls.count(2) == 2
@@ -727,7 +731,8 @@ def test_a_flight_whose_last_survivors_fall_during_a_re_plan_ends(planned, twelv
     try:
         report = Flight(twelve.dir, fleet.urls(),
                         FlyOptions(output=tmp_path / "f", lost_after_s=3.0, plot=False,
-                                   auto_turnaround=True, timeout_s=120.0)).run()
+                                   auto_turnaround=True, timeout_s=120.0,
+                                   set_failsafes=True)).run()
     finally:
         fleet.stop()
     assert report["outcome"]["lost"] == [1, 2, 3]

@@ -15,7 +15,8 @@ import warnings
 from common.errors import ClusterError, InputError
 from gcs import __version__
 
-COMMANDS = ("exposure", "bases", "plan", "export", "upload", "download", "fly", "sim", "demo")
+COMMANDS = ("exposure", "bases", "plan", "export", "upload", "download", "fly", "failsafes", "sim",
+            "demo")
 
 
 def _available_commands():

@@ -112,7 +112,12 @@ def _fly(ctx, plan, plan_dir, flight_dir, args):
                            terrain=terrain_ground(ctx.terrain),
                            radio=radio_for_plan(plan, ctx.terrain))
     longest = max(v.mission_time_s for v in plan.vehicles)
-    options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
+    # the simulated copters come with their firmware's failsafes (RTL on RC loss, ...):
+    # set to the hidden-safe values as `gcs fly --set-failsafes` does, and said
+    options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup,
+                         set_failsafes=True)
+    console.print("the simulated vehicles' failsafes are set to their hidden-safe values "
+                  "(as gcs fly --set-failsafes; flight.json keeps the previous ones)")
     try:
         report = fly_plan(plan_dir, fleet.urls(), options, ctx=ctx)
     except FlightError as exc:

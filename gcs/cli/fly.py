@@ -58,6 +58,13 @@ def add_arguments(parser) -> None:
                              "with its base where it stands (its takeoff and first leg "
                              "proven hidden there), written to the output folder, and fly "
                              "that; otherwise it is refused before anything is armed")
+    parser.add_argument("--set-failsafes", action="store_true",
+                        help="write each vehicle's failsafe parameters to the values whose "
+                             "flight stays hidden (ArduPilot SmartRTL, PX4 a return along the "
+                             "mission, a link loss flies the mission on), read them back, and "
+                             "keep the previous values in flight.json (`gcs failsafes "
+                             "--restore`); without it a vehicle whose failsafe would leave the "
+                             "proof is refused before arming (--sim always sets them)")
     view = parser.add_argument_group("watching the flight elsewhere")
     view.add_argument("--forward", action="append", default=[], metavar="URL",
                       help="relay every vehicle's MAVLink to URL, repeatable, as MAVProxy's "
@@ -124,6 +131,7 @@ def options_from_args(args):
                       tlog=not args.no_tlog,
                       auto_turnaround=bool(args.auto_turnaround or args.sim),
                       from_where_they_stand=args.from_where_they_stand,
+                      set_failsafes=bool(args.set_failsafes or args.sim),
                       swap_silence_s=args.swap_silence)
 
 
@@ -220,7 +228,7 @@ def forwarder(args):
 
 def run(args) -> int:
     from gcs.cli.views import fly_flight, summary
-    from gcs.flight import Flight, FlightError
+    from gcs.flight import FailsafeRefused, Flight, FlightError
     from gcs.progress import console
 
     check_urls(args.connect)
@@ -255,7 +263,7 @@ def run(args) -> int:
     except FlightError as exc:
         print(f"gcs fly: error: {exc} (see {Path(options.output) / 'flight.json'})",
               file=sys.stderr)
-        return 1
+        return 2 if isinstance(exc, FailsafeRefused) else 1
     finally:
         if fleet is not None:
             fleet.stop()

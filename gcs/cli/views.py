@@ -19,6 +19,7 @@ from autopilots import DEFAULT, PROFILES, firmware_of, profile
 from common.units import Z_UNIT_WORDS
 from gcs.progress import console
 from planner.rates import VERTICAL_RATES
+from planner.returns import returns_said
 
 
 # -- a plan --------------------------------------------------------------------------------
@@ -59,6 +60,9 @@ def plan_summary(plan) -> Group:
                     "there is (two UAVs photographing from one place could be lost together)")
     lines = [table, Text(cover), Text(targets), Text(fleet_line(plan)), Text(link_line(plan)),
              Text(rates_line(plan)), Text(battery_line(plan))] + [Text(t) for t in area_lines(plan)]
+    too_long = returns_said(m)
+    if too_long:
+        lines.append(Text(too_long, style="yellow"))
     return Group(*lines)
 
 

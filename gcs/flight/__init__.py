@@ -16,6 +16,7 @@ from gcs.monitor import LANDED, LOST
 
 from .flight import Flight, assign_vehicles, fly
 from .options import FLIGHT_FILE, LOOP_S, PLAN_FROM_HERE, PLOT_FILE, FlightError, FlyOptions
+from .preflight import FailsafeRefused
 
-__all__ = ["FLIGHT_FILE", "Flight", "FlightError", "FlyOptions", "LANDED", "LOOP_S", "LOST",
-           "PLAN_FROM_HERE", "PLOT_FILE", "assign_vehicles", "fly"]
+__all__ = ["FLIGHT_FILE", "FailsafeRefused", "Flight", "FlightError", "FlyOptions", "LANDED",
+           "LOOP_S", "LOST", "PLAN_FROM_HERE", "PLOT_FILE", "assign_vehicles", "fly"]

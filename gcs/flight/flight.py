@@ -177,7 +177,7 @@ class Flight:
             self.start()
             self._watch_and_answer(status, on_interrupt, on_timeout or (lambda: "home"))
         except FlightError as exc:
-            self.error = str(exc)
+            self.error, failure = str(exc), exc
             self.monitor.event(None, f"failed: {exc}")
             self._home_after_failure()
         finally:
@@ -187,7 +187,7 @@ class Flight:
         document = self.report()
         self.write(document)
         if self.error is not None:
-            raise FlightError(self.error)
+            raise failure               # its kind kept: a refused failsafe exits 2
         return document
 
     def check_rates(self) -> None:

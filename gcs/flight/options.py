@@ -39,6 +39,8 @@ class FlyOptions:
                                    # (simulators, SITL); else the operator confirms too
     from_where_they_stand: bool = False  # a vehicle off its launch point: plan again with
                                          # its base where it stands (else it is refused)
+    set_failsafes: bool = False  # write the failsafes' hidden-safe values (else a vehicle
+                                 # whose failsafe would leave the proof is refused)
     swap_silence_s: float = SWAP_SILENCE_S  # wall s one down for its battery swap may be
                                             # silent (powered down) before it is lost
 

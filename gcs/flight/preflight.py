@@ -5,7 +5,8 @@ do on their own, and how fast they are set to fly.
   tolerance (a vehicle elsewhere would climb and fly a first leg nobody proved
   hidden): refused by name, or with ``from_where_they_stand`` the fleet planned
   again from where they stand (`planner.replan.plan_from_bases`);
-- `check_failsafes`: what each autopilot does on a low battery, said;
+- `check_failsafes`: every failsafe of every autopilot stays within the proof
+  (`gcs.flight.failsafes`), or the flight is refused;
 - `check_rates`: where an autopilot's own rate limits are below the plan's, said.
 """
 
@@ -15,11 +16,9 @@ from gcs import commands
 from gcs.monitor import LOST
 from planner.fleet import stop_time
 
+from . import failsafes
 from .options import FlightError, launch_tolerance
 
-#: a battery failsafe that does one of these stays hidden: straight down from a
-#: hidden point is below the exposure surface (`check_failsafes`)
-HIDDEN_FAILSAFES = ("a warning", "LAND where", "brake where")
 #: m/s an autopilot's rate limit may fall short of the plan's (float32, unit rounding)
 RATE_SLACK_MPS = 0.01
 
@@ -36,6 +35,10 @@ def start_name(route) -> str:
     return "the launch point" if route.launch is not None else "under the first waypoint"
 
 
+class FailsafeRefused(FlightError):
+    """A vehicle's failsafe would fly out of the proof: refused before arming (exit 2)."""
+
+
 class Preflight:
     """The checks of one flight before arming (see the module doc). ``replan(off)``:
     plans the fleet again from where the ``off`` vehicles stand and flies that plan
@@ -43,6 +46,8 @@ class Preflight:
 
     def __init__(self, state, replan):
         self.state, self.replan = state, replan
+        #: sysid -> {"read": settings, "set": changes, "risks": lines} (flight.json)
+        self.failsafes = {}
 
     def locate(self) -> None:
         """Wait for every vehicle's position (ArduPilot reports none before its EKF
@@ -91,29 +96,53 @@ class Preflight:
         return off
 
     def check_failsafes(self) -> None:
-        """Say, one line per vehicle, what its autopilot does on a low battery
-        (ArduPilot BATT_FS_LOW_ACT and BATT_FS_CRT_ACT, PX4 COM_LOW_BAT_ACT): anything
-        but a warning or a landing where it is flies a path nobody proved hidden, in
-        view of the outposts. The plan's reserve keeps the battery above it; the
-        battery watch acts first."""
-        m = self.state.monitor
+        """Every failsafe of every vehicle, read before arming (`gcs.flight.failsafes`):
+        what its autopilot would fly when one fires must stay within the proof. One
+        that would not refuses the flight (`FailsafeRefused`, naming each parameter,
+        what it would do and the fix), unless the options say ``set_failsafes``: then
+        the hidden-safe values are written and read back, and the previous ones kept
+        (`set`, in flight.json). What stays a known risk is said per vehicle."""
+        m, refused = self.state.monitor, {}
         for sysid, v in sorted(m.vehicles.items()):
             link = m.links[sysid]
-            failsafes = commands.autopilot(link).battery_failsafes
-            if not failsafes or v.state == LOST:
+            profile = commands.autopilot(link)
+            if not profile.failsafes or v.state == LOST:
                 continue
-            said, unproven = [], False
-            for name, actions in failsafes:
-                value = commands.read_param(link, name, retries=1)
-                if value is None:
-                    said.append(f"{name} not answered (what it does is unknown)")
-                    continue
-                does = actions.get(int(value), f"value {int(value)} (see the autopilot's manual)")
-                said.append(f"{name} = {int(value)}, {does}")
-                unproven |= not does.startswith(HIDDEN_FAILSAFES)
-            m.event(sysid, "battery failsafe: " + "; ".join(said)
-                    + (": if one fired, that flight is not proven hidden from the outposts"
-                       if unproven else ""))
+            settings = failsafes.read(link, profile)
+            self.failsafes[sysid] = {"read": [s.report() for s in settings]}
+            if any(s.to_set for s in settings) and self.state.options.set_failsafes:
+                settings = self._make_hidden(sysid, link, profile)
+            if failsafes.unproven(settings):
+                refused[sysid] = failsafes.refusal(settings)
+                m.event(sysid, "refused: " + refused[sysid])
+            else:
+                m.event(sysid, "failsafes hidden: " + "; ".join(s.said() for s in settings))
+            said = failsafes.risks(profile, settings) + \
+                failsafes.buffer_risks(link, profile, self._planned_route(v))
+            self.failsafes[sysid]["risks"] = said
+            if said:
+                m.event(sysid, "known risk: " + "; ".join(said))
+        if refused:
+            raise FailsafeRefused(failsafes.by_vehicles(refused) + ": " + failsafes.FIX)
+
+    def _planned_route(self, v):
+        """The plan's whole route of a vehicle, every sortie (the monitor's is the one
+        it flies now)."""
+        return next((r for r in self.state.plan.vehicles if r.id == v.vehicle_id), v.route)
+
+    def _make_hidden(self, sysid, link, profile) -> list:
+        """--set-failsafes: the hidden-safe values written and read back; the settings
+        as they are now (FlightError when one does not read back)."""
+        try:
+            changes = failsafes.make_hidden(link, failsafes.read(link, profile))
+        except failsafes.FailsafeError as exc:
+            self.failsafes[sysid]["set"] = exc.changes
+            raise FlightError(f"{exc}: the flight is not started (`gcs failsafes "
+                              "--restore` puts back what was set)") from None
+        self.failsafes[sysid]["set"] = changes
+        self.state.monitor.event(sysid, "failsafes set: " + ", ".join(
+            f"{c['parameter']} {c['previous']:g} -> {c['value']:g}" for c in changes))
+        return failsafes.read(link, profile)
 
     def check_rates(self) -> None:
         """Say, one line per vehicle, where its autopilot's own limits on a mission's

@@ -52,6 +52,9 @@ def report(flight) -> dict:
         "separation": dict(guard.report() if guard is not None else {},
                            planned_closest_m=_finite_or_none(flight.min_separation_m)),
         "coverage": covered, "events": list(m.events),
+        # per vehicle: its failsafes as read, what --set-failsafes changed (the previous
+        # values: `gcs failsafes --restore`), the known risks left
+        "failsafes": {str(sysid): f for sysid, f in sorted(flight.preflight.failsafes.items())},
     }
 
 
@@ -154,8 +157,17 @@ def _vehicle_report(flight, v) -> dict:
         "out_of_contact": list(v.silences)
         + ([{"from_s": round(v.quiet.heard_s, 3), "to_s": None, "due_s": round(v.quiet.due_s, 3),
              "window": list(v.quiet.window)}] if v.quiet is not None else []),
+        # the modes a failsafe put it in while flying, and what the firmware flies there
+        "failsafe_modes": _failsafe_modes(m.links.get(v.sysid), v.uncommanded),
         "pace": {str(j): p for j, p in flight.batteries.paces.get(v.sysid, {}).items()},
     }
+
+
+def _failsafe_modes(link, uncommanded) -> list:
+    """[{t_s, mode, flies}] of the uncommanded modes that are a failsafe's."""
+    modes = getattr(getattr(link, "profile", None), "failsafe_modes", {})
+    return [{"t_s": t, "mode": mode, "flies": modes[mode]} for t, mode in uncommanded
+            if mode in modes]
 
 
 def coverage(state) -> dict:

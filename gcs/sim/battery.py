@@ -16,12 +16,12 @@ CAPACITY_MAH = 5000
 #: 1 m/s on 15 W more (8 %). Descents are counted at the hover draw.
 CLIMB_DRAW_PER_MPS = 0.08
 
-#: what each ArduPilot failsafe action value does: a mode to switch to, "fall"
-#: (motors off) or None (a warning only). ArduPilot has no SmartRTL here: its
-#: fallbacks (RTL, LAND) are what it flies; 6 (DO_LAND_START) falls back to RTL in a
-#: mission without one; 7 brakes, then lands.
-ARDUPILOT_ACTIONS = {0: None, 1: "LAND", 2: "RTL", 3: "RTL", 4: "LAND", 5: "fall", 6: "RTL",
-                     7: "LAND"}
+#: what each ArduPilot failsafe action value does: a mode to switch to ("A or B":
+#: B where A is refused, as SmartRTL is once its buffer is full), "fall" (motors
+#: off) or None (a warning only). 6 (DO_LAND_START) falls back to RTL in a mission
+#: without one; 7 brakes, then lands (ArduCopter/events.cpp do_failsafe_action).
+ARDUPILOT_ACTIONS = {0: None, 1: "LAND", 2: "RTL", 3: "SMART_RTL or RTL",
+                     4: "SMART_RTL or LAND", 5: "fall", 6: "RTL", 7: "LAND"}
 
 
 @dataclass

@@ -22,6 +22,7 @@ from gcs.sim.battery import CAPACITY_MAH, ardupilot_levels, px4_levels
 
 # What a mode makes the vehicle do (see vehicle.py).
 MANUAL, GUIDED, AUTO, RTL, LAND, TAKEOFF = "manual", "guided", "auto", "rtl", "land", "takeoff"
+SMARTRTL = "smartrtl"              # its own saved path back (`gcs.sim.smartrtl`)
 
 
 @dataclass(frozen=True)
@@ -87,6 +88,8 @@ class Flavour:
                                    # else none is sent until then
     params: dict = field(default_factory=dict)
     modes: dict = field(default_factory=dict)    # mode name -> custom_mode (from the profile)
+    #: the INT32 parameters: sent bytewise where the profile says so, set only as INT32
+    int_params: frozenset = frozenset()
     #: params -> the battery failsafes they set (`gcs.sim.battery.Failsafe`), highest first
     battery_levels: Callable = lambda params: []
 
@@ -154,7 +157,7 @@ class Flavour:
 ARDUPILOT = Flavour(
     profile=profile(ARDUPILOT_NAME),
     behaviour={"STABILIZE": MANUAL, "AUTO": AUTO, "GUIDED": GUIDED, "LOITER": GUIDED,
-               "RTL": RTL, "LAND": LAND},
+               "RTL": RTL, "LAND": LAND, "SMART_RTL": SMARTRTL},
     initial_mode="STABILIZE",
     armable=frozenset({"STABILIZE", "GUIDED", "LOITER"}),
     legacy_request=True,
@@ -191,7 +194,12 @@ ARDUPILOT = Flavour(
             # firmware's defaults are: a vehicle sets BATT_LOW_MAH / BATT_CRT_MAH
             "DISARM_DELAY": 10.0, "BATT_CAPACITY": float(CAPACITY_MAH),
             "BATT_LOW_MAH": 0.0, "BATT_FS_LOW_ACT": 2.0,
-            "BATT_CRT_MAH": 0.0, "BATT_FS_CRT_ACT": 1.0},
+            "BATT_CRT_MAH": 0.0, "BATT_FS_CRT_ACT": 1.0,
+            # the other failsafes at ArduCopter 4.7's defaults (autopilots.ardupilot
+            # FAILSAFES): link loss off, RC loss RTL, no option, fence off
+            "FS_GCS_ENABLE": 0.0, "FS_THR_ENABLE": 1.0, "FS_OPTIONS": 16.0,
+            "FENCE_ENABLE": 0.0, "FENCE_ACTION": 1.0, "FS_EKF_ACTION": 1.0,
+            "SRTL_POINTS": 300.0, "SRTL_ACCURACY": 2.0},
     battery_levels=ardupilot_levels,
 )
 
@@ -229,7 +237,14 @@ PX4 = Flavour(
     boot=Boot(gps_s=1.5, origin_s=2.0, ready_s=5.0),
     params={"NAV_ACC_RAD": 2.0, "RTL_RETURN_ALT": 15.0, "COM_DISARM_PRFLT": 10.0,
             "COM_LOW_BAT_ACT": 3.0, "BAT_LOW_THR": 0.15, "BAT_CRIT_THR": 0.07,
-            "BAT_EMERGEN_THR": 0.05},
+            "BAT_EMERGEN_THR": 0.05,
+            # the other failsafes at PX4 1.17's defaults (autopilots.px4 FAILSAFES)
+            "RTL_TYPE": 0.0, "NAV_DLL_ACT": 0.0, "COM_DLL_EXCEPT": 0.0, "NAV_RCL_ACT": 2.0,
+            "COM_RCL_EXCEPT": 0.0, "GF_ACTION": 2.0, "COM_POS_LOW_ACT": 3.0,
+            "COM_POS_LOW_EPH": -1.0},
+    int_params=frozenset({"COM_LOW_BAT_ACT", "RTL_TYPE", "NAV_DLL_ACT",
+                          "COM_DLL_EXCEPT", "NAV_RCL_ACT", "COM_RCL_EXCEPT", "GF_ACTION",
+                          "COM_POS_LOW_ACT"}),
     battery_levels=px4_levels,
 )
 

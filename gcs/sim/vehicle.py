@@ -21,7 +21,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from autopilots import ARDUPILOT
 from common.geo import LocalFrame
 from gcs.sim import flavours as fl
-from gcs.sim import telemetry
+from gcs.sim import params as sim_params
+from gcs.sim import smartrtl, telemetry
 from gcs.sim.battery import Battery
 from gcs.sim.faults import FaultPlan, LinkFaults
 from gcs.sim.mission_server import GLOBAL_FRAMES, MissionServer
@@ -124,6 +125,7 @@ class SimVehicle:
         if "AUTO_OPTIONS" in self.params:
             self.params["AUTO_OPTIONS"] = float(cfg.auto_options)
         self.track = TrackRecorder(cfg.track_path, cfg.sysid, cfg.firmware, cfg.home)
+        self.smart_path = None        # ArduPilot's SmartRTL path, from arming
         self.link = None
         self.mission = None
         self.mode = self.flavour.initial_mode
@@ -286,6 +288,7 @@ class SimVehicle:
             remaining -= dt
             self.t += dt
             self._physics(dt)
+            self._save_path()
             self._update_task()
             self._scheduled_faults(now)
             self._radio_shadow()
@@ -377,8 +380,24 @@ class SimVehicle:
                                      f"{level.action or 'a warning'}")
             if level.action == "fall":
                 self._disarm(force=True, reason="battery failsafe: terminate")
-            elif level.action is not None and level.action != self.mode:
-                self._set_mode(level.action)
+            elif level.action is not None:
+                self._failsafe_mode(level.action.split(" or "))
+
+    def _failsafe_mode(self, choices) -> None:
+        """The first of ``choices`` the vehicle can fly (SmartRTL only with its path),
+        as ArduCopter's set_mode_SmartRTL_or_RTL / _or_land_with_pause do."""
+        for mode in choices:
+            if mode == self.mode:
+                return
+            if self.flavour.behaviour[mode] == fl.SMARTRTL and not self._smart_ok():
+                self._say(M.MAV_SEVERITY_WARNING, "SmartRTL Unavailable, Trying "
+                                                  f"{choices[-1].title()} Mode")
+                continue
+            self._set_mode(mode)
+            return
+
+    def _smart_ok(self) -> bool:
+        return self.smart_path is not None and self.smart_path.active
 
     def _sample(self, force=False) -> None:
         lat, lon, alt = self.position()
@@ -621,7 +640,10 @@ class SimVehicle:
         names = list(self.params)
         kind = msg.get_type()
         if kind == "PARAM_SET" and msg.param_id in self.params:
-            self.params[msg.param_id] = float(msg.param_value)
+            value = sim_params.value_set(self.flavour, msg)
+            if value is None:               # PX4 refuses a type mismatch, unanswered
+                return
+            self.params[msg.param_id] = value
         if kind == "PARAM_REQUEST_LIST":
             wanted = names
         elif kind == "PARAM_REQUEST_READ" and msg.param_index >= 0:
@@ -629,9 +651,9 @@ class SimVehicle:
         else:
             wanted = [msg.param_id] if msg.param_id in self.params else []
         for name in wanted:
+            wire, param_type = sim_params.wire(self.flavour, name, self.params[name])
             self._send(self.mav.param_value_encode(
-                name.encode(), self.params[name], M.MAV_PARAM_TYPE_REAL32, len(names),
-                names.index(name)))
+                name.encode(), wire, param_type, len(names), names.index(name)))
 
     # -- modes, arming ----------------------------------------------------------------
     def behaviour(self) -> str:
@@ -639,6 +661,8 @@ class SimVehicle:
 
     def _set_mode(self, name: str) -> int:
         flying = self.armed and not self.landed      # a falling vehicle obeys nothing
+        if self.flavour.behaviour[name] == fl.SMARTRTL and not self._smart_ok():
+            return M.MAV_RESULT_FAILED              # ModeSmartRTL::init: no path
         if flying and self.behaviour() == fl.AUTO and self.flavour.behaviour[name] != fl.AUTO:
             self._left_at = self.current
         self.mode = name
@@ -659,6 +683,10 @@ class SimVehicle:
         elif behaviour == fl.RTL:
             if flying:
                 self._start_rtl(None)
+        elif behaviour == fl.SMARTRTL:
+            if flying:
+                self.task = {"kind": "retrace", "seq": None, "back": self.smart_path.way_back()}
+                self._update_retrace(self.task)
         elif behaviour == fl.TAKEOFF:
             if self.armed:
                 self._start_takeoff(self._takeoff_alt)
@@ -681,6 +709,7 @@ class SimVehicle:
             self._say(M.MAV_SEVERITY_CRITICAL, problem)
             return self.flavour.deny_result
         self.armed = True
+        self.smart_path = smartrtl.path_of(self.flavour, self.params, self.body.pos)
         self._idle_since = self.t
         x, y, z = self.body.pos                 # home is where the vehicle arms
         self.home = (x, y, self.ground)
@@ -738,9 +767,44 @@ class SimVehicle:
         self.body.go_to((x, y, z))
 
     def _start_rtl(self, seq) -> None:
+        back = self._mission_return()
+        if back:
+            self.track.event(self.t, f"return along the mission ({len(back)} points)")
+            self.task = {"kind": "retrace", "seq": seq, "back": back}
+            return self._update_retrace(self.task)
         self.task = {"kind": "rtl", "seq": seq, "phase": "climb"}
         x, y, z = self.body.pos
         self.body.go_to((x, y, max(z, self.home[2] + self.cfg.rtl_alt_m)))
+
+    def _mission_return(self) -> list:
+        """PX4's Return with RTL_TYPE 2 or 4 (navigator/rtl.cpp init_rtl_mission_type):
+        the mission's position items forward from the current one to its landing, or
+        back from the one before to home, at their altitudes, ending above where it
+        lands; [] for any other return (a climb and a straight line)."""
+        rtl_type = int(self.params.get("RTL_TYPE", 0))
+        if rtl_type not in (2, 4) or self.mission is None:     # ArduPilot has no RTL_TYPE
+            return []
+        items = [it for it in self.mission.items if it is not None and it.is_nav
+                 and (it.x, it.y) != (0, 0)]
+        land = next((it.seq for it in items if it.command == M.MAV_CMD_NAV_LAND), None)
+        cur = self.current
+        # RTL_TYPE 2: forward when the mission lands; 4: whichever counts fewer items
+        # (rtl.cpp reverseIsFurther: land - current < current)
+        forward = land is not None and (rtl_type == 2 or land - cur < cur)
+        if forward:
+            way = [it for it in items if cur <= it.seq <= land]
+        else:
+            way = [it for it in reversed(items) if it.seq < cur
+                   and it.command != M.MAV_CMD_NAV_LAND]
+        points = [(*self.frame.to_local(it.lat, it.lon),
+                   self.body.pos[2] if it.command == M.MAV_CMD_NAV_LAND
+                   else self._alt(it.z, it.frame)) for it in way]
+        if not forward:            # and then home, at the altitude it came to
+            z = points[-1][2] if points else self.body.pos[2]
+            points.append((self.home[0], self.home[1], z))
+        elif points:               # the landing: approached at the last altitude
+            points[-1] = (*points[-1][:2], points[-2][2] if len(points) > 1 else self.body.pos[2])
+        return points
 
     def _update_task(self) -> None:
         task = self.task
@@ -766,6 +830,8 @@ class SimVehicle:
                 self.body.go_to((x, y, self.ground - 1.0))   # aim below: touch down firmly
         elif kind == "rtl":
             self._update_rtl(task)
+        elif kind == "retrace":
+            self._update_retrace(task)
 
     def _takeoff_done(self, task) -> None:
         if task["seq"] is not None:
@@ -785,6 +851,26 @@ class SimVehicle:
         elif task["phase"] == "return":
             seq = task["seq"]
             self._start_land(None, seq)
+
+    def _update_retrace(self, task) -> None:
+        """A return along known points (ArduPilot's SmartRTL: its saved path newest
+        first, mode_smart_rtl.cpp; PX4's mission-path Return): to each in turn, then
+        land where the last one is."""
+        if task.get("to") is not None and self.body.distance_to_dest() > self.cfg.wp_radius_m:
+            return
+        if not task["back"]:
+            return self._start_land(None, None)
+        task["to"] = task["back"].pop(0)
+        self.body.go_to(task["to"])
+
+    def _save_path(self) -> None:
+        """ArduPilot saves its flown path for SmartRTL while armed, in any other mode."""
+        if self.smart_path is None or not self.armed or self.landed or \
+                self.flavour.behaviour[self.mode] == fl.SMARTRTL:
+            return
+        if self.smart_path.add(tuple(self.body.pos)):
+            self._say(M.MAV_SEVERITY_WARNING, "SmartRTL deactivated: buffer full")
+            self.track.event(self.t, "SmartRTL deactivated: buffer full")
 
     def _idle_check(self) -> None:
         """Armed on the ground with nothing to do: disarm, as both autopilots do."""

@@ -1,0 +1,82 @@
+"""Parameters read and written as each firmware encodes them (PARAM_REQUEST_READ,
+PARAM_SET, PARAM_VALUE).
+
+ArduPilot sends every value as a float, an integer parameter cast to it ("C-cast"
+encoding); PX4 sends an INT32 parameter's four bytes in the float field
+(MAV_PROTOCOL_CAPABILITY_PARAM_ENCODE_BYTEWISE, src/modules/mavlink/mavlink_main.cpp)
+and takes a PARAM_SET only in the parameter's own type (a mismatch is refused
+without an answer: mavlink_parameters.cpp). A value is read with its type, and
+written back in it.
+"""
+
+import struct
+from dataclasses import dataclass
+
+from gcs.mavlink import M
+
+TIMEOUT_S = 1.5
+RETRIES = 2
+#: the MAV_PARAM_TYPEs that hold integers
+INTEGER_TYPES = frozenset({M.MAV_PARAM_TYPE_UINT8, M.MAV_PARAM_TYPE_INT8,
+                           M.MAV_PARAM_TYPE_UINT16, M.MAV_PARAM_TYPE_INT16,
+                           M.MAV_PARAM_TYPE_UINT32, M.MAV_PARAM_TYPE_INT32})
+
+
+@dataclass(frozen=True)
+class Value:
+    value: float
+    kind: int                       # MAV_PARAM_TYPE as the vehicle reported it
+
+
+def decode(wire: float, kind: int, bytewise: bool) -> float:
+    """A PARAM_VALUE's value: an integer's bytes where the firmware sends them so."""
+    if bytewise and kind in INTEGER_TYPES:
+        return float(struct.unpack("<i", struct.pack("<f", wire))[0])
+    return float(wire)
+
+
+def encode(value: float, kind: int, bytewise: bool) -> float:
+    """The float field of a PARAM_SET of ``value`` in type ``kind``."""
+    if bytewise and kind in INTEGER_TYPES:
+        return struct.unpack("<f", struct.pack("<i", int(value)))[0]
+    return float(value)
+
+
+def _bytewise(link) -> bool:
+    profile = getattr(link, "profile", None)
+    return bool(getattr(profile, "params_bytewise", False))
+
+
+def _drain(link, name: str) -> None:
+    """Drop the PARAM_VALUEs of ``name`` already queued: PX4 answers a PARAM_SET and
+    also announces the change, so a later read would otherwise take a stale one."""
+    while link.recv("PARAM_VALUE", 0.0, lambda m: m.param_id == name) is not None:
+        pass
+
+
+def read(link, name: str, timeout_s: float = TIMEOUT_S, retries: int = RETRIES):
+    """`Value` of parameter ``name``; None when the vehicle does not answer (it has
+    no such parameter)."""
+    _drain(link, name)
+    for _ in range(retries + 1):
+        link.send("PARAM_REQUEST_READ", param_id=name.encode(), param_index=-1)
+        msg = link.recv("PARAM_VALUE", timeout_s, lambda m: m.param_id == name)
+        if msg is not None:
+            kind = int(msg.param_type)
+            return Value(decode(msg.param_value, kind, _bytewise(link)), kind)
+    return None
+
+
+def write(link, name: str, value: float, kind: int, timeout_s: float = TIMEOUT_S,
+          retries: int = RETRIES):
+    """Set ``name`` to ``value`` in its type ``kind``; the `Value` the vehicle answers
+    with (what it now holds), or None when it does not answer."""
+    wire = encode(value, kind, _bytewise(link))
+    _drain(link, name)
+    for _ in range(retries + 1):
+        link.send("PARAM_SET", param_id=name.encode(), param_value=wire, param_type=kind)
+        msg = link.recv("PARAM_VALUE", timeout_s, lambda m: m.param_id == name)
+        if msg is not None:
+            kind_back = int(msg.param_type)
+            return Value(decode(msg.param_value, kind_back, _bytewise(link)), kind_back)
+    return None
