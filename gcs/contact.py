@@ -35,13 +35,16 @@ PACE_RANGE = (0.5, 2.0)
 @dataclass(frozen=True)
 class Expected:
     """A silence the plan predicts: its window (fleet clock), when the vehicle was last
-    heard and when it is due back (monitor clock), and the margin after that before
-    it is overdue."""
+    heard and when it is due back (monitor clock, at the pace measured then), the
+    margin after that before it is overdue, and both as fleet seconds of its plan
+    flown since it was heard (``allowed_s``: overdue past that many; the monitor
+    counts them at the pace it measures while the vehicle is silent)."""
 
     window: tuple
     heard_s: float
     due_s: float
     margin_s: float
+    allowed_s: float = float("inf")
 
     @property
     def overdue_s(self) -> float:
@@ -110,5 +113,7 @@ class Contact:
                 left = (b - at) / self.pace
                 late = EARLY_LATE_S / self.pace
                 return Expected((a, b), heard_s, heard_s + left + late,
-                                lost_after_s + WIDEN * left)
+                                lost_after_s + WIDEN * left,
+                                (b - at) * (1.0 + WIDEN) + EARLY_LATE_S
+                                + lost_after_s * self.pace)
         return None

@@ -156,8 +156,11 @@ class VehicleProgress:
     proven: object = None  # gcs.corridor.ProvenPath of the route flown now
     off_route: list = field(default_factory=list)  # [[from t_s, to t_s or None, max m]]
     powered_down_at_s: float | None = None  # silent at its base for a battery swap since
-    contact: Contact | None = None  # its predicted radio shadows, on this monitor's clock
+    # its predicted radio shadows, on this monitor's clock (`follow`: its route's)
+    contact: Contact = field(default_factory=lambda: Contact([]))
     quiet: Expected | None = None  # the predicted silence it is in now, if heard silent
+    quiet_flown: float = 0.0  # of it, fleet seconds of its plan flown since heard (estimated)
+    quiet_at: float = 0.0  # when that was last counted (monitor s)
     silences: list = field(default_factory=list)  # [{"from_s", "to_s", "due_s", ...}] flown
     heard_after_loss_s: float | None = None  # its first HEARTBEAT after it was declared lost
 
@@ -652,9 +655,26 @@ class Monitor:
             a, b = v.quiet.window
             self.event(v.sysid, f"out of contact, as planned: a radio shadow of {b - a:.0f} s "
                                 f"predicted; due back by {v.quiet.due_s:.0f} s, overdue "
-                                f"after {v.quiet.overdue_s:.0f} s", out_of_contact=True,
-                       heard_s=round(v.quiet.heard_s, 3), due_s=round(v.quiet.due_s, 3))
-        return self.now() <= v.quiet.overdue_s + self.stalls.stalled(v.quiet.heard_s + self.t0)
+                                f"after {v.quiet.overdue_s:.0f} s at today's pace",
+                       out_of_contact=True, heard_s=round(v.quiet.heard_s, 3),
+                       due_s=round(v.quiet.due_s, 3))
+            v.quiet_flown, v.quiet_at = (self.now() - v.quiet.heard_s) * v.contact.pace, \
+                self.now()
+        now = self.now()
+        v.quiet_flown += (now - v.quiet_at) * self._pace_unheard(v)
+        v.quiet_at = now
+        return v.quiet_flown <= v.quiet.allowed_s
+
+    def _pace_unheard(self, v) -> float:
+        """Fleet seconds per monitor second of a silent vehicle: its own pace on its
+        plan, at the clock rate the vehicles still heard run at now (one machine's
+        simulated fleet slows together under load; real autopilots all run at 1)."""
+        rates = sorted(u.contact.clock_rate for s, u in self.vehicles.items()
+                       if u is not v and u.quiet is None and not u.finished
+                       and self.links[s].heartbeat_age() <= self.lost_after_s)
+        if not rates:
+            return v.contact.pace
+        return rates[len(rates) // 2] * v.contact.pace / v.contact.clock_rate
 
     def _back_in_contact(self, v) -> None:
         q, v.quiet = v.quiet, None

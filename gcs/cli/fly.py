@@ -98,10 +98,10 @@ def add_arguments(parser) -> None:
                      help="each battery swap powers a simulated vehicle down for S wall "
                           "seconds (its link silent, its TCP port closed), then it boots "
                           "again; 0 = a hot swap")
-    sim.add_argument("--sim-no-radio", action="store_true",
-                     help="the simulated links are never cut by the terrain (by default each "
-                          "is cut while its vehicle is out of the plan's antennas' radio "
-                          "line of sight, as the plan predicts)")
+    sim.add_argument("--sim-radio", action="store_true",
+                     help="cut each simulated link while its vehicle is out of the plan's "
+                          "antennas' radio line of sight on the plan's terrain (the shadows "
+                          "the plan predicts; gcs demo flies with them)")
     sim.add_argument("--sim-capacity", type=int, metavar="N",
                      help="mission items each simulated vehicle holds (default: the "
                           "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "
@@ -169,7 +169,7 @@ def sim_fleet(plan, plan_dir, args, output: Path):
             speedup=args.speedup, base_port=args.sim_base_port,
             gcs_port=args.sim_gcs_port, faults=faults, track_dir=output / "tracks", **capacity,
             swap_reboot_s=args.swap_reboot, terrain=terrain_ground(terrain),
-            radio=None if args.sim_no_radio else radio_for_plan(plan, terrain))
+            radio=radio_for_plan(plan, terrain) if args.sim_radio else None)
     except ValueError as exc:
         raise InputError("--sim", str(exc)) from None
     except OSError as exc:
