@@ -36,7 +36,7 @@ def _fleet(planned, tmp_path, radio=True):
 
 def _fly(planned, tmp_path, fleet, during=None) -> dict:
     flight = Flight(planned.dir, fleet.urls(), FlyOptions(
-        output=tmp_path / "f", lost_after_s=LOST_AFTER_S, plot=False))
+        output=tmp_path / "f", lost_after_s=LOST_AFTER_S, plot=False, set_failsafes=True))
     if during is not None:
         threading.Thread(target=during, args=(flight,), daemon=True).start()
     try:

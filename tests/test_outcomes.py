@@ -252,7 +252,7 @@ def test_an_empty_battery_in_the_air_is_a_problem(planned, tmp_path):
     try:
         code = main(["fly", str(planned.dir), *[a for i in range(3) for a in
                      ("--connect", f"tcp:127.0.0.1:{base + 10 * i}")],
-                     "--lost-after", "2", "--timeout", "90", "-o", str(out)])
+                     "--lost-after", "2", "--timeout", "90", "--set-failsafes", "-o", str(out)])
     finally:
         fleet.stop()
     report = json.loads((out / "flight.json").read_text())

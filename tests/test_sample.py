@@ -52,7 +52,10 @@ def test_gcs_plan_on_the_whole_sample_from_the_demo_base(tmp_path, capsys):
     out = tmp_path / "out"
     assert main(["plan", "--sample", "--uavs", "4", "--k", "1", "--launch", "36.5246,-84.2344",
                  "-o", str(out)]) == 0, capsys.readouterr().err
-    assert "warning" not in capsys.readouterr().err.lower()
+    # the one warning: the whole sample's area is mostly beyond any hidden flight
+    err = capsys.readouterr().err.lower()
+    assert [line for line in err.splitlines() if "warning" in line and
+            "of the area of operations is planned" not in line] == []
     plan = Plan.load(out)
     assert plan.metrics["k_covered"] == plan.metrics["targets"]
     assert main(["export", str(out), "-o", str(tmp_path / "again")]) == 0  # re-checked
