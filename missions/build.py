@@ -20,7 +20,6 @@ Positions are absolute (MAV_FRAME_GLOBAL, metres AMSL) like the exposure
 surface; commands without a position use MAV_FRAME_MISSION as PX4 requires.
 """
 
-import math
 from dataclasses import dataclass, field
 from typing import Optional
 
@@ -34,6 +33,7 @@ from autopilots.mavlink import (
     NAV_WAYPOINT,
 )
 from common.errors import InputError
+from common.geo import distance_m
 
 from .items import MissionItem, renumber
 
@@ -178,10 +178,7 @@ def is_above_launch(launch, w) -> bool:
     asks too)."""
     if launch is None:
         return False
-    # equirectangular distance: plenty for "the same point" at 1 m
-    dlat = math.radians(w.lat - launch.lat)
-    dlon = math.radians(w.lon - launch.lon) * math.cos(math.radians(launch.lat))
-    return 6371008.8 * math.hypot(dlat, dlon) <= ABOVE_LAUNCH_M
+    return distance_m(w.lat, w.lon, launch.lat, launch.lon) <= ABOVE_LAUNCH_M
 
 
 def _position(command, lat, lon, alt, p1=0.0, p2=0.0, p3=0.0, p4=0.0) -> MissionItem:

@@ -25,17 +25,16 @@ when made, so every leg of every segment is proven before the first is flown,
 and each segment again.
 """
 
-import math
 
 import numpy as np
 
 from common.errors import InputError
+from common.geo import LocalFrame, distance_m
 
 from .build import firmware_profile, is_above_launch, route_items
 
 #: waypoints closer than this (m, horizontally and vertically) are the same place
 SAME_PLACE_M = 0.01
-EARTH_R = 6371008.8
 
 
 def fewer_waypoints(route, prove=None) -> list:
@@ -65,9 +64,8 @@ def fewer_waypoints(route, prove=None) -> list:
 
 
 def _same_place(a, b) -> bool:
-    dlat = math.radians(b.lat - a.lat) * EARTH_R
-    dlon = math.radians(b.lon - a.lon) * EARTH_R * math.cos(math.radians(a.lat))
-    return math.hypot(dlat, dlon) < SAME_PLACE_M and abs(b.alt_amsl - a.alt_amsl) < SAME_PLACE_M
+    return distance_m(a.lat, a.lon, b.lat, b.lon) < SAME_PLACE_M and \
+        abs(b.alt_amsl - a.alt_amsl) < SAME_PLACE_M
 
 
 def leg_prover(ctx):
@@ -90,19 +88,15 @@ def point_on_leg(a, b, here):
     itself (within `SAME_PLACE_M`) or there is no leg (``a`` None)."""
     if a is None:
         return None
-    lat0 = math.radians(a.lat)
-
-    def xyz(lat, lon, alt):
-        return np.array([math.radians(lon - a.lon) * EARTH_R * math.cos(lat0),
-                         math.radians(lat - a.lat) * EARTH_R, alt - a.alt_amsl])
-
-    leg, p = xyz(b.lat, b.lon, b.alt_amsl), xyz(*here)
+    frame = LocalFrame(a.lat, a.lon)
+    leg = frame.project([(b.lon, b.lat, b.alt_amsl)])[0] - (0.0, 0.0, a.alt_amsl)
+    p = frame.project([(here[1], here[0], here[2])])[0] - (0.0, 0.0, a.alt_amsl)
     u = float(np.clip(p @ leg / (leg @ leg), 0.0, 1.0)) if leg @ leg > 0 else 1.0
     if np.linalg.norm((1.0 - u) * leg) < SAME_PLACE_M:
         return None
     x, y, alt = u * leg
-    return (a.lat + math.degrees(y / EARTH_R),
-            a.lon + math.degrees(x / (EARTH_R * math.cos(lat0))), float(a.alt_amsl + alt))
+    lat, lon = frame.to_geo(x, y)
+    return float(lat), float(lon), float(a.alt_amsl + alt)
 
 
 class RouteMissions:

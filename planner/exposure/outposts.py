@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from common.errors import InputError
+from common.geo import distance_m
 
 DEFAULT_HEIGHT_M = 2.0
 
@@ -148,12 +149,12 @@ def crop_around(area, features, margin_m=CROP_MARGIN_M) -> tuple:
 
 
 def _distance_to_box(lon, lat, area) -> float:
-    """Metres from (lon, lat) to the nearest point of the box (0 inside), on a local
-    equirectangular projection (within a few metres over tens of km)."""
+    """Metres from (lon, lat) to the nearest point of the box (0 inside), the
+    geodesic to its nearest corner or edge point in degrees (within metres over
+    tens of km)."""
     s, w, n, e = area
     qlat, qlon = min(max(lat, s), n), min(max(lon, w), e)
-    k = math.cos(math.radians((lat + qlat) / 2))
-    return 6371008.8 * math.hypot(math.radians(lat - qlat), math.radians(lon - qlon) * k)
+    return distance_m(lat, lon, qlat, qlon)
 
 
 def outposts_to_geojson(outposts) -> dict:
