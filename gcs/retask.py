@@ -256,8 +256,10 @@ class Retasker:
             sysids = self.flying()
             record.left_out = [s for s in sorted(m.vehicles) if m.planned_at(s) is not None]
             for s in record.left_out:
+                # re-planning it once heard again ping-ponged: each re-plan sent another
+                # into a shadow, and the fleet was re-planned until its batteries ran out
                 m.event(s, "out of contact as planned: not re-tasked, it flies its plan on "
-                           "(re-planned with the others once heard again)")
+                           "(the others' re-plan does not count what it will still see)")
             landed = [] if home else self._relaunchable(sysids)
             if not sysids and not landed:
                 m.event(None, "re-plan skipped: no survivor in the air or able to go up")

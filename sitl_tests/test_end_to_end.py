@@ -250,6 +250,11 @@ def assert_prompt_loss(result, sysid) -> None:
     kill (the kill is asked by the test and done by the simulator's next step)."""
     report = result["report"]
     loss = next(x for x in report["losses"] if x["sysid"] == sysid)
+    if loss["reason"].startswith("overdue"):
+        # killed where its plan predicts a radio shadow: its silence is the plan's
+        # until it is overdue (how late, tests/test_link_flight.py judges)
+        assert loss["due_s"] is not None and loss["detected_s"] >= loss["due_s"]
+        return
     assert loss["detected_s"] - loss["last_heartbeat_s"] - loss["stalled_s"] \
         <= report["lost_after_s"] + 2.0
     assert loss_latency(result, sysid) - loss["stalled_s"] <= report["lost_after_s"] + 3.0

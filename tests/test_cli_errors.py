@@ -177,7 +177,7 @@ def test_warnings_are_one_line_in_the_users_words(tmp_path, capsys):
     warnings = [line for line in err.splitlines() if "warning:" in line.lower()]
     assert warnings == [
         "gcs plan: warning: built-in sample_outposts.geojson: feature 1 (Pine Mountain) left "
-        "out: 15.2 km from the area, beyond its 10 km range",
+        "out: 15.1 km from the area, beyond its 10 km range",
         "gcs plan: warning: built-in sample_outposts.geojson: feature 2 (West knob) left out: "
         "11.7 km from the area, beyond its 7 km range"]
     assert "UserWarning" not in err

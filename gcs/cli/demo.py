@@ -23,6 +23,9 @@ def add_arguments(parser) -> None:
                              "(flight report, plot, tracks, tlogs); their files are replaced")
     parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="autopilot the simulated vehicles imitate")
+    parser.add_argument("--radio", action="store_true",
+                        help="fly through the plan's radio shadows: each simulated link cut "
+                             "while its vehicle is out of the antenna's line of sight")
     parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
                         help="simulated time runs X times faster than the wall clock")
     parser.add_argument("--kill", type=int, default=2, metavar="SYSID",
@@ -98,12 +101,13 @@ def _fly(ctx, plan, plan_dir, flight_dir, args):
         item = max(2, int(args.kill_at * len(items)))
         faults[args.kill] = FaultPlan(kill_at_item=item)
         console.print(f"vehicle {args.kill} will be shot down on reaching mission item "
-                      f"{item} of {len(items)}" + _in_shadow(victim, mission, item))
-    # the radio: each link cut while the plan's antenna cannot see its vehicle
+                      f"{item} of {len(items)}"
+                      + (_in_shadow(victim, mission, item) if args.radio else ""))
+    # --radio: each link cut while the plan's antenna cannot see its vehicle
     fleet = fleet_for_plan(plan, firmware=args.firmware, speedup=args.speedup, faults=faults,
                            track_dir=flight_dir / "tracks", base_port=args.base_port,
                            terrain=terrain_ground(ctx.terrain),
-                           radio=radio_for_plan(plan, ctx.terrain))
+                           radio=radio_for_plan(plan, ctx.terrain) if args.radio else None)
     longest = max(v.mission_time_s for v in plan.vehicles)
     options = FlyOptions(output=flight_dir, timeout_s=120.0 + 3.0 * longest / args.speedup)
     try:

@@ -109,7 +109,6 @@ class Flight:
         self.start_unix = time.time()
         self.link = None
         self.retasks = []
-        self.left_out = set()   # out of contact at the last re-plan: flying their plans
         self.missions = None      # (route id, firmware) -> CheckedMission, once prepared
         self.timed_out = False
         self.stopped = None       # why monitoring ended early ("interrupted", "timed out")
@@ -393,8 +392,6 @@ class Flight:
             self._next_sorties()
             if self.batteries.watch():
                 self.retask()
-            if self._back_from_shadow():
-                self.retask()
             # a loss found since (on the ground as its next sortie uploads, or by the
             # loss thread) is re-tasked for first: the survivors, down already, fly its
             # work (the flight once ended with it unflown)
@@ -503,19 +500,6 @@ class Flight:
                 m.set_state(sysid, LANDED)
                 m.event(sysid, "stays on the ground: the re-plan has no task for it")
         self.retasks.append(record)
-        self.left_out = set(record.left_out)
-
-    def _back_from_shadow(self) -> bool:
-        """A vehicle a re-plan left to its plan (out of contact then) is heard again,
-        still flying: the fleet is re-planned with it."""
-        m = self.monitor
-        back = {s for s in self.left_out if m.planned_at(s) is None}
-        self.left_out -= back
-        back = sorted(s for s in back if not m.vehicles[s].finished)
-        if back:
-            m.event(None, "heard again after a re-plan that left them to their plans: "
-                          "re-planning with them", vehicles=back)
-        return bool(back)
 
     # -- results ------------------------------------------------------------------------
     def report(self) -> dict:
