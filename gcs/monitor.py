@@ -598,8 +598,12 @@ class Monitor:
 
     def _as_planned(self, v, age) -> bool:
         """A silence inside a predicted radio shadow, not yet overdue: said once (out of
-        contact, as planned, and when it is due back), not a loss."""
+        contact, as planned, and when it is due back), not a loss. Only in the air: the
+        plan predicts no silence on the ground (a vehicle silent at its base for its
+        next sortie's upload once read as a shadow of that sortie, and was never lost)."""
         if v.quiet is None:
+            if not v.airborne:
+                return False
             s = self.links[v.sysid].state
             lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)
             v.quiet = v.contact.expected(self.now() - age, self.lost_after_s,
