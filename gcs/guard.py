@@ -195,10 +195,11 @@ class SeparationGuard:
         self.landing &= set(frame.here)
         horizon = self.horizon()
         columns = frame.columns(self.bases, self.separation_m)
-        # one down on its pad (its landing not told yet) is in nobody's way
+        # one down on its pad (its landing not told yet) is in nobody's way; one held
+        # just above it is (and is flown on from there: left out, it hovered for good)
         ahead = {s: (frame.standing(s, horizon) if s in self.held else
                      self._route(frame, s, self.fleet.waiting(s) or 0.0, s in self.landing))
-                 for s in frame.here if not self.fleet.on_pad(s)}
+                 for s in frame.here if s in self.held or not self.fleet.on_pad(s)}
         for a, b, begin, column in self._conflicts(frame, ahead, horizon, columns):
             if self._fixed(a) and self._fixed(b) or \
                     self._clash(ahead[a], ahead[b], columns) > horizon:

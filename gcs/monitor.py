@@ -716,9 +716,21 @@ class Monitor:
         or not its landing has been told yet (the disarm comes a few seconds after
         the touchdown)."""
         v, s = self.vehicles[sysid], self.links[sysid].state
+        planned = self.planned_position(sysid)
+        if planned is not None:     # out of contact as planned: where its plan has it
+            return self._planned_on_pad(v, planned)
         agl, away = getattr(s, "relative_alt", None), self._from_base(v, s)
         return agl is not None and abs(agl) <= LANDED_AGL_M and away is not None \
             and away <= LAUNCH_RADIUS_M
+
+    @staticmethod
+    def _planned_on_pad(v, planned) -> bool:
+        """Whether (lon, lat, alt AMSL) ``planned`` is down on a base of its route (a
+        silent vehicle's plan landed it: in nobody's column until its next takeoff)."""
+        lon, lat, alt = planned
+        points = [getattr(v.route, "launch", None), getattr(v.route, "land", None)]
+        return any(p is not None and abs(alt - p.alt_amsl) <= LANDED_AGL_M and
+                   distance_m(p.lat, p.lon, lat, lon) <= LAUNCH_RADIUS_M for p in points)
 
     def silent(self, sysid) -> bool:
         """No HEARTBEAT from ``sysid`` for ``lost_after_s`` of the time this ground

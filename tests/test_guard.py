@@ -336,6 +336,26 @@ def test_closest_approach_counts_no_vehicle_touched_down_on_its_pad():
     assert guard.report()["pairs"] == []
 
 
+def test_a_vehicle_held_just_above_its_pad_is_flown_on():
+    """Held as it descended the last metres of its column (within the height a
+    touchdown is told from), alone in the air: it is flown on and lands. Counted as
+    down on its pad, it was never looked at again and hovered there until the
+    flight's end (a timeout's trip home, on a busy machine)."""
+    base = GeoPoint(LON0, LAT0, ALT - 40.0)
+    top = Waypoint(LON0, LAT0, ALT, 0.0)
+    low = Descending(2, base.alt_amsl + 2.0, base.alt_amsl)
+    monitor, guard = _guard([low], {2: 1})
+    monitor.vehicles[2].route = VehicleRoute(2, base, [top], 0.0, 0.0, 0.0)
+    monitor.vehicles[2].done.add(0)
+    low.state.relative_alt = 2.0
+    low.held, guard.held[2] = True, (0.0, 3)
+    guard.fleet.on_pad = monitor.on_pad
+    assert monitor.on_pad(2)
+    _run([low], guard, 2.0)
+    assert [a["action"] for a in guard.actions] == ["resume"] and not low.held
+    assert low.p[2] == base.alt_amsl
+
+
 class Lingering(Scripted):
     """At the top of its base column, held; flown on, it lingers ``linger_s`` (turning
     to its first leg) before it flies off at its velocity."""
