@@ -74,12 +74,14 @@ def _acknowledged(link, command, send, timeout_s, retries):
     texts_before = len(_texts(link))
     for attempt in range(retries + 1):
         send(attempt)
-        deadline = time.monotonic() + timeout_s
+        sent = time.monotonic()
+        deadline = sent + timeout_s
         while (left := deadline - time.monotonic()) > 0:
             ack = link.recv("COMMAND_ACK", left, is_ours)
             if ack is None:
                 break
             if ack.result == M.MAV_RESULT_ACCEPTED:
+                _round_trip(link, time.monotonic() - sent)
                 return ack
             if ack.result == M.MAV_RESULT_IN_PROGRESS:
                 deadline = time.monotonic() + timeout_s        # a long command: wait on
@@ -94,6 +96,14 @@ def _acknowledged(link, command, send, timeout_s, retries):
     raise CommandError(link, f"no COMMAND_ACK for {command_name(command)} after "
                              f"{retries + 1} tries {timeout_s:g} s apart{_silence(link)}",
                        command)
+
+
+def _round_trip(link, seconds) -> None:
+    """Keep a command's way to the vehicle and its answer's way back (the separation
+    guard's measure of how late it sees and acts: `gcs.guard`)."""
+    kept = getattr(link, "round_trips", None)
+    if kept is not None:
+        kept.append(seconds)
 
 
 def _texts(link) -> list:

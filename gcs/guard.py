@@ -17,9 +17,10 @@ other's way, then the other; both only when neither alone clears it. Two
 already in one column: the one that leaves it first on its route (the upper one
 climbing out, the lower one landing) goes, the other holds.
 
-The guard reacts in its own time: its loop (measured, `loop_s`) and a command's
-way to the vehicle (measured, `command_s`), which at a speed-up of the vehicles'
-clock are that many times more seconds of flight. The horizon counts them, and a
+The guard reacts in its own time: its loop (measured, `loop_s`), a command's way
+to the vehicle (measured, `command_s`) and a position report's way down (with the
+command's way up, one acknowledged command's round trip: `latency_s`), which at a
+speed-up of the vehicles' clock are that many times more seconds of flight. The horizon counts them, and a
 vehicle about to be held is predicted flying on along its route for that long
 before it stands (`reaction_s`): on a busy machine a loop of 0.5 s is 50 s of
 flight at 100x.
@@ -60,7 +61,8 @@ from planner.travel import TravelParams
 
 #: fleet seconds of look-ahead, beyond the ground station's own reaction time
 HORIZON_S = 8.0
-#: wall seconds from a position report to the vehicle braking on a hold, at most
+#: wall seconds from a position report to the vehicle braking on a hold, before any
+#: command's round trip has been measured
 LATENCY_S = 1.0
 #: a held vehicle flies on only when predicted this many separations clear
 RESUME_FACTOR = 1.2
@@ -162,8 +164,18 @@ class SeparationGuard:
         one loop and one command, at the vehicles' rate."""
         return self.clock.rate() * (self.loop_s + self.command_s)
 
+    def latency_s(self) -> float:
+        """Wall seconds from a position report to the vehicle braking on a hold: a
+        report's way down and a command's way up are one round trip, the longest a
+        vehicle's acknowledged commands took lately (`LATENCY_S` before any). A
+        fixed second was 100 s of flight at 100x: every conflict was looked for two
+        minutes ahead, and a hold for one lasted until the batteries ran low."""
+        trips = [t for link in self.monitor.links.values()
+                 for t in getattr(link, "round_trips", ())]
+        return max(trips + list(self._commands)) if trips or self._commands else LATENCY_S
+
     def horizon(self) -> float:
-        return HORIZON_S + self.clock.rate() * (LATENCY_S + self.loop_s)
+        return HORIZON_S + self.clock.rate() * (self.latency_s() + self.loop_s)
 
     def forget(self, wait_s: float = FORGET_WAIT_S) -> None:
         """A re-plan took over the held vehicles (it holds and resumes them itself):

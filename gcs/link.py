@@ -399,6 +399,10 @@ class Connection:
 
 
 # -- one vehicle -----------------------------------------------------------------------
+#: acknowledged commands whose round trips a link keeps
+ROUND_TRIPS_KEPT = 16
+
+
 class VehicleLink:
     """One vehicle (system id) on a GroundLink: its messages, its state, routed sends."""
 
@@ -414,6 +418,8 @@ class VehicleLink:
         self.signs = False            # its packets carry signatures (seen without a key)
         self.mission_capacity = None  # items it holds, once learned (mission_protocol)
         self.mission_fits = 0         # the longest upload it took
+        # wall s from sending a command to its acknowledgement, the latest few (`commands`)
+        self.round_trips = collections.deque(maxlen=ROUND_TRIPS_KEPT)
         self._streamed_at, self._asked_at = 0.0, 0.0   # last telemetry, request (monotonic)
         self._route = (conn, addr)
         self._queues = collections.defaultdict(lambda: collections.deque(maxlen=QUEUE_DEPTH))
