@@ -20,10 +20,10 @@ climbing out, the lower one landing) goes, the other holds.
 The guard reacts in its own time: its loop (measured, `loop_s`), a command's way
 to the vehicle (measured, `command_s`) and a position report's way down (with the
 command's way up, one acknowledged command's round trip: `latency_s`), which at a
-speed-up of the vehicles' clock are that many times more seconds of flight. The horizon counts them, and a
-vehicle about to be held is predicted flying on along its route for that long
-before it stands (`reaction_s`): on a busy machine a loop of 0.5 s is 50 s of
-flight at 100x.
+speed-up of the vehicles' clock are that many times more seconds of flight. The
+horizon counts them, and a vehicle about to be held is predicted flying on along
+its route for that long before it stands (`reaction_s`): on a busy machine a loop
+of 0.5 s is 50 s of flight at 100x.
 
 A held vehicle flies on, highest priority first, no sooner than two of the
 guard's loops after its hold, and only once its route from where it stands keeps
