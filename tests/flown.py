@@ -12,3 +12,26 @@ def problems_beside_guard(report: dict) -> list[str]:
     is the guard's job, at a loop too slow for that speed (judged on its own in
     sitl_tests/test_separation and tests/test_guard); anything else is a fault."""
     return [p for p in report["outcome"]["problems"] if TOO_CLOSE not in p]
+
+
+#: the outcome's line for a battery reported empty in the air (gcs.flight.report)
+EMPTY = "battery reported empty in the air"
+
+
+def problems_beside_pauses(report: dict) -> list[str]:
+    """`problems_beside_guard`, and beside an empty battery of a vehicle the ground
+    station held in the air (the guard, or a re-plan while it plans). On a 12-minute
+    battery at 100x a held wall second is 100 s of flight: the ground station's 1-4 s
+    of re-planning, or a hold resumed two loops later, outlast the 25 % reserve (3
+    minutes), where at 1x they cost a few seconds of it. A vehicle never held that
+    ran its battery empty is a fault; so is every other problem."""
+    held = {a["sysid"] for a in report["separation"].get("actions", [])}
+    held |= {e.get("sysid") for e in report["events"] if e["event"] == "holding"}
+    return [p for p in problems_beside_guard(report)
+            if not (EMPTY in p and _vehicle_of(p) in held)]
+
+
+def _vehicle_of(problem: str):
+    """The system id a problem line starts with ("vehicle 2's battery ...")."""
+    words = problem.split()
+    return int(words[1].rstrip("'s")) if len(words) > 1 and words[0] == "vehicle" else None
