@@ -135,3 +135,24 @@ def test_a_vehicle_shot_down_in_contact_is_lost_after_lost_after(planned, tmp_pa
     assert loss["detected_s"] - killed["at"] <= LOST_AFTER_S + 2.0 + loss["stalled_s"]
     assert [x["sysid"] for x in report["losses"]] == [victim]
     json.dumps(report)
+
+
+def test_gcs_sim_cuts_links_by_a_plans_antennas_only_when_asked(planned):
+    """`gcs sim --terrain PLAN_DIR` flies on the plan's terrain with every link up;
+    `--radio` cuts each by the plan's antennas, as `gcs fly --sim-radio` does (on by
+    default, a busy machine's late returns read as losses in the suite's flights);
+    `--radio` without a plan directory to take antennas from is refused."""
+    from common.errors import InputError
+    from gcs.cli import build_parser
+    from gcs.cli import sim as sim_cli
+
+    lat, lon = planned.plan.vehicles[0].launch.lat, planned.plan.vehicles[0].launch.lon
+
+    def config(*extra):
+        return sim_cli.config_from_args(build_parser().parse_args(
+            ["sim", "--terrain", str(planned.dir), "--home", f"{lat},{lon}", *extra]))
+
+    assert config().radio is None and config().terrain is not None
+    assert config("--radio").radio is not None
+    with pytest.raises(InputError, match="--radio"):
+        sim_cli.config_from_args(build_parser().parse_args(["sim", "--radio"]))

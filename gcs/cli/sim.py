@@ -89,10 +89,11 @@ def add_arguments(parser) -> None:
     radio.add_argument("--antenna", action="append", default=[], metavar="LAT,LON[,MAST_M]",
                        help="the ground station's antenna, repeatable: each vehicle's link "
                             "is cut while no antenna has it in radio line of sight on the "
-                            "--terrain (default: a plan directory's antennas; a GeoTIFF: "
-                            "none, no shadows)")
-    radio.add_argument("--no-radio", action="store_true",
-                       help="no radio shadows, even with a plan directory's antennas")
+                            "--terrain")
+    radio.add_argument("--radio", action="store_true",
+                       help="cut each link by a plan directory's antennas (opt-in, as gcs fly "
+                            "--sim-radio: on a busy machine a simulator slower than its "
+                            "speed-up brings a vehicle back late, and it reads as a loss)")
     io.add_argument("--pty", action="store_true",
                     help="serve each vehicle on a pseudo-terminal (a serial link: connect "
                          "with DEVICE,BAUD) instead of its SITL network endpoint")
@@ -192,8 +193,9 @@ def config_from_args(args):
 def _terrain(path, args) -> tuple:
     """(ground, radio) of FleetConfig from --terrain and the radio flags."""
     if path is None:
-        if args.antenna:
-            raise InputError("--antenna", "needs --terrain: the radio's shadows are the terrain's")
+        if args.antenna or args.radio:
+            raise InputError("--antenna" if args.antenna else "--radio",
+                             "needs --terrain: the radio's shadows are the terrain's")
         return None, None
     from pathlib import Path
 
@@ -209,14 +211,17 @@ def _terrain(path, args) -> tuple:
         raise InputError(file, "no such file (give a plan directory or a working-grid GeoTIFF)")
     terrain = read_terrain(file)
     radio = None
-    if args.antenna and not args.no_radio:
+    if args.antenna:
         antennas = [Antenna(lat, lon, 2.0 if mast is None else mast)
                     for lat, lon, mast in map(parse_antenna, args.antenna)]
         try:
             radio = contact_at(terrain, antennas, Radio())
         except ValueError as exc:
             raise InputError("--antenna", str(exc)) from None
-    elif path.is_dir() and (path / PLAN_FILE).is_file() and not args.no_radio:
+    elif args.radio:
+        if not (path.is_dir() and (path / PLAN_FILE).is_file()):
+            raise InputError(path, "--radio takes its antennas from a plan directory: give one, "
+                                   "or sites of your own with --antenna")
         radio = radio_for_plan(Plan.load(path), terrain)
     return terrain_ground(terrain), radio
 
