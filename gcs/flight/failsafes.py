@@ -19,6 +19,9 @@ from autopilots.failsafe import parameter_names
 from gcs import params
 from planner.returns import smartrtl_budget
 
+#: writes of one failsafe parameter, each read back, before it is refused
+SET_ATTEMPTS = 3
+
 #: how to fix a refusal, said with it
 FIX = ("add --set-failsafes to this gcs fly command: it writes the hidden-safe values, "
        "reads them back and keeps the previous ones in flight.json for "
@@ -131,17 +134,29 @@ def make_hidden(link, settings) -> list:
         if s.value is None:
             raise _error(link, f"{s.name} not answered: cannot be set", changes)
         value = s.parameter.safe_value(s.value)
-        params.write(link, s.name, value, s.kind)
-        # the read-back is the judge: on a lossy link the write's own echo may be
-        # lost while the value was set (20 % loss once refused "19 reads back as 19")
-        back = params.read(link, s.name)
+        back = _set(link, s, value)
         if back is not None and back.value == value:
             changes.append({"parameter": s.name, "previous": s.value, "value": value,
                             "type": s.kind})
             continue
         got = "no answer" if back is None else f"{back.value:g}"
-        raise _error(link, f"{s.name} set to {value:g} reads back as {got}", changes)
+        raise _error(link, f"{s.name} set to {value:g} reads back as {got} "
+                           f"({SET_ATTEMPTS} attempts)", changes)
     return changes
+
+
+def _set(link, setting, value):
+    """Write ``value`` and read it back, again while the read-back differs; the last
+    read-back. The read-back is the judge: at 20 % loss a write's echo was lost
+    while the value was set ("19 reads back as 19"), and a late answer to an
+    earlier read once stood for the write ("5 reads back as 1")."""
+    back = None
+    for _ in range(SET_ATTEMPTS):
+        params.write(link, setting.name, value, setting.kind)
+        back = params.read(link, setting.name)
+        if back is not None and back.value == value:
+            break
+    return back
 
 
 def restore(link, changes) -> list:
