@@ -329,8 +329,11 @@ def test_a_smartrtl_buffer_too_small_is_predicted_and_its_fallback_reported(plan
                         terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
     route = planned.plan.vehicles[0]
     fleet.vehicle(1).params["SRTL_POINTS"] = 30.0
+    # low after 60 % of its planned flight: its buffer fills at about 43 %, and at 80 %
+    # the vehicle, slower than planned, was back over its base when it fired (LAND there
+    # was a landing, in 2 of 3 runs)
     fleet.vehicle(1).params["BATT_LOW_MAH"] = CAPACITY_MAH * (
-        1.0 - 0.8 * route.mission_time_s / (fleet.config.battery_min * 60.0))
+        1.0 - 0.6 * route.mission_time_s / (fleet.config.battery_min * 60.0))
     out = tmp_path / "flight"
     try:
         main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
