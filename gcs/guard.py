@@ -437,7 +437,8 @@ class SeparationGuard:
                  for (a, b), (d, t) in sorted(self.closest.items())]
         return {"separation_m": self.separation_m, "actions": self.actions, "pairs": pairs,
                 "closest_m": min((p["closest_m"] for p in pairs), default=None),
-                "loop_s": round(self.loop_s, 3), "command_s": round(self.command_s, 3)}
+                "loop_s": round(self.loop_s, 3), "command_s": round(self.command_s, 3),
+                "latency_s": round(self.latency_s(), 3)}
 
 
 def hold_spans(actions, end) -> list:

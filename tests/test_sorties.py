@@ -580,7 +580,7 @@ def test_a_battery_that_drains_fast_is_brought_home_early(twelve, tmp_path):
                  "--lost-after", "3", "--sim-base-port", str(free_base_port(10, 3)),
                  "-o", str(out)])
     report = json.loads((out / "flight.json").read_text())
-    assert problems_beside_guard(report) == [] and report["outcome"]["coverage_reached"]
+    assert problems_beside_pauses(report) == [] and report["outcome"]["coverage_reached"]
     assert code == (0 if report["outcome"]["ok"] else 1)
     watched = [e for e in report["events"] if "will not last the rest of its sortie" in
                e["event"]]

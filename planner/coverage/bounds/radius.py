@@ -21,7 +21,7 @@ viewpoint), so only the packing bound remains and it is loose. Both are quick;
 import numpy as np
 from numba import njit
 
-from ..model.places import max_matching
+from ..model.places import matched_time
 from ..model.routes import nearest_other
 
 
@@ -80,36 +80,11 @@ def place_reach_bound(arrive, row_of, tgt_indptr, tgt_indices, seen, required):
     ``required[t]`` UAVs can each be at a different place seeing it (a bottleneck
     matching of UAVs to its viewpoints, each at its earliest arrival; a sighting
     before planning is a place of its own, at 0); the latest over targets."""
-    n = len(row_of)
     worst = 0.0
     for t in range(len(tgt_indptr) - 1):
-        q = required[t]
-        if q <= 0:
-            continue
-        deg = tgt_indptr[t + 1] - tgt_indptr[t]
-        m = n * deg + n
-        er = np.empty(m, np.int64)
-        ep = np.empty(m, np.int64)
-        et = np.empty(m)
-        k = 0
-        for u in range(n):
-            if seen[u, t]:
-                er[k], ep[k], et[k] = u, -1 - u, 0.0
-                k += 1
-            for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
-                e = tgt_indices[i]
-                if arrive[row_of[u], e] < np.inf:
-                    er[k], ep[k], et[k] = u, e, arrive[row_of[u], e]
-                    k += 1
-        order = np.argsort(et[:k], kind="mergesort")
-        er, ep, et = er[order], ep[order], et[order]
-        done = np.inf
-        for a in range(q - 1, k):
-            if max_matching(er, ep, a + 1, n, q) >= q:
-                done = et[a]
-                break
-        if done > worst:
-            worst = done
+        if required[t] > 0:
+            worst = max(worst, matched_time(t, arrive, row_of, tgt_indptr, tgt_indices, seen,
+                                            required[t]))
     return worst
 
 

@@ -82,27 +82,34 @@ def matched_counts(targets, at, tgt_indptr, tgt_indices, seen0, cap):
 @njit(cache=True)
 def matched_times(targets, at, tgt_indptr, tgt_indices, seen0, need):
     """When each of ``targets`` first has ``need[t]`` matched sightings (inf: never)."""
+    rows = np.arange(at.shape[0])
     out = np.zeros(len(targets))
     for k in range(len(targets)):
         t = targets[k]
-        if need[t] <= 0:
-            continue
-        er, ep, et = _sightings(t, at, tgt_indptr, tgt_indices, seen0)
-        order = np.argsort(et, kind="mergesort")
-        er, ep, et = er[order], ep[order], et[order]
-        out[k] = np.inf
-        for a in range(len(er)):
-            if max_matching(er, ep, a + 1, at.shape[0], need[t]) >= need[t]:
-                out[k] = et[a]
-                break
+        if need[t] > 0:
+            out[k] = matched_time(t, at, rows, tgt_indptr, tgt_indices, seen0, need[t])
     return out
+
+
+@njit(cache=True)
+def matched_time(t, at, row_of, tgt_indptr, tgt_indices, seen0, need):
+    """When target t first has ``need`` matched sightings, UAV r photographing
+    viewpoint e at ``at[row_of[r], e]`` (UAVs that share a row share their times:
+    the reach bound's earliest arrivals, one row per start); inf: never."""
+    er, ep, et = _sightings(t, at, row_of, tgt_indptr, tgt_indices, seen0)
+    order = np.argsort(et, kind="mergesort")
+    er, ep, et = er[order], ep[order], et[order]
+    for a in range(need - 1, len(er)):      # fewer sightings than need match fewer
+        if max_matching(er, ep, a + 1, len(row_of), need) >= need:
+            return et[a]
+    return np.inf
 
 
 @njit(cache=True)
 def count_with(t, at, tgt_indptr, tgt_indices, seen0, r, e, cap):
     """Matched sightings of target t, at most ``cap``, with UAV r also photographing
     from viewpoint e (r < 0: nothing more)."""
-    er, ep, _ = _sightings(t, at, tgt_indptr, tgt_indices, seen0)
+    er, ep, _ = _sightings(t, at, np.arange(at.shape[0]), tgt_indptr, tgt_indices, seen0)
     if r >= 0:
         er = np.append(er, r)
         ep = np.append(ep, e)
@@ -110,18 +117,18 @@ def count_with(t, at, tgt_indptr, tgt_indices, seen0, r, e, cap):
 
 
 @njit(cache=True)
-def _sightings(t, at, tgt_indptr, tgt_indices, seen0):
-    """(uav, place, time) of every sighting of t: a viewpoint's place is its id, an
-    earlier sighting from no viewpoint (``seen0``) is at a place of its own
-    (-1 - uav)."""
-    n = at.shape[0]
+def _sightings(t, at, row_of, tgt_indptr, tgt_indices, seen0):
+    """(uav, place, time) of every sighting of t, UAV r's times ``at[row_of[r]]``: a
+    viewpoint's place is its id, an earlier sighting from no viewpoint (``seen0``)
+    is at a place of its own (-1 - uav)."""
+    n = len(row_of)
     m = 0
     for r in range(n):
         if seen0[r, t]:
             m += 1
     for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
         for r in range(n):
-            if at[r, tgt_indices[i]] < np.inf:
+            if at[row_of[r], tgt_indices[i]] < np.inf:
                 m += 1
     er = np.empty(m, np.int64)
     ep = np.empty(m, np.int64)
@@ -134,8 +141,8 @@ def _sightings(t, at, tgt_indptr, tgt_indices, seen0):
     for i in range(tgt_indptr[t], tgt_indptr[t + 1]):
         e = tgt_indices[i]
         for r in range(n):
-            if at[r, e] < np.inf:
-                er[k], ep[k], et[k] = r, e, at[r, e]
+            if at[row_of[r], e] < np.inf:
+                er[k], ep[k], et[k] = r, e, at[row_of[r], e]
                 k += 1
     return er, ep, et
 
