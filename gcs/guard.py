@@ -170,9 +170,10 @@ class SeparationGuard:
         vehicle's acknowledged commands took lately (`LATENCY_S` before any). A
         fixed second was 100 s of flight at 100x: every conflict was looked for two
         minutes ahead, and a hold for one lasted until the batteries ran low."""
-        trips = [t for link in self.monitor.links.values()
-                 for t in getattr(link, "round_trips", ())]
-        return max(trips + list(self._commands)) if trips or self._commands else LATENCY_S
+        # copied whole (list() is one step of the interpreter): the link threads append
+        trips = [t for link in list(self.monitor.links.values())
+                 for t in list(getattr(link, "round_trips", ()))] + list(self._commands)
+        return max(trips) if trips else LATENCY_S
 
     def horizon(self) -> float:
         return HORIZON_S + self.clock.rate() * (self.latency_s() + self.loop_s)
