@@ -71,20 +71,8 @@ def test_a_low_battery_mid_mission_flies_smartrtl_home_on_ardupilot_sitl(planned
     lands at its base. Judged by the autopilot's own positions on its second link:
     hidden and clear all along, down at its launch point; the monitor says the
     failsafe's mode and the report lists it."""
-    from test_end_to_end import assert_hidden_and_clear, assert_landed_at_launch, fly_case
-
-    skip_unless_configured("ardupilot")
-    case = planned(0, "ardupilot")
-    result = fly_case(case, "ardupilot", tmp_path,
-                      at=[(1, 0.4, lambda be: be.judges[1].set_param("SIM_BATT_VOLTAGE", 10.0))])
-    report, tracks = result["report"], result["tracks"]
-    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
-    print("vehicle 1:", v1["state"], v1["failsafe_modes"],
-          [e["event"] for e in report["events"] if e["sysid"] == 1 and "ailsafe" in e["event"]])
-    assert [m["mode"] for m in v1["failsafe_modes"]] == ["SMART_RTL"]
-    assert v1["state"] == "landed"
-    assert_hidden_and_clear(case, {1: tracks[1]})
-    assert_landed_at_launch(case.ctx, tracks, [1], "ardupilot")
+    _battery_failsafe_flies_home(planned, tmp_path, "ardupilot", "SIM_BATT_VOLTAGE", 10.0,
+                                 "SMART_RTL")
 
 
 def test_a_critical_battery_mid_mission_returns_along_the_mission_on_px4_sitl(planned,
@@ -94,17 +82,25 @@ def test_a_critical_battery_mid_mission_returns_along_the_mission_on_px4_sitl(pl
     judge's link: below BAT_CRIT_THR 7 %, above BAT_EMERGEN_THR 5 %); the firmware's
     battery failsafe Returns along the mission and lands at a base. Judged by the
     autopilot's own positions: hidden and clear all along, down at its launch."""
+    _battery_failsafe_flies_home(planned, tmp_path, "px4", "SIM_BAT_MIN_PCT", 6.0, "AUTO.RTL")
+
+
+def _battery_failsafe_flies_home(planned, tmp_path, firmware, param, value, mode) -> None:
+    """Vehicle 1 of a real SITL fleet flown with --set-failsafes, its simulated battery
+    let down 40 % into its route (``param`` = ``value`` on the judge's link): its
+    failsafe flies ``mode``, said by the monitor and listed in the report, and lands
+    it at its launch point, hidden and clear all along (the autopilot's own track)."""
     from test_end_to_end import assert_hidden_and_clear, assert_landed_at_launch, fly_case
 
-    skip_unless_configured("px4")
-    case = planned(0, "px4")
-    result = fly_case(case, "px4", tmp_path,
-                      at=[(1, 0.4, lambda be: be.judges[1].set_param("SIM_BAT_MIN_PCT", 6.0))])
+    skip_unless_configured(firmware)
+    case = planned(0, firmware)
+    result = fly_case(case, firmware, tmp_path,
+                      at=[(1, 0.4, lambda be: be.judges[1].set_param(param, value))])
     report, tracks = result["report"], result["tracks"]
     v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
     print("vehicle 1:", v1["state"], v1["failsafe_modes"],
           [e["event"] for e in report["events"] if e["sysid"] == 1 and "ailsafe" in e["event"]])
-    assert [m["mode"] for m in v1["failsafe_modes"]] == ["AUTO.RTL"]
+    assert [m["mode"] for m in v1["failsafe_modes"]] == [mode]
     assert v1["state"] == "landed"
     assert_hidden_and_clear(case, {1: tracks[1]})
-    assert_landed_at_launch(case.ctx, tracks, [1], "px4")
+    assert_landed_at_launch(case.ctx, tracks, [1], firmware)
