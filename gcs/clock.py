@@ -2,17 +2,25 @@
 
 A plan's times are on the fleet clock, which runs at the vehicles' own pace: the
 wall clock for real vehicles, faster for a sped-up simulation. The ground station
-reads that pace off the vehicles themselves (how fast their boot clocks, in
-GLOBAL_POSITION_INT, advance against the wall clock, the median over the fleet),
-so the same flight code starts and re-tasks a fleet on time at any speed-up.
+reads it off the vehicles themselves: between two readings the fleet clock moves
+as far as their boot clocks (GLOBAL_POSITION_INT) moved, the median over the
+fleet, so the same flight code starts and re-tasks a fleet on time at any
+speed-up, and through a spell where a simulator slowed to real time (`gcs.busy`).
+Its rate (fleet seconds per wall second, for horizons and waits) is read from
+the last few seconds of their reports, after the ground station's last busy spell.
 """
 
 import threading
+import time
 
 import numpy as np
 
+from gcs import busy
+
 #: wall seconds of telemetry each vehicle's pace is read from
 RATE_WINDOW_S = 3.0
+#: the least span of reports after a busy spell a pace is read from
+RATE_MIN_SPAN_S = 0.5
 
 
 class FleetClock:
@@ -26,18 +34,51 @@ class FleetClock:
 
     def rate(self) -> float:
         """Fleet seconds per wall second, from the vehicles' telemetry (1 without)."""
-        rates = []
-        with self.monitor._lock:
-            tracks = [list(v.track[-64:]) for v in self.monitor.vehicles.values()]
-        for track in tracks:
-            rows = [r for r in track if r[4] is not None]
-            if len(rows) < 2:
-                continue
-            last = rows[-1]
-            first = next((r for r in rows if last[0] - r[0] <= RATE_WINDOW_S), rows[0])
-            if last[0] > first[0] and last[4] > first[4]:
-                rates.append((last[4] - first[4]) / (last[0] - first[0]))
+        rates = [r for r in map(self._pace, self._tracks(RATE_WINDOW_S)) if r is not None]
         return float(np.median(rates)) if rates else 1.0
+
+    def _tracks(self, back_s: float) -> list:
+        """Each vehicle's reports (monitor time, own clock) of the last ``back_s``
+        monitor seconds, and the one before them; own clock known."""
+        out = []
+        since = self.monitor.now() - back_s
+        with self.monitor._lock:
+            for v in self.monitor.vehicles.values():
+                i = len(v.track)
+                while i > 0 and v.track[i - 1][0] >= since:
+                    i -= 1
+                out.append([(r[0], r[4]) for r in v.track[max(0, i - 1):] if r[4] is not None])
+        return out
+
+    def _pace(self, rows):
+        """A vehicle's own seconds per wall second over ``rows``, from the end of
+        the ground station's last busy spell where it has enough reports since."""
+        if len(rows) < 2:
+            return None
+        calm = self.monitor.now() - (time.monotonic() - busy.last_end())
+        after = [r for r in rows if r[0] >= calm]
+        if len(after) >= 2 and after[-1][0] - after[0][0] >= RATE_MIN_SPAN_S:
+            rows = after
+        (w0, own0), (w1, own1) = rows[0], rows[-1]
+        return (own1 - own0) / (w1 - w0) if w1 > w0 and own1 > own0 else None
+
+    def _moved(self, wall0: float, wall1: float) -> float:
+        """Fleet seconds between monitor times ``wall0`` and ``wall1``: how far the
+        vehicles' own clocks moved, the median over those reporting across the span
+        (one rebooted is left out), each extrapolated at its pace from its last
+        report; the rate times the span where none did."""
+        moved = []
+        for rows in self._tracks(self.monitor.now() - wall0):
+            if len(rows) < 2 or rows[0][0] > wall0:
+                continue
+            pace = self._pace(rows[-8:]) or 1.0
+
+            def own(wall):
+                return _own_at(rows, wall) + max(0.0, wall - rows[-1][0]) * pace
+
+            if own(wall1) >= own(wall0):
+                moved.append(own(wall1) - own(wall0))
+        return float(np.median(moved)) if moved else (wall1 - wall0) * self.rate()
 
     def start(self, at: float = 0.0) -> None:
         """The fleet clock reads ``at`` now (t = 0: the first takeoff begins)."""
@@ -53,10 +94,19 @@ class FleetClock:
             if self._t is None:
                 return None
             wall = self.monitor.now()
-            self._t += (wall - self._wall) * self.rate()
+            self._t += self._moved(self._wall, wall)
             self._wall = wall
             return self._t
 
     def wall_seconds(self, fleet_s: float) -> float:
         """About how many wall seconds ``fleet_s`` of fleet time take now."""
         return fleet_s / max(self.rate(), 1e-6)
+
+
+def _own_at(rows, wall: float) -> float:
+    """A vehicle's own clock at monitor time ``wall``, between its reports ``rows``
+    ((monitor time, own clock), in order, the first at or before ``wall``)."""
+    for (w0, own0), (w1, own1) in zip(rows, rows[1:]):
+        if w0 <= wall <= w1:
+            return own0 + (own1 - own0) * (wall - w0) / (w1 - w0) if w1 > w0 else own0
+    return rows[-1][1]

@@ -38,6 +38,12 @@ that brought it home as it took off), is flown on by landing from where it
 stands: up to the top it would climb through the one descending above it, each
 waiting on the other for good.
 
+Held vehicles that each wait on another held one (two head-on on one leg, one
+coming down a column the other climbs) would wait for good: a cycle of them
+found on `MIN_HOLD_LOOPS` loops running is `deadlocked`, and the flight re-plans
+them from where they stand (its fleet clock orders who goes first); nothing
+else would free them but a battery running low.
+
 A vehicle a re-plan holds until its own time to fly on (`waiting`) is the re-plan's:
 the guard never holds or resumes it (resumed early, it flew its new route ahead of
 time, and its resume at that time then sent it back to the route's first item in a
@@ -143,6 +149,7 @@ class SeparationGuard:
         self._loops = collections.deque(maxlen=KEPT_TIMES)     # wall s between steps
         self._commands = collections.deque(maxlen=KEPT_TIMES)  # wall s a command took
         self._last_step = None
+        self._cycle = ([], 0)     # held vehicles waiting on each other, loops seen
 
     @property
     def active(self) -> bool:
@@ -187,7 +194,7 @@ class SeparationGuard:
             time.sleep(0.05)
         for sysid, (since, other) in self.held.items():
             self._record("released by a re-plan", sysid, other, None, since)
-        self.held, self.landing = {}, set()
+        self.held, self.landing, self._cycle = {}, set(), ([], 0)
         self._last_step = None        # the re-plan's time is no loop of the guard's
 
     def hold(self, sysid, other) -> None:
@@ -224,18 +231,42 @@ class SeparationGuard:
         # a vehicle flies on only when clear for longer than a conflict is looked for
         # (and by more room): a resume is not undone by the next loop's look
         ahead_longer = RESUME_FACTOR * horizon + self.reaction_s()
+        waits_on = {}
         for sysid in sorted(self.held, key=self._rank):
             if sysid not in ahead or not self._held_long_enough(sysid):
                 continue
             land = self.fleet.lands_here(sysid)
             go = self._route(frame, sysid, land=land)
-            if self._may_go(frame, ahead, sysid, go, ahead_longer, columns):
+            waits_on[sysid] = self._in_way(frame, ahead, sysid, go, ahead_longer, columns)
+            if waits_on[sysid] is None:
                 # it leaves where it stands once the command has reached it
                 ahead[sysid] = self._route(frame, sysid, self.reaction_s(), land=land)
                 if land:
                     self.landing.add(sysid)
                 self._do(sysid, self.fleet.land if land else self.fleet.resume,
                          "land here" if land else "resume", other=self.held[sysid][1])
+        self._note_cycle(waits_on)
+
+    @property
+    def deadlocked(self) -> list:
+        """Held vehicles that have waited on each other for `MIN_HOLD_LOOPS` loops
+        running (none will ever go first): the flight re-plans them."""
+        cycle, loops = self._cycle
+        return cycle if loops >= MIN_HOLD_LOOPS else []
+
+    def _note_cycle(self, waits_on) -> None:
+        """Follow each held vehicle to the one in its way, to a cycle of held ones."""
+        found = []
+        for start in sorted(waits_on):
+            seen, s = [], start
+            while s in waits_on and waits_on[s] is not None and s not in seen:
+                seen.append(s)
+                s = waits_on[s]
+            if s in seen:
+                found = sorted(seen[seen.index(s):])
+                break
+        cycle, loops = self._cycle
+        self._cycle = (found, loops + 1 if found and found == cycle else int(bool(found)))
 
     # -- predictions -------------------------------------------------------------------
     def _rank(self, sysid):
@@ -352,13 +383,14 @@ class SeparationGuard:
         c = shared[0]
         return a if exits[a][c] > exits[b][c] else b
 
-    def _may_go(self, frame, ahead, sysid, go, horizon, columns) -> bool:
-        """Whether ``sysid``'s route from here (``go``) keeps ``RESUME_FACTOR``
-        separations clear of every other and shares no column with one within the
-        horizon; from closer than that (two held in one base column) only a route
-        that parts from the other standing where it is (not counting on the
-        other's own motion: at the top of a column a copter lingers as it turns to
-        its first leg); two in one column now, only the one that leaves it first."""
+    def _in_way(self, frame, ahead, sysid, go, horizon, columns):
+        """The vehicle in the way of ``sysid``'s route from here (``go``), None when
+        it may go: that route keeps ``RESUME_FACTOR`` separations clear of every
+        other and shares no column with one within the horizon; from closer than
+        that (two held in one base column) only a route that parts from the other
+        standing where it is (not counting on the other's own motion: at the top of
+        a column a copter lingers as it turns to its first leg); two in one column
+        now, only the one that leaves it first."""
         room = self.separation_m * RESUME_FACTOR
         mine = Occupied(go, columns)
         for other in ahead:
@@ -368,16 +400,16 @@ class SeparationGuard:
                 # the other where it stands, while it is in the air (one landing is not)
                 still = frame.standing(other, min(horizon, ahead[other].end))
                 if not _parting(frame, {sysid: go, other: still}, sysid, other):
-                    return False
+                    return other
             elif go.first_conflict(ahead[other], room)[0] <= horizon:
-                return False
+                return other
             shared, _ = mine.first_shared(Occupied(ahead[other], columns))
             if shared <= 0.0:
                 if self._stayer(frame, sysid, other, columns) == sysid:
-                    return False
+                    return other
             elif shared <= horizon:
-                return False
-        return True
+                return other
+        return None
 
     def _note_closest(self, frame) -> None:
         """The closest approach of each pair in the air: not counting one touched

@@ -648,7 +648,7 @@ class Monitor:
         plan predicts no silence on the ground (a vehicle silent at its base for its
         next sortie's upload once read as a shadow of that sortie, and was never lost)."""
         if v.quiet is None:
-            if not v.airborne:
+            if not v.airborne or v.state == LANDED:   # airborne stays set until relaunched
                 return False
             s = self.links[v.sysid].state
             lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)

@@ -27,6 +27,7 @@ import numpy as np
 
 from common.errors import InputError
 from gcs import commands
+from gcs.busy import busy
 from gcs.monitor import (
     FLYING,
     HOLDING,
@@ -114,8 +115,9 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
     survivors (what a re-plan aims at); ``tolerated``: every target seen from at
     least k + 1 places seen by k + 1 - losses (at least 1) survivors, which a
     k-tolerant plan guarantees for up to k losses without re-planning
-    (``unprotected_targets``: those seen from fewer places, which it cannot). Also the time they still need: the latest
-    planned time of a remaining snapshot minus that of the last waypoint reached.
+    (``unprotected_targets``: those seen from fewer places, which it cannot). Also
+    the time they still need: the latest planned time of a remaining snapshot minus
+    that of the last waypoint reached.
     """
     snaps, left = [], 0.0
     for s in sysids:
@@ -311,7 +313,7 @@ class Retasker:
         return full - full * min(pct, 100) / 100.0 / self.pace.get(sysid, 1.0)
 
     def _attempt(self, record, sysids, landed=()) -> None:
-        m, ctx = self.monitor, self.ctx
+        m = self.monitor
         landed = list(landed)
         if sysids:
             self._step(sysids, self._hold)
@@ -321,6 +323,13 @@ class Retasker:
             sysids = self._strand_unjoined(record, sysids)
             if not sysids and not landed:
                 return
+        with busy():                        # they hover at real time meanwhile
+            self._plan_and_send(record, sysids, landed)
+
+    def _plan_and_send(self, record, sysids, landed) -> None:
+        """Re-plan the held ``sysids`` and the ``landed`` survivors from where they
+        stand, upload their routes and set them going."""
+        m, ctx = self.monitor, self.ctx
         t0 = time.perf_counter()
         everyone = list(sysids) + landed
         survivors, positions = [], {}

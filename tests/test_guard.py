@@ -95,13 +95,16 @@ def _set(vehicles, sysid, held):
     next(v for v in vehicles if v.sysid == sysid).held = held
 
 
-def _run(vehicles, guard, seconds, dt=0.25):
-    """Step the scripted world and the guard; the least distance seen."""
+def _run(vehicles, guard, seconds, dt=0.25, deadlocks=None):
+    """Step the scripted world and the guard; the least distance seen (and in
+    ``deadlocks`` the guard's `deadlocked` after each step where it had one)."""
     least = math.inf
     for _ in range(int(seconds / dt)):
         for v in vehicles:
             v.advance(dt)
         guard.step()
+        if guard.deadlocked and deadlocks is not None:
+            deadlocks.append(guard.deadlocked)
         time.sleep(0.002)                 # the guard's commands run in threads
         ps = [v.p for v in vehicles]
         least = min([least] + [float(np.linalg.norm(a - b)) for i, a in enumerate(ps)
@@ -121,7 +124,9 @@ def test_crossing_paths_the_lower_priority_waits_then_flies_on():
     one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
     two = Scripted(2, (0.0, -240.0), (0.0, 12.0), _route(0, 400))
     monitor, guard = _guard([one, two], {1: 1, 2: 2})
-    least = _run([one, two], guard, 60.0)
+    deadlocks = []
+    least = _run([one, two], guard, 60.0, deadlocks=deadlocks)
+    assert deadlocks == []                  # 2 waits on 1, which flies on
     holds = [a for a in guard.actions if a["action"] == "hold"]
     assert [a["sysid"] for a in holds] == [2]                  # right of way: vehicle 1
     assert holds[0]["predicted_m"] < 30.0
@@ -144,15 +149,21 @@ def test_a_vehicle_short_of_battery_has_right_of_way():
     assert least >= 30.0 and not one.held and one.p[0] > 100.0
 
 
-def test_head_on_both_are_held():
+def test_head_on_both_are_held_and_the_deadlock_is_told():
     """On one line toward each other: standing still, either is in the other's way,
-    so both hold (and stay held: neither can pass the other on its route)."""
+    so both hold, and stay held: neither can pass the other on its route. The guard
+    says so once they have waited on each other for two loops (the flight then
+    re-plans them), and forgets it with the holds a re-plan takes over."""
     one = Scripted(1, (-150.0, 0.0), (12.0, 0.0), _route(400, 0))
     two = Scripted(2, (150.0, 0.0), (-12.0, 0.0), _route(-400, 0))
     _, guard = _guard([one, two], {1: 1, 2: 2})
-    least = _run([one, two], guard, 20.0)
+    deadlocks = []
+    least = _run([one, two], guard, 20.0, deadlocks=deadlocks)
     assert {a["sysid"] for a in guard.actions if a["action"] == "hold"} == {1, 2}
     assert least >= 30.0 and one.held and two.held
+    assert deadlocks and all(d == [1, 2] for d in deadlocks)
+    guard.forget()
+    assert guard.deadlocked == [] and guard.held == {}
 
 
 def test_standing_in_the_way_the_other_one_holds():
@@ -459,3 +470,21 @@ def test_a_pair_flown_closer_than_the_separation_is_a_problem():
     assert problem.startswith("vehicles 1 and 2 flew ") and "closer than the separation" in problem
     flown = float(problem.split(" flew ")[1].split(" m apart")[0])
     assert flown == pytest.approx(least, abs=13.0)              # sampled every 0.25 s
+
+
+def test_the_flight_replans_vehicles_held_for_each_other_once_then_says_so():
+    """`Flight._unlock` on what the guard says each loop: a re-plan the first time
+    a set is deadlocked; the same set again after it is told once, not re-planned
+    every loop; another set is re-planned in its turn."""
+    from gcs.flight import Flight
+
+    monitor = Monitor(lost_after_s=5.0)
+    replans = []
+    flight = SimpleNamespace(monitor=monitor, _unlocked={}, retask=lambda: replans.append(1))
+    for held in ([], [1, 2], [1, 2], [1, 2], [2, 3], []):
+        Flight._unlock(flight, held)
+    assert len(replans) == 2
+    said = [(e["event"].split(": ")[1], e["held"]) for e in monitor.events]
+    assert said == [("vehicles held for each other, none may go first", [1, 2]),
+                    ("vehicles held for each other again after a re-plan", [1, 2]),
+                    ("vehicles held for each other, none may go first", [2, 3])]

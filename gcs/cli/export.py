@@ -26,8 +26,8 @@ def add_arguments(parser) -> None:
     parser.add_argument("--no-speed", action="store_true", default=argparse.SUPPRESS,
                         help="leave out DO_CHANGE_SPEED (default: fly the plan's speed_mps)")
     parser.add_argument("--no-camera", action="store_true", default=argparse.SUPPRESS,
-                        help="leave out the camera triggers at snapshots (default: DO_DIGICAM_CONTROL "
-                             "for ArduPilot, IMAGE_START_CAPTURE for PX4)")
+                        help="leave out the camera triggers at snapshots (default: "
+                             "DO_DIGICAM_CONTROL for ArduPilot, IMAGE_START_CAPTURE for PX4)")
     parser.add_argument("--no-fences", action="store_true", default=argparse.SUPPRESS,
                         help="leave the outposts' ranges out of the .plan geofence (default: "
                              "exclusion circles, drawn by QGroundControl)")

@@ -24,6 +24,7 @@ from autopilots import NAMES
 from common.errors import InputError
 from common.geo import distance_m
 from gcs import commands
+from gcs.busy import busy, busy_total_s
 from gcs.clock import FleetClock
 from gcs.guard import SeparationGuard
 from gcs.link import GroundLink, LinkError
@@ -107,8 +108,10 @@ class Flight:
         self.guard = None
         self.min_separation_m = None  # the plan's, proven again in `prepare`
         self.start_unix = time.time()
+        self.busy0_s = busy_total_s()   # the ground station's busy spells before it
         self.link = None
         self.retasks = []
+        self._unlocked = {}           # vehicles held for each other -> times found so
         self.missions = None      # (route id, firmware) -> CheckedMission, once prepared
         self.timed_out = False
         self.stopped = None       # why monitoring ended early ("interrupted", "timed out")
@@ -401,6 +404,7 @@ class Flight:
             self.departures.due()
             if self.guard is not None:
                 self.guard.step()
+                self._unlock(self.guard.deadlocked)
             due = self.segments.due()
             if due:
                 self.next_segments(due)
@@ -411,6 +415,27 @@ class Flight:
             time.sleep(LOOP_S)
         if status is not None:
             status(m.status_rows())
+
+    def _unlock(self, held) -> None:
+        """Vehicles the guard holds for each other, none able to go first, are
+        re-planned from where they stand (the re-plan's fleet clock orders them).
+        The same ones held so after that re-plan are said once and left held (a
+        re-plan each loop would only hold them again): the battery watch brings
+        them home, or the operator moves them."""
+        if not held:
+            return
+        key = frozenset(held)
+        seen = self._unlocked.get(key, 0)
+        self._unlocked[key] = seen + 1
+        if seen == 0:
+            self.monitor.event(None, "separation guard: vehicles held for each other, none "
+                                     "may go first: re-planned from where they stand",
+                               held=held)
+            self.retask()
+        elif seen == 1:
+            self.monitor.event(None, "separation guard: vehicles held for each other again "
+                                     "after a re-plan: left held for the battery watch or "
+                                     "the operator", held=held)
 
     def _next_sorties(self) -> None:
         """A vehicle down at its base after a sortie flies its next one at its planned
@@ -438,9 +463,10 @@ class Flight:
                                                      limit=self.options.max_items)
             # the sortie stays awaited while it uploads: a vehicle falling silent on
             # the ground then is lost (and its work re-planned), not a failed flight
-            if self.state.lost_or_failed(upload, [sysid], f"vehicle {sysid}'s next sortie "
-                                         "upload", (InputError, MissionError)):
-                continue
+            with busy():
+                if self.state.lost_or_failed(upload, [sysid], f"vehicle {sysid}'s next "
+                                             "sortie upload", (InputError, MissionError)):
+                    continue
             parts.pop(0)
             self.batteries.swapped.discard(sysid)
             missions, mission = uploaded[sysid]
@@ -465,7 +491,8 @@ class Flight:
         (`watch` takes it next)."""
         m = self.monitor
         try:
-            lost = self.segments.switch(sysids, lambda fn, s: in_parallel(fn, s, m))
+            with busy():
+                lost = self.segments.switch(sysids, lambda fn, s: in_parallel(fn, s, m))
         except Exception as exc:       # a vehicle still heard from refused or failed
             raise FlightError(f"next segment failed: {exc}") from None
         if lost:

@@ -15,6 +15,7 @@ from dataclasses import asdict
 from datetime import datetime, timezone
 
 from common.fileio import write_text_atomic
+from gcs.busy import busy_total_s
 from gcs.monitor import LOST, STRANDED, WAITING
 from gcs.retask import snapshot_xyz
 from planner.replan import coverable_targets, coverage_summary
@@ -42,6 +43,8 @@ def report(flight) -> dict:
         "format": FORMAT, "plan": str(flight.plan_dir),
         "started_utc": datetime.fromtimestamp(flight.start_unix, timezone.utc).isoformat(),
         "start_unix": flight.start_unix, "duration_s": round(m.now(), 3),
+        # of it, what its loop spent computing (re-plans, uploads): not watching
+        "busy_s": round(busy_total_s() - flight.busy0_s, 3),
         "lost_after_s": flight.options.lost_after_s, "k": int(plan.metrics.get("k", 0)),
         # what of the area of operations the plan's targets are, and its observers
         "area": plan.metrics.get("area"), "outposts": len(plan.outposts),

@@ -11,12 +11,15 @@ couple of wall seconds and when the vehicle stops or is killed::
                                    # of a full battery drawn from the pack in it
      "snapshots": [{"t", "lat", "lon", "alt", "seq"}],   # seq: mission item, or null for a command
      "events": [{"t", "event"}],      # boot, armed, takeoff, reached N, landed, killed: ...
-     "killed_at": t or null, "complete": bool}     # complete: the file was closed on purpose
+     "killed_at": t or null, "complete": bool,     # complete: the file was closed on purpose
+     "real_time_s": s}          # wall s flown at 1x while the ground station was busy
 
 Samples are taken every 0.1 s of mission time (10 Hz; never more than 0.15 s
 apart) and at boot, touchdown and kill. Each vehicle's mission time is its own
 (a busy machine slows each simulator differently), so tracks of a fleet are
-compared on the wall clock, the one they share (``wall``).
+compared on the wall clock, the one they share (``wall``). While the ground
+station in the same process computes (`gcs.busy`: a re-plan, an upload) the
+simulator runs at real time, and says for how long (``real_time_s``).
 """
 
 import json
@@ -44,6 +47,7 @@ class TrackRecorder:
                       "columns": ["t", "lat", "lon", "alt", "wall", "used"]}
         self.samples, self.snapshots, self.events = [], [], []
         self.killed_at = None
+        self.real_time_s = 0.0    # wall s run at 1x while the ground station was busy
         self._next_sample = 0.0
         self._dirty = True
 
@@ -62,6 +66,9 @@ class TrackRecorder:
                                "alt": round(alt, 3), "seq": seq})
         self._dirty = True
 
+    def real_time(self, wall_s: float) -> None:
+        self.real_time_s += wall_s
+
     def event(self, t: float, text: str) -> None:
         self.events.append({"t": round(t, 3), "event": text})
         self._dirty = True
@@ -70,7 +77,8 @@ class TrackRecorder:
         if self.path is None or not (self._dirty or complete):
             return
         doc = dict(self._head, samples=self.samples, snapshots=self.snapshots,
-                   events=self.events, killed_at=self.killed_at, complete=complete)
+                   events=self.events, killed_at=self.killed_at, complete=complete,
+                   real_time_s=round(self.real_time_s, 3))
         write_text_atomic(self.path, json.dumps(doc, separators=(",", ":")))
         self._dirty = False
 

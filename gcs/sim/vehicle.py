@@ -20,6 +20,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from autopilots import ARDUPILOT
 from common.geo import LocalFrame
+from gcs.busy import busy_now
 from gcs.sim import flavours as fl
 from gcs.sim import params as sim_params
 from gcs.sim import smartrtl, telemetry
@@ -280,8 +281,14 @@ class SimVehicle:
     # -- time -------------------------------------------------------------------------
     def _advance(self, wall_dt: float, now: float) -> None:
         # a machine too slow for `speedup` gets slower mission time, not a vehicle
-        # that falls ever further behind and stops streaming (no HEARTBEAT: 'lost')
-        remaining = wall_dt * self.cfg.speedup
+        # that falls ever further behind and stops streaming (no HEARTBEAT: 'lost');
+        # while the ground station in this process is busy (a re-plan, an upload)
+        # mission time runs at real time, as a real flight lives that spell
+        speed = self.cfg.speedup
+        if busy_now() and speed > 1.0:
+            speed = 1.0
+            self.track.real_time(wall_dt)
+        remaining = wall_dt * speed
         give_up = time.monotonic() + STEP_BUDGET_S
         while remaining > 1e-9 and not self.dead and time.monotonic() < give_up:
             dt = min(PHYSICS_STEP_S, remaining)
