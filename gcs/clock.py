@@ -72,12 +72,9 @@ class FleetClock:
             if len(rows) < 2 or rows[0][0] > wall0:
                 continue
             pace = self._pace(rows[-8:]) or 1.0
-
-            def own(wall):
-                return _own_at(rows, wall) + max(0.0, wall - rows[-1][0]) * pace
-
-            if own(wall1) >= own(wall0):
-                moved.append(own(wall1) - own(wall0))
+            a, b = _own_at(rows, wall0, pace), _own_at(rows, wall1, pace)
+            if b >= a:
+                moved.append(b - a)
         return float(np.median(moved)) if moved else (wall1 - wall0) * self.rate()
 
     def start(self, at: float = 0.0) -> None:
@@ -103,10 +100,11 @@ class FleetClock:
         return fleet_s / max(self.rate(), 1e-6)
 
 
-def _own_at(rows, wall: float) -> float:
-    """A vehicle's own clock at monitor time ``wall``, between its reports ``rows``
-    ((monitor time, own clock), in order, the first at or before ``wall``)."""
+def _own_at(rows, wall: float, pace: float) -> float:
+    """A vehicle's own clock at monitor time ``wall``: between its reports ``rows``
+    ((monitor time, own clock), in order, the first at or before ``wall``), or
+    ``pace`` times the wall time on from the last."""
     for (w0, own0), (w1, own1) in zip(rows, rows[1:]):
         if w0 <= wall <= w1:
             return own0 + (own1 - own0) * (wall - w0) / (w1 - w0) if w1 > w0 else own0
-    return rows[-1][1]
+    return rows[-1][1] + (wall - rows[-1][0]) * pace

@@ -18,7 +18,7 @@ order, kept apart by a least separation, and the checked ones ranked by their
 exact bound.
 """
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import Callable, Optional
 
 import numpy as np
@@ -27,6 +27,7 @@ from common.errors import InputError
 
 from .context import PlanningContext
 from .coverage.bounds.radius import reach_bound, reach_bound_of
+from .coverage.model import beyond_battery
 from .coverage.model import prepare as prepare_problem
 from .launch import launch_starts
 from .problem import coverage_problem
@@ -56,11 +57,27 @@ class Base:
     ground_m: float  # AMSL
     takeoff_m: float  # AMSL: the top of the hidden, clear column above it
     bound_s: float  # reach bound on the fleet's coverage time from here
+    start: object = field(default=None, repr=False, compare=False)  # launch.Start
 
     @property
     def launch_arg(self) -> str:
         """What to give ``gcs plan --launch``."""
         return f"{self.lat:.6f},{self.lon:.6f}"
+
+
+@dataclass
+class BaseSet:
+    """Bases flown from together, the UAVs taking them in turn (``--launch`` of
+    several points: UAV i at base i mod n)."""
+
+    bases: list  # `Base`, in the order given to --launch
+    reach_km2: float  # ground seen from a viewpoint one battery reaches from one of them
+    reach_pct: float  # of the ground any hidden viewpoint sees (the targets)
+    bound_s: float  # reach bound on the fleet's coverage time, spread over them
+
+    @property
+    def launch_arg(self) -> str:
+        return " ".join(b.launch_arg for b in self.bases)
 
 
 def suggest_bases(ctx: PlanningContext, count: int = 10, separation_m: float = SEPARATION_M,
@@ -183,4 +200,47 @@ def _base(ctx: PlanningContext, start, lat, lon) -> Base:
     problem = coverage_problem(ctx, s.uavs, [start] * s.uavs, s.k, s.visibility)
     bound = float(reach_bound(prepare_problem(problem)))
     return Base(0, lat, lon, float(start.launch[0]), float(start.launch[1]),
-                float(start.launch[2]), float(start.xyz[2]), bound)
+                float(start.launch[2]), float(start.xyz[2]), bound, start)
+
+
+def suggest_sets(ctx: PlanningContext, bases: list) -> list:
+    """Sets of the ranked ``bases`` that together reach more of the ground than
+    one: grown one base at a time (up to one per UAV), each time by the base that
+    adds the most ground a battery reaches (`reached`; of equals, the better
+    ranked), while one adds any: the first set is the one base that reaches the
+    most. Without an endurance every base reaches everything: the best one, alone."""
+    s, cell_km2 = ctx.scenario, ctx.terrain.cell_size ** 2 / 1e6
+    total = ctx.visibility.n_targets
+    reach = {id(b): reached(ctx, b.start) for b in bases}
+    chosen, seen = [], np.zeros(total, bool)
+    while len(chosen) < min(s.uavs, len(bases)):
+        gains = [(int((reach[id(b)] & ~seen).sum()), -b.rank, b) for b in bases
+                 if b not in chosen]
+        gain, _, best = max(gains, key=lambda g: g[:2])
+        if chosen and gain == 0:
+            break
+        chosen.append(best)
+        seen |= reach[id(best)]
+    out = []
+    for n in range(1, len(chosen) + 1):
+        starts = [chosen[i % n].start for i in range(s.uavs)]
+        covered = np.logical_or.reduce([reach[id(b)] for b in chosen[:n]])
+        problem = coverage_problem(ctx, s.uavs, starts, s.k, s.visibility)
+        out.append(BaseSet(chosen[:n], round(int(covered.sum()) * cell_km2, 3),
+                           round(100.0 * covered.sum() / total, 1) if total else 0.0,
+                           float(reach_bound(prepare_problem(problem)))))
+    return out
+
+
+def reached(ctx: PlanningContext, start) -> np.ndarray:
+    """Per target, whether a viewpoint seeing it is flown to from ``start``'s base
+    and back on one battery less its reserve, by the planner's own rule
+    (`coverage.model.beyond_battery`: what no plan from there visits)."""
+    vis = ctx.visibility
+    problem = coverage_problem(ctx, 1, [start], ctx.scenario.k, ctx.scenario.visibility)
+    near = np.ones(vis.n_viewpoints, bool)
+    near[beyond_battery(problem)] = False
+    out = np.zeros(vis.n_targets, bool)
+    for v in np.flatnonzero(near):
+        out[vis.indices[vis.indptr[v]:vis.indptr[v + 1]]] = True
+    return out

@@ -70,7 +70,7 @@ class Scenario:
     viewpoint_spacing_m: Optional[float] = None  # default from the sensor range
     # [fleet]
     uavs: int = 4
-    launch: list = field(default_factory=list)  # [(lat, lon)], one for all or one per UAV
+    launch: list = field(default_factory=list)  # [(lat, lon)]: the bases, UAVs in turn
     speed_mps: float = 12.0
     # vertical rates; None: the firmware's at its defaults (`autopilots.Autopilot.rates`)
     climb_mps: Optional[float] = None
@@ -158,9 +158,9 @@ class Scenario:
                f"{(self.k + 1) * (self.parts or 1)} in all; uavs = {self.uavs}")
         yield ("area_flight", self.area_file or not self.area_flight,
                f"restricts flight to the {n('area_file')} polygon: give {n('area_file')} too")
-        yield ("launch", len(self.launch) in (0, 1, self.uavs),
-               f"give one launch point for all UAVs or one per UAV ({self.uavs}), "
-               f"got {len(self.launch)}")
+        yield ("launch", len(self.launch) <= self.uavs,
+               f"give at most one launch point per UAV ({self.uavs}), got "
+               f"{len(self.launch)}")
         for name in ("ceiling_agl_m", "sensor_range_m", "speed_mps", "accel_mps2",
                      "radio_mhz", "radio_range_m", *VERTICAL_RATES):
             value = getattr(self, name)
@@ -257,10 +257,11 @@ class Scenario:
 
     @property
     def launch_points(self) -> list:
-        """One (lat, lon) per UAV, or [] when UAVs start at their phase-1 points."""
-        if len(self.launch) == 1:
-            return list(self.launch) * self.uavs
-        return list(self.launch)
+        """One (lat, lon) per UAV, or [] when UAVs start at their phase-1 points:
+        fewer bases than UAVs take them in turn (UAV i at base i mod n: 3 UAVs from
+        bases A and B fly from A, B, A)."""
+        n = len(self.launch)
+        return [tuple(self.launch[i % n]) for i in range(self.uavs)] if n else []
 
 
 #: where a sortie may land: at the fleet's base nearest its last viewpoint, or its own

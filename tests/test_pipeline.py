@@ -211,3 +211,24 @@ def test_the_first_plan_after_an_install_says_it_compiles(tmp_path, monkeypatch,
     monkeypatch.setenv("NUMBA_CACHE_DIR", "/proc/no-such-folder")
     note_first_compile()
     assert capsys.readouterr().err == ""
+
+
+def test_fewer_bases_than_uavs_the_uavs_take_them_in_turn(terrain):
+    """Three UAVs from two bases: UAVs 1 and 3 fly from the first, 2 from the
+    second, each route starting and ending at its own base; more bases than UAVs
+    is refused, naming the parameter."""
+    from common.errors import InputError
+
+    a = terrain.to_lonlat(*terrain.xy(8, 8))[::-1]
+    b = terrain.to_lonlat(*terrain.xy(N - 9, 8))[::-1]
+    scenario = _scenario(terrain, launch=[a, b], method="rt")
+    assert scenario.launch_points == [a, b, a]
+    _, outcome = plan_mission(scenario, terrain=terrain, outposts=_outposts(terrain))
+    for v, base in zip(outcome.plan.vehicles, (a, b, a)):
+        assert (v.launch.lat, v.launch.lon) == pytest.approx(base, abs=2e-7)
+        first, last = v.waypoints[0], v.waypoints[-1]
+        assert (first.lat, first.lon) == pytest.approx(base, abs=2e-7)
+        assert (last.lat, last.lon) == pytest.approx(base, abs=2e-7)
+    assert outcome.plan.params["launch"] == [list(p) for p in (a, b, a)]
+    with pytest.raises(InputError, match="launch.*at most one launch point per UAV"):
+        _scenario(terrain, uavs=1, launch=[a, b])

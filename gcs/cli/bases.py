@@ -48,7 +48,7 @@ def run(args) -> int:
         raise InputError("--base-spacing", f"must be positive, got {args.base_spacing}")
     check_output_dir(args.output)
     from gcs.progress import console, stage_progress
-    from planner.bases import SEPARATION_M, suggest_bases
+    from planner.bases import SEPARATION_M, suggest_bases, suggest_sets
     from planner.pipeline import prepare
 
     separation = SEPARATION_M if args.base_separation is None else args.base_separation
@@ -56,10 +56,13 @@ def run(args) -> int:
     with stage_progress() as progress:
         ctx = prepare(scenario, progress, log=lambda text: console.print(text, markup=False))
         bases = suggest_bases(ctx, args.count, separation, args.base_spacing, progress)
+        sets = suggest_sets(ctx, bases) if scenario.endurance_min is not None else []
         progress("write", 0.0)
         written = write_bases(args.output, ctx, bases)
         progress("write", 1.0)
     print(bases_table(bases, scenario.uavs))
+    if sets:
+        print(sets_table(sets, scenario.endurance_min))
     for path, what in written:
         console.print(f"  {path}  [dim]{what}[/dim]")
     return 0
@@ -74,6 +77,21 @@ def bases_table(bases, uavs) -> str:
         lines.append(f"{b.rank:>4}  {b.launch_arg:<22} {b.ground_m:>8.0f} {b.takeoff_m:>9.0f} "
                      f"{b.bound_s / 60:>9.1f}")
     lines.append(f"best: --launch {bases[0].launch_arg}")
+    return "\n".join(lines)
+
+
+def sets_table(sets, endurance_min) -> str:
+    """What one battery reaches from the best base, and from sets of bases grown
+    for reach (the UAVs take them in turn)."""
+    lines = [f"reach on one {endurance_min:g}-min battery: ground seen from a viewpoint "
+             "flown to and back (% of the ground any hidden viewpoint sees); no plan from "
+             "those bases sees more. Sets grown base by base, the UAVs taking them in turn:",
+             f"{'bases':>5}  {'reach km²':>9} {'reach %':>7} {'bound min':>9}  --launch"]
+    for s in sets:
+        lines.append(f"{len(s.bases):>5}  {s.reach_km2:>9.2f} {s.reach_pct:>7.1f} "
+                     f"{s.bound_s / 60:>9.1f}  {s.launch_arg}")
+    if len(sets) == 1 and sets[0].reach_pct < 100.0:
+        lines.append("no second base adds ground a battery reaches")
     return "\n".join(lines)
 
 

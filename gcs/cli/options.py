@@ -181,8 +181,9 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
             _add(group, name, kind)
         if title == "fleet":
             group.add_argument("--launch", nargs="+", metavar="LAT,LON",
-                               help="launch point(s), degrees: one for all UAVs or one per UAV "
-                                    "(default: UAVs start at their first viewpoints)")
+                               help="launch point(s), degrees: the bases, up to one per UAV; "
+                                    "with fewer, the UAVs take them in turn (default: UAVs "
+                                    "start at their first viewpoints)")
             group.add_argument("--firmware", choices=FIRMWARES, help=_help("firmware"))
             group.add_argument("--land-at", dest="land_at", choices=LAND_AT,
                                help=_help("land_at"))

@@ -66,9 +66,6 @@ class TrackRecorder:
                                "alt": round(alt, 3), "seq": seq})
         self._dirty = True
 
-    def real_time(self, wall_s: float) -> None:
-        self.real_time_s += wall_s
-
     def event(self, t: float, text: str) -> None:
         self.events.append({"t": round(t, 3), "event": text})
         self._dirty = True

@@ -287,7 +287,7 @@ class SimVehicle:
         speed = self.cfg.speedup
         if busy_now() and speed > 1.0:
             speed = 1.0
-            self.track.real_time(wall_dt)
+            self.track.real_time_s += wall_dt
         remaining = wall_dt * speed
         give_up = time.monotonic() + STEP_BUDGET_S
         while remaining > 1e-9 and not self.dead and time.monotonic() < give_up:

@@ -98,7 +98,8 @@ def route_time(vs, travel, start, has_launch):
         if prev_mask == 0:
             break
         for i in range(m):
-            if (prev_mask >> i) & 1 and dp[prev_mask, i] + travel[vs[i], vs[last]] == dp[mask, last]:
+            if (prev_mask >> i) & 1 and \
+                    dp[prev_mask, i] + travel[vs[i], vs[last]] == dp[mask, last]:
                 mask, last = prev_mask, i
                 break
     return best, order

@@ -9,7 +9,8 @@ order) so that the kernels need no Python lists.  Coverage bookkeeping:
 ``dc[t]`` = distinct UAVs with ``cnt > 0`` (the local search's), ``fly[e]`` =
 (how many UAVs fly viewpoint e or photographed from it before, the bit set of
 those UAVs), ``pc[t]`` = distinct places that see t (viewpoints so flown, and
-each earlier sighting from no viewpoint: a place of its own).  Target t counts the sightings of `model.places`: the largest
+each earlier sighting from no viewpoint: a place of its own). Target t counts the
+sightings of `model.places`: the largest
 matching of UAVs to distinct places that see it (`met`), and is *short* while
 that is below ``req[t]``.  The matching is at most ``min(dc[t], pc[t])`` and
 equal to it up to two (König: a matching of size two exists unless one UAV or
