@@ -318,8 +318,7 @@ class Retasker:
         if sysids:
             self._step(sysids, self._hold)
             m.wait_settled(sysids, vertical=False)  # a re-plan starts where they are
-            if self.flying() != sysids:     # one touched down before it was held
-                raise _LostDuring([s for s in sysids if s not in self.flying()], "landed")
+            self._still_flying(sysids)      # one touched down before it was held
             sysids = self._strand_unjoined(record, sysids)
             if not sysids and not landed:
                 return
@@ -373,6 +372,10 @@ class Retasker:
             raise RetaskError(f"re-planned mission refused by the check: {exc}") from None
         record.routes = {s: [[w.lon, w.lat, w.alt_amsl] for w in routes[s].waypoints]
                          for s in tasked}
+        # held at the bottom of its column, one touches down as it is planned for
+        # (real ArduPilot SITL, 1.1 s after its hold): its route from the air would
+        # be "resumed" on the ground, and its work never flown
+        self._still_flying(sysids)
         t1 = time.perf_counter()
         uploaded = {}
 
@@ -415,6 +418,18 @@ class Retasker:
                              lambda mission: checked(mission, ctx.surface,
                                                      ctx.scenario.clearance_m),
                              fly=fewer_waypoints(route))
+
+    def _still_flying(self, sysids) -> None:
+        """_LostDuring if one of the held ``sysids`` is no longer to re-task in the
+        air (touched down, lost, or gone into a predicted shadow): the attempt
+        starts again, a landed one among the landed survivors."""
+        gone = [s for s in sysids if s not in self.flying()]
+        if not gone:
+            return
+        m = self.monitor
+        what = "lost" if any(m.vehicles[s].state == LOST for s in gone) else \
+            "out of contact" if any(m.planned_at(s) is not None for s in gone) else "landed"
+        raise _LostDuring(gone, what)
 
     def _strand_unjoined(self, record, sysids) -> list:
         """``sysids`` without the held vehicles no hidden leg joins to the hidden

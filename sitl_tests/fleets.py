@@ -308,13 +308,18 @@ class ArduPilotBackend(ProcessBackend):
         return self._popen(cmd, cwd)
 
     def _battery(self) -> str:
-        """A plan with an endurance gets a pack that lasts it at SITL's own draw, with
+        """A pack that lasts the plan's endurance at SITL's own draw, with
         `PACK_HEADROOM` to spare (the battery watch brings home a vehicle drawing
-        faster than rated: SITL's default 3300 mAh lasts about 6.3 min)."""
-        endurance = self.plan.params.get("endurance_min")
-        if not endurance:
+        faster than rated), or without one its longest flight: SITL's default
+        3300 mAh lasts about 6.3 min, and reported empty mid-mission on a plan
+        without an endurance (a problem of the flight's outcome; once a vehicle
+        landed on its low-battery failsafe as a re-plan held it). Twice the longest:
+        a re-plan gives the survivors a lost vehicle's work."""
+        minutes = self.plan.params.get("endurance_min") or \
+            2.0 * max((v.mission_time_s for v in self.plan.vehicles), default=0.0) / 60.0
+        if not minutes:
             return ""
-        return f"BATT_CAPACITY {endurance * SITL_DRAW_MAH_PER_MIN * PACK_HEADROOM:.0f}\n"
+        return f"BATT_CAPACITY {minutes * SITL_DRAW_MAH_PER_MIN * PACK_HEADROOM:.0f}\n"
 
     def _ready(self) -> None:
         """Its first port listening (without connecting: the first client takes it);

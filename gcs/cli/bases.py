@@ -81,8 +81,8 @@ def bases_table(bases, uavs) -> str:
 
 
 def sets_table(sets, endurance_min) -> str:
-    """What one battery reaches from the best base, and from sets of bases grown
-    for reach (the UAVs take them in turn)."""
+    """What one battery reaches from the base that reaches the most, and from sets
+    of bases grown from it for reach (the UAVs take them in turn)."""
     lines = [f"reach on one {endurance_min:g}-min battery: ground seen from a viewpoint "
              "flown to and back (% of the ground any hidden viewpoint sees); no plan from "
              "those bases sees more. Sets grown base by base, the UAVs taking them in turn:",
