@@ -423,7 +423,8 @@ class Retasker:
         """_LostDuring if one of the held ``sysids`` is no longer to re-task in the
         air (touched down, lost, or gone into a predicted shadow): the attempt
         starts again, a landed one among the landed survivors."""
-        gone = [s for s in sysids if s not in self.flying()]
+        flying = self.flying()
+        gone = [s for s in sysids if s not in flying]
         if not gone:
             return
         m = self.monitor

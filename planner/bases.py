@@ -27,7 +27,7 @@ from common.errors import InputError
 
 from .context import PlanningContext
 from .coverage.bounds.radius import reach_bound, reach_bound_of
-from .coverage.model import beyond_battery
+from .coverage.model import achievable
 from .coverage.model import prepare as prepare_problem
 from .launch import launch_starts
 from .problem import coverage_problem
@@ -58,6 +58,8 @@ class Base:
     takeoff_m: float  # AMSL: the top of the hidden, clear column above it
     bound_s: float  # reach bound on the fleet's coverage time from here
     start: object = field(default=None, repr=False, compare=False)  # launch.Start
+    # per target, seen from a viewpoint one battery reaches from here (with an endurance)
+    reach: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
 
     @property
     def launch_arg(self) -> str:
@@ -199,19 +201,21 @@ def _base(ctx: PlanningContext, start, lat, lon) -> Base:
     s = ctx.scenario
     problem = coverage_problem(ctx, s.uavs, [start] * s.uavs, s.k, s.visibility)
     bound = float(reach_bound(prepare_problem(problem)))
+    # the planner's own battery rule: a target no sortie from here can see has none
+    reach = achievable(problem) > 0 if s.endurance_min is not None else None
     return Base(0, lat, lon, float(start.launch[0]), float(start.launch[1]),
-                float(start.launch[2]), float(start.xyz[2]), bound, start)
+                float(start.launch[2]), float(start.xyz[2]), bound, start, reach)
 
 
 def suggest_sets(ctx: PlanningContext, bases: list) -> list:
     """Sets of the ranked ``bases`` that together reach more of the ground than
     one: grown one base at a time (up to one per UAV), each time by the base that
-    adds the most ground a battery reaches (`reached`; of equals, the better
+    adds the most ground a battery reaches (`Base.reach`; of equals, the better
     ranked), while one adds any: the first set is the one base that reaches the
     most. Without an endurance every base reaches everything: the best one, alone."""
     s, cell_km2 = ctx.scenario, ctx.terrain.cell_size ** 2 / 1e6
     total = ctx.visibility.n_targets
-    reach = {id(b): reached(ctx, b.start) for b in bases}
+    reach = {id(b): np.ones(total, bool) if b.reach is None else b.reach for b in bases}
     chosen, seen = [], np.zeros(total, bool)
     while len(chosen) < min(s.uavs, len(bases)):
         gains = [(int((reach[id(b)] & ~seen).sum()), -b.rank, b) for b in bases
@@ -231,16 +235,3 @@ def suggest_sets(ctx: PlanningContext, bases: list) -> list:
                            float(reach_bound(prepare_problem(problem)))))
     return out
 
-
-def reached(ctx: PlanningContext, start) -> np.ndarray:
-    """Per target, whether a viewpoint seeing it is flown to from ``start``'s base
-    and back on one battery less its reserve, by the planner's own rule
-    (`coverage.model.beyond_battery`: what no plan from there visits)."""
-    vis = ctx.visibility
-    problem = coverage_problem(ctx, 1, [start], ctx.scenario.k, ctx.scenario.visibility)
-    near = np.ones(vis.n_viewpoints, bool)
-    near[beyond_battery(problem)] = False
-    out = np.zeros(vis.n_targets, bool)
-    for v in np.flatnonzero(near):
-        out[vis.indices[vis.indptr[v]:vis.indptr[v + 1]]] = True
-    return out

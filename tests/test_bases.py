@@ -203,7 +203,7 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     the set is said to reach: the judge is the planner's plan, target for target.
     (It sees less: here 0.95 of 1.10 km² from one base, 0.94 of 1.22 from two; the
     sorties' stops and the search leave reachable ground unseen.)"""
-    from planner.bases import reached, suggest_sets
+    from planner.bases import suggest_sets
 
     terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
     # an endurance needs a launch point to validate; the bases tried stand in for it
@@ -217,15 +217,13 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     assert len(sets) == 2 and sets[1].bases[0] is sets[0].bases[0]
     assert 0.0 < sets[0].reach_pct < sets[1].reach_pct < 100.0
     cell_km2 = terrain.cell_size ** 2 / 1e6
-    alone = [int(reached(ctx, b.start).sum()) for b in bases]
+    alone = [int(b.reach.sum()) for b in bases]
     assert sets[0].reach_km2 == pytest.approx(max(alone) * cell_km2, abs=1e-3)
     for s in sets:
         launch = [(b.lat, b.lon) for b in s.bases]
         trial = replace(ctx, scenario=replace(ctx.scenario, launch=launch))
         outcome = allocate(trial, 2, launch_starts(trial), strong_bound=False)
-        seen = reached(ctx, s.bases[0].start)
-        for b in s.bases[1:]:
-            seen |= reached(ctx, b.start)
+        seen = np.logical_or.reduce([b.reach for b in s.bases])
         assert not ((outcome.counts >= 1) & ~seen).any()    # nothing seen beyond reach
         assert (outcome.counts >= 1).sum() * cell_km2 <= s.reach_km2 + 1e-3
     # the console's table: one row per set, its --launch as gcs plan takes it
