@@ -33,8 +33,9 @@ browser:
 
 # one test process per core and one more (-n): most of the suite's wall time is
 # simulated flights waiting on their clock (one process per core left a core idle
-# 40 % of the time), and a file's tests stay together (their module fixtures)
-TEST_ARGS = -q -n $$(( $$(nproc) + 1 )) --dist loadfile
+# 40 % of the time), and a file's tests stay together (their module fixtures), the
+# longest files first (tests/conftest.py LONGEST_FIRST, kept in that order)
+TEST_ARGS = -q -n $$(( $$(nproc) + 1 )) --dist loadfile --no-loadscope-reorder
 
 test: $(STAMP) browser
 	$(BIN)/python -m pytest $(TEST_ARGS)

@@ -223,16 +223,6 @@ def wait_ready(link, timeout_s: float = 60.0) -> None:
               lambda s: f"not ready to arm after {timeout_s:g} s: {_readiness(s)}")
 
 
-def read_param(link, name: str, timeout_s: float = TIMEOUT_S, retries: int = RETRIES):
-    """The value of parameter ``name`` (PARAM_REQUEST_READ); None if not answered."""
-    for _ in range(retries + 1):
-        link.send("PARAM_REQUEST_READ", param_id=name.encode(), param_index=-1)
-        msg = link.recv("PARAM_VALUE", timeout_s, lambda m: m.param_id == name)
-        if msg is not None:
-            return float(msg.param_value)
-    return None
-
-
 def wait_position(link, timeout_s: float = 60.0) -> None:
     """Wait until the vehicle reports where it is; CommandError after ``timeout_s``."""
     _wait_for(link, lambda s: s.lat is not None, timeout_s,

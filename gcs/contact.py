@@ -4,11 +4,19 @@ The plan predicts when each vehicle is out of the ground station's radio contact
 (`planner.plan.VehicleRoute.silences`, on the fleet clock: `planner.link`). The
 monitor hears a vehicle fall silent on its own clock (seconds since the flight
 started). `Contact` joins the two through the vehicle's progress: the planned time
-of each waypoint it reached, when it reached it, and the pace it flew between them
-(fleet seconds per monitor second: the simulator's speed-up and the vehicle's own
-lag or lead on its plan). A silence that starts where a shadow is predicted is
-*out of contact, as planned*, due back when the shadow ends at that pace; a
-vehicle not heard by then, with a margin, is overdue.
+of each waypoint it reached, and when it reached it by the vehicle's own clock
+(its reports' time since boot). Its pace (fleet seconds per monitor second) is
+its progress on its plan per second of its own clock (1 on schedule, less when
+held or slowed) times its clock's rate (a sped-up simulator's speed-up).
+
+The vehicle's own clock, not the moment its reports are read: a ground station
+reads them in bursts (six waypoints' reports read within 0.6 s of wall time at
+100x put the pace at 1.5 times the speed-up), and its last HEARTBEAT may be
+older than its last report (1.5 s of wall time, 150 s of flight, at 100x).
+
+A silence that starts where a shadow is predicted is *out of contact, as
+planned*, due back when the shadow ends at that pace; a vehicle not heard by
+then, with a margin, is overdue.
 """
 
 from dataclasses import dataclass
@@ -28,7 +36,8 @@ ENTRY_M = 150.0
 WIDEN = 0.25
 #: marks of progress the pace is measured over (the latest)
 PACE_MARKS = 6
-#: the measured pace is trusted within this factor of the vehicle's clock rate
+#: the measured progress on the plan (fleet s per s of the vehicle's own clock) is
+#: trusted within these bounds
 PACE_RANGE = (0.5, 2.0)
 
 
@@ -38,13 +47,15 @@ class Expected:
     heard and when it is due back (monitor clock, at the pace measured then), the
     margin after that before it is overdue, and both as fleet seconds of its plan
     flown since it was heard (``allowed_s``: overdue past that many; the monitor
-    counts them at the pace it measures while the vehicle is silent)."""
+    counts them at the pace it measures while the vehicle is silent); ``fleet_s``:
+    where on its plan it was when last heard."""
 
     window: tuple
     heard_s: float
     due_s: float
     margin_s: float
     allowed_s: float = float("inf")
+    fleet_s: float = 0.0
 
     @property
     def overdue_s(self) -> float:
@@ -55,23 +66,25 @@ class Contact:
     """One vehicle's predicted silences and its progress on the fleet clock."""
 
     def __init__(self, windows, clock_rate: float = 1.0, trajectory=()):
-        self.clock_rate = float(clock_rate)  # fleet s per monitor s before any progress
+        self.clock_rate = float(clock_rate)  # its own clock's s per monitor s
         self.restart(windows, trajectory)
 
     def restart(self, windows, trajectory=()) -> None:
         """A new mission on another clock (a re-plan): its windows and its planned
         trajectory ([t, lon, lat, alt] rows), no progress yet."""
-        self.windows = [tuple(map(float, w)) for w in windows or []]
+        self.windows = _merged([tuple(map(float, w)) for w in windows or []])
         rows = np.asarray(trajectory, float).reshape(-1, 4)
         # (lon, lat) where the plan enters each shadow
         self._entries = [tuple(float(np.interp(a, rows[:, 0], rows[:, k])) for k in (1, 2))
                          if len(rows) else None for a, _ in self.windows]
         self._marks = []
 
-    def mark(self, monitor_s: float, fleet_s: float) -> None:
-        """The vehicle was at fleet time ``fleet_s`` of its plan at ``monitor_s`` (a
-        waypoint reached, a liftoff)."""
-        self._marks.append((float(monitor_s), float(fleet_s)))
+    def mark(self, monitor_s: float, fleet_s: float, own_s: float | None = None) -> None:
+        """The vehicle was at fleet time ``fleet_s`` of its plan at ``monitor_s``, its
+        own clock then at ``own_s`` (None: not reported) (a waypoint reached, a
+        liftoff)."""
+        self._marks.append((float(monitor_s), float(fleet_s),
+                            None if own_s is None else float(own_s)))
         del self._marks[:-PACE_MARKS]
 
     def set_clock_rate(self, rate: float) -> None:
@@ -80,30 +93,45 @@ class Contact:
             self.clock_rate = float(rate)
 
     @property
-    def pace(self) -> float:
-        """Fleet seconds per monitor second, measured over the latest marks; the clock
-        rate where they span too little of the plan."""
+    def progress(self) -> float:
+        """Fleet seconds of its plan per second of its own clock, measured over the
+        latest marks (on the monitor's clock where its own is not reported); 1 where
+        they span too little of the plan."""
         if len(self._marks) >= 2:
-            (t0, f0), (t1, f1) = self._marks[0], self._marks[-1]
-            if f1 - f0 >= EARLY_LATE_S and t1 > t0:
+            (t0, f0, o0), (t1, f1, o1) = self._marks[0], self._marks[-1]
+            if f1 - f0 >= EARLY_LATE_S:
+                if o0 is not None and o1 is not None and o1 > o0:
+                    rate = (f1 - f0) / (o1 - o0)
+                elif t1 > t0:
+                    rate = (f1 - f0) / (t1 - t0) / self.clock_rate
+                else:
+                    return 1.0
                 lo, hi = PACE_RANGE
-                return min(max((f1 - f0) / (t1 - t0), lo * self.clock_rate),
-                           hi * self.clock_rate)
-        return self.clock_rate
+                return min(max(rate, lo), hi)
+        return 1.0
 
-    def fleet_time(self, monitor_s: float) -> Optional[float]:
-        """Where on its plan's clock the vehicle is at ``monitor_s``; None before any
-        progress on this mission."""
+    @property
+    def pace(self) -> float:
+        """Fleet seconds of its plan per monitor second."""
+        return self.progress * self.clock_rate
+
+    def fleet_time(self, monitor_s: float, own_s: float | None = None) -> Optional[float]:
+        """Where on its plan's clock the vehicle is at ``monitor_s`` (its own clock then
+        at ``own_s``, when known); None before any progress on this mission."""
         if not self._marks:
             return None
-        t, f = self._marks[-1]
+        t, f, o = self._marks[-1]
+        if own_s is not None and o is not None:
+            return f + (own_s - o) * self.progress
         return f + (monitor_s - t) * self.pace
 
-    def expected(self, heard_s: float, lost_after_s: float, where=None) -> Optional[Expected]:
+    def expected(self, heard_s: float, lost_after_s: float, where=None,
+                 own_s: float | None = None) -> Optional[Expected]:
         """The predicted silence a vehicle last heard at ``heard_s`` (at ``where``: lat,
-        lon) is in, or None: its silence is not the plan's. It is in one when its
-        plan's clock is there, or when it was heard where its plan enters one."""
-        clock = self.fleet_time(heard_s)
+        lon; its own clock then at ``own_s``) is in, or None: its silence is not the
+        plan's. It is in one when its plan's clock is there, or when it was heard
+        where its plan enters one."""
+        clock = self.fleet_time(heard_s, own_s)
         for (a, b), entry in zip(self.windows, self._entries):
             at = clock
             if where is not None and entry is not None and (at is None or not a <= at <= b) \
@@ -115,5 +143,19 @@ class Contact:
                 return Expected((a, b), heard_s, heard_s + left + late,
                                 lost_after_s + WIDEN * left,
                                 (b - at) * (1.0 + WIDEN) + EARLY_LATE_S
-                                + lost_after_s * self.pace)
+                                + lost_after_s * self.pace, fleet_s=at)
         return None
+
+
+def _merged(windows) -> list:
+    """``windows`` (sorted) with those less than `EARLY_LATE_S` apart taken as one: a
+    contact the plan predicts for a few seconds between two shadows may come early
+    or late by as much, or pass unheard between two HEARTBEATs (12 s of flight, 0.6 s
+    of wall time at 20x: one silence, which read as overdue on the first shadow)."""
+    out = []
+    for a, b in windows:
+        if out and a - out[-1][1] <= EARLY_LATE_S:
+            out[-1] = (out[-1][0], max(out[-1][1], b))
+        else:
+            out.append((a, b))
+    return out

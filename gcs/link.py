@@ -41,6 +41,12 @@ from gcs.mavlink import (
 )
 
 HEARTBEAT_PERIOD_S = 1.0
+#: the ground station's HEARTBEAT comes once a second of the vehicles' own time, this
+#: often at most: a SITL sped up 10x with its link failsafe on (FS_GCS_TIMEOUT 5 s)
+#: fired it between two HEARTBEATs a wall second apart, and disarmed on its pad
+HEARTBEAT_MIN_S = 0.05
+#: wall s over which a vehicle's own clock rate is measured
+CLOCK_SPAN_S = 2.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
 #: what a requested stream carries (TIMESYNC, STATUSTEXT flow before any request)
 STREAMED = frozenset({"SYS_STATUS", "GLOBAL_POSITION_INT", "GPS_RAW_INT"})
@@ -76,6 +82,10 @@ class VehicleState:
     groundspeed: float | None = None         # m/s
     velocity: tuple | None = None            # (north, east, up) m/s, GLOBAL_POSITION_INT
     position_at: float | None = None         # time.monotonic() of the last position
+    boot_s: float | None = None              # the autopilot's own clock (s since boot)
+    boot_at: float | None = None             # in its latest report, at time.monotonic()
+    clock_rate: float = 1.0                  # its clock's s per wall s (a sped-up SITL)
+    clock_ref: tuple | None = None           # (boot_s, boot_at) it is measured from
     armed: bool = False
     mode: str | None = None
     custom_mode: int | None = None
@@ -99,11 +109,25 @@ class VehicleState:
     text_chunk: int = 0                      # STATUSTEXT.id of the last one (chunks)
 
 
+def _measure_clock(s: VehicleState) -> None:
+    """The vehicle's clock rate over the last `CLOCK_SPAN_S` of wall time (a reboot,
+    its clock going back, starts again)."""
+    ref = s.clock_ref
+    if ref is None or s.boot_s < ref[0]:
+        s.clock_ref = (s.boot_s, s.boot_at)
+    elif s.boot_at - ref[1] >= CLOCK_SPAN_S:
+        s.clock_rate = max((s.boot_s - ref[0]) / (s.boot_at - ref[1]), 1e-3)
+        s.clock_ref = (s.boot_s, s.boot_at)
+
+
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     kind = msg.get_type()
     boot_ms = getattr(msg, "time_boot_ms", None)
-    if boot_ms and s.battery_by_s is None:
-        s.battery_by_s = boot_ms * 1e-3
+    if boot_ms:
+        s.boot_s, s.boot_at = boot_ms * 1e-3, time.monotonic()
+        if s.battery_by_s is None:
+            s.battery_by_s = s.boot_s
+        _measure_clock(s)
     if kind == "HEARTBEAT":
         s.last_heartbeat = time.monotonic()
         s.armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
@@ -728,7 +752,13 @@ class GroundLink:
                 self._transmit(conn, hb)       # udpin: to every peer heard from
             if self._tlog is not None:
                 self._tlog.flush()             # a crash loses at most a second of log
-            self._stop.wait(HEARTBEAT_PERIOD_S)
+            self._stop.wait(self._heartbeat_period())
+
+    def _heartbeat_period(self) -> float:
+        """Wall s to the next HEARTBEAT: a second of the fastest vehicle's own clock."""
+        with self._lock:
+            rates = [v.state.clock_rate for v in self._vehicles.values()]
+        return max(HEARTBEAT_PERIOD_S / max([1.0, *rates]), HEARTBEAT_MIN_S)
 
     # -- receiving ----------------------------------------------------------------
     def _reader(self, conn: Connection) -> None:

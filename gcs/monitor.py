@@ -62,10 +62,6 @@ LANDED_AGL_M = 3.0
 #: reports it, which a fleet's takeoffs are timed on (seconds after the command that
 #: sent it up, with arming and spool-up: `gcs.flight.departures`)
 LIFTOFF_M = 1.0
-#: a vehicle's clock rate (a sped-up simulator, slower on a busy machine) is measured
-#: over its latest reports kept in the track, when they span this many monitor seconds
-CLOCK_SPAN_S = 2.0
-CLOCK_REPORTS = 20
 #: keep one track sample per this many wall seconds (telemetry comes at a few Hz)
 TRACK_PERIOD_S = 0.2
 #: position reports above LANDED_AGL_M after a disarm that make it a fall
@@ -323,7 +319,7 @@ class Monitor:
             v.reached, v.done = set(), set()
             v.contact.restart(route.silences, route.trajectory)
             if v.airborne:      # it flies on from its takeoff time on the re-plan's clock
-                v.contact.mark(self.now(), getattr(route, "takeoff_s", 0.0))
+                v.contact.mark(self.now(), getattr(route, "takeoff_s", 0.0), self._own_clock(v))
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
 
     def set_mission(self, sysid: int, mission) -> None:
@@ -502,7 +498,7 @@ class Monitor:
         if armed and agl > LIFTOFF_M and v.lifted_at_s is None:
             v.lifted_at_s = t
             if not v.done:          # the route's takeoff: its first progress on the fleet clock
-                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0))
+                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v))
         if v.airborne and v.state not in (LANDED, LOST):
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:
@@ -519,9 +515,10 @@ class Monitor:
         boot = getattr(msg, "time_boot_ms", None)
         v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3,
                         None if boot is None else round(boot * 1e-3, 3)))
-        back = v.track[max(0, len(v.track) - CLOCK_REPORTS)]
-        if boot is not None and back[4] is not None and t - back[0] > CLOCK_SPAN_S:
-            v.contact.set_clock_rate((boot * 1e-3 - back[4]) / (t - back[0]))
+        # its clock's rate (a sped-up simulator, slower on a busy machine), as its link
+        # measures it
+        if boot is not None:
+            v.contact.set_clock_rate(getattr(self.links[v.sysid].state, "clock_rate", 1.0))
 
     def _judge_route(self, v, lat, lon, alt, t) -> None:
         """Off its proven legs (beyond the track tolerance and the position's own
@@ -565,7 +562,7 @@ class Monitor:
         for index in reversed(passed):
             v.done.add(index)
             w = v.route.waypoints[index]
-            v.contact.mark(self.now(), w.t_s)
+            v.contact.mark(self.now(), w.t_s, self._own_clock(v))
             if w.snapshot:
                 v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
                                             v.generation, index))
@@ -652,8 +649,9 @@ class Monitor:
                 return False
             s = self.links[v.sysid].state
             lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)
-            v.quiet = v.contact.expected(self.now() - age, self.lost_after_s,
-                                         None if lat is None else (lat, lon))
+            heard, own = self._last_heard(v, s, age)
+            v.quiet = v.contact.expected(heard, self.lost_after_s,
+                                         None if lat is None else (lat, lon), own)
             if v.quiet is None:
                 return False
             a, b = v.quiet.window
@@ -668,6 +666,24 @@ class Monitor:
         v.quiet_flown += (now - v.quiet_at) * self._pace_unheard(v)
         v.quiet_at = now
         return v.quiet_flown <= v.quiet.allowed_s
+
+    def _own_clock(self, v) -> float | None:
+        """The vehicle's own clock (s since boot) in its latest report; None unknown."""
+        return getattr(self.links[v.sysid].state, "boot_s", None)
+
+    def _last_heard(self, v, state, age) -> tuple:
+        """(monitor s, its own clock then) of the last time a vehicle was heard: its
+        last HEARTBEAT, ``age`` s ago, or its last report with a time since boot,
+        whichever is later (a sped-up simulator's HEARTBEATs come on the wall clock,
+        its reports on its own)."""
+        heard = self.now() - age
+        boot_s, boot_at = getattr(state, "boot_s", None), getattr(state, "boot_at", None)
+        if boot_s is None or boot_at is None:
+            return heard, None
+        report = boot_at - self.t0
+        if report >= heard:
+            return report, boot_s
+        return heard, boot_s + (heard - report) * v.contact.clock_rate
 
     def _pace_unheard(self, v) -> float:
         """Fleet seconds per monitor second of a silent vehicle: its own pace on its
@@ -754,7 +770,10 @@ class Monitor:
         v = self.vehicles.get(sysid)
         if v is None or v.quiet is None or v.state == LOST:
             return None
-        return v.contact.fleet_time(self.now())
+        # where it was when last heard, and as far as the overdue count has it flown
+        # since (`_as_planned`), on to now
+        return v.quiet.fleet_s + v.quiet_flown + \
+            (self.now() - v.quiet_at) * self._pace_unheard(v)
 
     def planned_position(self, sysid) -> tuple | None:
         """(lon, lat, alt AMSL) of a vehicle out of contact as planned, on its planned

@@ -19,6 +19,10 @@ environment names its binary; the tests start and stop it themselves:
   (default: the binary's parent's parent). Instance i talks to the ground
   station from UDP 18570+i to 14550.
 
+With a radio (``start_backend(radio=...)``), each real SITL link passes through
+`relay.Relay`, which cuts it while the autopilot's own reported position is
+out of the plan's radio line of sight; the simulator cuts its own.
+
 Tests parametrised over ``backend`` run once per backend; a real backend whose
 binary is not named is skipped with that reason. Flights are judged from what
 the vehicles really flew: the simulator's recorded true track, or for real SITL
@@ -44,6 +48,7 @@ import numpy as np
 import pytest
 from affine import Affine
 from judge import Judge
+from relay import Relay
 
 from gcs.mavlink import M
 from planner.exposure import sample_outposts
@@ -173,7 +178,7 @@ class SimBackend:
     firmware = "ardupilot"
 
     def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None,
-                 below_base_m=0.0, spool=None):
+                 below_base_m=0.0, spool=None, radio=None, params=None):
         from gcs.sim import FaultPlan, FleetConfig, SimFleet, free_fleet_ports
         from gcs.sim.physics import Limits
 
@@ -184,6 +189,7 @@ class SimBackend:
             track_dir=self.track_dir, warmup_s=1.0, auto_disarm_s=50.0 * speedup,
             limits=Limits(speed_mps=plan.params["speed_mps"]),   # the firmware's vertical rates
             faults={sysid: FaultPlan(spool_s=s) for sysid, s in (spool or {}).items()},
+            radio=radio,
             **({} if capacity is None else {"mission_capacity": capacity}),
             **free_fleet_ports(self.firmware, len(homes)))).start()
         # auto-disarm runs on the simulated clock: at 100x, ArduPilot's 10 s would be
@@ -226,15 +232,20 @@ class ProcessBackend:
     second link; a kill is a SIGKILL of the process."""
 
     def __init__(self, plan: Plan, workdir: Path, speedup: float, capacity=None,
-                 below_base_m=0.0, spool=None):
+                 below_base_m=0.0, spool=None, radio=None, params=None):
         self.plan = plan
+        self.params = params or {}
         self.workdir = workdir
         self.procs, self.judges = {}, {}
         self.homes = homes_of(plan, below_base_m)
+        self.relay = None
         try:
             for sysid, home in self.homes.items():
                 self.procs[sysid] = self._start(sysid - 1, home, speedup)
             self._ready()
+            if radio is not None:
+                self.relay = Relay(self.judges, radio)
+                self._relay()
         except BaseException:
             self.stop()
             raise
@@ -252,7 +263,12 @@ class ProcessBackend:
         proc.wait(timeout=10)
         return t
 
+    def _relay(self) -> None:
+        """Put `relay.Relay` between the ground station and each vehicle."""
+
     def stop(self) -> None:
+        if self.relay is not None:
+            self.relay.stop()
         for judge in self.judges.values():
             judge.stop()
         for proc in self.procs.values():
@@ -298,7 +314,8 @@ class ArduPilotBackend(ProcessBackend):
         # the camera reports where it fires (CAMERA_FEEDBACK); CAM2_TYPE too, or
         # ArduPilot's parameter conversion from CAM_TRIGG_TYPE resets CAM1_TYPE to 0
         camera = cwd / "camera.parm"
-        camera.write_text("CAM1_TYPE 1\nCAM2_TYPE 0\n" + self._battery())
+        camera.write_text("CAM1_TYPE 1\nCAM2_TYPE 0\n" + self._battery() +
+                          "".join(f"{k} {v:g}\n" for k, v in self.params.items()))
         defaults = [os.environ["ARDUPILOT_DEFAULTS"]] if os.environ.get("ARDUPILOT_DEFAULTS") \
             else []
         cmd = [ARDUPILOT_BIN, "--model", "+", "--speedup", str(speedup),
@@ -333,7 +350,13 @@ class ArduPilotBackend(ProcessBackend):
                                                  5762 + 10 * (sysid - 1),
                                                  lambda p=proc: p.poll() is None)
 
+    def _relay(self) -> None:
+        self.relay_ports = [self.relay.tcp(sysid, 5760 + 10 * (sysid - 1))
+                            for sysid in sorted(self.procs)]
+
     def urls(self) -> list:
+        if self.relay is not None:
+            return [f"tcp:127.0.0.1:{port}" for port in self.relay_ports]
         return [f"tcp:127.0.0.1:{5760 + 10 * i}" for i in range(len(self.procs))]
 
     def hold_on_ground(self, sysid: int, hold: bool = True) -> None:
@@ -371,7 +394,8 @@ class Px4Backend(ProcessBackend):
         env = dict(os.environ, PX4_SYS_AUTOSTART="10040", PX4_SIMULATOR="sihsim", HEADLESS="1",
                    PX4_HOME_LAT=repr(lat), PX4_HOME_LON=repr(lon),
                    PX4_HOME_ALT=repr(alt), PX4_SIM_SPEED_FACTOR=str(speedup),
-                   PX4_PARAM_TRIG_MODE="1", **self._battery())
+                   PX4_PARAM_TRIG_MODE="1", **self._battery(),
+                   **{f"PX4_PARAM_{k}": f"{v:g}" for k, v in self.params.items()})
         env.pop("PX4_SIM_MODEL", None)
         return self._popen([str(binary), "-i", str(i), "-d", "-w", str(cwd),
                             str(build / "etc")], cwd, env)
@@ -396,8 +420,14 @@ class Px4Backend(ProcessBackend):
         """Nothing for the crew to do: PX4 SITL's simulated battery is full again
         whenever the vehicle is disarmed (BatterySimulator), which it is once landed."""
 
+    def _relay(self) -> None:
+        from gcs.sim import free_base_port
+
+        self.gcs_port = free_base_port(udp=True)
+        self.relay.udp(14550, self.gcs_port)
+
     def urls(self) -> list:
-        return ["udpin:0.0.0.0:14550"]
+        return [f"udpin:0.0.0.0:{self.gcs_port if self.relay is not None else 14550}"]
 
 
 class SimPx4Backend(SimBackend):
@@ -420,12 +450,17 @@ def skip_unless_configured(name: str) -> None:
 
 
 def start_backend(name: str, plan: Plan, workdir: Path, speedup: float | None = None,
-                  capacity=None, below_base_m=0.0, spool=None):
+                  capacity=None, below_base_m=0.0, spool=None, radio=None, params=None):
     """``below_base_m``: each vehicle's home (its simulated ground) that much below its
     base, a column longer than planned; ``spool``: {sysid: s} it stays on the ground
-    after its takeoff is commanded (the built-in simulator)."""
+    after its takeoff is commanded (the built-in simulator); ``radio``: (lat, lon,
+    alt AMSL) -> heard, each link cut while it says False (`gcs.sim.radio_for_plan`:
+    the simulator's own radio; real SITL: `relay.Relay` on the autopilot's own
+    reported position); ``params``: {name: value} real SITL starts with (its
+    defaults otherwise)."""
     cls, _ = BACKENDS[name]
-    return cls(plan, workdir, speedup or SPEEDUP[name], capacity, below_base_m, spool)
+    return cls(plan, workdir, speedup or SPEEDUP[name], capacity, below_base_m, spool, radio,
+               params)
 
 
 def homes_of(plan: Plan, below_base_m=0.0) -> dict:

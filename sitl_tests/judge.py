@@ -2,7 +2,8 @@
 
 `gcs fly` talks to each vehicle on its ground-station link; the judge listens on
 the autopilot's second link, which gcs never touches, and keeps what the
-autopilot says of itself: its positions (GLOBAL_POSITION_INT), where its
+autopilot says of itself: its positions (GLOBAL_POSITION_INT), its mode
+(HEARTBEAT's custom_mode, at each change), where its
 camera fired (ArduPilot CAMERA_FEEDBACK, PX4 CAMERA_IMAGE_CAPTURED) and the
 battery it reports (SYS_STATUS). On ArduPilot's link it also plays the crew
 that swaps a battery between sorties (`Judge.command`: MAV_CMD_BATTERY_RESET, or
@@ -25,8 +26,8 @@ import numpy as np
 
 from gcs.mavlink import M
 
-STATUS, POSITION, FEEDBACK, CAPTURED = 1, 33, 180, 263
-WANTED = frozenset({STATUS, POSITION, FEEDBACK, CAPTURED})
+HEARTBEAT, STATUS, POSITION, FEEDBACK, CAPTURED = 0, 1, 33, 180, 263
+WANTED = frozenset({HEARTBEAT, STATUS, POSITION, FEEDBACK, CAPTURED})
 JUDGE_SYSID = 254          # not 255: ArduPilot forwards between its links
 RATE_HZ = 10
 
@@ -92,6 +93,7 @@ class Judge:
         self.shots = []                    # (lat, lon, alt AMSL)
         self.battery = []                  # (wall t, % remaining)
         self.clock = []                    # (wall t, the autopilot's own s since boot)
+        self.modes = []                    # (wall t, custom_mode): each change of mode
         self._send = None                  # bytes -> None on its link, once connected
         self._mav = M.MAVLink(None, srcSystem=JUDGE_SYSID, srcComponent=190)
         self._mav.robust_parsing = True
@@ -222,6 +224,10 @@ class Judge:
                         self.samples.append((now, msg.lat * 1e-7, msg.lon * 1e-7,
                                              msg.alt * 1e-3))
                         self.clock.append((now, msg.time_boot_ms * 1e-3))
+                elif kind == "HEARTBEAT":
+                    if msg.autopilot != M.MAV_AUTOPILOT_INVALID and \
+                            (not self.modes or self.modes[-1][1] != msg.custom_mode):
+                        self.modes.append((now, msg.custom_mode))
                 elif kind == "SYS_STATUS":
                     if msg.battery_remaining >= 0:
                         self.battery.append((now, msg.battery_remaining))
@@ -229,6 +235,12 @@ class Judge:
                     self.shots.append((msg.lat * 1e-7, msg.lng * 1e-7, msg.alt_msl))
                 elif kind == "CAMERA_IMAGE_CAPTURED":
                     self.shots.append((msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3))
+
+    def mode_at(self, t: float):
+        """The custom_mode the autopilot last reported at or before wall time ``t``
+        (None before its first HEARTBEAT)."""
+        before = [mode for at, mode in self.modes if at <= t]
+        return before[-1] if before else None
 
     def track(self) -> tuple:
         """(t, lat, lon, alt, shots, home), as the fixtures' ``tracks()`` give them."""

@@ -21,6 +21,7 @@ import pytest
 from fleets import LONG, REAL_BACKENDS, SPEEDUP, start_backend
 
 from gcs.flight import Flight, FlyOptions
+from gcs.sim import radio_for_plan
 from planner.exposure import segments_clear, segments_hidden
 from planner.replan import coverage_summary
 
@@ -37,7 +38,7 @@ pytestmark = pytest.mark.timeout(240)   # real SITL: see conftest.pytest_collect
 
 def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, speedup=None,
              capacity=None, late=None, crew=False, held=None, below_base_m=0.0, spool=None,
-             arm_delay=None, at=(), **options):
+             arm_delay=None, at=(), radio=False, params=None, **options):
     """Fly ``planned`` on ``backend``. ``kills``: (sysid, when) pairs; ``when`` is the
     fraction of its waypoints after which ``sysid`` is shot down, or "re-planning"
     to shoot it down as soon as a re-plan starts (a loss during re-tasking).
@@ -50,11 +51,15 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     the backend's ``swap_battery``, or with "reboot" its ``reboot``; the simulator's
     crew does it unasked); ``held``:
     (sysid, other, when): the separation guard holds ``sysid`` for ``other`` as soon
-    as ``when(flight)`` says so, once; ``options``: `FlyOptions` fields to change.
+    as ``when(flight)`` says so, once; ``radio``: each link cut while its vehicle
+    is out of the plan's radio line of sight (`fleets.start_backend`); ``params``:
+    {name: value} real SITL starts with; ``options``: `FlyOptions` fields to change.
     Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
     longest = max(v.mission_time_s for v in planned.plan.vehicles)
-    be = start_backend(backend, planned.plan, workdir, speedup, capacity, below_base_m, spool)
+    heard = radio_for_plan(planned.plan, planned.ctx.terrain) if radio else None
+    be = start_backend(backend, planned.plan, workdir, speedup, capacity, below_base_m, spool,
+                       heard, params)
     if drop_pct:
         be.set_drop(drop_pct)
     out = workdir / "flight"
@@ -149,7 +154,7 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
                                                                    lat, lon, alt), home)
     return {"report": report, "tracks": tracks, "killed": killed, "wall_s": wall,
             "flight": flight, "backend": backend, "camera": shots,
-            "judges": getattr(be, "judges", {})}
+            "judges": getattr(be, "judges", {}), "relay": getattr(be, "relay", None)}
 
 
 #: a snapshot viewpoint counts as visited when the autopilot's own track passed

@@ -33,6 +33,26 @@ def _small_plan():
     return scenario, terrain, outposts
 
 
+#: the files whose tests take longest, longest first (summed seconds of a full run on
+#: 2 cores, 2026-12-06): pytest-xdist hands whole files to its test processes in
+#: collection order (with --no-loadscope-reorder; its default puts the files of
+#: most tests first, and the suite ended on two long flight files alone)
+LONGEST_FIRST = (
+    "sitl_tests/test_end_to_end.py",        # 380 s
+    "tests/test_sorties_flown.py",          # 320 s
+    "sitl_tests/test_separation.py",        # 270 s
+    "tests/test_failsafes.py",              # 196 s
+    "tests/test_sorties.py",                # 150 s
+    "tests/test_link_flight.py",            # 153 s
+)
+
+
+def pytest_collection_modifyitems(items):
+    """`LONGEST_FIRST`'s files first, the others in their order (a stable sort)."""
+    rank = {path: i for i, path in enumerate(LONGEST_FIRST)}
+    items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
+
+
 def pytest_sessionstart(session):
     """Compile the numba kernels into their cache once, before any test runs and
     before pytest-xdist starts its test processes (which then load them): from a

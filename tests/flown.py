@@ -1,4 +1,4 @@
-"""Judging a simulated flight's outcome at a high speed-up."""
+"""Judging a simulated flight: its outcome at a high speed-up, and its track."""
 
 
 #: the outcome's line for a pair flown closer than the separation (gcs.flight.report)
@@ -35,3 +35,14 @@ def _vehicle_of(problem: str):
     """The system id a problem line starts with ("vehicle 2's battery ...")."""
     words = problem.split()
     return int(words[1].rstrip("'s")) if len(words) > 1 and words[0] == "vehicle" else None
+
+
+def takeoffs_on_fresh_batteries(track) -> int:
+    """Takeoffs in a simulator's track, asserting that each after the first came
+    after a landing and a battery swap (the simulator's crew's)."""
+    kinds = [e["event"] for e in track.events if e["event"] in
+             ("takeoff", "landed", "battery swapped")]
+    ups = [i for i, e in enumerate(kinds) if e == "takeoff"]
+    for k in ups[1:]:
+        assert kinds[k - 2:k] == ["landed", "battery swapped"], kinds
+    return len(ups)

@@ -83,7 +83,7 @@ class Setting:
 
 def read(link, profile) -> list:
     """Every failsafe parameter of ``profile`` as the vehicle on ``link`` holds it."""
-    values = {name: params.read(link, name) for name in parameter_names(profile.failsafes)}
+    values = params.read_many(link, parameter_names(profile.failsafes))
     out = []
     for failsafe in profile.failsafes:
         for p in failsafe.parameters:
@@ -186,8 +186,8 @@ def buffer_risks(link, profile, route) -> list:
     srtl = profile.smartrtl
     if srtl is None or route is None:
         return []
-    points, accuracy = (params.read(link, name) for name in (srtl.points_param,
-                                                             srtl.accuracy_param))
+    read = params.read_many(link, [srtl.points_param, srtl.accuracy_param])
+    points, accuracy = read[srtl.points_param], read[srtl.accuracy_param]
     if points is None or accuracy is None:
         return [f"SmartRTL buffer: {srtl.points_param} / {srtl.accuracy_param} not answered: "
                 "whether a failsafe's SmartRTL holds its whole path is unknown"]

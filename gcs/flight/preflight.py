@@ -13,6 +13,7 @@ do on their own, and how fast they are set to fly.
 from autopilots import firmware_of
 from common.geo import distance_m
 from gcs import commands
+from gcs import params as gcs_params
 from gcs.monitor import LOST
 from planner.fleet import stop_time
 
@@ -157,8 +158,10 @@ class Preflight:
             if v.state == LOST:
                 continue
             slower = []
-            for name, rate, unit in commands.autopilot(link).rate_limits:
-                planned, value = params.get(rate), commands.read_param(link, name, retries=1)
+            limits = commands.autopilot(link).rate_limits
+            values = gcs_params.read_many(link, [name for name, _, _ in limits], retries=1)
+            for name, rate, unit in limits:
+                planned, value = params.get(rate), values[name] and values[name].value
                 if planned is not None and value is not None and \
                         value * unit < float(planned) - RATE_SLACK_MPS:
                     slower.append(f"{name} = {value:g} ({value * unit:g} m/s, the plan's "
