@@ -236,12 +236,6 @@ class Judge:
                 elif kind == "CAMERA_IMAGE_CAPTURED":
                     self.shots.append((msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3))
 
-    def mode_at(self, t: float):
-        """The custom_mode the autopilot last reported at or before wall time ``t``
-        (None before its first HEARTBEAT)."""
-        before = [mode for at, mode in self.modes if at <= t]
-        return before[-1] if before else None
-
     def track(self) -> tuple:
         """(t, lat, lon, alt, shots, home), as the fixtures' ``tracks()`` give them."""
         rows = np.array(self.samples, float).reshape(-1, 4)
