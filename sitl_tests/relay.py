@@ -66,10 +66,9 @@ class Relay:
                         self.cuts[sysid][-1] = (self.cuts[sysid][-1][0], now)
                     self.cut[sysid] = cut
 
-    def silent_s(self, sysid: int) -> list:
-        """Wall seconds of each of ``sysid``'s silences (one still open: to now)."""
-        now = time.time()
-        return [(b or now) - a for a, b in self.cuts[sysid]]
+    @property
+    def stopped(self) -> bool:
+        return self._stop.is_set()
 
     def _passes(self, sysid: int) -> bool:
         dropped = self.cut[sysid]

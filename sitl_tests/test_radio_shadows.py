@@ -19,11 +19,14 @@ s at 54x was declared overdue at the fleet's pace: the monitor cannot know a
 silent vehicle's clock, and real vehicles share one.
 """
 
+import time
+
 import pytest
 from fleets import REAL_BACKENDS, SPEEDUP, skip_unless_configured
 from test_end_to_end import (
     assert_hidden_and_clear,
     assert_landed_at_launch,
+    assert_one_loss_retasked,
     coverable,
     fly_case,
     recorded_coverage,
@@ -91,3 +94,26 @@ def test_predicted_shadows_are_flown_through_in_the_mission(planned, backend, tm
             setting = next(r for r in failsafes["read"] if r["parameter"] == name)
             assert setting["value"] == value, setting
 
+
+def test_a_vehicle_killed_in_its_shadow_is_lost_once_overdue(planned, backend, tmp_path):
+    """The vehicle with the longest shadow, killed a wall second into it: its silence
+    is the plan's until it is overdue, then it is lost (not before its due time),
+    the others re-tasked, nobody else lost, every survivor home and the coverage
+    flown."""
+    p = planned(0, backend)
+    victim = max(p.plan.vehicles, key=lambda v: max((b - a for a, b in v.silences),
+                                                    default=0.0)).id
+
+    def kill_in_its_shadow(be):
+        while not be.relay.cut[victim]:
+            if be.relay.stopped:
+                return
+            time.sleep(0.05)
+        time.sleep(1.0)
+        be.kill(victim)
+    result = fly_case(p, backend, tmp_path, radio=True, params=UNSAFE_LINK[backend],
+                      at=[(victim, 0.0, kill_in_its_shadow)])
+    loss = next(x for x in result["report"]["losses"] if x["sysid"] == victim)
+    print(f"\nkilled in a shadow [{backend}]: {loss['reason']}")
+    assert loss["reason"].startswith("overdue") and loss["detected_s"] >= loss["due_s"]
+    assert_one_loss_retasked(p, result, victim)
