@@ -44,7 +44,6 @@ class Relay:
         self.judges, self.heard = judges, heard
         self.cut = {sysid: False for sysid in judges}
         self.cuts = {sysid: [] for sysid in judges}     # [(wall t cut, wall t back or None)]
-        self.passed = {sysid: [0, 0] for sysid in judges}   # chunks passed, dropped
         self._stop = threading.Event()
         self._threads = []
         self._sockets = []
@@ -71,9 +70,7 @@ class Relay:
         return self._stop.is_set()
 
     def _passes(self, sysid: int) -> bool:
-        dropped = self.cut[sysid]
-        self.passed[sysid][dropped] += 1
-        return not dropped
+        return not self.cut[sysid]
 
     # -- ArduPilot: TCP ----------------------------------------------------------------
     def tcp(self, sysid: int, upstream_port: int) -> int:
