@@ -412,11 +412,14 @@ class SeparationGuard:
         return None
 
     def _note_closest(self, frame) -> None:
-        """The closest approach of each pair in the air: not counting one touched
-        down on its base pad (a shared base is one point of the plan; the next
-        vehicle's descent to it is the plan's, proven on its schedule)."""
+        """The closest approach of each pair in the air, as reported: not counting one
+        touched down on its base pad (a shared base is one point of the plan; the
+        next vehicle's descent to it is the plan's, proven on its schedule), nor one
+        out of contact (where its plan has it is no measurement: a vehicle shot down
+        in its shadow was "flown" 1.8 m from one that passed the place later)."""
         now = self.monitor.now()
-        ids = sorted(s for s in frame.here if not self.fleet.on_pad(s))
+        ids = sorted(s for s in frame.here if not self.fleet.on_pad(s)
+                     and s not in frame.unheard)
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
                 d = float(np.linalg.norm(frame.position(a) - frame.position(b)))
@@ -518,6 +521,7 @@ class _Frame:
     def __init__(self, monitor, sysids, rate):
         self.monitor = monitor
         self._p, self.local = {}, None
+        self.unheard = set()      # out of contact: placed where its plan has it
         mono = time.monotonic()
         for sysid in sysids:
             s = monitor.links[sysid].state
@@ -528,6 +532,7 @@ class _Frame:
             planned = monitor.planned_position(sysid)
             if planned is not None:     # out of contact, as planned: it flies its plan
                 self._p[sysid] = self.project([planned])[0]
+                self.unheard.add(sysid)
                 continue
             north, east, up = s.velocity
             p = self.project([(s.lon, s.lat, s.alt_amsl)])[0]

@@ -47,6 +47,12 @@ HEARTBEAT_PERIOD_S = 1.0
 HEARTBEAT_MIN_S = 0.05
 #: wall s over which a vehicle's own clock rate is measured
 CLOCK_SPAN_S = 2.0
+#: wall seconds without any message from a vehicle that make a silence (its streams
+#: come several times a second, its HEARTBEAT once)
+SILENCE_GAP_S = 1.0
+#: wall seconds after a silence its battery and mission progress are waited for at most
+#: (ArduPilot and PX4 stream both at least once a second)
+CATCH_UP_S = 5.0
 STREAM_RATE_HZ = 4               # telemetry asked of ArduPilot, as MAVProxy's default
 #: what a requested stream carries (TIMESYNC, STATUSTEXT flow before any request)
 STREAMED = frozenset({"SYS_STATUS", "GLOBAL_POSITION_INT", "GPS_RAW_INT"})
@@ -104,9 +110,25 @@ class VehicleState:
                                              # after battery_pct came (None: none yet):
                                              # the charge is of that time or earlier
     home: tuple | None = None                # (lat, lon, alt AMSL) from HOME_POSITION
+    heard_at: float | None = None            # time.monotonic() of its last message
+    back_at: float | None = None             # ... of the first after its last silence
+    battery_at: float | None = None          # ... of its last battery reading
+    current_at: float | None = None          # ... of its last MISSION_CURRENT
     images: int = 0                          # CAMERA_FEEDBACK / CAMERA_IMAGE_CAPTURED seen
     statustext: list = field(default_factory=list)   # last (severity, text)
     text_chunk: int = 0                      # STATUSTEXT.id of the last one (chunks)
+
+    @property
+    def caught_up(self) -> bool:
+        """Its battery and its mission's current item reported since it was last heard
+        again after a silence (or `CATCH_UP_S` gone by: a vehicle that streams
+        neither): until then, what it reported of them is as old as the silence
+        (heard again after 200 s of flight, a vehicle's position was new, its
+        battery 4 minutes old and its progress 5 minutes behind)."""
+        if self.back_at is None or time.monotonic() - self.back_at > CATCH_UP_S:
+            return True
+        return (self.battery_at or 0.0) >= self.back_at and \
+            (self.current_at or 0.0) >= self.back_at
 
 
 def _measure_clock(s: VehicleState) -> None:
@@ -122,6 +144,10 @@ def _measure_clock(s: VehicleState) -> None:
 
 def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     kind = msg.get_type()
+    now = time.monotonic()
+    if s.heard_at is not None and now - s.heard_at > SILENCE_GAP_S:
+        s.back_at = now
+    s.heard_at = now
     boot_ms = getattr(msg, "time_boot_ms", None)
     if boot_ms:
         s.boot_s, s.boot_at = boot_ms * 1e-3, time.monotonic()
@@ -146,6 +172,7 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
         s.position_at = time.monotonic()
     elif kind == "MISSION_CURRENT":
         s.mission_seq, s.mission_total = msg.seq, getattr(msg, "total", None)
+        s.current_at = now
     elif kind == "MISSION_ITEM_REACHED":
         s.reached.append(msg.seq)
     elif kind == "EXTENDED_SYS_STATE":
@@ -154,12 +181,12 @@ def _update_state(s: VehicleState, msg, flavour: str, mav_type: int) -> None:
     elif kind == "SYS_STATUS":
         if not s.battery_status:
             s.battery_pct = None if msg.battery_remaining < 0 else msg.battery_remaining
-            s.battery_by_s = None
+            s.battery_by_s, s.battery_at = None, now
         s.ready = _prearm_ok(msg, s.gps_fix)
     elif kind == "BATTERY_STATUS" and msg.id == 0 and msg.battery_remaining >= 0:
         # the pack's own report (SYS_STATUS may sum or pick among several packs)
         s.battery_pct, s.battery_status = msg.battery_remaining, True
-        s.battery_by_s = None
+        s.battery_by_s, s.battery_at = None, now
     elif kind == "GPS_RAW_INT":
         s.gps_fix = msg.fix_type
     elif kind == "HOME_POSITION":
@@ -550,6 +577,14 @@ class VehicleLink:
     def heartbeat_age(self) -> float:
         """Seconds since the last HEARTBEAT (inf if none)."""
         last = self.state.last_heartbeat
+        return float("inf") if last is None else time.monotonic() - last
+
+    def silent_s(self) -> float:
+        """Seconds since anything was heard from its autopilot (inf if nothing): a
+        link back after a silence brings positions up to a second before the next
+        HEARTBEAT (one heard again 4.4 s into a silence was lost at 5 s, by its
+        HEARTBEAT's age, while its positions came)."""
+        last = self.state.heard_at
         return float("inf") if last is None else time.monotonic() - last
 
     def _deliver(self, msg, index: int, conn, addr) -> None:

@@ -16,7 +16,8 @@ it comes, is kept beside it.
 
 Loss detection (`check_losses`, on the wall clock, by the flight loop and by a
 thread of its own while the flight computes or waits: `watch_losses`):
-a vehicle is lost when no HEARTBEAT has arrived for ``lost_after_s`` seconds,
+a vehicle is lost when nothing (no HEARTBEAT, no report) has come for
+``lost_after_s`` seconds,
 or when it disarms in the air. A link that comes back earlier is not a loss.
 A silence that starts where the plan predicts a radio shadow (`gcs.contact`) is
 an event, out of contact as planned; the vehicle is lost only when it is not heard
@@ -308,8 +309,11 @@ class Monitor:
                 v.state = state
                 self.event(sysid, state)
 
-    def new_mission(self, sysid: int, route, mission) -> None:
-        """The vehicle now flies ``mission`` (a re-plan): progress restarts at its item 1."""
+    def new_mission(self, sysid: int, route, mission, fleet_s: float = 0.0) -> None:
+        """The vehicle now flies ``mission`` (a re-plan): progress restarts at its item 1.
+        One in the air is at ``fleet_s`` of ``route``'s clock now: 0 where it is held
+        until its ``takeoff_s`` (marked there, a silence soon after it flew on was
+        read that hold's length ahead of its plan)."""
         with self._lock:
             v = self.vehicles[sysid]
             s = self.links[sysid].state
@@ -318,8 +322,8 @@ class Monitor:
             v.generation += 1
             v.reached, v.done = set(), set()
             v.contact.restart(route.silences, route.trajectory)
-            if v.airborne:      # it flies on from its takeoff time on the re-plan's clock
-                v.contact.mark(self.now(), getattr(route, "takeoff_s", 0.0), self._own_clock(v))
+            if v.airborne:
+                v.contact.mark(self.now(), fleet_s, self._own_clock(v))
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
 
     def set_mission(self, sysid: int, mission) -> None:
@@ -632,7 +636,7 @@ class Monitor:
                 if age - stalled > (max(self.swap_silence_s, self.lost_after_s) if swap
                                     else self.lost_after_s):
                     v.lost_stalled_s = round(stalled, 3)
-                    self._lose(v, f"no HEARTBEAT for {age:.1f} s"
+                    self._lose(v, f"nothing heard for {age:.1f} s"
                                   + (" since it landed for its battery swap" if swap else ""))
                     v._reported = True
                     lost.append(sysid)
@@ -668,8 +672,17 @@ class Monitor:
         return v.quiet_flown <= v.quiet.allowed_s
 
     def _own_clock(self, v) -> float | None:
-        """The vehicle's own clock (s since boot) in its latest report; None unknown."""
-        return getattr(self.links[v.sysid].state, "boot_s", None)
+        """The vehicle's own clock (s since boot) now: its latest report's, carried on
+        at its clock's rate to now (None unknown). A waypoint's reached report carries
+        no time: timed by the last position's, up to a fifth of a wall second older
+        (20 s of its clock at 100x), progress over a few waypoints read up to twice
+        the plan's, and a vehicle due back from a shadow 1.8 s (180 s of flight)
+        before it was."""
+        s = self.links[v.sysid].state
+        boot_s, boot_at = getattr(s, "boot_s", None), getattr(s, "boot_at", None)
+        if boot_s is None or boot_at is None:
+            return boot_s
+        return boot_s + (time.monotonic() - boot_at) * getattr(s, "clock_rate", 1.0)
 
     def _last_heard(self, v, state, age) -> tuple:
         """(monitor s, its own clock then) of the last time a vehicle was heard: its
@@ -691,7 +704,7 @@ class Monitor:
         simulated fleet slows together under load; real autopilots all run at 1)."""
         rates = sorted(u.contact.clock_rate for s, u in self.vehicles.items()
                        if u is not v and u.quiet is None and not u.finished
-                       and self.links[s].heartbeat_age() <= self.lost_after_s)
+                       and self.links[s].silent_s() <= self.lost_after_s)
         if not rates:
             return v.contact.pace
         return rates[len(rates) // 2] * v.contact.pace / v.contact.clock_rate
@@ -749,16 +762,17 @@ class Monitor:
                    distance_m(p.lat, p.lon, lat, lon) <= LAUNCH_RADIUS_M for p in points)
 
     def silent(self, sysid) -> bool:
-        """No HEARTBEAT from ``sysid`` for ``lost_after_s`` of the time this ground
+        """Nothing heard from ``sysid`` for ``lost_after_s`` of the time this ground
         station was running (`StallClock`: a starved ground station hears nothing
         from anyone, and would otherwise lose its whole fleet at once)."""
         age, stalled = self._silence(sysid)
         return age - stalled > self.lost_after_s
 
     def _silence(self, sysid) -> tuple:
-        """(seconds since ``sysid``'s last HEARTBEAT, of them the seconds this ground
-        station stood still); the stall is only looked up past ``lost_after_s``."""
-        age = self.links[sysid].heartbeat_age()
+        """(seconds since anything was heard from ``sysid``, of them the seconds this
+        ground station stood still); the stall is only looked up past
+        ``lost_after_s``."""
+        age = self.links[sysid].silent_s()
         if age <= self.lost_after_s:
             return age, 0.0
         return age, self.stalls.stalled(time.monotonic() - age)

@@ -389,7 +389,9 @@ class Retasker:
         self._step(tasked, upload)
         record.upload_s = round(time.perf_counter() - t1, 3)
         for s in tasked:
-            m.new_mission(s, routes[s], uploaded[s])
+            # held until its time on the re-plan's clock (from now), or sent on at once
+            m.new_mission(s, routes[s], uploaded[s],
+                          0.0 if self.depart is not None else routes[s].takeoff_s)
             if self.segments is not None:
                 self.segments.fly(s, missions[s])
         record.departs = {s: routes[s].takeoff_s for s in tasked}

@@ -48,7 +48,7 @@ def upload_route(link, missions, protocol=None, on_capacity=None, limit=None):
     CheckedMission uploaded. ``on_capacity(capacity, how)`` is told when a
     capacity is learned."""
     protocol = protocol or {}
-    mission = missions.first(_least(known_capacity(link), limit))
+    mission = missions.first(segment_capacity(link, limit))
     try:
         upload_verified(link, mission, **protocol)
         return mission
@@ -61,6 +61,12 @@ def upload_route(link, missions, protocol=None, on_capacity=None, limit=None):
     mission = missions.first(_least(capacity, limit))
     upload_verified(link, mission, **protocol)
     return mission
+
+
+def segment_capacity(link, limit=None):
+    """Items a segment for ``link``'s vehicle may have: what it is known to hold, or
+    ``limit`` if fewer (None: no limit known)."""
+    return _least(known_capacity(link), limit)
 
 
 def _least(capacity, limit):

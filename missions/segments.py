@@ -13,6 +13,9 @@ that fly one route on one vehicle: the whole route when it fits, else
 segments. A segment is a run of the route's waypoints that fits the vehicle's
 capacity (home, speed, its waypoints and their camera commands; the first one
 takes off, the last one lands). It ends at a waypoint, whose leg was proven,
+the last that fits whose last leg the plan has in radio contact (the next
+segment is uploaded as the vehicle flies it: one ending in a radio shadow
+waited there unheard, and was declared lost),
 so a vehicle whose next segment is late holds there, hidden; the next segment
 flies on to the waypoint the vehicle was flying to when it was held (the end of
 the last one at the latest), from where it holds: its first item is that place
@@ -35,6 +38,9 @@ from .build import firmware_profile, is_above_launch, route_items
 
 #: waypoints closer than this (m, horizontally and vertically) are the same place
 SAME_PLACE_M = 0.01
+#: fleet seconds a vehicle may reach a waypoint early or late (the ground station's
+#: `gcs.contact.EARLY_LATE_S`): a segment ends this far from a predicted radio shadow
+SHADOW_MARGIN_S = 20.0
 
 
 def fewer_waypoints(route, prove=None) -> list:
@@ -146,6 +152,19 @@ class RouteMissions:
             raise AssertionError(f"segment of {len(mission.items)} items > {capacity}")
         return self.check(mission)
 
+    def unheard_ends(self, capacity: int) -> list:
+        """Route waypoints where a segment of at most ``capacity`` items ends on a leg
+        its plan has in a radio shadow (no end in contact within its reach): the
+        vehicle waits there for its next segment, unheard."""
+        w, ends, k = self.route.waypoints, [], 0
+        while True:
+            fly, land = self._span(k, capacity)
+            if land:
+                return ends
+            if not _in_contact(w[fly[-2]].t_s, w[fly[-1]].t_s, self.route.silences):
+                ends.append(fly[-1])
+            k = self.fly.index(fly[-1])
+
     def _span(self, k: int, capacity: int) -> tuple:
         """The waypoints (indices) of the longest segment from fly[k] that fits, and
         whether it lands (it reaches the route's end)."""
@@ -164,11 +183,23 @@ class RouteMissions:
             end = j + 1
         if end == len(self.fly):
             return self.fly[k:], True
+        heard = [j for j in range(k + 2, end + 1)
+                 if _in_contact(w[self.fly[j - 2]].t_s, w[self.fly[j - 1]].t_s,
+                                self.route.silences)]
+        if heard:       # the next segment is uploaded on this one's last leg: not in a shadow
+            end = heard[-1]
         if end - k < 2:
             raise InputError(f"vehicle {self.route.id}",
                              f"the vehicle holds {capacity} mission items: too few for a "
                              f"segment of two waypoints from waypoint {self.fly[k]}")
         return self.fly[k:end], False
+
+
+def _in_contact(t0: float, t1: float, silences) -> bool:
+    """From fleet time ``t0`` to ``t1`` its plan has the vehicle in radio contact, with
+    a margin either side."""
+    return not any(a - SHADOW_MARGIN_S <= t1 and t0 <= b + SHADOW_MARGIN_S
+                   for a, b in silences or ())
 
 
 __all__ = ["RouteMissions", "fewer_waypoints", "leg_prover", "point_on_leg"]

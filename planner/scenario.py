@@ -88,8 +88,8 @@ class Scenario:
     turnaround_min: float = 5.0  # on the ground between sorties: landing, battery swap, checks
     land_at: str = "any"  # a sortie lands at "any" of the fleet's bases (the nearest), or its "own"
     # [link]: the ground station's radio (planner.link)
-    antennas: list = field(default_factory=list)  # [(lat, lon, mast m)]; []: at the first base
-    mast_m: float = 2.0  # the default antenna's mast above the ground at the first base
+    antennas: list = field(default_factory=list)  # [(lat, lon, mast m)]; []: at each base
+    mast_m: float = 2.0  # the default antennas' masts above the ground at each base
     radio_mhz: float = 915.0  # SiK telemetry radios (RFD900, Holybro); 433 MHz in Europe
     radio_range_m: float = 5000.0  # stock dipoles: a few km in the field
     # [method]
@@ -192,9 +192,13 @@ class Scenario:
     # --- what each stage takes ---------------------------------------------------------
     def link(self) -> tuple:
         """(antennas, radio) of `planner.link`: the --antenna sites (a mast not given:
-        ``mast_m``), or one at the first launch point; ([], radio) without either."""
+        ``mast_m``), or one at each launch point (a vehicle is armed and sent its
+        sorties on its pad: its crew's radio is there; with one at the first only,
+        a vehicle at a second base behind a ridge was never heard to start);
+        ([], radio) without either."""
         from planner.link import Antenna, Radio
-        sites = self.antennas or [(*p, None) for p in self.launch_points[:1]]
+        sites = self.antennas or [(*p, None) for p in dict.fromkeys(
+            tuple(p) for p in self.launch)]     # every base, whatever UAVs a re-plan has
         antennas = [Antenna(float(a[0]), float(a[1]),
                             self.mast_m if len(a) < 3 or a[2] is None else float(a[2]))
                     for a in sites]

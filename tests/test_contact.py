@@ -77,3 +77,60 @@ def test_a_new_mission_forgets_the_old_clock():
     assert c.fleet_time(100.0) is None and c.expected(100.0, 5.0) is None
     c.mark(100.0, 40.0)
     assert c.expected(100.0, 5.0).window == (50.0, 80.0)
+
+
+def _monitored(**state):
+    """A `gcs.monitor.Monitor` following one airborne vehicle on a two-waypoint route
+    (60 s and 150 s on its clock, a shadow predicted from 70 to 100 s); ``state``:
+    its link's state fields. Returns the monitor, the route and the vehicle."""
+    from types import SimpleNamespace
+
+    from gcs.monitor import FLYING, Monitor
+    from planner.plan import GeoPoint, VehicleRoute, Waypoint
+
+    link = SimpleNamespace(sysid=1, flavour="ardupilot", subscribe=lambda cb: (lambda: None),
+                           state=SimpleNamespace(lat=36.6, lon=-84.2, alt_amsl=700.0,
+                                                 relative_alt=60.0, armed=True, mode="AUTO",
+                                                 mission_seq=1, **state))
+    waypoints = [Waypoint(-84.2, 36.6, 700.0, 60.0), Waypoint(-84.19, 36.6, 700.0, 150.0)]
+    route = VehicleRoute(1, GeoPoint(-84.2, 36.6, 640.0), waypoints, 150.0, 150.0, 900.0,
+                         takeoff_s=60.0, silences=[[70.0, 100.0]])
+    monitor = Monitor()
+    mission = SimpleNamespace(items=[], waypoint_of_item=[None, 0, 1])
+    monitor.follow(link, 1, route, mission)
+    v = monitor.vehicles[1]
+    v.state, v.airborne = FLYING, True
+    return monitor, route, v
+
+
+def test_a_waypoint_reached_is_timed_on_the_vehicles_clock_now():
+    """A reached report carries no time: it is timed by the vehicle's own clock carried
+    on from its last report at its clock's rate, not by that report's (a fifth of a
+    wall second older: 20 s of its clock at 100x, which read its progress over a few
+    waypoints as twice the plan's)."""
+    import time
+    from types import SimpleNamespace
+
+    boot_at = time.monotonic() - 0.2
+    monitor, _, v = _monitored(boot_s=1000.0, boot_at=boot_at, clock_rate=100.0)
+    before = time.monotonic()
+    monitor._on(1, SimpleNamespace(get_type=lambda: "MISSION_ITEM_REACHED", seq=1))
+    after = time.monotonic()
+    _, fleet_s, own_s = v.contact._marks[-1]
+    assert fleet_s == 60.0
+    assert 1000.0 + 100.0 * (before - boot_at) <= own_s <= 1000.0 + 100.0 * (after - boot_at)
+
+
+def test_a_vehicle_a_re_plan_holds_until_its_time_is_at_its_start_meanwhile():
+    """A re-plan's clock starts as it sends the routes; a vehicle held in the air until
+    its takeoff time (60 s here) is at 0 of its new route until then, so a shadow 70 s
+    into the new route, entered as it flies on, is the plan's. Marked at its takeoff
+    time instead, the monitor read it 60 s ahead of its plan: past that shadow, a
+    loss (`Monitor.new_mission`)."""
+    from types import SimpleNamespace
+
+    monitor, route, v = _monitored()
+    now = monitor.now()
+    monitor.new_mission(1, route, SimpleNamespace(items=[]))
+    assert v.contact.fleet_time(now + 75.0) == pytest.approx(75.0, abs=0.5)
+    assert v.contact.expected(now + 75.0, lost_after_s=5.0).window == (70.0, 100.0)

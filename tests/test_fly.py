@@ -57,6 +57,8 @@ class _FakeLink:
     def heartbeat_age(self):
         return time.monotonic() - self.state.last_heartbeat
 
+    silent_s = heartbeat_age
+
     def beat(self, armed=True):
         self.state.last_heartbeat = time.monotonic()
         self.state.armed = armed
@@ -307,9 +309,10 @@ def _watched(holds=(), waiting=None):
         t += holds.get(k, 0.0) + 100.0
     route = VehicleRoute(1, None, waypoints, coverage_time_s=waypoints[2].t_s,
                          mission_time_s=waypoints[-1].t_s + 60.0, path_length_m=4000.0)
-    state = SimpleNamespace(lat=LAT0, lon=LON0, alt_amsl=700.0, battery_pct=50)
+    state = SimpleNamespace(lat=LAT0, lon=LON0, alt_amsl=700.0, battery_pct=50,
+                            mission_seq=None)
     vehicle = SimpleNamespace(route=route, done={0}, track=[(0, LON0, LAT0, 700.0, 1000.0)],
-                              state=FLYING)
+                              state=FLYING, mission=None)
     travel = TravelParams(speed_mps=10.0, climb_mps=3.0, descent_mps=2.0)
     flight = SimpleNamespace(monitor=SimpleNamespace(vehicles={1: vehicle}, links={
         1: SimpleNamespace(state=state)}, now=lambda: 100.0), ctx=SimpleNamespace(
@@ -364,8 +367,14 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
     _stand(vehicle, state, 1800.0, 1000.0 + 2 * WATCH_AFTER_S + 50.0)
     assert fake.left_s(1) == pytest.approx(460.0 - 180.0, rel=0.01)
     assert 1 not in fake._pace
-    vehicle.state, vehicle.done = FLYING, {0, 1, 2}
-    _stand(vehicle, state, 1800.0 + 10.0 * WATCH_AFTER_S, 1000.0 + 3 * WATCH_AFTER_S + 50.0)
+    # flown on, its resume reaching it 20 s later (a loop of a loaded ground station at
+    # 100 x): still standing, then as planned; timed from where it moved on, pace 1.0
+    # (timed from the resume's sending: 1.17)
+    vehicle.state = FLYING
+    _stand(vehicle, state, 1800.0, 1000.0 + 2 * WATCH_AFTER_S + 70.0)
+    assert fake.left_s(1) == pytest.approx(460.0 - 180.0, rel=0.01)
+    vehicle.done = {0, 1, 2}
+    _stand(vehicle, state, 1800.0 + 10.0 * WATCH_AFTER_S, 1000.0 + 3 * WATCH_AFTER_S + 70.0)
     assert fake.left_s(1) == pytest.approx(460.0 - 180.0 - WATCH_AFTER_S, rel=0.01)
     assert fake._pace[1] == pytest.approx(1.0, rel=0.01)
     # the re-plan: half its battery left, at half the pace: a quarter of the flight
@@ -374,6 +383,25 @@ def test_the_battery_watch_counts_the_rest_from_where_it_is_at_its_pace():
     for pace, flown in ((None, 360.0), ({1: 2.0}, 540.0)):
         retasker = SimpleNamespace(ctx=ctx, monitor=monitor, pace=pace or {})
         assert Retasker._flown_s(retasker, 1) == pytest.approx(flown)
+
+
+def test_a_vehicle_heard_again_after_a_silence_is_where_its_mission_is():
+    """Its reached reports lost in a silence (a radio shadow), a vehicle is flying to
+    the waypoint its mission's current item (MISSION_CURRENT, streamed) is, not to
+    the one after the last reached report: 2500 m along, flying to waypoint 3 (3000
+    m, planned at 300 s), 210 s of its sortie are left. From its last reached report
+    (waypoint 0) it was read as flying back to waypoint 1, 510 s left, and brought
+    home early (a 12-minute-battery flight at 100x with radio). Reference: the
+    route's own times, by hand."""
+    fake, vehicle, state = _watched()
+    vehicle.mission = SimpleNamespace(waypoint_of_item=[None, 0, 1, None, 2, 3, 4])
+    _stand(vehicle, state, 2500.0, 1250.0)
+    assert fake.left_s(1) == pytest.approx(460.0 - (100.0 - 150.0), abs=1.0)   # no news
+    state.mission_seq = 5                       # flying to item 5: waypoint 3
+    assert fake.left_s(1) == pytest.approx(460.0 - (300.0 - 50.0), abs=1.0)
+    state.mission_seq = 2                       # behind what it reached: that stands
+    vehicle.done = {0, 1, 2}
+    assert fake.left_s(1) == pytest.approx(460.0 - (300.0 - 50.0), abs=1.0)
 
 
 @pytest.mark.parametrize("reached", ["on arrival", "after the hold"])

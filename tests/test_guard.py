@@ -41,6 +41,8 @@ class Scripted:
     def heartbeat_age(self):
         return 0.0
 
+    silent_s = heartbeat_age
+
     def advance(self, dt):
         if not self.held:
             self.p = self.p + self.v * dt

@@ -390,3 +390,34 @@ def test_the_battery_is_read_from_its_own_report_first():
     _update_state(s, build_message("BATTERY_STATUS", {"id": 0, "battery_remaining": -1}),
                   "px4", 2)
     assert s.battery_pct == 60
+
+
+def test_after_a_silence_the_battery_and_progress_are_waited_for(monkeypatch):
+    """Heard again after a silence (more than `SILENCE_GAP_S` without any message), a
+    vehicle's battery and mission progress are the silence's age until it reports
+    them again: not caught up until both came (or `CATCH_UP_S` went by)."""
+    from gcs import link as link_module
+    from gcs.link import CATCH_UP_S, SILENCE_GAP_S, VehicleState, _update_state
+
+    clock = [100.0]
+    monkeypatch.setattr(link_module.time, "monotonic", lambda: clock[0])
+    s = VehicleState()
+
+    def hear(kind, fields, after_s=0.1):
+        clock[0] += after_s
+        _update_state(s, build_message(kind, fields), "ardupilot", 2)
+
+    hear("SYS_STATUS", {"battery_remaining": 80})
+    hear("MISSION_CURRENT", {"seq": 4})
+    assert s.caught_up                                   # never silent
+    hear("GLOBAL_POSITION_INT", {"lat": 365519720, "lon": -842666433, "alt": 700000,
+                                 "relative_alt": 60000}, after_s=SILENCE_GAP_S + 0.5)
+    assert not s.caught_up                               # a new position, old news
+    hear("SYS_STATUS", {"battery_remaining": 61})
+    assert not s.caught_up
+    hear("MISSION_CURRENT", {"seq": 19})
+    assert s.caught_up
+    hear("HEARTBEAT", {"type": 2, "autopilot": 3}, after_s=SILENCE_GAP_S + 0.5)
+    assert not s.caught_up
+    clock[0] += CATCH_UP_S + 0.1                         # a vehicle that streams neither
+    assert s.caught_up

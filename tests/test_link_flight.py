@@ -131,7 +131,7 @@ def test_a_vehicle_shot_down_in_contact_is_lost_after_lost_after(planned, tmp_pa
         fleet.kill(victim)
     report = _fly(planned, tmp_path, fleet, during=kill_in_contact)
     loss = next(x for x in report["losses"] if x["sysid"] == victim)
-    assert loss["reason"].startswith("no HEARTBEAT")
+    assert loss["reason"].startswith("nothing heard for")
     assert loss["detected_s"] - killed["at"] <= LOST_AFTER_S + 2.0 + loss["stalled_s"]
     assert [x["sysid"] for x in report["losses"]] == [victim]
     json.dumps(report)
@@ -139,8 +139,7 @@ def test_a_vehicle_shot_down_in_contact_is_lost_after_lost_after(planned, tmp_pa
 
 def test_gcs_sim_cuts_links_by_a_plans_antennas_only_when_asked(planned):
     """`gcs sim --terrain PLAN_DIR` flies on the plan's terrain with every link up;
-    `--radio` cuts each by the plan's antennas, as `gcs fly --sim-radio` does (on by
-    default, a busy machine's late returns read as losses in the suite's flights);
+    `--radio` cuts each by the plan's antennas, as `gcs fly --sim-radio` does;
     `--radio` without a plan directory to take antennas from is refused."""
     from common.errors import InputError
     from gcs.cli import build_parser

@@ -51,6 +51,8 @@ class _Link:
     def heartbeat_age(self):
         return time.monotonic() - self.state.last_heartbeat
 
+    silent_s = heartbeat_age
+
     def at(self, lat, lon, alt, armed=True, seq=None):
         """A position report, then a heartbeat, from there."""
         s = self.state

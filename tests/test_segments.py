@@ -106,6 +106,49 @@ def test_segments_fit_and_fly_the_route_in_order(planned, firmware):
         missions.segment(4, missions.fly[0], 0)
 
 
+def test_segments_end_where_the_next_can_be_uploaded(planned):
+    """The next segment is uploaded as a vehicle flies its segment's last leg, so a
+    segment ends on a leg its plan has in radio contact (a predicted shadow 20 s
+    away either side) wherever the capacity leaves such an end: one ending in a
+    shadow waited there unheard and was declared lost. Where none is in reach: the
+    longest, and `unheard_ends` gives it (the flight says so before takeoff).
+    Reference: every end the capacity allows, looked at against the plan's
+    silences by hand."""
+    from dataclasses import replace
+
+    from missions.segments import SHADOW_MARGIN_S
+
+    capacity, checked_ends, unheard = 14, 0, 0
+    for route in planned.plan.vehicles:
+        missions = _route_missions(planned, route, "ardupilot")
+        deaf = _route_missions(planned, replace(route, silences=[]), "ardupilot")
+        w = route.waypoints
+
+        def heard(i, j):        # the leg from route waypoint i to j, out of every shadow
+            return all(w[j].t_s < a - SHADOW_MARGIN_S or w[i].t_s > b + SHADOW_MARGIN_S
+                       for a, b in route.silences)
+        start, index, final, ends = missions.fly[0], 0, False, []
+        while not final:
+            seg = missions.segment(capacity, start, index)
+            final = seg.final
+            if not final:
+                wps = [i for i in seg.waypoint_of_item if i is not None]
+                longest = [i for i in deaf.segment(capacity, start, index).waypoint_of_item
+                           if i is not None]
+                choices = [k for k in range(2, len(longest) + 1)
+                           if heard(longest[k - 2], longest[k - 1])]
+                if choices:
+                    assert wps == longest[:choices[-1]] and heard(wps[-2], wps[-1])
+                    checked_ends += 1
+                else:           # none in reach: the longest, and the operator is told
+                    assert wps == longest
+                    ends.append(wps[-1])
+            start, index = seg.last_waypoint, index + 1
+        assert missions.unheard_ends(capacity) == ends
+        unheard += len(ends)
+    assert checked_ends > 0 and unheard > 0
+
+
 @pytest.mark.parametrize("firmware", NAMES)
 def test_a_segment_starts_where_the_vehicle_holds_on_its_leg(planned, firmware):
     """The next segment's first position is the held vehicle's place on the proven
@@ -188,13 +231,19 @@ def test_a_flight_in_segments_on_the_simulator(planned, tmp_path, firmware):
     uploaded in flight, judged by the simulator's own record: every route
     waypoint reached in order, landed at launch, hidden all along, never off the
     proven legs (PX4 climbs straight up where it holds when its next item is
-    higher: each segment starts where the vehicle holds)."""
+    higher: each segment starts where the vehicle holds). With a link everywhere
+    (--no-sim-radio): 24 items are 9-11 waypoints, fewer than the plan's longest
+    shadows span (441 s), so some segment ends lie in a shadow whatever the cut;
+    the flight says so before takeoff (asserted), and such a vehicle would wait
+    there unheard."""
     base = free_base_port(10, 3)
     out = tmp_path / "flight"
     code = main(["fly", str(planned.dir), "--sim", "3", "--speedup", "25", "--sim-capacity",
                  "24", "--lost-after", "3", "--sim-base-port", str(base), "-o", str(out),
-                 "--firmware", firmware])
+                 "--firmware", firmware, "--no-sim-radio"])
     report = json.loads((out / "flight.json").read_text())
+    told = [e for e in report["events"] if "unheard_ends" in e]
+    assert told and all("end in predicted radio shadows" in e["event"] for e in told)
     # each segment's hold is a tenth of a wall second, 3 s of flight at 25x: the fleet
     # may drift off its separated schedule by a few of them, and then the guard acts
     assert problems_beside_guard(report) == [], report["outcome"]

@@ -34,6 +34,7 @@ from gcs.sim.battery import (
     px4_levels,
 )
 from gcs.sim.physics import PointMass
+from gcs.sim.vehicle import SimVehicle
 
 os.environ.setdefault("MAVLINK20", "1")     # the vehicles speak MAVLink 2 from the first byte
 mavutil.set_dialect("ardupilotmega")
@@ -337,6 +338,47 @@ def test_too_fast_for_the_machine_slows_mission_time_not_the_link():
     assert len(beats) >= 3 and np.diff(beats).max() < 1.5     # 1 Hz of wall time
     ran_ms = c.seen("GLOBAL_POSITION_INT")[-1].time_boot_ms - start
     assert 3e3 * 20 < ran_ms < 3.5e3 * 1e6
+
+
+@pytest.mark.parametrize("one_clock", [True, False])
+def test_a_fleet_on_a_busy_machine_keeps_one_clock(monkeypatch, one_clock):
+    """A vehicle whose thread the machine serves slowly (2 ms of extra work a physics
+    step: at 100x it keeps up with about a third of that) holds its fleet back, so
+    the fleet's clocks never run more than twice the lead apart (`gcs.sim.lockstep`;
+    a ground station counts a silent vehicle's time at the pace of the others).
+    Reference, in the same run: the same fleet with a clock each, whose clocks run
+    apart (three vehicles beside two CPU hogs once ran at 34x, 54x and 96x)."""
+    physics = SimVehicle._physics
+
+    def slow_physics(self, dt):
+        if self.sysid == 2:
+            time.sleep(0.002)
+        physics(self, dt)
+
+    monkeypatch.setattr(SimVehicle, "_physics", slow_physics)
+    fleet = SimFleet(FleetConfig(vehicles=3, base_port=free_base_port(10, 3), speedup=100.0,
+                                 **FAST))
+    if not one_clock:
+        for v in fleet.vehicles:
+            v.lockstep = None
+    fleet.start()
+    clients = [Client(u) for u in fleet.urls()]
+    try:
+        for sysid, c in enumerate(clients, start=1):
+            c.wait("HEARTBEAT", timeout=10, sysid=sysid)
+        before = np.array([v.t for v in fleet.vehicles])
+        time.sleep(3.0)
+        ran = np.array([v.t for v in fleet.vehicles]) - before
+    finally:
+        for c in clients:
+            c.close()
+        fleet.stop()
+    lead = fleet.vehicles[0]._lead_s
+    assert ran[1] < 0.6 * 100.0 * 3.0, ran         # the slow one is slow
+    if one_clock:
+        assert ran.max() - ran.min() <= 2 * lead, ran
+    else:
+        assert ran.max() - ran.min() > 5 * lead, ran
 
 
 def test_ardupilot_arming_rules():

@@ -6,6 +6,7 @@ its outposts, 4 UAVs from one base, RT with k = 1), writes every output of
 down partway, re-tasks the survivors and ends with the coverage report.
 """
 
+import argparse
 from importlib import resources
 from pathlib import Path
 
@@ -23,9 +24,10 @@ def add_arguments(parser) -> None:
                              "(flight report, plot, tracks, tlogs); their files are replaced")
     parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="autopilot the simulated vehicles imitate")
-    parser.add_argument("--radio", action="store_true",
+    parser.add_argument("--radio", action=argparse.BooleanOptionalAction, default=False,
                         help="fly through the plan's radio shadows: each simulated link cut "
-                             "while its vehicle is out of the antenna's line of sight")
+                             "while its vehicle is out of the antenna's line of sight "
+                             "(opt-in for now: docs/flying.md says why)")
     parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
                         help="simulated time runs X times faster than the wall clock")
     parser.add_argument("--kill", type=int, default=2, metavar="SYSID",

@@ -1,5 +1,6 @@
 """`gcs fly`: upload, start, monitor, re-task survivors on losses, land, report."""
 
+import argparse
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -28,7 +29,8 @@ def add_arguments(parser) -> None:
                         help="MAVLink 2 signing key: 32-byte file, or a passphrase file "
                              "(SHA-256, as MAVProxy); none = no signing")
     parser.add_argument("--lost-after", type=float, default=5.0, metavar="S",
-                        help="a vehicle silent (no HEARTBEAT) this many wall seconds is lost")
+                        help="a vehicle silent (nothing heard from it) this many wall "
+                             "seconds is lost")
     parser.add_argument("--assign", action="append", default=[], metavar="SYSID=VEHICLE",
                         help="fly plan vehicle VEHICLE with system id SYSID (repeatable; "
                              "none: system ids in ascending order take vehicles 1..n)")
@@ -98,10 +100,10 @@ def add_arguments(parser) -> None:
                      help="each battery swap powers a simulated vehicle down for S wall "
                           "seconds (its link silent, its TCP port closed), then it boots "
                           "again; 0 = a hot swap")
-    sim.add_argument("--sim-radio", action="store_true",
+    sim.add_argument("--sim-radio", action=argparse.BooleanOptionalAction, default=False,
                      help="cut each simulated link while its vehicle is out of the plan's "
-                          "antennas' radio line of sight on the plan's terrain (the shadows "
-                          "the plan predicts; gcs demo flies with them)")
+                          "antennas' radio line of sight on the plan's terrain, the shadows "
+                          "the plan predicts (opt-in for now: docs/flying.md says why)")
     sim.add_argument("--sim-capacity", type=int, metavar="N",
                      help="mission items each simulated vehicle holds (default: the "
                           "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "

@@ -41,7 +41,7 @@ HELP = {
     "viewpoint_spacing_m": "lattice spacing of candidate viewpoints in metres "
                            "(default: from the sensor range)",
     "uavs": "number of UAVs",
-    "mast_m": "height of the ground station's antenna above the ground at the first base, "
+    "mast_m": "height of the antenna at each base above the ground, "
               "metres, when no --antenna is given",
     "radio_mhz": "frequency of the telemetry radio, MHz: its Fresnel zone must clear the "
                  "terrain",
@@ -192,7 +192,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                                metavar="LAT,LON[,MAST_M]",
                                help="the ground station's antenna, or a relay's, repeatable: "
                                     "the plan predicts where each vehicle is out of their "
-                                    "line of sight (default: at the first --launch, --mast "
+                                    "line of sight (default: one at each --launch base, --mast "
                                     "above the ground)")
         if title == "method":
             group.add_argument("--method", choices=METHODS, help=_help("method"))

@@ -91,9 +91,8 @@ def add_arguments(parser) -> None:
                             "is cut while no antenna has it in radio line of sight on the "
                             "--terrain")
     radio.add_argument("--radio", action="store_true",
-                       help="cut each link by a plan directory's antennas (opt-in, as gcs fly "
-                            "--sim-radio: on a busy machine a simulator slower than its "
-                            "speed-up brings a vehicle back late, and it reads as a loss)")
+                       help="cut each link by a plan directory's antennas (the shadows its "
+                            "plan predicts, as gcs fly --sim-radio and gcs demo --radio do)")
     io.add_argument("--pty", action="store_true",
                     help="serve each vehicle on a pseudo-terminal (a serial link: connect "
                          "with DEVICE,BAUD) instead of its SITL network endpoint")

@@ -27,6 +27,10 @@ FRESH_BATTERY_PCT = 95
 #: fleet seconds of a sortie, and % of its battery drawn, before its rate of draw is
 #: trusted by the battery watch
 WATCH_AFTER_S, WATCH_AFTER_PCT = 120.0, 8
+#: route seconds a vehicle must move on along its route before its pace is timed
+#: from there: a hold's resume reaches it a loop or more after the ground station
+#: sent it (at 100 x on a loaded machine, 20 s of its clock standing still)
+MOVED_ON_S = 1.0
 #: a battery drawn this many times faster than its rating (the plan's endurance) is
 #: not trusted: the vehicle comes home early and stays down
 FAST_DRAIN = 1.25
@@ -91,7 +95,7 @@ class Batteries:
         self.waiting_s = waiting_s
         self.waiting = {}         # sysid -> the sortie waiting for a fresh battery
         self.swapped = set()      # sysids whose battery swap the operator confirmed
-        self._route_seen = {}     # sysid -> (route, own clock s, route time s) first seen
+        self._route_seen = {}     # sysid -> (route, own clock s, route time s, moved on)
         self._pace = {}           # sysid -> times slower than planned on its route so far
         self.paces = {}           # sysid -> {sortie: its pace when last timed} (the report's)
         self.late = {}            # the same, for those the watch brought home
@@ -172,7 +176,8 @@ class Batteries:
             # rated draw on a vehicle drawing as rated)
             flown = own - own0 if None not in (own, own0) else (m.now() - began.t0) * rate
             if v.state not in (FLYING, HOLDING) or None in (pct0, pct) or \
-                    flown < WATCH_AFTER_S or pct0 - pct < WATCH_AFTER_PCT:
+                    flown < WATCH_AFTER_S or pct0 - pct < WATCH_AFTER_PCT or \
+                    not state.caught_up:        # just out of a silence: news to come
                 continue
             left_s = self.left_s(sysid)
             # the charge is timed by the vehicle's clock at the first report after it
@@ -261,10 +266,17 @@ class Batteries:
             # its pace is timed from where it flies this route: not while a re-plan
             # holds it until its time (one so held read 6.8 times slower), nor while
             # the separation guard holds it
-            self._route_seen[sysid] = (v.route, own, at)
+            self._route_seen[sysid] = (v.route, own, at, False)
             self._pace.pop(sysid, None)
             return left
-        _, own0, at0 = seen
+        _, own0, at0, moved = seen
+        if not moved:
+            # nor until it has moved on: a resume still on its way to it (read 1.17
+            # times slower, on CI, at 100 x, where it flew as planned)
+            moved = at > at0 + MOVED_ON_S
+            self._route_seen[sysid] = (v.route, own0 if moved else own, at0, moved)
+            if not moved:
+                return left
         if own - own0 >= WATCH_AFTER_S and at > at0:
             self._pace[sysid] = max(1.0, (own - own0) / (at - at0))
             left *= self._pace[sysid]

@@ -31,7 +31,7 @@ from gcs.link import GroundLink, LinkError
 from gcs.mission_protocol import MissionError
 from gcs.monitor import LANDED, LOST, WAITING, Monitor
 from gcs.retask import Retasker, RetaskError, in_parallel
-from gcs.segments import Segments, upload_route
+from gcs.segments import Segments, segment_capacity, upload_route
 from missions.build import vehicle_mission
 from missions.check import checked
 from missions.segments import RouteMissions, fewer_waypoints
@@ -308,8 +308,24 @@ class Flight:
             whole = len(missions[sysid])
             m.event(sysid, "mission uploaded and verified", items=len(mission),
                     **({} if mission.final else {"route_items": whole, "segment": 1}))
+            if not mission.final:
+                self._unheard_ends(sysid, missions[sysid])
 
         self.state.on_every(one, "upload", (MissionError, InputError))
+
+    def _unheard_ends(self, sysid, missions) -> None:
+        """Said before takeoff: segment ends its plan has in a radio shadow, where the
+        next segment cannot be uploaded (the vehicle waits there unheard, and is
+        declared lost when overdue)."""
+        capacity = segment_capacity(self.monitor.links[sysid], self.options.max_items)
+        ends = missions.unheard_ends(capacity)
+        if ends:
+            self.monitor.event(
+                sysid, f"{len(ends)} of its segments of {capacity} items end in predicted "
+                       "radio shadows, where the next cannot be uploaded: it will wait there "
+                       "unheard, and be declared lost when overdue (a vehicle holding more "
+                       "items, or an --antenna in sight of those legs, avoids it)",
+                unheard_ends=ends)
 
     def start(self) -> None:
         """The fleet clock starts; every vehicle takes off at its planned time

@@ -121,9 +121,20 @@ class FlightState:
 
 
 def next_waypoint(monitor, sysid) -> int:
-    """Index of the route waypoint a vehicle flies to next."""
-    done = monitor.vehicles[sysid].done
-    return max(done) + 1 if done else 0
+    """Index of the route waypoint a vehicle flies to next: the one after the last it
+    reached, or the one its mission's current item (MISSION_CURRENT) is, when
+    further on. A link silent for a while loses the reached reports of what was
+    flown meanwhile: heard again 200 s of flight later (2 s at 100 x), a vehicle was
+    taken for still flying to the waypoint before the silence, 5 minutes late, and
+    brought home early."""
+    v = monitor.vehicles[sysid]
+    after = max(v.done) + 1 if v.done else 0
+    seq = monitor.links[sysid].state.mission_seq
+    of_item = v.mission.waypoint_of_item if v.mission is not None else None
+    if seq is None or not of_item:
+        return after
+    ahead = next((i for i in of_item[int(seq):] if i is not None), None)
+    return after if ahead is None else max(after, ahead)
 
 
 def homebound(monitor, sysid) -> bool:

@@ -19,6 +19,7 @@ from pathlib import Path
 from autopilots import ARDUPILOT, firmware_of
 from gcs.sim.faults import FaultPlan
 from gcs.sim.flavours import flavour
+from gcs.sim.lockstep import Lockstep
 from gcs.sim.physics import DEFAULT_HOME, PLANNED_RATES, Limits
 from gcs.sim.track import track_path
 from gcs.sim.vehicle import FIRMWARE_CAPACITY, SimVehicle, VehicleConfig
@@ -106,7 +107,8 @@ KILL_WAIT_S = 30.0
 class SimFleet:
     def __init__(self, config: FleetConfig):
         self.config = config
-        self.vehicles = [SimVehicle(c) for c in config.vehicle_configs()]
+        self.lockstep = Lockstep()
+        self.vehicles = [SimVehicle(c, self.lockstep) for c in config.vehicle_configs()]
         self._threads = []
 
     def start(self) -> "SimFleet":
@@ -179,8 +181,8 @@ class SimFleet:
     def wait_removed(self, sysid: int, timeout_s: float = 60.0) -> float:
         """Wait until vehicle ``sysid`` has been shot down (by a fault plan or
         `kill`); its mission time (s) then. TimeoutError after ``timeout_s`` wall
-        seconds: each vehicle runs on its own mission clock, which a busy machine
-        slows, so a caller waits on this event, not on a wall-clock guess."""
+        seconds: the fleet's clock is one a busy machine slows, so a caller waits
+        on this event, not on a wall-clock guess."""
         v = self.vehicle(sysid)
         if not v.removed.wait(timeout_s):
             raise TimeoutError(f"simulated vehicle {sysid} was not removed within "

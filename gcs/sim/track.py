@@ -16,8 +16,9 @@ couple of wall seconds and when the vehicle stops or is killed::
 
 Samples are taken every 0.1 s of mission time (10 Hz; never more than 0.15 s
 apart) and at boot, touchdown and kill. Each vehicle's mission time is its own
-(a busy machine slows each simulator differently), so tracks of a fleet are
-compared on the wall clock, the one they share (``wall``). While the ground
+(counted from its boot; a fleet's clocks stay within a few ticks of each other,
+`gcs.sim.lockstep`), so tracks of a fleet are compared on the wall clock, the
+one they share (``wall``). While the ground
 station in the same process computes (`gcs.busy`: a re-plan, an upload) the
 simulator runs at real time, and says for how long (``real_time_s``).
 """

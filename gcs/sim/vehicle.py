@@ -6,7 +6,7 @@ The vehicle runs in its own thread (`run`). Two clocks: telemetry rates, the
 GPS/EKF warm-up, the no-upload second after boot and link cuts run on the wall
 clock, so a ground station's timeouts behave as in the field; flight physics,
 mission hold times and the track run on mission time, which advances `speedup`
-times faster.
+times faster (in a fleet, no further than its slowest vehicle: `gcs.sim.lockstep`).
 """
 
 import math
@@ -37,6 +37,9 @@ TICK_S = 0.02            # wall period of the vehicle loop
 PHYSICS_STEP_S = 0.05    # largest mission-time step of the point mass
 RADIO_PERIOD_S = 0.5     # mission s between two looks of the radio's line of sight
 STEP_BUDGET_S = TICK_S   # wall time one tick may spend stepping mission time
+#: ticks of mission time (at the speed-up) a vehicle of a fleet may step ahead of its
+#: slowest vehicle (`gcs.sim.lockstep`), and the least such lead (mission s)
+LEAD_TICKS, LEAD_MIN_S = 3, 0.5
 #: wall seconds after a landing before a swap may power the autopilot down: a crew
 #: needs that long (at a speed-up, `swap_s` of mission time can be less than the
 #: second between two HEARTBEATs: the ground station would not know it landed)
@@ -101,8 +104,11 @@ class _LinkWriter:
 
 
 class SimVehicle:
-    def __init__(self, cfg: VehicleConfig):
+    def __init__(self, cfg: VehicleConfig, lockstep=None):
+        """``lockstep``: its fleet's `gcs.sim.lockstep.Lockstep` (None: its own clock)."""
         self.cfg = cfg
+        self.lockstep = lockstep
+        self._lead_s = max(LEAD_MIN_S, LEAD_TICKS * TICK_S * cfg.speedup)
         self.flavour = fl.flavour(cfg.firmware)
         self.sysid = cfg.sysid
         self.mav = M.MAVLink(_LinkWriter(self), srcSystem=cfg.sysid,
@@ -197,6 +203,8 @@ class SimVehicle:
     def _boot(self, now: float) -> None:
         """Start the autopilot (ArduPilot SITL: when the first client connects)."""
         self.boot_wall = now
+        if self.lockstep is not None:
+            self.lockstep.join(self)
         self.mission.booted(now)
         warm = self.cfg.warmup_s
         boot = self.flavour.boot
@@ -234,6 +242,8 @@ class SimVehicle:
                     last = now
                     next_tick = max(next_tick + TICK_S, now)
         finally:
+            if self.lockstep is not None:
+                self.lockstep.leave(self)
             if not self.dead:
                 self.link.close()
                 self.track.flush(complete=True)
@@ -250,6 +260,8 @@ class SimVehicle:
         self.track.event(self.t, f"killed: {reason}")
         self._sample(force=True)
         self.dead = True
+        if self.lockstep is not None:
+            self.lockstep.leave(self)
         self.link.close()
         self.track.flush(complete=True)
         self.removed.set()
@@ -289,7 +301,10 @@ class SimVehicle:
             speed = 1.0
             self.track.real_time_s += wall_dt
         remaining = wall_dt * speed
+        if self.lockstep is not None:     # the fleet's one clock: not past its slowest
+            remaining = min(remaining, self.lockstep.allowed(self, self._lead_s))
         give_up = time.monotonic() + STEP_BUDGET_S
+        t0 = self.t
         while remaining > 1e-9 and not self.dead and time.monotonic() < give_up:
             dt = min(PHYSICS_STEP_S, remaining)
             remaining -= dt
@@ -300,6 +315,8 @@ class SimVehicle:
             self._scheduled_faults(now)
             self._radio_shadow()
             self._sample()
+        if self.lockstep is not None:
+            self.lockstep.stepped(self, self.t - t0)
         if self.dead:
             return
         self.mission.tick(now)
