@@ -96,6 +96,15 @@ def _uncommanded_said(profile, mode: str) -> str:
     return (f"flying in {mode}, a mode gcs did not command (a pilot's or a failsafe's): "
             "what it flies there is not proven hidden")
 
+def _own_at(state, mono: float) -> float | None:
+    """A vehicle's own clock (s since boot) at ``mono`` (time.monotonic()): its latest
+    report's, carried on at its clock's rate; None unknown."""
+    boot_s, boot_at = getattr(state, "boot_s", None), getattr(state, "boot_at", None)
+    if boot_s is None or boot_at is None:
+        return None
+    return boot_s + (mono - boot_at) * getattr(state, "clock_rate", 1.0)
+
+
 def _note_airborne(v, armed: bool, agl) -> None:
     """Armed away from home height, above it or below it (a route over lower ground
     than the launch point): flying. Judged on every position report too: at a high
@@ -678,25 +687,21 @@ class Monitor:
         (20 s of its clock at 100x), progress over a few waypoints read up to twice
         the plan's, and a vehicle due back from a shadow 1.8 s (180 s of flight)
         before it was."""
-        s = self.links[v.sysid].state
-        boot_s, boot_at = getattr(s, "boot_s", None), getattr(s, "boot_at", None)
-        if boot_s is None or boot_at is None:
-            return boot_s
-        return boot_s + (time.monotonic() - boot_at) * getattr(s, "clock_rate", 1.0)
+        return _own_at(self.links[v.sysid].state, time.monotonic())
 
     def _last_heard(self, v, state, age) -> tuple:
         """(monitor s, its own clock then) of the last time a vehicle was heard: its
-        last HEARTBEAT, ``age`` s ago, or its last report with a time since boot,
+        last message, ``age`` s ago, or its last report with a time since boot,
         whichever is later (a sped-up simulator's HEARTBEATs come on the wall clock,
         its reports on its own)."""
         heard = self.now() - age
-        boot_s, boot_at = getattr(state, "boot_s", None), getattr(state, "boot_at", None)
-        if boot_s is None or boot_at is None:
+        boot_at = getattr(state, "boot_at", None)
+        if boot_at is None:
             return heard, None
         report = boot_at - self.t0
         if report >= heard:
-            return report, boot_s
-        return heard, boot_s + (heard - report) * v.contact.clock_rate
+            return report, state.boot_s
+        return heard, _own_at(state, heard + self.t0)
 
     def _pace_unheard(self, v) -> float:
         """Fleet seconds per monitor second of a silent vehicle: its own pace on its

@@ -49,9 +49,3 @@ class Lockstep:
         with self._lock:
             if member in self._t:
                 self._t[member] += dt
-
-    def spread_s(self) -> float:
-        """How far apart the members' times are now (0 with fewer than two)."""
-        with self._lock:
-            times = list(self._t.values())
-        return max(times) - min(times) if len(times) > 1 else 0.0
