@@ -14,7 +14,7 @@ import numpy as np
 
 from autopilots import firmware_of
 from common.errors import InputError
-from planner.link import silences
+from planner.link import fleet_silences
 from planner.terrain.dem import VOID_FILL_MARGIN_M
 from planner.visibility.unseen import OUTSIDE, area_summary
 
@@ -24,8 +24,10 @@ from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .returns import returns
 
 
-def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds):
-    """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time."""
+def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds,
+              checkins=None):
+    """The `Plan`; ``bounds``: (radius bound, best lower bound) of its coverage time;
+    ``checkins``: what --max-silence did (`planner.link.checkins.CheckIns`)."""
     s = ctx.scenario
     # k + 1 (or the re-plan's need), or one per place where fewer places see it; a
     # target only a viewpoint beyond one battery sees still counts as not covered
@@ -35,7 +37,7 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
     ranks = list(dict.fromkeys(fleet.sorties[i].uav for i in fleet.schedule.order))
     vehicles = [_vehicle(ctx, r, fleet, starts[r] if starts else None, ranks)
                 for r in range(len(allocation.routes))]
-    link = _link(ctx, fleet, vehicles)
+    link = _link(ctx, fleet, vehicles, checkins)
     lengths = [v.path_length_m for v in vehicles]
     sched = fleet.schedule
     closest = None if sched.closest is None else \
@@ -149,7 +151,7 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
         tlon, tlat = _lonlat(ctx, trajectory.xyz)
         rows += [[round(float(t), 3), float(a), float(b), float(z)]
                  for t, a, b, z in zip(trajectory.t, tlon, tlat, trajectory.xyz[:, 2])]
-        sorties.append({"takeoff_s": _leaves(profile, timing), "landing_s": trajectory.end,
+        sorties.append({"takeoff_s": fleet.airborne(i)[0], "landing_s": trajectory.end,
                         "flight_s": fleet.flight_s(i), "length_m": _length(f.poly),
                         "waypoints": [first_waypoint, len(waypoints)],
                         "base": _lonlat_alt(_geo(ctx, f.base)),
@@ -166,24 +168,20 @@ def _vehicle(ctx, r, fleet, start, ranks) -> VehicleRoute:
                         land=land if land != launch else None)
 
 
-def _link(ctx, fleet, vehicles) -> Optional[dict]:
+def _link(ctx, fleet, vehicles, checkins) -> Optional[dict]:
     """Each vehicle's predicted silences (`VehicleRoute.silences`, set here) and the
-    metrics of the link: None without an antenna (no --antenna, no --launch)."""
+    metrics of the link: None without an antenna (no --antenna, no --launch); with
+    --max-silence, what its check-ins kept of it (``max_silence``; an area planned in
+    parts has none: its parts' routes are joined after their travel times are gone)."""
     antennas, radio = ctx.scenario.link()
     if not antennas:
         return None
     per_vehicle = []
     for r, v in enumerate(vehicles):
-        sorties = fleet.of(r)
-        if not sorties:
+        if not fleet.of(r):
             continue
-        timings = [fleet.schedule.timings[i] for i in sorties]
-        rows = np.concatenate([np.column_stack([t.trajectory.t, t.trajectory.xyz])
-                               for t in timings])
-        airborne = [(_leaves(fleet.profiles[i], t), float(t.trajectory.end))
-                    for i, t in zip(sorties, timings)]
         try:
-            quiet = silences(ctx.terrain, antennas, radio, rows, airborne)
+            quiet = fleet_silences(ctx.terrain, antennas, radio, fleet, r)
         except ValueError as exc:
             raise InputError("--antenna", str(exc)) from None
         v.silences = [[round(a, 1), round(b, 1)] for a, b in quiet.windows]
@@ -191,13 +189,31 @@ def _link(ctx, fleet, vehicles) -> Optional[dict]:
                             "silent_s": quiet.silent_s, "longest_s": quiet.longest_s,
                             "airborne_s": quiet.airborne_s})
     airborne = sum(x["airborne_s"] for x in per_vehicle)
-    return {"antennas": [[a.lat, a.lon, a.mast_m] for a in antennas],
-            "radio": {"mhz": radio.frequency_mhz, "range_m": radio.range_m,
-                      "fresnel": radio.fresnel, "near_m": radio.near_m},
-            "share": round(sum(x["silent_s"] for x in per_vehicle) / airborne, 4)
-            if airborne else 0.0,
-            "longest_s": max((x["longest_s"] for x in per_vehicle), default=0.0),
-            "vehicles": per_vehicle}
+    out = {"antennas": [[a.lat, a.lon, a.mast_m] for a in antennas],
+           "radio": {"mhz": radio.frequency_mhz, "range_m": radio.range_m,
+                     "fresnel": radio.fresnel, "near_m": radio.near_m},
+           "share": round(sum(x["silent_s"] for x in per_vehicle) / airborne, 4)
+           if airborne else 0.0,
+           "longest_s": max((x["longest_s"] for x in per_vehicle), default=0.0),
+           "vehicles": per_vehicle}
+    if ctx.scenario.max_silence_s is not None:
+        out["max_silence"] = _max_silence(ctx, checkins)
+    return out
+
+
+def _max_silence(ctx, checkins) -> dict:
+    """plan.json's ``link.max_silence``: `CheckIns.report` and where each vehicle's
+    check-ins stand ([lat, lon, alt AMSL])."""
+    if checkins is None:
+        return {"limit_s": ctx.scenario.max_silence_s, "check_ins": [], "met": False,
+                "over_s": [], "not_applied": "planned in parts"}
+    at = []
+    for checks in checkins.checks:
+        xyz = np.array([c.xyz for c in checks], float).reshape(-1, 3)
+        lon, lat = _lonlat(ctx, xyz)
+        at.append([[float(a), float(b), round(float(z), 2)]
+                   for a, b, z in zip(lat, lon, xyz[:, 2])])
+    return {**checkins.report(), "at": at}
 
 
 def _geo(ctx, ground) -> Optional[GeoPoint]:
@@ -215,11 +231,6 @@ def _lonlat_alt(point) -> Optional[list]:
 def _length(poly) -> float:
     d = np.diff(poly, axis=0)
     return float(np.sqrt((d ** 2).sum(axis=1)).sum()) if len(poly) > 1 else 0.0
-
-
-def _leaves(profile, timing) -> float:
-    """When a vehicle leaves its start: the ground, or (in flight) where it holds."""
-    return float(timing.start_s + (0.0 if profile.on_ground[0] else timing.holds[0]))
 
 
 def _lonlat(ctx, xyz):

@@ -18,6 +18,7 @@ Each stage is a module of its own; this one runs them in order and times them:
 | the search (a coverage method; a large area in parts) | `planner.coverage`, `planner.split` |
 | the sorties' hidden polylines | `planner.sorties` |
 | the fleet clock (separation, turnarounds) | `planner.fleet.clock` |
+| check-ins in radio contact (--max-silence) | `planner.link.checkins` |
 | the `Plan` and its metrics | `planner.assembly` |
 """
 
@@ -39,6 +40,7 @@ from planner.exposure.outposts import (
     read_outpost_features,
     sample_outpost_features,
 )
+from planner.link.checkins import keep_in_touch
 from planner.terrain import load_dem, sample_terrain
 from planner.terrain.area import area_mask, areas, box_ring, read_area
 from planner.travel import build_travel_graph
@@ -235,14 +237,15 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
     request = SearchRequest(ctx, n_uavs, starts, seen, required, visited, method, params,
                             scheduler, log)
     parts = split.n_parts(len(ctx.viewpoints), s)
-    problem, allocation, prep, sorties, counts, fleet = _fleet(request, parts, timing,
-                                                                progress)
+    problem, allocation, prep, sorties, counts, fleet, checkins = _fleet(request, parts,
+                                                                          timing, progress)
     # only the reach bound holds for the whole of an area planned in parts
     with _stage("lower bound", timing, progress):
         bounds = ((split.reach_bound(problem),) * 2 if parts > 1
                   else coverage.lower_bounds(problem, strong_bound, prep,
                                              bound_budget_s(allocation.planning_s)))
-    plan = make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds)
+    plan = make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds,
+                     checkins)
     over = over_battery(fleet, s.usable_s, starts)
     if over.any():
         plan.metrics["battery"]["over_battery"] = float(max(over))
@@ -252,12 +255,14 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
 
 
 def _fleet(request, parts, timing, progress) -> tuple:
-    """(problem, allocation, prepared problem, sorties, sightings per target, `Fleet`):
-    the search, its sorties and their fleet clock, searched again on a smaller
-    battery while a sortie outgrows it (`BATTERY_TRIES` in all)."""
+    """(problem, allocation, prepared problem, sorties, sightings per target, `Fleet`,
+    `CheckIns` or None): the search, its sorties and their fleet clock (with the
+    check-ins of --max-silence), searched again on a smaller battery while a sortie
+    outgrows it (`BATTERY_TRIES` in all)."""
     ctx, starts = request.ctx, request.starts
     s = ctx.scenario
     scale, over = np.ones(2), np.zeros(2)
+    checkins = None
     in_flight = bool(starts and any(st.held is not None for st in starts))
     for attempt in range(BATTERY_TRIES):
         try:
@@ -271,6 +276,11 @@ def _fleet(request, parts, timing, progress) -> tuple:
             counts = coverage.coverage_counts(problem, allocation)
         with _stage("separation", timing, progress):
             fleet = fleet_clock(ctx, sorties, starts, problem, allocation.routes)
+        if s.max_silence_s is not None and parts == 1:
+            with _stage("check-ins", timing, progress):
+                fleet, checkins = _checked_in(ctx, problem, allocation.routes, sortie_of,
+                                              fleet, starts)
+        sorties = fleet.sorties
         # the search's times leave out the slowing at the waypoints: plan again with
         # the sorties (or, where one viewpoint alone is too far, the round trips) that
         # much shorter. In flight, not for the separation's waits: a vehicle held in
@@ -294,7 +304,20 @@ def _fleet(request, parts, timing, progress) -> tuple:
                                      f"allows (endurance {s.endurance_min:g} min less "
                                      f"{s.reserve_pct:g} % reserve), after {BATTERY_TRIES} "
                                      "tries: give a longer --endurance")
-    return problem, allocation, prep, sorties, counts, fleet
+    return problem, allocation, prep, sorties, counts, fleet, checkins
+
+
+def _checked_in(ctx, problem, routes, sortie_of, fleet, starts) -> tuple:
+    """(fleet, `CheckIns`): the fleet with check-ins that keep the scenario's
+    --max-silence where they can (`planner.link.checkins`)."""
+    def retime(checks):
+        sorties = make_sorties(ctx, problem, routes, starts, None, sortie_of, checks)
+        return fleet_clock(ctx, sorties, starts, problem, routes)
+
+    try:
+        return keep_in_touch(ctx, routes, sortie_of, fleet, retime, ctx.scenario.max_silence_s)
+    except ValueError as exc:     # an antenna off the terrain
+        raise InputError("--antenna", str(exc)) from None
 
 
 #: plans tried on a smaller battery before a sortie that outgrows it is an error

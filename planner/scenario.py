@@ -92,6 +92,8 @@ class Scenario:
     mast_m: float = 2.0  # the default antennas' masts above the ground at each base
     radio_mhz: float = 915.0  # SiK telemetry radios (RFD900, Holybro); 433 MHz in Europe
     radio_range_m: float = 5000.0  # stock dipoles: a few km in the field
+    max_silence_s: Optional[float] = None  # longest predicted silence a route may have (None:
+    #                                        any): check-ins in contact (planner.link.checkins)
     # [method]
     method: str = "alns"  # the benchmark's best (benchmarks/bench_coverage.py, bench_plan.py)
     k: int = 0
@@ -175,6 +177,12 @@ class Scenario:
                f"{_got(self.endurance_min)}")
         yield ("reserve_pct", _number(self.reserve_pct) and 0 <= self.reserve_pct < 90,
                f"must be from 0 to 90, got {_got(self.reserve_pct)}")
+        yield ("max_silence_s", self.max_silence_s is None or _positive(self.max_silence_s),
+               "must be a positive number of seconds (leave it out: any silence), got "
+               f"{_got(self.max_silence_s)}")
+        yield ("max_silence_s", self.max_silence_s is None or self.antennas or self.launch,
+               f"needs an antenna to be heard by ({n('antennas')}, or {n('launch')}: one "
+               "stands at each base)")
         yield ("resolution_m", self.resolution_m is None or _positive(self.resolution_m),
                "must be a positive number of metres (leave it out: the DEM's own), got "
                f"{_got(self.resolution_m)}")
@@ -312,7 +320,7 @@ SECTIONS = {
               "land_mps", "track_tolerance_m",
               "separation_m", "separation_margin_m", "accel_mps2", "firmware",
               "endurance_min", "reserve_pct", "turnaround_min", "land_at"),
-    "link": ("antennas", "mast_m", "radio_mhz", "radio_range_m"),
+    "link": ("antennas", "mast_m", "radio_mhz", "radio_range_m", "max_silence_s"),
     "method": ("method", "k", "visibility", "alpha", "beta", "step_time_cap_s", "time_budget_s",
                "seed", "parts"),
 }

@@ -58,34 +58,69 @@ class Sortie:
     first: bool          # the route's first: from its start (the others from a base)
     base: Optional[np.ndarray] = None   # ground point it takes off from (x, y, ground AMSL)
     lands: Optional[np.ndarray] = None  # ground point it lands at (None: no base)
+    stops: Optional[np.ndarray] = None  # the vertex of each visit and check-in, in order
 
 
-def _sortie_points(ctx, route, start, of, lands) -> list:
-    """[(visits, points, base, lands)] per sortie of one route: each from its start
-    (the first) or the point above the base the one before landed at, through its
-    viewpoints, to the point above the base it lands at (``lands``: per sortie,
-    `_landings`). ``of``: the sortie of each visit (0: the flight under way at the
-    start; a vehicle in flight whose battery cannot take it to its first viewpoint
-    flies home first, a sortie without visits)."""
+@dataclass(frozen=True)
+class CheckIn:
+    """A waypoint in radio contact that a route flies to and on from without a
+    photograph (``--max-silence``, `planner.link.checkins`): before the route's visit
+    ``before`` (its index; the route's length: after its last), in its sortie
+    ``sortie`` (that of `sortie_split`)."""
+
+    before: int
+    sortie: int
+    xyz: np.ndarray
+
+
+def flown_stops(route, of, checks=()) -> list:
+    """(sortie, viewpoint id or -1, check-in or None) of each stop of one route, in
+    the order flown: its visits, and its `CheckIn`s (in the order given, by
+    ``before``) where they go."""
+    out, k = [], 0
+    for q in range(len(route) + 1):
+        while k < len(checks) and checks[k].before == q:
+            out.append((checks[k].sortie, -1, checks[k]))
+            k += 1
+        if q < len(route):
+            out.append((int(of[q]), int(route[q]), None))
+    return out
+
+
+def _sortie_points(ctx, route, start, of, lands, checks=()) -> list:
+    """[(visits, points, base, lands, visit or not per stop)] per sortie of one route:
+    each from its start (the first) or the point above the base the one before
+    landed at, through its stops (viewpoints and ``checks``), to the point above the
+    base it lands at (``lands``: per sortie, `_landings`). ``of``: the sortie of each
+    visit (0: the flight under way at the start; a vehicle in flight whose battery
+    cannot take it to its first viewpoint flies home first, a sortie without
+    visits)."""
     vp = ctx.viewpoints.xyz
+    flown = flown_stops(route, of, checks)
     if start is None:
-        return [(list(route), vp[list(route)], None, None)]
+        return [(list(route), np.array([vp[e] if e >= 0 else c.xyz for _, e, c in flown],
+                                       float).reshape(-1, 3), None, None,
+                 np.array([e >= 0 for _, e, _ in flown], bool))]
     out, base = [], start.launch
     for j in range(int(of[-1]) + 1 if len(of) else 1):
-        visits = [e for e, o in zip(route, of) if o == j]
-        if not visits and j > 0:
+        stops = [(e, c) for o, e, c in flown if o == j]
+        if not stops and j > 0:
             continue
-        p = [start.xyz if j == 0 else above_launch(ctx, base)] + [vp[e] for e in visits]
+        p = [start.xyz if j == 0 else above_launch(ctx, base)] + \
+            [vp[e] if e >= 0 else c.xyz for e, c in stops]
         if lands[j] is not None:
             p.append(above_launch(ctx, lands[j]))
-        out.append((visits, np.array(p, float).reshape(-1, 3), base, lands[j]))
+        out.append(([e for e, _ in stops if e >= 0], np.array(p, float).reshape(-1, 3), base,
+                    lands[j], np.array([e >= 0 for e, _ in stops], bool)))
         base = lands[j]
     return out
 
 
-def make_sorties(ctx, problem, routes, starts, progress=None, sortie_of=None) -> list:
+def make_sorties(ctx, problem, routes, starts, progress=None, sortie_of=None,
+                 checks=None) -> list:
     """The `Sortie`s of every route: hidden polylines through its viewpoints, one
-    per battery (``sortie_of[r]``: the sortie of each visit; default one flight).
+    per battery (``sortie_of[r]``: the sortie of each visit; default one flight),
+    and through its `CheckIn`s (``checks[r]``, ordered by ``before``).
 
     Waypoints are rounded as MAVLink carries them (1e-7 degrees, float32
     altitudes) and every leg is proven again, rounded, by the same tests the
@@ -96,11 +131,12 @@ def make_sorties(ctx, problem, routes, starts, progress=None, sortie_of=None) ->
         if route or start is not None:    # a UAV without viewpoints takes off and lands
             of = np.zeros(len(route), int) if sortie_of is None else sortie_of[r]
             lands = None if start is None else _landings(ctx, problem, starts, route, of, r)
-            wanted += [(r, *w) for w in _sortie_points(ctx, route, start, of, lands)]
+            wanted += [(r, *w) for w in _sortie_points(ctx, route, start, of, lands,
+                                                        checks[r] if checks else ())]
     found = ctx.graph.route_polylines([w[2] for w in wanted],
                                       (lambda f: progress(0.8 * f)) if progress else None)
     sorties, number = [], {}
-    for n, ((r, visits, _, base, lands), got) in enumerate(zip(wanted, found)):
+    for n, ((r, visits, _, base, lands, is_visit), got) in enumerate(zip(wanted, found)):
         if got is None:
             raise InputError("plan", f"UAV {r + 1}: two of its viewpoints are not joined by a "
                                      "hidden path (a defect: the planner only pairs reachable "
@@ -111,9 +147,10 @@ def make_sorties(ctx, problem, routes, starts, progress=None, sortie_of=None) ->
         if progress is not None:
             progress(0.8 + 0.2 * (n + 1) / len(wanted))
         number[r] = number.get(r, 0) + 1
-        snap = stops[1:len(visits) + 1] if starts else stops[:len(visits)]
-        sorties.append(Sortie(r, number[r], visits, poly, np.asarray(snap, np.int64),
-                              number[r] == 1, base, lands))
+        middle = np.asarray(stops[1:len(is_visit) + 1] if starts else stops[:len(is_visit)],
+                            np.int64)
+        sorties.append(Sortie(r, number[r], visits, poly, middle[is_visit], number[r] == 1,
+                              base, lands, middle))
     return sorties
 
 

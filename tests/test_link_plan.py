@@ -90,3 +90,66 @@ def test_a_vehicle_behind_a_ridge_is_silent_there_and_only_there():
     for a, b in found.windows:
         assert all(blocked[int(s)] for s in range(int(a), int(b) + 1) if s < 600)
     assert found.airborne_s == 600.0 and found.longest_s <= found.silent_s
+
+
+def _excess(plan, aims) -> float:
+    """Seconds of the plan's predicted silences past each vehicle's aim, summed."""
+    return sum(max(b - a - aim, 0.0) for v, aim in zip(plan.vehicles, aims)
+               for a, b in v.silences)
+
+
+def test_max_silence_checks_in_where_the_antenna_hears_and_keeps_the_photographs(planned):
+    """--max-silence on the shared plan (silences of 3-7 min): the check-ins stand where
+    the brute-force ray from the antenna clears the Fresnel zone, the silences past
+    the limit are shorter in all than without them, each vehicle's overrun is said as
+    its longest silence less the limit, nothing photographed is lost, and the
+    missions written from the plan pass their proofs."""
+    from dataclasses import replace
+
+    from conftest import _small_plan
+
+    from gcs.plan_folder import write_plan_folder
+    from planner.link import antenna_eyes
+    from planner.pipeline import plan_mission
+
+    limit = 120.0
+    scenario, terrain, outposts = _small_plan()
+    ctx, outcome = plan_mission(replace(scenario, max_silence_s=limit), terrain=terrain,
+                                outposts=outposts)
+    link, before = outcome.plan.metrics["link"], planned.plan
+    kept = link["max_silence"]
+    assert sum(kept["check_ins"]) > 0, "the shared plan has silences a check-in breaks"
+    # the floor is a lower bound: no plan through the same viewpoints is under it
+    for plan in (before, outcome.plan):
+        for v, floor in zip(plan.metrics["link"]["vehicles"], kept["floor_s"]):
+            assert v["longest_s"] >= floor - 2.0
+    aims = [max(limit, f) for f in kept["floor_s"]]
+    assert _excess(outcome.plan, aims) < _excess(before, aims)
+    for v, over in zip(link["vehicles"], kept["over_s"]):
+        assert over == pytest.approx(max(v["longest_s"] - limit, 0.0))
+    assert kept["met"] == (max(v["longest_s"] for v in link["vehicles"]) <= limit)
+    eye = antenna_eyes(terrain, ctx.scenario.link()[0])[0]
+    slack = RADIO.fresnel * math.sqrt(RADIO.wavelength_m * kernels.SUB_M) + 1e-3
+    for lat, lon, alt in (p for at in kept["at"] for p in at):
+        row, col = terrain.rowcol(*terrain.from_lonlat(lon, lat))
+        if CELL * math.hypot(col - eye[0], row - eye[1]) > RADIO.near_m:
+            assert sampled_margin(terrain.height, eye, (float(col), float(row), alt),
+                                  RADIO.wavelength_m, RADIO.fresnel, n=4001) >= -slack
+    # check-ins take no photographs: every viewpoint and target as before
+    shots = [sorted((w.lat, w.lon) for w in v.waypoints if w.snapshot) for v in before.vehicles]
+    assert [sorted((w.lat, w.lon) for w in v.waypoints if w.snapshot)
+            for v in outcome.plan.vehicles] == shots
+    for key in ("covered", "k_covered", "snapshots"):
+        assert outcome.plan.metrics[key] == before.metrics[key]
+    write_plan_folder(planned.dir.parent / "checked-in", ctx, outcome)
+
+
+def test_max_silence_needs_a_radio_to_be_heard_by():
+    """Without an antenna or a base there is no silence to keep short: refused, named."""
+    from common.errors import InputError
+    from planner.scenario import Scenario
+
+    with pytest.raises(InputError, match="max_silence_s needs an antenna"):
+        Scenario(sample=True, max_silence_s=60.0).validate()
+    with pytest.raises(InputError, match="positive number of seconds"):
+        Scenario(sample=True, max_silence_s=-1.0, launch=[(36.5, -84.2)]).validate()

@@ -46,6 +46,9 @@ HELP = {
     "radio_mhz": "frequency of the telemetry radio, MHz: its Fresnel zone must clear the "
                  "terrain",
     "radio_range_m": "range of the telemetry radio, metres",
+    "max_silence_s": "longest a vehicle may be out of radio contact, seconds: routes check "
+                     "in where they would be silent longer, and the plan says by how much "
+                     "it could not keep it (default: any silence)",
     "speed_mps": "horizontal cruise speed, m/s",
     "climb_mps": f"climb rate, m/s (default: the firmware's, {defaults_text('climb_mps')})",
     "descent_mps": f"descent rate, m/s (default: the firmware's, "
@@ -169,7 +172,7 @@ def add_scenario_arguments(parser, with_scenario_file=True, groups=SCENARIO_GROU
                   "separation_m", "separation_margin_m", "accel_mps2", "endurance_min",
                   "reserve_pct",
                   "turnaround_min"),
-        "radio link": ("mast_m", "radio_mhz", "radio_range_m"),
+        "radio link": ("mast_m", "radio_mhz", "radio_range_m", "max_silence_s"),
         "method": ("k", "alpha", "beta", "step_time_cap_s", "time_budget_s", "seed", "parts"),
     }
     for title, names in fields_of.items():

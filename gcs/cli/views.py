@@ -98,7 +98,27 @@ def link_line(plan) -> str:
     radio = link["radio"]
     return (f"radio link ({sites}; {radio['mhz']:g} MHz, {radio['range_m'] / 1000:g} km): "
             f"out of contact {100 * link['share']:.0f} % of the fleet's airborne time; "
-            f"by vehicle {each}")
+            f"by vehicle {each}" + _max_silence(link.get("max_silence")))
+
+
+def _max_silence(kept) -> str:
+    """What --max-silence kept (`planner.link.checkins`), after the link line."""
+    if kept is None:
+        return ""
+    if kept.get("not_applied"):
+        return f"; --max-silence {kept['limit_s']:g} s not applied: {kept['not_applied']}"
+    n = sum(kept["check_ins"])
+    cost = (f"{n} check-in(s) in contact, {kept['coverage_time_added_s'] / 60:+.1f} min of "
+            "coverage time")
+    if kept["met"]:
+        return f"; --max-silence {kept['limit_s']:g} s kept: {cost}"
+    floors = kept.get("floor_s") or [0.0] * len(kept["over_s"])
+    over = ", ".join(f"{r + 1}: {o:.0f} s (no route through its viewpoints under "
+                     f"{f:.0f} s)" for r, (o, f) in enumerate(zip(kept["over_s"], floors))
+                     if o > 0)
+    return (f"; --max-silence {kept['limit_s']:g} s NOT kept ({cost}): longest silence over "
+            f"it by vehicle {over}; an antenna or relay nearer those routes would shorten "
+            "them")
 
 
 def rates_line(plan) -> str:

@@ -37,12 +37,28 @@ class Fleet:
     def snapshot_times(self, r) -> np.ndarray:
         """Fleet-clock time of UAV r's snapshots: when it leaves them (a camera
         fires once its waypoint, hold included, is done)."""
-        out = [np.zeros(0)]
-        for i in self.of(r):
-            t, profile = self.schedule.timings[i], self.profiles[i]
-            out.append(profile.arrivals(t.start_s, t.holds)[1][self.sorties[i].snap
-                                                               + profile.route[0]])
-        return np.concatenate(out)
+        return np.concatenate([np.zeros(0)] + [self.leave_times(i) for i in self.of(r)])
+
+    def leave_times(self, i, vertices=None) -> np.ndarray:
+        """Fleet-clock time flight i leaves each of its visits (as `snapshot_times`), or
+        each of its polyline's ``vertices``."""
+        t, profile = self.schedule.timings[i], self.profiles[i]
+        at = self.sorties[i].snap if vertices is None else np.asarray(vertices, np.int64)
+        return profile.arrivals(t.start_s, t.holds)[1][at + profile.route[0]]
+
+    def airborne(self, i) -> tuple:
+        """(leaves its start, touches down) of flight i on the fleet clock: it leaves
+        the ground, or (in flight) where it holds first."""
+        t, profile = self.schedule.timings[i], self.profiles[i]
+        return (float(t.start_s + (0.0 if profile.on_ground[0] else t.holds[0])),
+                float(t.trajectory.end))
+
+    def track(self, r) -> np.ndarray:
+        """UAV r's trajectory rows (t, x, y, alt AMSL) on the fleet clock, its flights
+        one after the other."""
+        rows = [np.column_stack([t.trajectory.t, t.trajectory.xyz])
+                for t in (self.schedule.timings[i] for i in self.of(r))]
+        return np.concatenate(rows) if rows else np.zeros((0, 4))
 
     def flight_s(self, i) -> float:
         """Flight i's time from takeoff (or, in flight, from now) to touchdown, waits

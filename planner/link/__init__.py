@@ -145,5 +145,12 @@ def silences(terrain, antennas, radio: Radio, trajectory, flights, step_s=STEP_S
     return Silences(windows, airborne, float(step_s * np.count_nonzero(~heard)))
 
 
-__all__ = ["Antenna", "Radio", "Silences", "antenna_eyes", "contact_at", "in_contact",
-           "silences"]
+def fleet_silences(terrain, antennas, radio: Radio, fleet, r) -> Silences:
+    """UAV r's silences on the fleet clock of a `planner.fleet.clock.Fleet`: its
+    trajectory while it is in the air."""
+    return silences(terrain, antennas, radio, fleet.track(r),
+                    [fleet.airborne(i) for i in fleet.of(r)])
+
+
+__all__ = ["Antenna", "Radio", "Silences", "antenna_eyes", "contact_at", "fleet_silences",
+           "in_contact", "silences"]

@@ -419,9 +419,10 @@ class TravelGraph:
         return self._strong
 
     # --- times ------------------------------------------------------------------------
-    def times_from(self, xyz) -> np.ndarray:
-        """[n_points, n_nodes] shortest times (s) from the nodes under the points."""
-        return dijkstra(self.csr, directed=True, indices=self.nodes_of(xyz))
+    def times_from(self, xyz, limit_s=np.inf) -> np.ndarray:
+        """[n_points, n_nodes] shortest times (s) from the nodes under the points (inf
+        past ``limit_s``: only the nearer nodes are searched)."""
+        return dijkstra(self.csr, directed=True, indices=self.nodes_of(xyz), limit=limit_s)
 
     def times_to(self, xyz) -> np.ndarray:
         """[n_points, n_nodes] shortest times (s) from every node to the nodes under the points."""
