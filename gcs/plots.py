@@ -369,6 +369,35 @@ def draw_beyond_battery(ax, terrain, plan) -> None:
             label=f"viewpoint beyond one battery ({len(at)}): not flown to")
 
 
+def draw_link(ax, terrain, plan) -> None:
+    """The radio link the plan predicts (`planner.link`): its antennas, each stretch
+    of route out of their contact (a vehicle's ``silences`` along its trajectory) and
+    the check-ins of --max-silence."""
+    link = plan.metrics.get("link")
+    if not link:
+        return
+    lat, lon, _ = np.array(link["antennas"], float).reshape(-1, 3).T
+    ax.plot(*lonlat_km(terrain, lon, lat), linestyle="none", marker="^", color="white",
+            markersize=6, markeredgecolor="black", zorder=9, label="radio antenna")
+    label = (f"out of radio contact (predicted): {100 * link['share']:.0f} % of airborne "
+             f"time, longest {link['longest_s']:.0f} s")
+    for vehicle in plan.vehicles:
+        rows = np.asarray(vehicle.trajectory, float).reshape(-1, 4)
+        for a, b in vehicle.silences:
+            t = np.arange(a, b + 1.0)
+            x, y = lonlat_km(terrain, np.interp(t, rows[:, 0], rows[:, 1]),
+                             np.interp(t, rows[:, 0], rows[:, 2]))
+            ax.plot(x, y, color="black", linewidth=5.0, alpha=0.45, zorder=4.5, label=label,
+                    solid_capstyle="butt")
+            label = None
+    at = [p for checks in (link.get("max_silence") or {}).get("at", []) for p in checks]
+    if at:
+        lat, lon, _ = np.array(at, float).T
+        ax.plot(*lonlat_km(terrain, lon, lat), linestyle="none", marker="*", color="gold",
+                markersize=10, markeredgecolor="black", zorder=8,
+                label=f"check-in in radio contact ({len(at)}, --max-silence)")
+
+
 def battery_title(plan) -> str:
     """One line on what a battery allows, for a map's title ('' without an endurance)."""
     b = plan.metrics.get("battery") or {}
@@ -391,6 +420,7 @@ def overview_figure(terrain, surface, plan, unseen=None):
     draw_area(ax, terrain, plan)
     unseen_handles = draw_unseen(ax, terrain, unseen)
     draw_routes(ax, terrain, plan)
+    draw_link(ax, terrain, plan)
     draw_beyond_battery(ax, terrain, plan)
     m = plan.metrics
     title = (f"{plan.method.upper()}: {len(plan.vehicles)} UAVs, k = {m.get('k', 0)}, "
