@@ -12,10 +12,11 @@ from which one is reached after the silence began and before it has run
 The fleet is timed again after each check-in (separation waits and the slowing at
 waypoints move every later time of a vehicle), and the check-in kept only if the
 fleet's silences past the limit got shorter in all by more than the coverage time
-it added, until no silence is over the
-limit, none can be broken, or `ROUNDS` check-ins have been tried. What
-cannot be met is said: `CheckIns.over_s`, each vehicle's longest silence less the
-limit (plan.json's link metrics, the summary).
+it added, until no silence is over the limit, none can be broken, or `ROUNDS`
+check-ins have been tried. What cannot be met is said (plan.json's link metrics,
+the summary): `CheckIns.over_s`, each vehicle's longest silence less the limit, and
+`CheckIns.floor_s`, the least longest silence any route through its viewpoints can
+have (`_floors`): above the limit, only an antenna nearer those routes can help.
 """
 
 from dataclasses import dataclass, field
