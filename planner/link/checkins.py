@@ -12,11 +12,12 @@ from which one is reached after the silence began and before it has run
 The fleet is timed again after each check-in (separation waits and the slowing at
 waypoints move every later time of a vehicle), and the check-in kept only if the
 fleet's silences past the limit got shorter in all by more than the coverage time
-it added, until no silence is over the limit, none can be broken, or `ROUNDS`
-check-ins have been tried. What cannot be met is said (plan.json's link metrics,
-the summary): `CheckIns.over_s`, each vehicle's longest silence less the limit, and
-`CheckIns.floor_s`, the least longest silence any route through its viewpoints can
-have (`_floors`): above the limit, only an antenna nearer those routes can help.
+it added and no vehicle's longest got longer, until no silence is over the limit,
+none can be broken, or `ROUNDS` check-ins have been tried. What cannot be met is
+said (plan.json's link metrics, the summary): `CheckIns.over_s`, each vehicle's
+longest silence less the limit, and `CheckIns.floor_s`, the least longest silence
+any route through its viewpoints can have (`_floors`): above the limit, only an
+antenna nearer those routes can help.
 """
 
 from dataclasses import dataclass, field
@@ -79,7 +80,8 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
     where one can be found; ``retime(checks) -> Fleet`` times the fleet again with
     the check-ins ``checks`` (per UAV). A check-in is kept only where it shortens
     the fleet's silences past the limit, summed (`_excess`), by more than it adds to
-    the coverage time: one that does not (its detour as silent as what it breaks, a
+    the coverage time, and makes no vehicle's longest longer (`_better`): one that
+    does not (its detour as silent as what it breaks, a
     wait it makes another vehicle take in a shadow, a detour longer than the silence
     it saves) is taken out, and its gap not tried again. A vehicle whose viewpoints
     no route can keep within the limit (`_floors`) is aimed at its floor instead."""
@@ -91,6 +93,7 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
     aim = [max(limit_s, f) for f in done.floor_s]
 
     def excess(fleet) -> list:
+        """Per UAV, (its silences past its aim summed, its longest past it)."""
         return [_excess(fleet_silences(ctx.terrain, antennas, radio, fleet, r), aim[r])
                 for r in range(len(routes))]
 
@@ -98,8 +101,8 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
     over, before_s = excess(fleet), fleet.coverage_time_s
     for _ in range(ROUNDS):
         got = None
-        for r in sorted(range(len(routes)), key=lambda r: -over[r]):
-            if over[r] > 0:
+        for r in sorted(range(len(routes)), key=lambda r: -over[r][0]):
+            if over[r][0] > 0:
                 quiet = fleet_silences(ctx.terrain, antennas, radio, fleet, r)
                 got = _next_check_in(ctx.graph, fleet, r, routes[r], sortie_of[r],
                                      done.checks[r], heard, quiet, tried[r], aim[r])
@@ -111,8 +114,7 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
         done.checks[r].insert(gap.index, CheckIn(gap.before, gap.sortie, xyz))
         trial = retime(done.checks)
         after = excess(trial)
-        cost = trial.coverage_time_s - fleet.coverage_time_s
-        if sum(after) < sum(over) - max(cost, 0.0):
+        if _better(over, after, trial.coverage_time_s - fleet.coverage_time_s):
             fleet, over = trial, after
         else:
             del done.checks[r][gap.index]
@@ -141,9 +143,19 @@ def _floors(ctx, routes, heard) -> list:
     return out
 
 
-def _excess(quiet, limit_s) -> float:
-    """Seconds of a vehicle's silences past the limit, summed over its silences."""
-    return float(sum(max(b - a - limit_s, 0.0) for a, b in quiet.windows))
+def _excess(quiet, limit_s) -> tuple:
+    """(seconds of a vehicle's silences past the limit, summed over its silences;
+    its longest silence past the limit)."""
+    past = [max(b - a - limit_s, 0.0) for a, b in quiet.windows]
+    return float(sum(past)), max(past, default=0.0)
+
+
+def _better(over, after, cost_s) -> bool:
+    """Whether the fleet's silences ``after`` a check-in (`_excess` per UAV) are worth
+    its ``cost_s`` of coverage time: shorter past the limit in all by more than that,
+    and no vehicle's longest longer."""
+    return sum(a[0] for a in after) < sum(o[0] for o in over) - max(cost_s, 0.0) and \
+        all(a[1] <= o[1] for a, o in zip(after, over))
 
 
 def _next_check_in(graph, fleet, r, route, of, checks, heard, quiet, tried, limit_s):
