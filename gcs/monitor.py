@@ -319,10 +319,13 @@ class Monitor:
                 self.event(sysid, state)
 
     def new_mission(self, sysid: int, route, mission, fleet_s: float = 0.0) -> None:
-        """The vehicle now flies ``mission`` (a re-plan): progress restarts at its item 1.
-        One in the air is at ``fleet_s`` of ``route``'s clock now: 0 where it is held
-        until its ``takeoff_s`` (marked there, a silence soon after it flew on was
-        read that hold's length ahead of its plan)."""
+        """The vehicle now flies ``mission`` (a re-plan, a next sortie): progress restarts
+        at its item 1. One in the air is at ``fleet_s`` of ``route``'s clock now: 0
+        where it is held until its ``takeoff_s`` (marked there, a silence soon after it
+        flew on was read that hold's length ahead of its plan). One down at a base is
+        on no clock until its liftoff marks it: marked now, its wait for its takeoff
+        read as slow flight (at 150x, 2 wall s in a base column's queue halved its
+        pace, and its first shadow was not matched: a loss)."""
         with self._lock:
             v = self.vehicles[sysid]
             s = self.links[sysid].state
@@ -331,7 +334,7 @@ class Monitor:
             v.generation += 1
             v.reached, v.done = set(), set()
             v.contact.restart(route.silences, route.trajectory)
-            if v.airborne:
+            if v.airborne and v.state != LANDED:    # airborne stays set until relaunched
                 v.contact.mark(self.now(), fleet_s, self._own_clock(v))
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
 

@@ -134,3 +134,28 @@ def test_a_vehicle_a_re_plan_holds_until_its_time_is_at_its_start_meanwhile():
     monitor.new_mission(1, route, SimpleNamespace(items=[]))
     assert v.contact.fleet_time(now + 75.0) == pytest.approx(75.0, abs=0.5)
     assert v.contact.expected(now + 75.0, lost_after_s=5.0).window == (70.0, 100.0)
+
+
+def test_a_vehicle_down_at_its_base_is_on_no_clock_until_it_lifts_off():
+    """A landed vehicle given a new route (a re-plan relaunching it, its next sortie)
+    starts that route's clock at its liftoff: its wait at the base is not flight.
+    Marked when the route was sent, 300 s in its base column's queue (2 wall s at
+    150x) read as half its pace, and a shadow entered on time 120 s past its last
+    waypoint reached was taken for a silence where contact is predicted: a loss
+    (`Monitor.new_mission`, the demo at 150x)."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from gcs.monitor import LANDED
+    from planner.plan import Waypoint
+
+    monitor, route, v = _monitored()
+    route = replace(route, takeoff_s=0.0, silences=[[300.0, 500.0]],
+                    waypoints=[Waypoint(-84.2, 36.6, 700.0, t) for t in (60.0, 120.0, 180.0)])
+    v.state = LANDED                    # airborne stays set until it is relaunched
+    now = monitor.now()
+    monitor.new_mission(1, route, SimpleNamespace(items=[]))
+    assert v.contact.fleet_time(now + 100.0) is None
+    for fleet_s in (0.0, 60.0, 120.0, 180.0):    # its liftoff 300 s later, its waypoints
+        v.contact.mark(now + 300.0 + fleet_s, fleet_s)
+    assert v.contact.expected(now + 600.0, lost_after_s=5.0).window == (300.0, 500.0)
