@@ -335,7 +335,8 @@ class Monitor:
             v.reached, v.done = set(), set()
             v.contact.restart(route.silences, route.trajectory)
             if v.airborne and v.state != LANDED:    # airborne stays set until relaunched
-                v.contact.mark(self.now(), fleet_s, self._own_clock(v))
+                # placed, not timed: a hold until its time is not flight
+                v.contact.mark(self.now(), fleet_s, self._own_clock(v), timed=False)
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
 
     def set_mission(self, sysid: int, mission) -> None:
@@ -514,7 +515,8 @@ class Monitor:
         if armed and agl > LIFTOFF_M and v.lifted_at_s is None:
             v.lifted_at_s = t
             if not v.done:          # the route's takeoff: its first progress on the fleet clock
-                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v))
+                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v),
+                               timed=False)     # seen once its HEARTBEAT says it armed
         if v.airborne and v.state not in (LANDED, LOST):
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:
@@ -578,7 +580,9 @@ class Monitor:
         for index in reversed(passed):
             v.done.add(index)
             w = v.route.waypoints[index]
-            v.contact.mark(self.now(), w.t_s, self._own_clock(v))
+            # only the one reported was reached now; those before it, passed unheard
+            # (in a shadow), were reached earlier: timed now they read as a burst
+            v.contact.mark(self.now(), w.t_s, self._own_clock(v), timed=index == passed[0])
             if w.snapshot:
                 v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
                                             v.generation, index))
