@@ -77,15 +77,21 @@ class Contact:
         # (lon, lat) where the plan enters each shadow
         self._entries = [tuple(float(np.interp(a, rows[:, 0], rows[:, k])) for k in (1, 2))
                          if len(rows) else None for a, _ in self.windows]
-        self._marks = []
+        self._marks = []        # those timed: its pace is measured over them
+        self._last = None       # the latest, timed or not: where it is on its plan
 
-    def mark(self, monitor_s: float, fleet_s: float, own_s: float | None = None) -> None:
+    def mark(self, monitor_s: float, fleet_s: float, own_s: float | None = None,
+             timed: bool = True) -> None:
         """The vehicle was at fleet time ``fleet_s`` of its plan at ``monitor_s``, its
         own clock then at ``own_s`` (None: not reported) (a waypoint reached, a
-        liftoff)."""
-        self._marks.append((float(monitor_s), float(fleet_s),
-                            None if own_s is None else float(own_s)))
-        del self._marks[:-PACE_MARKS]
+        liftoff). Not ``timed``: known to be there, but not when it got there, so
+        not measured on (a liftoff seen at the HEARTBEAT that says it armed, up to a
+        wall second late: 36 s of its clock at 100x, read as twice its pace; a
+        waypoint passed in a shadow, found from the next one reported; a hold)."""
+        self._last = (float(monitor_s), float(fleet_s), None if own_s is None else float(own_s))
+        if timed:
+            self._marks.append(self._last)
+            del self._marks[:-PACE_MARKS]
 
     def set_clock_rate(self, rate: float) -> None:
         """The vehicle's own clock against the monitor's (a sped-up simulator)."""
@@ -118,9 +124,9 @@ class Contact:
     def fleet_time(self, monitor_s: float, own_s: float | None = None) -> Optional[float]:
         """Where on its plan's clock the vehicle is at ``monitor_s`` (its own clock then
         at ``own_s``, when known); None before any progress on this mission."""
-        if not self._marks:
+        if self._last is None:
             return None
-        t, f, o = self._marks[-1]
+        t, f, o = self._last
         if own_s is not None and o is not None:
             return f + (own_s - o) * self.progress
         return f + (monitor_s - t) * self.pace

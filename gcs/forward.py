@@ -97,9 +97,11 @@ class Forwarder:
             return
         packet = bytes(msg.get_msgbuf())
         routes = {(id(v.connection), v._route[1]): v._route for v in chosen}
+        # counted before it goes: a vehicle's answer, relayed back on another thread,
+        # once reached the station while this count still said nothing was passed
+        self.passed[kind] += 1
         for conn, addr in routes.values():
             self._ground._write_raw(conn, packet, addr)
-        self.passed[kind] += 1
 
     # -- end ------------------------------------------------------------------------
     def summary(self) -> str:

@@ -319,10 +319,13 @@ class Monitor:
                 self.event(sysid, state)
 
     def new_mission(self, sysid: int, route, mission, fleet_s: float = 0.0) -> None:
-        """The vehicle now flies ``mission`` (a re-plan): progress restarts at its item 1.
-        One in the air is at ``fleet_s`` of ``route``'s clock now: 0 where it is held
-        until its ``takeoff_s`` (marked there, a silence soon after it flew on was
-        read that hold's length ahead of its plan)."""
+        """The vehicle now flies ``mission`` (a re-plan, a next sortie): progress restarts
+        at its item 1. One in the air is at ``fleet_s`` of ``route``'s clock now: 0
+        where it is held until its ``takeoff_s`` (marked there, a silence soon after it
+        flew on was read that hold's length ahead of its plan). One down at a base is
+        on no clock until its liftoff marks it: marked now, its wait for its takeoff
+        read as slow flight (at 150x, 2 wall s in a base column's queue halved its
+        pace, and its first shadow was not matched: a loss)."""
         with self._lock:
             v = self.vehicles[sysid]
             s = self.links[sysid].state
@@ -331,8 +334,9 @@ class Monitor:
             v.generation += 1
             v.reached, v.done = set(), set()
             v.contact.restart(route.silences, route.trajectory)
-            if v.airborne:
-                v.contact.mark(self.now(), fleet_s, self._own_clock(v))
+            if v.airborne and v.state != LANDED:    # airborne stays set until relaunched
+                # placed, not timed: a hold until its time is not flight
+                v.contact.mark(self.now(), fleet_s, self._own_clock(v), timed=False)
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
 
     def set_mission(self, sysid: int, mission) -> None:
@@ -511,7 +515,8 @@ class Monitor:
         if armed and agl > LIFTOFF_M and v.lifted_at_s is None:
             v.lifted_at_s = t
             if not v.done:          # the route's takeoff: its first progress on the fleet clock
-                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v))
+                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v),
+                               timed=False)     # seen once its HEARTBEAT says it armed
         if v.airborne and v.state not in (LANDED, LOST):
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:
@@ -575,7 +580,9 @@ class Monitor:
         for index in reversed(passed):
             v.done.add(index)
             w = v.route.waypoints[index]
-            v.contact.mark(self.now(), w.t_s, self._own_clock(v))
+            # only the one reported was reached now; those before it, passed unheard
+            # (in a shadow), were reached earlier: timed now they read as a burst
+            v.contact.mark(self.now(), w.t_s, self._own_clock(v), timed=index == passed[0])
             if w.snapshot:
                 v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
                                             v.generation, index))

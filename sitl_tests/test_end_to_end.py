@@ -52,7 +52,9 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     crew does it unasked); ``held``:
     (sysid, other, when): the separation guard holds ``sysid`` for ``other`` as soon
     as ``when(flight)`` says so, once; ``radio``: each link cut while its vehicle
-    is out of the plan's radio line of sight (`fleets.start_backend`); ``params``:
+    is out of the plan's radio line of sight (`fleets.start_backend`; on real SITL
+    through the relay, which needs the link failsafes off that test_radio_shadows
+    sets: the cases opt in, each case without it says why); ``params``:
     {name: value} real SITL starts with; ``options``: `FlyOptions` fields to change.
     Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
@@ -327,9 +329,15 @@ def _print(name, result, cov, latency=None):
     print(text)
 
 
+def _radio(backend) -> bool:
+    """Through the plan's radio shadows on the simulated backends, as `gcs fly --sim`
+    flies; real SITL only where a case sets its link failsafes (test_radio_shadows)."""
+    return backend not in REAL_BACKENDS
+
+
 def test_no_loss_k0(planned, backend, tmp_path):
     p = planned(0, backend)
-    result = fly_case(p, backend, tmp_path)
+    result = fly_case(p, backend, tmp_path, radio=_radio(backend))
     report, tracks = result["report"], result["tracks"]
     assert report["losses"] == [] and report["replans"] == []
     assert_hidden_and_clear(p, tracks)
@@ -341,6 +349,10 @@ def test_no_loss_k0(planned, backend, tmp_path):
 
 
 def test_one_killed_k0_survivors_retasked(planned, backend, tmp_path):
+    """No radio: with it (simulated, 100x), the survivors out of contact as planned
+    were left to their plans, the one re-tasked did not reach the coverage alone
+    (1300 of 1662 targets) and the re-plan kept no done time (done_t_s None):
+    open, not looked into yet."""
     p = planned(0, backend)
     result = fly_case(p, backend, tmp_path, kills=[(2, 0.3)])
     cov = assert_one_loss_retasked(p, result, 2)
@@ -349,7 +361,7 @@ def test_one_killed_k0_survivors_retasked(planned, backend, tmp_path):
 
 def test_k1_one_killed_coverage_without_replan_need(planned, backend, tmp_path):
     p = planned(1, backend)
-    result = fly_case(p, backend, tmp_path, kills=[(3, 0.3)])
+    result = fly_case(p, backend, tmp_path, kills=[(3, 0.3)], radio=_radio(backend))
     # k = 1: the original plan alone, flown by the survivors, still sees every target once
     assert result["report"]["replans"][0]["original"]["tolerated"]
     cov = assert_one_loss_retasked(p, result, 3)
@@ -365,7 +377,10 @@ def test_one_killed_with_20_percent_packet_loss_throughout(planned, tmp_path):
     needs more) and up to 10 times (5 would fail an item 0.2 % of the time).
     At 60x the flights last about 30 s of wall time, so the survivors are mostly
     still in the air when the loss is found 8 s after the kill (a landed one is sent
-    up again when the loss leaves coverage short: ``relaunched``)."""
+    up again when the loss leaves coverage short: ``relaunched``). No radio: with
+    it, twice in two runs, a start failed (vehicle 3: no COMMAND_ACK for
+    MAV_CMD_DO_SET_MODE, then MAV_CMD_MISSION_START, after 11 tries): open, not
+    looked into yet."""
     p = planned(0, "sim")                     # packets are dropped by the simulated vehicles
     backend = "sim"
     result = fly_case(p, backend, tmp_path, kills=[(2, 0.15)], drop_pct=20.0, speedup=60.0,
@@ -376,7 +391,8 @@ def test_one_killed_with_20_percent_packet_loss_throughout(planned, tmp_path):
 
 def test_px4_flavour_one_killed(planned, tmp_path):
     """The same mission against PX4-flavoured vehicles (PX4's modes and start
-    sequence, every vehicle on one shared UDP port)."""
+    sequence, every vehicle on one shared UDP port). No radio: as
+    test_one_killed_k0_survivors_retasked."""
     p = planned(0, "sim")
     result = fly_case(p, "sim-px4", tmp_path, kills=[(2, 0.3)])
     assert {e["flavour"] for e in result["report"]["events"] if e["event"] == "connected"} \
@@ -390,7 +406,8 @@ def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
     the re-plan starts again and the others finish the job."""
     p = planned(0, backend)
     n = len(p.plan.vehicles)
-    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (n, "re-planning")])
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (n, "re-planning")],
+                      radio=_radio(backend))
     report, tracks = result["report"], result["tracks"]
     assert sorted(x["sysid"] for x in report["losses"]) == [2, n]
     for sysid in (2, n):
@@ -406,7 +423,9 @@ def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
 
 def test_ctrl_c_brings_every_vehicle_home_hidden(planned, backend, tmp_path):
     """Ctrl-C answered "home": every vehicle is re-tasked home along hidden paths
-    (never plain RTL, which would climb and fly straight) and lands at launch."""
+    (never plain RTL, which would climb and fly straight) and lands at launch. No
+    radio: one in its shadow does not hear the call home and flies its plan on
+    (with radio every target was seen, where the case judges they came home early)."""
     # Python's own SIGINT handler, which a shell's background job does not get
     # (SIGINT ignored): without it interrupt_main() does nothing
     p = planned(0, backend)
@@ -436,7 +455,8 @@ def test_route_longer_than_the_autopilot_holds(planned, backend, tmp_path):
     learned from its refusal), at 20x; PX4 SITL holds any number of items, so
     uploads are capped with --max-items 25 (the default plan's missions are of 21-40
     items since ALNS shares viewpoints; 60 was no cap at all); the simulator holds
-    40 items."""
+    40 items. No radio: segments shorter than a shadow end in it (as in
+    tests/test_segments.py); with radio the simulated case timed out at 240 s."""
     options, capacity, speedup = {}, None, None
     if backend == "ardupilot":
         p, speedup = planned(0, LONG), 20.0

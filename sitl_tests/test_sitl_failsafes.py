@@ -20,6 +20,8 @@ pytestmark = pytest.mark.timeout(600)
 
 @pytest.mark.parametrize("backend", ["sim", "ardupilot", "px4"])
 def test_failsafes_refused_then_set_read_back_and_restored(planned, tmp_path, backend):
+    """The firmware's default failsafes are refused; set, read back, and restored at
+    the end. No radio: the vehicles never leave their bases, where an antenna stands."""
     skip_unless_configured(backend)
     case = planned(0, backend)
     be = start_backend(backend, case.plan, tmp_path / "sitl")

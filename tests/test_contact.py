@@ -134,3 +134,64 @@ def test_a_vehicle_a_re_plan_holds_until_its_time_is_at_its_start_meanwhile():
     monitor.new_mission(1, route, SimpleNamespace(items=[]))
     assert v.contact.fleet_time(now + 75.0) == pytest.approx(75.0, abs=0.5)
     assert v.contact.expected(now + 75.0, lost_after_s=5.0).window == (70.0, 100.0)
+
+
+def test_a_vehicle_down_at_its_base_is_on_no_clock_until_it_lifts_off():
+    """A landed vehicle given a new route (a re-plan relaunching it, its next sortie)
+    starts that route's clock at its liftoff: its wait at the base is not flight.
+    Marked when the route was sent, 300 s in its base column's queue (2 wall s at
+    150x) read as half its pace, and a shadow entered on time 120 s past its last
+    waypoint reached was taken for a silence where contact is predicted: a loss
+    (`Monitor.new_mission`, the demo at 150x)."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from gcs.monitor import LANDED
+    from planner.plan import Waypoint
+
+    monitor, route, v = _monitored()
+    route = replace(route, takeoff_s=0.0, silences=[[300.0, 500.0]],
+                    waypoints=[Waypoint(-84.2, 36.6, 700.0, t) for t in (60.0, 120.0, 180.0)])
+    v.state = LANDED                    # airborne stays set until it is relaunched
+    now = monitor.now()
+    monitor.new_mission(1, route, SimpleNamespace(items=[]))
+    assert v.contact.fleet_time(now + 100.0) is None
+    for fleet_s in (0.0, 60.0, 120.0, 180.0):    # its liftoff 300 s later, its waypoints
+        v.contact.mark(now + 300.0 + fleet_s, fleet_s)
+    assert v.contact.expected(now + 600.0, lost_after_s=5.0).window == (300.0, 500.0)
+
+
+def test_a_mark_not_timed_places_the_vehicle_but_is_not_measured_on():
+    """A liftoff is seen at the HEARTBEAT that says the vehicle armed, up to a wall
+    second late: at 100x one was marked 36 s of its clock late, 3.6 s before its
+    first waypoint 39.4 s of its plan further on, and its pace read twice the
+    plan's: due back from its shadow 5 s (500 s of flight) early, and declared
+    overdue inside it (sitl_tests' simulated fleet with radio)."""
+    c = Contact([[225.0, 1086.0]], clock_rate=100.0)
+    c.mark(4.495, 83.0, own_s=311.06, timed=False)      # the liftoff, seen late
+    c.mark(4.534, 122.4, own_s=314.66)                   # its first waypoint
+    assert c.progress == 1.0
+    assert c.fleet_time(5.0, own_s=360.0) == pytest.approx(122.4 + 45.34)
+
+
+def test_waypoints_passed_unheard_are_not_timed_when_the_next_is_reported():
+    """Back from a shadow, a vehicle reports the waypoint it reached; those before it,
+    passed unheard, are counted then. Timed then too, a burst of three read its pace
+    1.5 times the plan's over the marks after it (sitl_tests at 100x, three
+    vehicles declared overdue in shadows they came out of on time)."""
+    import time
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from planner.plan import Waypoint
+
+    monitor, route, v = _monitored(clock_rate=100.0)
+    times = [60.0 * i for i in range(1, 8)]
+    v.route = replace(route, waypoints=[Waypoint(-84.2, 36.6, 700.0, t) for t in times])
+    v.mission = SimpleNamespace(items=[], waypoint_of_item=[None, *range(len(times))])
+    state = monitor.links[1].state
+    for seq, own in [(1, 1000.0), (4, 1180.0), (5, 1240.0), (6, 1300.0), (7, 1360.0)]:
+        state.boot_s, state.boot_at = own, time.monotonic()   # on its own clock, on plan
+        monitor._on(1, SimpleNamespace(get_type=lambda: "MISSION_ITEM_REACHED", seq=seq))
+    assert len(v.done) == 7
+    assert v.contact.progress == pytest.approx(1.0, abs=0.01)

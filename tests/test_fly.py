@@ -254,7 +254,7 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
     Judged by the simulator's own tracks: each landed where it took off, long
     before its mission would have ended, and the one refused never armed."""
     from gcs.flight import Flight, FlightError, FlyOptions
-    from gcs.sim import fleet_for_plan, terrain_ground
+    from gcs.sim import fleet_for_plan, radio_for_plan, terrain_ground
 
     plan = planned.plan
     last = max(plan.vehicles, key=lambda v: v.takeoff_s).id
@@ -263,7 +263,8 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
     # others have left the base column one at a time, they fly there)
     fleet = fleet_for_plan(plan, speedup=20.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks",
-                           terrain=terrain_ground(planned.terrain))
+                           terrain=terrain_ground(planned.terrain),
+                           radio=radio_for_plan(plan, planned.terrain))
     fleet.refuse_arm(last)
     try:
         with pytest.raises(FlightError, match="start failed"):
@@ -434,7 +435,8 @@ def test_a_vehicle_slower_than_the_plan_is_told_before_it_flies(planned, tmp_pat
     fly by them. At a descent of 1 m/s the plan's faster descent is said, one line
     per vehicle, naming the parameter and both rates; vehicles at the plan's rates
     hear nothing, but that PX4 stops at each waypoint of a plan made for ArduPilot
-    (what it costs there: `planner.rates.waypoint_stop_s`)."""
+    (what it costs there: `planner.rates.waypoint_stop_s`). No radio: the vehicles
+    never leave their bases, where an antenna stands."""
     from gcs.flight import Flight, FlyOptions
     from gcs.sim import fleet_for_plan
     from gcs.sim.physics import Limits

@@ -172,3 +172,24 @@ def test_bad_forward_url_is_bad_input(plan_dir, tmp_path, capsys):
     with pytest.raises(InputError):
         from gcs.cli.fly import forwarder
         forwarder(type("A", (), {"forward": ["tcp:127.0.0.1:1"], "forward_commands": False})())
+
+
+def test_a_command_passed_on_is_counted_before_it_reaches_the_vehicle():
+    """The vehicle's answer comes back on another thread: a count made after the write
+    once still said no COMMAND_LONG was passed when the station had its answer."""
+    from types import SimpleNamespace
+
+    forward = Forwarder([f"udpout:127.0.0.1:{_free_udp_port()}"], forward_commands=True)
+    counted = []
+    route = (object(), None)
+    forward._ground = SimpleNamespace(
+        vehicles={2: SimpleNamespace(connection=route[0], _route=route)},
+        _write_raw=lambda conn, packet, addr: counted.append(forward.passed["COMMAND_LONG"]))
+    mav = mavutil.mavlink.MAVLink(None, srcSystem=STATION, srcComponent=190)
+    msg = mav.command_long_encode(2, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0)
+    msg.pack(mav)
+    try:
+        forward._incoming(msg)
+    finally:
+        forward.close()
+    assert counted == [1]

@@ -19,7 +19,14 @@ from gcs.cli import main
 from gcs.flight import LOOP_S
 from gcs.guard import hold_spans
 from gcs.plan_folder import write_plan_folder
-from gcs.sim import fleet_for_plan, free_base_port, read_track, terrain_ground, track_path
+from gcs.sim import (
+    fleet_for_plan,
+    free_base_port,
+    radio_for_plan,
+    read_track,
+    terrain_ground,
+    track_path,
+)
 from planner.pipeline import plan_mission
 from planner.scenario import Scenario
 
@@ -266,7 +273,8 @@ def test_without_auto_turnaround_the_operator_confirms_each_swap(planned, twelve
 
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks", battery_min=12.0,
-                           terrain=terrain_ground(planned.terrain))
+                           terrain=terrain_ground(planned.terrain),
+                           radio=radio_for_plan(twelve.plan, planned.terrain))
     try:
         flight = Flight(twelve.dir, fleet.urls(), FlyOptions(output=tmp_path / "f",
                                                              lost_after_s=3.0, plot=False,
@@ -311,7 +319,8 @@ def test_a_vehicle_silent_while_its_next_sortie_uploads_is_lost(planned, twelve,
 
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks", battery_min=12.0,
-                           terrain=terrain_ground(planned.terrain))
+                           terrain=terrain_ground(planned.terrain),
+                           radio=radio_for_plan(twelve.plan, planned.terrain))
     real, calls = gcs.flight.flight.upload_route, []
 
     def upload_route(link, missions, *args, **kwargs):
@@ -376,6 +385,7 @@ def test_a_flight_whose_last_survivors_fall_during_a_re_plan_ends(planned, twelv
     fleet = fleet_for_plan(twelve.plan, speedup=100.0, base_port=free_base_port(10, 3),
                            track_dir=tmp_path / "tracks", battery_min=12.0,
                            terrain=terrain_ground(planned.terrain),
+                           radio=radio_for_plan(twelve.plan, planned.terrain),
                            faults={2: FaultPlan(kill_at_item=3)})
     real = gcs.retask.upload_route
 

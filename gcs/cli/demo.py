@@ -2,8 +2,9 @@
 
 Plans with the built-in scenario (gcs/data/demo.toml: the USGS Jacksboro DEM,
 its outposts, 4 UAVs from one base, RT with k = 1), writes every output of
-`gcs plan`, starts 4 simulated vehicles, flies the plan with one of them shot
-down partway, re-tasks the survivors and ends with the coverage report.
+`gcs plan`, starts 4 simulated vehicles, flies the plan through its radio shadows
+(--no-radio: a link everywhere) with one of them shot down partway, re-tasks the
+survivors and ends with the coverage report.
 """
 
 import argparse
@@ -24,10 +25,10 @@ def add_arguments(parser) -> None:
                              "(flight report, plot, tracks, tlogs); their files are replaced")
     parser.add_argument("--firmware", choices=NAMES, default=ARDUPILOT,
                         help="autopilot the simulated vehicles imitate")
-    parser.add_argument("--radio", action=argparse.BooleanOptionalAction, default=False,
+    parser.add_argument("--radio", action=argparse.BooleanOptionalAction, default=True,
                         help="fly through the plan's radio shadows: each simulated link cut "
                              "while its vehicle is out of the antenna's line of sight "
-                             "(opt-in for now: docs/flying.md says why)")
+                             "(--no-radio: a link everywhere)")
     parser.add_argument("--speedup", type=float, default=40.0, metavar="X",
                         help="simulated time runs X times faster than the wall clock")
     parser.add_argument("--kill", type=int, default=2, metavar="SYSID",

@@ -100,10 +100,10 @@ def add_arguments(parser) -> None:
                      help="each battery swap powers a simulated vehicle down for S wall "
                           "seconds (its link silent, its TCP port closed), then it boots "
                           "again; 0 = a hot swap")
-    sim.add_argument("--sim-radio", action=argparse.BooleanOptionalAction, default=False,
+    sim.add_argument("--sim-radio", action=argparse.BooleanOptionalAction, default=True,
                      help="cut each simulated link while its vehicle is out of the plan's "
                           "antennas' radio line of sight on the plan's terrain, the shadows "
-                          "the plan predicts (opt-in for now: docs/flying.md says why)")
+                          "the plan predicts (--no-sim-radio: a link everywhere)")
     sim.add_argument("--sim-capacity", type=int, metavar="N",
                      help="mission items each simulated vehicle holds (default: the "
                           "firmware's: ArduPilot 650, PX4 no limit); longer routes fly in "

@@ -92,7 +92,7 @@ def add_arguments(parser) -> None:
                             "--terrain")
     radio.add_argument("--radio", action="store_true",
                        help="cut each link by a plan directory's antennas (the shadows its "
-                            "plan predicts, as gcs fly --sim-radio and gcs demo --radio do)")
+                            "plan predicts, as gcs fly --sim and gcs demo do by default)")
     io.add_argument("--pty", action="store_true",
                     help="serve each vehicle on a pseudo-terminal (a serial link: connect "
                          "with DEVICE,BAUD) instead of its SITL network endpoint")
