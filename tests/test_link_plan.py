@@ -145,16 +145,14 @@ def test_max_silence_checks_in_where_the_antenna_hears_and_keeps_the_photographs
     missions written from the plan pass their proofs."""
     from dataclasses import replace
 
-    from conftest import _small_plan
-
     from gcs.plan_folder import write_plan_folder
     from planner.link import antenna_eyes
     from planner.pipeline import plan_mission
 
     limit = 120.0
-    scenario, terrain, outposts = _small_plan()
-    ctx, outcome = plan_mission(replace(scenario, max_silence_s=limit), terrain=terrain,
-                                outposts=outposts)
+    terrain = planned.terrain
+    ctx, outcome = plan_mission(replace(planned.ctx.scenario, max_silence_s=limit),
+                                terrain=terrain, outposts=planned.ctx.outposts)
     link, before = outcome.plan.metrics["link"], planned.plan
     kept = link["max_silence"]
     assert sum(kept["check_ins"]) > 0, "the shared plan has silences a check-in breaks"
