@@ -23,10 +23,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from planner.exposure import Outpost  # noqa: E402
+from benchmarks.cases import synthetic_case  # noqa: E402
 from planner.pipeline import plan_mission  # noqa: E402
-from planner.scenario import Scenario, make_scenario, read_scenario  # noqa: E402
-from planner.terrain import synthetic_terrain  # noqa: E402
+from planner.scenario import make_scenario, read_scenario  # noqa: E402
 
 DEMO = Path(__file__).resolve().parents[1] / "gcs" / "data" / "demo.toml"
 SYNTHETIC = (("hills", 3), ("ridges", 7), ("peaks", 5), ("mixed", 1))
@@ -36,18 +35,6 @@ LIMITS = (None, 60.0, 180.0)
 
 def _demo():
     return replace(make_scenario(read_scenario(DEMO), {}), method="rt"), None, None
-
-
-def _synthetic(family, seed):
-    terrain = synthetic_terrain(SIDE, SIDE, cell=30.0, seed=seed, family=family)
-    x, y = terrain.xy(SIDE // 2, SIDE // 2)
-    lon, lat = terrain.to_lonlat(x, y)
-    outpost = Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")
-    base_lon, base_lat = terrain.to_lonlat(*terrain.xy(SIDE // 8, SIDE // 8))
-    scenario = Scenario(sample=True, uavs=3, sensor_range_m=600.0, ceiling_agl_m=120.0,
-                        clearance_m=20.0, hide_margin_m=5.0, viewpoint_spacing_m=300.0,
-                        launch=[(base_lat, base_lon)], method="rt").validate()
-    return scenario, terrain, [outpost]
 
 
 def _row(name, limit, plan, seconds) -> str:
@@ -69,7 +56,8 @@ def _row(name, limit, plan, seconds) -> str:
 
 def main(argv=None):
     quick = "--quick" in (sys.argv[1:] if argv is None else argv)
-    cases = [("demo (RT)", _demo)] + [(f"{f} seed {s}", lambda f=f, s=s: _synthetic(f, s))
+    cases = [("demo (RT)", _demo)] + [(f"{f} seed {s}",
+                                       lambda f=f, s=s: synthetic_case(f, s, SIDE, "rt"))
                                       for f, s in SYNTHETIC[:1 if quick else None]]
     head = (f"{'case':<18} {'limit':>6} {'silent':>8} {'longest':>10} {'checks':>6} "
             f"{'kept':>5} {'longest over':>16} {'floor':>8} {'cost':>8} {'coverage':>10} "

@@ -191,20 +191,10 @@ def _cases(plan_dir):
 
     def synthetic(family, seed):
         def make():
-            from planner.exposure import Outpost
+            from benchmarks.cases import synthetic_case
             from planner.pipeline import plan_mission
-            from planner.scenario import Scenario
-            from planner.terrain import synthetic_terrain
-            terrain = synthetic_terrain(SIDE, SIDE, cell=30.0, seed=seed, family=family)
-            x, y = terrain.xy(SIDE // 2, SIDE // 2)
-            lon, lat = terrain.to_lonlat(x, y)
-            outpost = Outpost(float(x), float(y), 2.0, 2500.0, float(lon), float(lat), "hill")
-            base_lon, base_lat = terrain.to_lonlat(*terrain.xy(SIDE // 8, SIDE // 8))
-            scenario = Scenario(sample=True, uavs=3, sensor_range_m=600.0,
-                                ceiling_agl_m=120.0, clearance_m=20.0, hide_margin_m=5.0,
-                                viewpoint_spacing_m=300.0,
-                                launch=[(base_lat, base_lon)]).validate()
-            ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=[outpost],
+            scenario, terrain, outposts = synthetic_case(family, seed, SIDE)
+            ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts,
                                         scheduler=None)
             return ctx.terrain, outcome.plan
         return make
