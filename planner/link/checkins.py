@@ -81,10 +81,10 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
     the check-ins ``checks`` (per UAV). A check-in is kept only where it shortens
     the fleet's silences past the limit, summed (`_excess`), by more than it adds to
     the coverage time, and makes no vehicle's longest longer (`_better`): one that
-    does not (its detour as silent as what it breaks, a
-    wait it makes another vehicle take in a shadow, a detour longer than the silence
-    it saves) is taken out, and its gap not tried again. A vehicle whose viewpoints
-    no route can keep within the limit (`_floors`) is aimed at its floor instead."""
+    does not (its detour as silent as what it breaks, a wait it makes another
+    vehicle take in a shadow, a detour longer than the silence it saves) is taken
+    out, and its gap not tried again. A vehicle whose viewpoints no route can keep
+    within the limit (`_floors`) is aimed at its floor instead."""
     antennas, radio = ctx.scenario.link()
     heard = in_contact(ctx.terrain, antennas, radio, ctx.graph.node_xyz)
 
@@ -92,20 +92,19 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
     # a silence no route can keep within the limit is brought as near it as it can be
     aim = [max(limit_s, f) for f in done.floor_s]
 
-    def excess(fleet) -> list:
-        """Per UAV, (its silences past its aim summed, its longest past it)."""
-        return [_excess(fleet_silences(ctx.terrain, antennas, radio, fleet, r), aim[r])
+    def silences_of(fleet) -> list:
+        return [fleet_silences(ctx.terrain, antennas, radio, fleet, r)
                 for r in range(len(routes))]
 
     tried = [set() for _ in routes]
-    over, before_s = excess(fleet), fleet.coverage_time_s
+    quiet, before_s = silences_of(fleet), fleet.coverage_time_s
+    over = [_excess(q, a) for q, a in zip(quiet, aim)]
     for _ in range(ROUNDS):
         got = None
         for r in sorted(range(len(routes)), key=lambda r: -over[r][0]):
             if over[r][0] > 0:
-                quiet = fleet_silences(ctx.terrain, antennas, radio, fleet, r)
                 got = _next_check_in(ctx.graph, fleet, r, routes[r], sortie_of[r],
-                                     done.checks[r], heard, quiet, tried[r], aim[r])
+                                     done.checks[r], heard, quiet[r], tried[r], aim[r])
             if got is not None:
                 break
         if got is None:
@@ -113,14 +112,14 @@ def keep_in_touch(ctx, routes, sortie_of, fleet, retime, limit_s) -> tuple:
         gap, xyz = got
         done.checks[r].insert(gap.index, CheckIn(gap.before, gap.sortie, xyz))
         trial = retime(done.checks)
-        after = excess(trial)
+        trial_quiet = silences_of(trial)
+        after = [_excess(q, a) for q, a in zip(trial_quiet, aim)]
         if _better(over, after, trial.coverage_time_s - fleet.coverage_time_s):
-            fleet, over = trial, after
+            fleet, quiet, over = trial, trial_quiet, after
         else:
             del done.checks[r][gap.index]
             tried[r].add(gap.key)
-    done.over_s = [max(fleet_silences(ctx.terrain, antennas, radio, fleet, r).longest_s
-                       - limit_s, 0.0) for r in range(len(routes))]
+    done.over_s = [max(q.longest_s - limit_s, 0.0) for q in quiet]
     done.added_s = fleet.coverage_time_s - before_s
     return fleet, done
 
