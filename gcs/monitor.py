@@ -169,6 +169,8 @@ class VehicleProgress:
     quiet_at: float = 0.0  # when that was last counted (monitor s)
     silences: list = field(default_factory=list)  # [{"from_s", "to_s", "due_s", ...}] flown
     heard_after_loss_s: float | None = None  # its first HEARTBEAT after it was declared lost
+    silent_loss: bool = False  # declared lost for a silence (may come back), not a crash
+    rejoins: list = field(default_factory=list)  # [{"lost_at_s", "reason", "back_s", ...}]
 
     @property
     def snapshot_total(self) -> int:
@@ -258,6 +260,7 @@ class Monitor:
         self.events = []  # [{"t_s", "sysid", "event", ...}]
         self._lock = threading.RLock()
         self._untaken = []  # lost vehicles not yet taken by the flight (`take_losses`)
+        self._rejoined = []  # vehicles taken back after a loss, not yet re-planned for
         self._unsubscribe = []
         self._on_event = on_event
         self._watching = None  # the event that stops `watch_losses`
@@ -388,9 +391,9 @@ class Monitor:
                     handler(self, v, msg)
                 elif v is not None and kind == "HEARTBEAT" and v.heard_after_loss_s is None:
                     v.heard_after_loss_s = round(self.now(), 3)
-                    self.event(sysid, "heard again after it was declared lost "
-                                      f"({v.lost_reason}): it is not re-tasked or guarded "
-                                      "by this flight; bring it home by hand",
+                    self.event(sysid, f"heard again after it was declared lost ({v.lost_reason})"
+                               + ("" if v.silent_loss else ": it came down where it is not "
+                                  "flown or guarded by this flight; bring it home by hand"),
                                heard_after_loss=True)
 
     def _heartbeat(self, v, msg) -> None:
@@ -568,6 +571,11 @@ class Monitor:
         if seq in v.reached:
             return
         v.reached.add(seq)
+        self._passed(v, seq, timed=True)
+
+    def _passed(self, v, seq: int, timed: bool) -> None:
+        """Item ``seq`` passed, and so every waypoint before it; only a reached item
+        reported now is ``timed`` (measured on, for the vehicle's pace)."""
         of_item = v.mission.waypoint_of_item
         passed = []
         for item in range(min(seq, len(of_item) - 1), -1, -1):
@@ -582,7 +590,8 @@ class Monitor:
             w = v.route.waypoints[index]
             # only the one reported was reached now; those before it, passed unheard
             # (in a shadow), were reached earlier: timed now they read as a burst
-            v.contact.mark(self.now(), w.t_s, self._own_clock(v), timed=index == passed[0])
+            v.contact.mark(self.now(), w.t_s, self._own_clock(v),
+                           timed=timed and index == passed[0])
             if w.snapshot:
                 v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
                                             v.generation, index))
@@ -631,6 +640,8 @@ class Monitor:
         awaited, swapping = self.awaited(), self.swapping()
         with self._lock:
             for sysid, v in self.vehicles.items():
+                if v.state == LOST and self._heard_back(v):
+                    self._rejoin(v)
                 if v.finished and v.state != STRANDED and \
                         not (v.state == LANDED and sysid in awaited):
                     if v.state == LOST and v.lost_at_s is not None and not getattr(
@@ -653,7 +664,8 @@ class Monitor:
                                     else self.lost_after_s):
                     v.lost_stalled_s = round(stalled, 3)
                     self._lose(v, f"nothing heard for {age:.1f} s"
-                                  + (" since it landed for its battery swap" if swap else ""))
+                                  + (" since it landed for its battery swap" if swap else ""),
+                               silence=True)
                     v._reported = True
                     lost.append(sysid)
             self._untaken.extend(lost)
@@ -736,8 +748,65 @@ class Monitor:
                            "due_s": round(q.due_s, 3), "window": list(q.window)})
         self._lose(v, f"overdue: last heard at {q.heard_s:.0f} s entering a predicted radio "
                       f"shadow, due back by {q.due_s:.0f} s, not heard by "
-                      f"{q.overdue_s:.0f} s", due_s=round(q.due_s, 3))
+                      f"{q.overdue_s:.0f} s", due_s=round(q.due_s, 3), silence=True)
         v._reported = True
+
+    def _heard_back(self, v) -> bool:
+        """Lost for a silence, and heard again since, position included: a report
+        newer than that HEARTBEAT (the link's position from before the silence
+        would place it where it was)."""
+        s = self.links[v.sysid].state
+        boot_at = getattr(s, "boot_at", None)
+        return v.silent_loss and v.heard_after_loss_s is not None and \
+            boot_at is not None and boot_at - self.t0 >= v.heard_after_loss_s and \
+            self.links[v.sysid].silent_s() <= self.lost_after_s
+
+    def _rejoin(self, v) -> None:
+        """A vehicle lost for a silence and heard again: in the air (flying on by
+        itself, as its mission tells it), or landed at a base of its flight. Taken
+        back under the monitor (and so the guard) and handed to the flight to be
+        re-planned with the others (`take_rejoined`); down anywhere else it stays
+        lost."""
+        s = self.links[v.sysid].state
+        agl = s.relative_alt
+        flying = bool(s.armed) and (agl is None or abs(agl) > LANDED_AGL_M)
+        landed = not s.armed and self.on_pad(v.sysid)
+        v.silent_loss = False                # judged once: a loss again is a new one
+        if not (flying or landed):
+            self.event(v.sysid, "heard again after it was declared lost, down away from "
+                                "its bases: not taken back; bring it home by hand")
+            return
+        back = round(self.now(), 3)
+        v.rejoins.append({"lost_at_s": v.lost_at_s, "reason": v.lost_reason,
+                          "heard_s": v.heard_after_loss_s, "back_s": back,
+                          "as": FLYING if flying else LANDED})
+        v.state = FLYING if flying else LANDED
+        v.lost_at_s = v.lost_reason = v.heard_after_loss_s = v.quiet = None
+        v.disarmed_at_s, v._reported = None, False
+        if landed:
+            v.landed_at_s = back
+        self.catch_up(v.sysid)
+        self._rejoined.append(v.sysid)
+        self.event(v.sysid, "rejoined: heard again after it was declared lost, "
+                            f"{'flying' if flying else 'landed at its base'}; back under the "
+                            "monitor and the separation guard, re-planned with the others",
+                   rejoined=True)
+
+    def catch_up(self, sysid) -> None:
+        """Every waypoint before the item a vehicle flies now (MISSION_CURRENT) was
+        passed, heard or not: a vehicle back from a silence is credited with what it
+        flew unheard (its MISSION_ITEM_REACHED reports were lost with the link)."""
+        with self._lock:
+            v, seq = self.vehicles[sysid], self.links[sysid].state.mission_seq
+            if v.mission is not None and seq is not None and int(seq) > 0:
+                self._passed(v, int(seq) - 1, timed=False)
+
+    def take_rejoined(self) -> list:
+        """Vehicles taken back after a loss since the last call: the flight re-plans
+        the fleet with them."""
+        with self._lock:
+            taken, self._rejoined = self._rejoined, []
+        return taken
 
     def _note_power(self, v, silent_s, swap) -> None:
         """Say when a vehicle down for its battery swap falls silent (powered down,
@@ -824,10 +893,11 @@ class Monitor:
         with self._lock:
             return bool(self._untaken)
 
-    def _lose(self, v, reason: str, **extra) -> None:
+    def _lose(self, v, reason: str, silence: bool = False, **extra) -> None:
         v.state = LOST
         v.lost_at_s = round(self.now(), 3)
         v.lost_reason = reason
+        v.silent_loss = silence
         self.event(v.sysid, LOST, reason=reason, last_heartbeat_s=v.last_heartbeat_s, **extra)
 
     # -- views ------------------------------------------------------------------------

@@ -66,6 +66,7 @@ class Retask:
     lost: list  # system ids lost so far when it was made
     survivors: list = field(default_factory=list)  # system ids re-tasked
     left_out: list = field(default_factory=list)  # out of contact as planned: flying their plan
+    rejoined: list = field(default_factory=list)  # heard again after a loss: re-planned with them
     stranded: list = field(default_factory=list)  # held: no hidden leg joins them
     relaunched: list = field(default_factory=list)  # of them, landed ones sent up again
     attempts: int = 0
@@ -108,7 +109,7 @@ def remaining_snapshot_xyz(ctx, progress) -> np.ndarray:
                             if w.snapshot and i not in progress.done])
 
 
-def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
+def original_outlook(ctx, monitor, sysids, n_lost: int, later=None) -> dict:
     """Would the survivors' current missions, flown to the end, meet the requirement?
 
     ``meets_requirement``: every coverable target seen by min(k + 1, survivors)
@@ -117,20 +118,23 @@ def original_outlook(ctx, monitor, sysids, n_lost: int) -> dict:
     k-tolerant plan guarantees for up to k losses without re-planning
     (``unprotected_targets``: those seen from fewer places, which it cannot). Also
     the time they still need: the latest planned time of a remaining snapshot minus
-    that of the last waypoint reached.
+    that of the last waypoint reached. ``later``: sysid -> (n, 3) snapshot points of
+    the sorties it is still to fly after this one.
     """
-    snaps, left = [], 0.0
+    snaps, left, later = [], 0.0, later or {}
     for s in sysids:
         v = monitor.vehicles[s]
         rest = remaining_snapshot_xyz(ctx, v)
-        snaps.append(np.vstack([snapshot_xyz(ctx, v), rest]))
+        snaps.append(np.vstack([snapshot_xyz(ctx, v), rest,
+                                later.get(s, np.zeros((0, 3)))]))
         times = [w.t_s for i, w in enumerate(v.route.waypoints) if w.snapshot and i not in v.done]
         now = max((v.route.waypoints[i].t_s for i in v.done), default=0.0)
         if times:
             left = max(left, max(times) - now)
     counts = place_counts(ctx, snaps)
     summary = coverage_summary(ctx, snaps, ctx.scenario.k, counts)
-    summary["meets_requirement"] = summary["k_covered"] >= coverable_targets(ctx)
+    summary["coverable"] = coverable_targets(ctx)
+    summary["meets_requirement"] = summary["k_covered"] >= summary["coverable"]
     # a target seen from fewer than k + 1 places has one sighting per place: one loss
     # can take its only one, which no plan could prevent without two vehicles flying
     # one place (a shared fate)
@@ -241,20 +245,22 @@ class Retasker:
             out.append(s)
         return out
 
-    def retask(self, home: bool = False) -> Retask:
+    def retask(self, home: bool = False, rejoined=()) -> Retask:
         """Re-task every survivor still in the air, and the landed ones a loss needs
         up again (never for ``home``); returns the record.
 
-        ``home``: no more coverage work, each flies home along a hidden path."""
+        ``home``: no more coverage work, each flies home along a hidden path;
+        ``rejoined``: vehicles taken back after a loss (`Monitor.take_rejoined`)."""
         self.home = home
         m = self.monitor
         lost = [s for s, v in sorted(m.vehicles.items()) if v.state == LOST]
-        record = Retask(t_s=round(m.now(), 3), lost=lost)
+        record = Retask(t_s=round(m.now(), 3), lost=lost, rejoined=sorted(rejoined))
         for attempt in range(1, MAX_ATTEMPTS + 1):
             record.attempts = attempt
             # nothing of an attempt cut short by a loss stands
             record.survivors, record.relaunched, self.later = [], [], {}
-            m.take_losses()  # this attempt re-tasks for every loss so far
+            m.take_losses()  # this attempt re-tasks for every loss so far, and takes
+            record.rejoined = sorted(set(record.rejoined) | set(m.take_rejoined()))  # back
             sysids = self.flying()
             record.left_out = [s for s in sorted(m.vehicles) if m.planned_at(s) is not None]
             for s in record.left_out:
@@ -318,6 +324,8 @@ class Retasker:
         if sysids:
             self._step(sysids, self._hold)
             m.wait_settled(sysids, vertical=False)  # a re-plan starts where they are
+            for s in sysids:        # what one flew unheard (a shadow, a false loss) counts
+                m.catch_up(s)
             self._still_flying(sysids)      # one touched down before it was held
             sysids = self._strand_unjoined(record, sysids)
             if not sysids and not landed:

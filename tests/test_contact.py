@@ -89,9 +89,9 @@ def _monitored(**state):
     from planner.plan import GeoPoint, VehicleRoute, Waypoint
 
     link = SimpleNamespace(sysid=1, flavour="ardupilot", subscribe=lambda cb: (lambda: None),
-                           state=SimpleNamespace(lat=36.6, lon=-84.2, alt_amsl=700.0,
-                                                 relative_alt=60.0, armed=True, mode="AUTO",
-                                                 mission_seq=1, **state))
+                           state=SimpleNamespace(**{**dict(
+                               lat=36.6, lon=-84.2, alt_amsl=700.0, relative_alt=60.0,
+                               armed=True, mode="AUTO", mission_seq=1), **state}))
     waypoints = [Waypoint(-84.2, 36.6, 700.0, 60.0), Waypoint(-84.19, 36.6, 700.0, 150.0)]
     route = VehicleRoute(1, GeoPoint(-84.2, 36.6, 640.0), waypoints, 150.0, 150.0, 900.0,
                          takeoff_s=60.0, silences=[[70.0, 100.0]])
@@ -195,3 +195,60 @@ def test_waypoints_passed_unheard_are_not_timed_when_the_next_is_reported():
         monitor._on(1, SimpleNamespace(get_type=lambda: "MISSION_ITEM_REACHED", seq=seq))
     assert len(v.done) == 7
     assert v.contact.progress == pytest.approx(1.0, abs=0.01)
+
+
+def _declared_lost(silence=True, on_pad=False, **state):
+    """`_monitored`'s vehicle declared lost (for a silence, or not), then heard again
+    (a HEARTBEAT, then a position report after it); it flies toward item 2."""
+    import time
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    monitor, route, v = _monitored(boot_s=1000.0, boot_at=time.monotonic(), clock_rate=1.0,
+                                   **state)
+    v.route = replace(route, waypoints=[replace(w, snapshot=True) for w in route.waypoints])
+    link = monitor.links[1]
+    link.silent_s = lambda: 0.0
+    monitor._lose(v, "nothing heard for 6.0 s" if silence else "crashed: ...", silence=silence)
+    monitor._on(1, SimpleNamespace(get_type=lambda: "HEARTBEAT", base_mode=0))
+    link.state.mission_seq, link.state.boot_at = 2, time.monotonic() + 0.01
+    monitor.on_pad = lambda sysid: on_pad
+    monitor.check_losses()
+    return monitor, v
+
+
+def test_a_vehicle_declared_lost_for_a_silence_and_heard_flying_is_taken_back():
+    """Taken back flying, handed to the flight to re-plan, and credited with the
+    waypoints it passed unheard (its MISSION_CURRENT is item 2: item 1, waypoint 0,
+    was passed)."""
+    from gcs.monitor import FLYING
+
+    monitor, v = _declared_lost()
+    assert v.state == FLYING and v.lost_at_s is None
+    assert monitor.take_rejoined() == [1] and monitor.take_rejoined() == []
+    assert [r["as"] for r in v.rejoins] == [FLYING]
+    assert v.done == {0} and [s.waypoint for s in v.snapshots] == [0]
+    assert any(e.get("rejoined") for e in monitor.events)
+
+
+def test_a_vehicle_heard_again_on_the_ground_is_taken_back_only_at_its_base():
+    """Disarmed on the ground when heard again: landed at its base (it flew its mission
+    home unheard), taken back landed; anywhere else, it stays lost."""
+    from gcs.monitor import LANDED, LOST
+
+    monitor, v = _declared_lost(on_pad=True, armed=False, relative_alt=0.0)
+    assert v.state == LANDED and v.landed_at_s is not None
+    assert monitor.take_rejoined() == [1] and [r["as"] for r in v.rejoins] == [LANDED]
+    monitor, v = _declared_lost(on_pad=False, armed=False, relative_alt=0.0)
+    assert v.state == LOST and monitor.take_rejoined() == []
+    assert any("down away from its bases" in e["event"] for e in monitor.events)
+
+
+def test_a_crashed_vehicle_heard_again_is_not_taken_back():
+    """Lost for a crash (not a silence): its HEARTBEAT from the ground is said, and it
+    stays lost."""
+    from gcs.monitor import LOST
+
+    monitor, v = _declared_lost(silence=False)
+    assert v.state == LOST and monitor.take_rejoined() == [] and not v.rejoins
+    assert any("bring it home by hand" in e["event"] for e in monitor.events)

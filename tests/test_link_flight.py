@@ -11,6 +11,7 @@ import time
 
 import pytest
 
+from common.geo import distance_m
 from gcs.contact import EARLY_LATE_S
 from gcs.flight import Flight, FlyOptions
 from gcs.sim import (
@@ -112,21 +113,28 @@ def test_a_vehicle_shot_down_in_a_shadow_is_lost_when_overdue(planned, tmp_path)
     assert all(v["state"] == "landed" for v in report["vehicles"] if v["sysid"] != victim)
 
 
+def _far_from_shadows(flight, victim) -> bool:
+    """In the air, on its plan's clock well clear of every predicted shadow."""
+    v = flight.monitor.vehicles.get(victim)
+    at = None if v is None or not v.done else v.contact.fleet_time(flight.monitor.now())
+    return at is not None and all(at < a - 3 * EARLY_LATE_S or at > b + EARLY_LATE_S
+                                  for a, b in v.contact.windows)
+
+
+def _in_contact(fleet, flight, victim) -> None:
+    """Wait until ``victim`` flies in contact, far from its predicted shadows."""
+    sim = fleet.vehicle(victim)
+    while sim.landed or sim.link_faults.shadowed or not _far_from_shadows(flight, victim):
+        time.sleep(0.02)
+
+
 def test_a_vehicle_shot_down_in_contact_is_lost_after_lost_after(planned, tmp_path):
     fleet = _fleet(planned, tmp_path)
     victim = planned.plan.vehicles[0].id
     killed = {}
 
-    def far_from_shadows(flight) -> bool:
-        v = flight.monitor.vehicles.get(victim)
-        at = None if v is None or not v.done else v.contact.fleet_time(flight.monitor.now())
-        return at is not None and all(at < a - 3 * EARLY_LATE_S or at > b + EARLY_LATE_S
-                                      for a, b in v.contact.windows)
-
     def kill_in_contact(flight):
-        sim = fleet.vehicle(victim)
-        while sim.landed or sim.link_faults.shadowed or not far_from_shadows(flight):
-            time.sleep(0.02)
+        _in_contact(fleet, flight, victim)
         killed["at"] = flight.monitor.now()
         fleet.kill(victim)
     report = _fly(planned, tmp_path, fleet, during=kill_in_contact)
@@ -135,6 +143,48 @@ def test_a_vehicle_shot_down_in_contact_is_lost_after_lost_after(planned, tmp_pa
     assert loss["detected_s"] - killed["at"] <= LOST_AFTER_S + 2.0 + loss["stalled_s"]
     assert [x["sysid"] for x in report["losses"]] == [victim]
     json.dumps(report)
+
+
+def test_a_vehicle_declared_lost_that_comes_back_is_rejoined_and_re_planned(planned, tmp_path):
+    """Its link cut where contact is predicted, for three times --lost-after: it flies
+    on by itself (its mission in AUTO) and is declared lost, and the others are
+    re-tasked over its work. Heard again, it is taken back in the air, under the
+    monitor and the guard, and the fleet is re-planned with it. Judged by the
+    simulator's own record: it flew on through the cut and landed at its base."""
+    fleet = _fleet(planned, tmp_path)
+    victim = planned.plan.vehicles[0].id
+    cut = {}
+
+    def cut_in_contact(flight):
+        _in_contact(fleet, flight, victim)
+        cut["at"] = flight.monitor.now()
+        fleet.cut_link(victim, 3 * LOST_AFTER_S)
+    report = _fly(planned, tmp_path, fleet, during=cut_in_contact)
+    events = [e for e in report["events"] if e["sysid"] == victim]
+    lost = next(e for e in events if e["event"] == "lost")
+    assert lost["reason"].startswith("nothing heard for")
+    heard = next(e for e in events if e.get("heard_after_loss"))
+    back = next(e for e in events if e.get("rejoined"))
+    # heard once the cut is over (and any shadow it had flown into since), taken back
+    # at its first position report after that
+    assert cut["at"] < lost["t_s"] < cut["at"] + 3 * LOST_AFTER_S <= heard["t_s"]
+    assert heard["t_s"] <= back["t_s"] <= heard["t_s"] + 1.0
+    # re-tasked without it, then with it
+    before = next(r for r in report["replans"] if r["t_s"] >= lost["t_s"])
+    assert victim not in before["survivors"] and victim in before["lost"]
+    again = next(r for r in report["replans"] if victim in r["rejoined"])
+    assert again["t_s"] >= back["t_s"] and victim in again["survivors"] + again["left_out"]
+    vehicle = next(v for v in report["vehicles"] if v["sysid"] == victim)
+    assert [r["as"] for r in vehicle["rejoins"]] == ["flying"]
+    assert report["losses"] == [] and report["outcome"]["lost"] == []
+    assert any(f"vehicle {victim} declared lost" in n for n in report["outcome"]["notes"])
+    assert report["outcome"]["coverage_reached"]
+    assert all(v["state"] == "landed" for v in report["vehicles"])
+    # the simulator's record: it never stopped flying, and landed at its base
+    track = read_track(track_path(tmp_path / "tracks", victim))
+    ends = [e["event"] for e in track.events if e["event"] in ("landed", "crashed")]
+    assert track.killed_at is None and ends[-1:] == ["landed"]
+    assert distance_m(track.lat[-1], track.lon[-1], *track.home[:2]) < 10.0
 
 
 def test_gcs_sim_cuts_links_by_a_plans_antennas_only_when_asked(planned):

@@ -42,6 +42,7 @@ from . import report as reporting
 from .batteries import Batteries
 from .departures import Departures, flight_bases
 from .holds import Holds
+from .left_out import LeftOut
 from .options import (
     LOOP_S,
     PLAN_FROM_HERE,
@@ -102,6 +103,7 @@ class Flight:
         self.holds = Holds(self.state, self.segments, self.batteries.short,
                            self.departures.waiting_s)
         self.preflight = Preflight(self.state, self.plan_from_where_they_stand)
+        self.left_out = LeftOut(self.state, self.context)
         monitor.awaited = self.state.awaited
         monitor.swapping = self.batteries.swapping
         monitor.swap_silence_s = options.swap_silence_s
@@ -406,8 +408,9 @@ class Flight:
             # every loss found so far, here or while waiting on vehicles (uploads,
             # segment switches): the last one flying may leave the others down
             m.check_losses()
-            if m.take_losses():
-                self.retask()
+            lost, back = m.take_losses(), m.take_rejoined()
+            if lost or back or self.left_out.short():
+                self.retask(rejoined=back)
             self._next_sorties()
             if self.batteries.watch():
                 self.retask()
@@ -514,7 +517,9 @@ class Flight:
         if lost:
             m.event(None, "lost during a segment upload", lost=lost)
 
-    def retask(self, home: bool = False) -> None:
+    def retask(self, home: bool = False, rejoined=()) -> None:
+        """Re-plan the fleet from where it stands (`gcs.retask`): for the losses so
+        far, for ``rejoined`` (taken back after a loss), or ``home``."""
         m = self.monitor
         try:
             ctx = self.context()
@@ -528,7 +533,7 @@ class Flight:
                             segments=self.segments, depart=self.departures.depart,
                             spent=self.state.spent, pace=self.batteries.late)
         try:
-            record = retasker.retask(home)
+            record = retasker.retask(home, rejoined)
         except RetaskError as exc:
             raise FlightError(str(exc)) from None
         # the re-plan covers what the later sorties would have: its own replace them
@@ -543,6 +548,7 @@ class Flight:
                 m.set_state(sysid, LANDED)
                 m.event(sysid, "stays on the ground: the re-plan has no task for it")
         self.retasks.append(record)
+        self.left_out.after(record)
 
     # -- results ------------------------------------------------------------------------
     def report(self) -> dict:

@@ -106,7 +106,18 @@ def outcome(flight, covered: dict) -> dict:
         problems.append(f"vehicle(s) {', '.join(map(str, grounded))} never took off")
     return {"ok": not problems, "coverage_reached": reached, "lost": lost,
             "timed_out": flight.timed_out, "in_air": sorted(flying + stranded),
-            "stranded": stranded, "problems": problems, "notes": guard_notes(flight.guard)}
+            "stranded": stranded, "problems": problems,
+            "notes": guard_notes(flight.guard) + rejoin_notes(m)}
+
+
+def rejoin_notes(monitor) -> list:
+    """A vehicle declared lost and heard again: it flew on, and was taken back.
+    Said, not a problem: the silence itself was (re-tasked for, as a loss must be)."""
+    return [f"vehicle {sysid} declared lost at {r['lost_at_s']:.0f} s ({r['reason']}), "
+            f"heard again at {r['heard_s']:.0f} s: rejoined "
+            f"{'in the air' if r['as'] == 'flying' else 'at its base'} and re-planned "
+            "with the others"
+            for sysid, v in sorted(monitor.vehicles.items()) for r in v.rejoins]
 
 
 def battery_problems(batteries) -> list:
@@ -154,6 +165,7 @@ def _vehicle_report(flight, v) -> dict:
         "mission_capacity": getattr(m.links.get(v.sysid), "mission_capacity", None),
         "lost_at_s": v.lost_at_s,
         "lost_reason": v.lost_reason, "landed_at_s": v.landed_at_s,
+        "rejoins": list(v.rejoins),   # declared lost, heard again and taken back
         "snapshots": [asdict(s) for s in v.snapshots],
         "camera": [list(c) for c in v.camera], "track": [list(p) for p in v.track],
         "off_route": [list(e) for e in v.off_route],
