@@ -143,6 +143,10 @@ _LANDS_AWAY = "it lands where it is: hidden (straight down under its proven rout
 _SMARTRTL_OR_LAND = "if SmartRTL is unavailable (its buffer full, SRTL_POINTS 0) it lands " \
                     "where it is, away from its base"
 _RISKS = {1: _LANDS_AWAY, 4: _SMARTRTL_OR_LAND, 5: _LANDS_AWAY, 7: _LANDS_AWAY}
+#: a link loss with no action: in AUTO the mission flies on, but a vehicle the ground
+#: station holds (GUIDED, for a re-plan or the separation guard) stays where it is
+_HOVERS = "held by the ground station (GUIDED: a re-plan, the separation guard) when " \
+          "its link is lost, it hovers there until its battery failsafe"
 _BATTERY_SOURCE = "ArduCopter/events.cpp handle_battery_failsafe; AP_BattMonitor_Params.cpp"
 
 FAILSAFES = (
@@ -169,7 +173,7 @@ FAILSAFES = (
             7: "brake where it is, then LAND"},
             frozenset({0, 4, 5, 7}), 4,
             "ArduCopter/Parameters.cpp FS_GCS_ENABLE; events.cpp failsafe_gcs_on_event",
-            risks=_RISKS),)),
+            risks={**_RISKS, 0: _HOVERS}),)),
     Failsafe("RC loss", (
         # ArduCopter/Parameters.cpp FS_THR_ENABLE, ArduCopter/defines.h FS_THR_ENABLED_*
         FailsafeParameter("FS_THR_ENABLE", {

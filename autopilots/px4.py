@@ -43,6 +43,8 @@ _LANDS_AWAY = "it lands where it is: hidden (straight down under its proven rout
 #: mission forward to its landing, or reversed to home, at the items' altitudes): the
 #: path the plan proved; RTL_TYPE is checked as a failsafe of its own
 _RETURN = "Return along the mission path (RTL_TYPE)"
+_HOLDS_ON = "held by the ground station (Hold: a re-plan, the separation guard) when its " \
+            "link is lost, it holds there until its battery failsafe"
 _COMMANDER = "src/modules/commander/commander_params.c"
 
 FAILSAFES = (
@@ -80,7 +82,8 @@ FAILSAFES = (
             3: "LAND where it is", 5: "terminate: motors off, it falls where it is",
             6: "disarm: it falls where it is"},
             frozenset({0, 1, 2, 3}), 2, f"{_COMMANDER} NAV_DLL_ACT",
-            risks={3: _LANDS_AWAY}),
+            # in a mission the exception flies it on; in Hold nothing moves it
+            risks={0: _HOLDS_ON, 1: _HOLDS_ON, 3: _LANDS_AWAY}),
         # failsafe/failsafe.cpp: dll_loss_ignored_mission, DatalinkLossExceptionBits
         FailsafeParameter("COM_DLL_EXCEPT", {0: "in a mission it flies the mission on",
                                              1: "in Hold it holds on",

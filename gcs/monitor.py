@@ -677,7 +677,10 @@ class Monitor:
         plan predicts no silence on the ground (a vehicle silent at its base for its
         next sortie's upload once read as a shadow of that sortie, and was never lost)."""
         if v.quiet is None:
-            if not v.airborne or v.state == LANDED:   # airborne stays set until relaunched
+            # airborne stays set until relaunched; a held vehicle hovers where it was
+            # heard, off its plan's clock (placed along its plan, one held for a
+            # re-plan was taken into a shadow it never flew, and not lost)
+            if not v.airborne or v.state in (LANDED, HOLDING):
                 return False
             s = self.links[v.sysid].state
             lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)

@@ -170,8 +170,12 @@ def test_a_vehicle_whose_failsafe_leaves_the_proof_is_refused_before_arming(
 
 
 #: what --set-failsafes leaves the simulated vehicles holding, and what they held
-SET = {"ardupilot": {"BATT_FS_LOW_ACT": (2, 4), "FS_THR_ENABLE": (1, 5), "FS_OPTIONS": (16, 19)},
-       "px4": {"RTL_TYPE": (0, 4), "COM_DLL_EXCEPT": (0, 1), "COM_RCL_EXCEPT": (0, 1)}}
+# a link loss that does nothing (FS_GCS_ENABLE 0, NAV_DLL_ACT 0) is hidden but leaves
+# a held vehicle hovering: replaced by the return
+SET = {"ardupilot": {"BATT_FS_LOW_ACT": (2, 4), "FS_GCS_ENABLE": (0, 4), "FS_THR_ENABLE": (1, 5),
+                     "FS_OPTIONS": (16, 19)},
+       "px4": {"RTL_TYPE": (0, 4), "NAV_DLL_ACT": (0, 2), "COM_DLL_EXCEPT": (0, 1),
+               "COM_RCL_EXCEPT": (0, 1)}}
 
 
 @pytest.mark.parametrize("firmware", ["ardupilot", "px4"])
@@ -429,3 +433,54 @@ def test_a_px4_battery_failsafe_mid_sortie_returns_along_the_mission(planned, tm
     v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
     assert v1["state"] == "landed"
     assert [m["mode"] for m in v1["failsafe_modes"]] == ["AUTO.RTL"]
+
+
+def test_a_vehicle_held_by_a_re_plan_that_falls_silent_flies_home_on_its_own(planned, tmp_path):
+    """The ground station holds every survivor to re-plan after a loss; one of them
+    then falls silent, held where it is (issue 59: one was once left hovering 4 km
+    out, battery draining). With --set-failsafes its link-loss failsafe (ArduPilot
+    FS_GCS_ENABLE 4: SmartRTL or Land; a mission in AUTO flies on, FS_OPTIONS) takes
+    it home by its own flown path. Judged on the simulator's true track: the failsafe
+    fired in the hold, the way home hidden from the outpost by dense sampling, down
+    at home; the flight declared it lost, and took it back landed once heard."""
+    import threading
+    import time
+
+    from gcs.sim import terrain_ground
+
+    lat, lon, alt = planned.launch
+    fleet = quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
+                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    held = {}
+
+    def kill_one_cut_one_held():
+        one, two = fleet.vehicle(1), fleet.vehicle(2)
+        while not (one.mode == "AUTO" and two.mode == "AUTO" and not two.landed
+                   and len(one.track.snapshots) >= 3):
+            time.sleep(0.01)
+        fleet.kill(1)
+        while two.mode != "GUIDED" and not two.landed:   # the re-plan's hold
+            time.sleep(0.005)
+        held["t"] = two.t
+        fleet.cut_link(2, 25.0)
+    threading.Thread(target=kill_one_cut_one_held, daemon=True).start()
+    out = tmp_path / "flight"
+    try:
+        main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
+              "--lost-after", "2", "--timeout", "150", "-o", str(out)])
+    finally:
+        fleet.stop()
+    track = read_track(track_path(tmp_path / "tracks", 2))
+    fired = next(e["t"] for e in track.events if e["event"].startswith("link failsafe"))
+    assert held["t"] <= fired and track.events[[e["t"] for e in track.events].index(fired)][
+        "event"] == "link failsafe: SMART_RTL or LAND"
+    x, y = planned.terrain.from_lonlat(track.lon, track.lat)
+    after = np.stack([x, y, track.alt], axis=1)[track.t > fired]
+    assert len(after) > 10 and not _seen(planned, after[::max(1, len(after) // 150)]).any()
+    home = np.array(planned.terrain.from_lonlat(track.home[1], track.home[0]))
+    assert np.hypot(*(after[-1, :2] - home)) < 2.0
+    assert "landed" in [e["event"] for e in track.events if e["t"] > fired]
+    report = json.loads((out / "flight.json").read_text())
+    two = next(v for v in report["vehicles"] if v["sysid"] == 2)
+    assert two["state"] == "landed" and [r["as"] for r in two["rejoins"]] == ["landed"]
+    assert [x["sysid"] for x in report["losses"]] == [1]

@@ -19,6 +19,7 @@ from autopilots import ARDUPILOT as ARDUPILOT_NAME
 from autopilots import PX4 as PX4_NAME
 from autopilots import Autopilot, profile
 from gcs.sim.battery import CAPACITY_MAH, ardupilot_levels, px4_levels
+from gcs.sim.link_loss import LinkLoss, ardupilot_link_loss, px4_link_loss
 
 # What a mode makes the vehicle do (see vehicle.py).
 MANUAL, GUIDED, AUTO, RTL, LAND, TAKEOFF = "manual", "guided", "auto", "rtl", "land", "takeoff"
@@ -92,6 +93,8 @@ class Flavour:
     int_params: frozenset = frozenset()
     #: params -> the battery failsafes they set (`gcs.sim.battery.Failsafe`), highest first
     battery_levels: Callable = lambda params: []
+    #: params -> its ground-station link-loss failsafe (`gcs.sim.link_loss.LinkLoss`)
+    link_loss: Callable = lambda params: LinkLoss(5.0, None, None)
 
     def __post_init__(self):
         if not self.modes:
@@ -201,6 +204,7 @@ ARDUPILOT = Flavour(
             "FENCE_ENABLE": 0.0, "FENCE_ACTION": 1.0, "FS_EKF_ACTION": 1.0,
             "SRTL_POINTS": 300.0, "SRTL_ACCURACY": 2.0},
     battery_levels=ardupilot_levels,
+    link_loss=ardupilot_link_loss,
 )
 
 PX4 = Flavour(
@@ -246,6 +250,7 @@ PX4 = Flavour(
                           "COM_DLL_EXCEPT", "NAV_RCL_ACT", "COM_RCL_EXCEPT", "GF_ACTION",
                           "COM_POS_LOW_ACT"}),
     battery_levels=px4_levels,
+    link_loss=px4_link_loss,
 )
 
 FLAVOURS = {f.name: f for f in (ARDUPILOT, PX4)}

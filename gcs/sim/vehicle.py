@@ -150,6 +150,9 @@ class SimVehicle:
         self._idle_since = None
         self._cuts_done = set()
         self._radio_next_t = 0.0       # mission time of the radio's next look
+        self._heard_gcs = False        # a ground station's HEARTBEAT came (its link is up)
+        self._cut_since_t = None       # mission time its link was cut at, while it is
+        self._link_failsafe_fired = False   # in this cut
         self._periods = {}
         self._streams_requested = False
         self._warm = (math.inf, math.inf, math.inf)   # gps, origin, ready: wall s after boot
@@ -314,6 +317,7 @@ class SimVehicle:
             self._update_task()
             self._scheduled_faults(now)
             self._radio_shadow()
+            self._link_failsafe(now)
             self._sample()
         if self.lockstep is not None:
             self.lockstep.stepped(self, self.t - t0)
@@ -449,6 +453,32 @@ class SimVehicle:
             self.track.event(self.t, "out of radio contact" if shadowed
                              else "back in radio contact")
 
+    def _link_failsafe(self, now: float) -> None:
+        """The firmware's ground-station link-loss failsafe (`gcs.sim.link_loss`), once
+        a cut of its link has lasted its timeout: once per cut, in the air. Timed from
+        the cut, not from the ground station's last HEARTBEAT: a ground station slowed
+        by its machine (its HEARTBEATs a wall second apart are 100 s of a vehicle's time
+        at 100x) is not a radio that fails."""
+        if not (self._heard_gcs and self.link_faults.is_cut(now)):
+            self._cut_since_t, self._link_failsafe_fired = None, False
+            return
+        if self._cut_since_t is None:
+            self._cut_since_t = self.t
+        if self._link_failsafe_fired or not self.armed or self.landed:
+            return
+        loss = self.flavour.link_loss(self.params)
+        if loss.action is None or self.t - self._cut_since_t < loss.timeout_s:
+            return
+        self._link_failsafe_fired = True
+        if self.mode == loss.continue_in:
+            self.track.event(self.t, "link failsafe: flies its mission on")
+            return
+        self.track.event(self.t, f"link failsafe: {loss.action}")
+        if loss.action == "fall":
+            self._disarm(force=True, reason="link failsafe: terminate")
+        else:
+            self._failsafe_mode(loss.action.split(" or "))
+
     def _kill_at_item(self, seq: int) -> bool:
         if self.plan.kill_at_item is not None and seq == self.plan.kill_at_item:
             self._die(f"at item {seq}")
@@ -472,6 +502,8 @@ class SimVehicle:
 
     def _dispatch(self, msg, now: float) -> None:
         kind = msg.get_type()
+        if kind == "HEARTBEAT" and msg.type == M.MAV_TYPE_GCS:
+            self._heard_gcs = True
         if self.mission.handle(msg, now):
             return
         if kind in ("COMMAND_LONG", "COMMAND_INT"):
