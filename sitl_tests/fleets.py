@@ -207,6 +207,10 @@ class SimBackend:
         self.fleet.kill(sysid)
         return time.time()
 
+    def cut_link(self, sysid: int, seconds: float) -> None:
+        """Cut ``sysid``'s link both ways for ``seconds`` of wall time."""
+        self.fleet.cut_link(sysid, seconds)
+
     def tracks(self, flight_dir: Path) -> dict:
         """{sysid: (t, lat, lon, alt, snapshots [(lat, lon, alt)], home (lat, lon, alt))},
         t on the wall clock (Unix s), which the vehicles share, as the judges' do."""
@@ -265,6 +269,11 @@ class ProcessBackend:
 
     def _relay(self) -> None:
         """Put `relay.Relay` between the ground station and each vehicle."""
+
+    def cut_link(self, sysid: int, seconds: float) -> None:
+        """Cut ``sysid``'s link both ways for ``seconds`` of wall time (at the relay:
+        started with ``radio``)."""
+        self.relay.cut_for(sysid, seconds)
 
     def stop(self) -> None:
         if self.relay is not None:

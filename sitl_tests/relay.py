@@ -43,6 +43,7 @@ class Relay:
     def __init__(self, judges: dict, heard):
         self.judges, self.heard = judges, heard
         self.cut = {sysid: False for sysid in judges}
+        self.forced = {sysid: 0.0 for sysid in judges}   # cut by hand until (time.time())
         self.cuts = {sysid: [] for sysid in judges}     # [(wall t cut, wall t back or None)]
         self._stop = threading.Event()
         self._threads = []
@@ -70,7 +71,12 @@ class Relay:
         return self._stop.is_set()
 
     def _passes(self, sysid: int) -> bool:
-        return not self.cut[sysid]
+        return not self.cut[sysid] and time.time() >= self.forced[sysid]
+
+    def cut_for(self, sysid: int, seconds: float) -> None:
+        """Cut ``sysid``'s link both ways for ``seconds`` (wall), wherever it is: a
+        radio that fails where the plan predicts contact."""
+        self.forced[sysid] = time.time() + seconds
 
     # -- ArduPilot: TCP ----------------------------------------------------------------
     def tcp(self, sysid: int, upstream_port: int) -> int:

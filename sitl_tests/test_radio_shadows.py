@@ -24,6 +24,7 @@ import time
 import pytest
 from fleets import REAL_BACKENDS, SPEEDUP, skip_unless_configured
 from test_end_to_end import (
+    REAL_LOST_AFTER_S,
     assert_hidden_and_clear,
     assert_landed_at_launch,
     assert_one_loss_retasked,
@@ -117,3 +118,33 @@ def test_a_vehicle_killed_in_its_shadow_is_lost_once_overdue(planned, backend, t
     print(f"\nkilled in a shadow [{backend}]: {loss['reason']}")
     assert loss["reason"].startswith("overdue") and loss["detected_s"] >= loss["due_s"]
     assert_one_loss_retasked(p, result, victim)
+
+
+def test_a_vehicle_declared_lost_that_comes_back_is_rejoined(planned, backend, tmp_path):
+    """Vehicle 1's link cut where its plan predicts contact (a third of the way along
+    its route), for three times --lost-after: declared lost ("nothing heard"), the
+    others re-tasked; its autopilot flies its mission on in AUTO (the link failsafe
+    --set-failsafes chose); heard again, it is taken back in the air and the fleet
+    re-planned with it. Judged by the autopilots' own tracks: every vehicle hidden,
+    clear and landed at its base, the coverage flown by all three."""
+    p = planned(0, backend)
+    victim = 1
+
+    def cut_in_contact(be):
+        while be.relay.cut[victim]:           # not in a shadow: a radio that fails
+            time.sleep(0.05)
+        be.cut_link(victim, 3 * REAL_LOST_AFTER_S)
+    result = fly_case(p, backend, tmp_path, radio=True, params=UNSAFE_LINK[backend],
+                      at=[(victim, 0.3, cut_in_contact)])
+    report, tracks = result["report"], result["tracks"]
+    events = [e for e in report["events"] if e["sysid"] == victim]
+    lost = next(e for e in events if e["event"] == "lost")
+    print(f"\nrejoined [{backend}]: lost '{lost['reason']}', then "
+          f"{[e['event'][:60] for e in events if e.get('rejoined')]}")
+    assert lost["reason"].startswith("nothing heard for")
+    assert any(e.get("rejoined") for e in events)
+    assert any(victim in r["rejoined"] for r in report["replans"])
+    assert report["losses"] == [] and report["outcome"]["coverage_reached"]
+    assert_hidden_and_clear(p, tracks)
+    assert_landed_at_launch(p.ctx, tracks, list(tracks), backend)
+    assert recorded_coverage(p.ctx, tracks, list(tracks), k=0)["k_covered"] == coverable(p.ctx)
