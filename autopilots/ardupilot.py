@@ -277,6 +277,13 @@ PROFILE = ArduPilot(
     # Copter::set_mode_SmartRTL_or_* ("SmartRTL deactivated: buffer full", "SmartRTL
     # Unavailable, Trying RTL Mode")
     failsafe_texts=r"\bFailsafe\b|^SmartRTL (deactivated|Unavailable)",
+    # ArduCopter/mode_rtl.cpp compute_return_target: AP_Rally::calc_best_rally_or_home_
+    # location (RALLY_INCL_HOME 1: home when closer); mode_smart_rtl.cpp never reads them
+    rally_returns="RTL: a climb to RTL_ALT and a straight line to the closest rally point "
+                  "(or home, when closer); SmartRTL, the hidden return, does not use them",
+    # AP_Mission::jump_to_landing_sequence: only action 6 (not hidden) jumps to one
+    mission_landing="a DO_LAND_START, used only by the failsafe action 6, which flies "
+                    "straight to it from where the vehicle is; SmartRTL needs none",
     # the mission's DO_CHANGE_SPEED sets the speed; climbs and descents keep these
     # (defaults 250, 150, 50 cm/s: ``rates``)
     rate_limits=(("WPNAV_SPEED_UP", "climb_mps", 0.01), ("WPNAV_SPEED_DN", "descent_mps", 0.01),

@@ -112,6 +112,15 @@ class Autopilot:
     #: limits on a mission's speed, climb and descent; below the plan's, every leg
     #: they cap takes longer than planned
     rate_limits: tuple = ()
+    #: which of its returns fly to a rally point, in words (`missions.rally`): each a
+    #: straight line to the closest one, never a return the failsafe profile keeps
+    rally_returns: str = ""
+    #: how it finds a mission's landing, in words; ``landing_return``: its hidden
+    #: return needs one (PX4's RTL_TYPE 2 / 4 fly forward only to a mission landing,
+    #: else reversed to home), so a mission that flies to a base lands there as its
+    #: last position item (`missions.build`)
+    mission_landing: str = ""
+    landing_return: bool = False
 
     # -- missions -----------------------------------------------------------------
     @property

@@ -203,6 +203,16 @@ PROFILE = PX4(
     # notices travel as events, which gcs does not read)
     failsafe_texts=r"^Failsafe",
     params_bytewise=True,       # src/modules/mavlink/mavlink_main.cpp: ENCODE_BYTEWISE
+    # navigator/rtl.cpp: findRtlDestination (safe points) runs for RTL_TYPE 0, 1, 3 only
+    rally_returns="Return with RTL_TYPE 0, 1 or 3: a climb and a straight line to the "
+                  "closest rally point; RTL_TYPE 2 and 4, the hidden returns, do not "
+                  "consider them",
+    # mavlink/mavlink_mission.cpp: land_start_index is the first DO_LAND_START, else the
+    # first NAV_LAND (land_index); rtl.cpp hasMissionLandStart, reverseIsFurther
+    mission_landing="the first NAV_LAND of the mission (or a DO_LAND_START before it): "
+                    "RTL_TYPE 4 flies the mission forward to it when it is fewer items "
+                    "away than the mission's start, else reversed to the start and home",
+    landing_return=True,
     failsafe_modes={"AUTO.RTL": "Return (RTL_TYPE: along the mission path, or a climb "
                                 "and a straight line home)",
                     "AUTO.LAND": "LAND where it is", "AUTO.LOITER": "Hold where it is"},

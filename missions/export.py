@@ -23,6 +23,7 @@ from planner.plan import PLAN_FILE, Plan
 from . import FORMATS, geo, qgc, wpl
 from .build import MissionOptions, firmware_profile, plan_missions
 from .check import check_mission
+from .returns import rally_points
 
 ROUTES_GEOJSON = "routes.geojson"
 ROUTES_KML = "routes.kml"
@@ -58,9 +59,10 @@ def export_plan_dir(directory, plan, firmware: Optional[str] = None, surface=Non
     directory = Path(directory)
     directory.mkdir(parents=True, exist_ok=True)
     speed = plan.params.get("speed_mps")
+    rally = rally_points(plan, missions)     # the bases, proven with the missions above
     written = []
     for mission in missions:
-        written += _vehicle_files(directory, mission, plan, speed, formats, fences)
+        written += _vehicle_files(directory, mission, plan, speed, formats, fences, rally)
     if "geojson" in formats:
         geo.write_geojson(directory / ROUTES_GEOJSON, plan)
         written.append((directory / ROUTES_GEOJSON,
@@ -156,26 +158,31 @@ def _a(firmware: str) -> str:
     return ("an " if title[:1].lower() in "aeiou" else "a ") + title
 
 
-def _vehicle_files(directory, mission, plan, speed, formats, fences) -> list:
+def _vehicle_files(directory, mission, plan, speed, formats, fences, rally=()) -> list:
     out = []
     n = len(mission.items)
     what = f"{mission.name}: {n} items, {mission.firmware}"
+    home = _home(plan, mission)
     if "plan" in formats:
         path = vehicle_file(directory, mission.vehicle_id, "plan", mission.sortie)
         qgc.write_plan_file(path, mission, speed, plan.outposts if fences else (),
-                            home=_home(plan, mission.vehicle_id))
+                            home=home, rally=rally)
         out.append((path, f"{what} (QGroundControl .plan)"))
     if "waypoints" in formats:
         path = vehicle_file(directory, mission.vehicle_id, "waypoints", mission.sortie)
-        wpl.write_waypoints(path, mission.items, mission.firmware,
-                            home=_home(plan, mission.vehicle_id))
+        wpl.write_waypoints(path, mission.items, mission.firmware, home=home)
         out.append((path, f"{what} (QGC WPL 110: Mission Planner, MAVProxy)"))
     return out
 
 
-def _home(plan, vehicle_id):
-    """The launch point (lat, lon, ground AMSL) of a vehicle, if it has one."""
-    route = next((v for v in plan.vehicles if v.id == vehicle_id), None)
-    if route is None or route.launch is None:
+def _home(plan, mission):
+    """Where ``mission``'s vehicle arms (lat, lon, ground AMSL): the base of its sortie
+    (a later sortie may take off from another base than the first), None without one."""
+    route = next((v for v in plan.vehicles if v.id == mission.vehicle_id), None)
+    if route is None:
         return None
-    return (route.launch.lat, route.launch.lon, route.launch.alt_amsl)
+    parts = route.sortie_routes()
+    part = parts[mission.sortie - 1] if 0 < mission.sortie <= len(parts) else route
+    if part.launch is None:
+        return None
+    return (part.launch.lat, part.launch.lon, part.launch.alt_amsl)

@@ -12,6 +12,11 @@ QGroundControl, the ``.plan`` holds no home item: home is
 The outposts' detection ranges are written as exclusion geofence circles so
 QGroundControl draws them. Note that an autopilot with its fence enabled would
 act on them if the fence were uploaded too.
+
+``rallyPoints`` holds the fleet's bases and nothing else (`missions.returns`):
+[lat, lon, alt] with the altitude relative to ``plannedHomePosition``, as
+QGroundControl writes them and MAVSDK uploads them (MAV_FRAME_GLOBAL_RELATIVE_ALT,
+MAV_CMD_NAV_RALLY_POINT).
 """
 
 import json
@@ -44,19 +49,20 @@ class QgcPlan:
     cruise_speed_mps: Optional[float] = None
     hover_speed_mps: Optional[float] = None
     fence_circles: list = field(default_factory=list)  # [(lat, lon, radius_m, inclusion)]
-    rally_points: list = field(default_factory=list)  # [(lat, lon, alt)]
+    rally_points: list = field(default_factory=list)  # [(lat, lon, alt above home)]
     declared: Optional[str] = None  # the firmware its firmwareType names (None: neither)
 
 
 # --- writer ---------------------------------------------------------------------------------
 
-def plan_json(mission, speed_mps=None, outposts=(), home=None) -> dict:
+def plan_json(mission, speed_mps=None, outposts=(), home=None, rally=()) -> dict:
     """The ``.plan`` document of a `missions.build.VehicleMission`.
 
     ``home``: (lat, lon, alt AMSL) where the firmware has no home item (PX4),
     default the first position item (ArduPilot's is its item 0). ``outposts``:
     plan.outposts dicts; those with a range become
-    exclusion circles.
+    exclusion circles. ``rally``: [(lat, lon, alt AMSL)], the fleet's bases
+    (`missions.returns.rally_points`), written relative to home.
     """
     items = list(mission.items)
     autopilot = profile(mission.firmware)
@@ -82,12 +88,13 @@ def plan_json(mission, speed_mps=None, outposts=(), home=None) -> dict:
             "items": [_simple_item(it, n + 1) for n, it in enumerate(items)],
         },
         "geoFence": {"version": 2, "polygons": [], "circles": _fence_circles(outposts)},
-        "rallyPoints": {"version": 2, "points": []},
+        "rallyPoints": {"version": 2, "points": [
+            [float(lat), float(lon), float(alt) - float(home[2])] for lat, lon, alt in rally]},
     }
 
 
-def write_plan_file(path, mission, speed_mps=None, outposts=(), home=None) -> None:
-    doc = plan_json(mission, speed_mps, outposts, home)
+def write_plan_file(path, mission, speed_mps=None, outposts=(), home=None, rally=()) -> None:
+    doc = plan_json(mission, speed_mps, outposts, home, rally)
     write_text_atomic(path, json.dumps(doc, indent=4, allow_nan=False) + "\n")
 
 
@@ -235,4 +242,9 @@ def _read_rally(rally, source) -> list:
     if rally is None:
         return []
     _version(rally, 2, source, "rallyPoints")
-    return [tuple(float(v) for v in p) for p in rally.get("points", [])]
+    points = rally.get("points", [])
+    for n, p in enumerate(points if isinstance(points, list) else [points]):
+        if not (isinstance(p, list) and len(p) == 3 and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
+            raise InputError(source, f"rally point {n + 1} is not [lat, lon, alt]: {p!r}")
+    return [tuple(float(v) for v in p) for p in points]

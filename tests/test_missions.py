@@ -5,7 +5,6 @@ readers round-trip random routes; exposed or low legs are refused unwritten."""
 import copy
 import json
 import math
-import socket
 import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
@@ -14,6 +13,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from mavsdk_judge import mission_raw
 
 from common.errors import InputError
 from gcs.mavlink import mavutil  # noqa: F401  (MAVLink 2 and the dialect, before mavwp)
@@ -253,34 +253,11 @@ def test_waypoints_old_px4_layout_still_read(exported, tmp_path):
     assert first_difference(renumber(copy.deepcopy(a.items[1:])), px4) is None
 
 
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 @pytest.fixture(scope="module")
 def mavsdk_importer():
-    """MissionRaw of a ground-station MAVSDK connected, over loopback UDP, to an
-    autopilot-side MAVSDK with a MissionRawServer (MAVSDK 4 needs a system)."""
-    from mavsdk import ComponentType, Configuration, Mavsdk
-    from mavsdk.plugins.mission_raw import MissionRaw
-    from mavsdk.plugins.mission_raw_server import MissionRawServer
-
-    port = _free_udp_port()
-    autopilot = Mavsdk(Configuration.create_with_component_type(ComponentType.AUTOPILOT))
-    ground = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
-    try:
-        ground.add_any_connection(f"udpin://127.0.0.1:{port}")
-        autopilot.add_any_connection(f"udpout://127.0.0.1:{port}")
-        server = MissionRawServer(autopilot.server_component())
-        system = ground.first_autopilot(10.0)
-        assert system is not None, "MAVSDK ground station found no autopilot"
-        yield MissionRaw(system)
-        del server
-    finally:
-        ground.destroy()
-        autopilot.destroy()
+    """MAVSDK's MissionRaw (`mavsdk_judge.mission_raw`): its importers read our files."""
+    with mission_raw() as raw:
+        yield raw
 
 
 def _mavsdk_items(items):

@@ -1,0 +1,190 @@
+"""What a firmware's own return reads from the mission files (issue 60): the fleet's
+bases as the ``.plan`` rally points, and the mission landing PX4's Return flies to.
+
+Judged by what did not write them: MAVSDK's QGroundControl importer (the rally
+items it would upload), brute-force line of sight over the terrain (each rally
+point's column hidden from the outpost), PX4's own rule for a mission's landing
+(its first NAV_LAND, mavlink_mission.cpp)."""
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from hills import central_outpost
+from mavsdk_judge import mission_raw
+from sampled_sight import sampled_lowest
+
+from common.errors import InputError
+from gcs.cli import main
+from missions.build import MissionOptions, plan_missions
+from missions.export import export_plan_dir
+from missions.items import NAV_LAND, NAV_TAKEOFF
+from missions.qgc import load_plan_file
+from missions.returns import landing_gaps, rally_points
+from missions.segments import RouteMissions
+from planner.bases import suggest_bases
+from planner.pipeline import plan_mission, prepare
+from planner.scenario import Scenario
+from planner.terrain import synthetic_terrain
+
+N = 60
+RALLY_POINT = 5100            # MAV_CMD_NAV_RALLY_POINT
+RELATIVE = 3                  # MAV_FRAME_GLOBAL_RELATIVE_ALT
+
+pytestmark = pytest.mark.timeout(180)
+
+
+@pytest.fixture(scope="module")
+def mavsdk_importer():
+    """MAVSDK's MissionRaw (`mavsdk_judge.mission_raw`): its importers read our files."""
+    with mission_raw() as raw:
+        yield raw
+
+
+@pytest.fixture(scope="module")
+def two_bases():
+    """(context, plan) of 2 UAVs, one from each of two bases 300 m or more apart."""
+    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+    outposts = [central_outpost(terrain)]
+    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
+                        clearance_m=20.0, hide_margin_m=5.0, method="rt").validate()
+    ctx = prepare(scenario, terrain=terrain, outposts=outposts)
+    bases = suggest_bases(ctx, count=2, separation_m=300.0, spacing_m=90.0)
+    assert len(bases) == 2
+    scenario = replace(scenario, launch=[(b.lat, b.lon) for b in bases]).validate()
+    ctx, outcome = plan_mission(scenario, terrain=terrain, outposts=outposts)
+    return ctx, outcome.plan
+
+
+@pytest.fixture(scope="module")
+def exported(two_bases, tmp_path_factory):
+    """firmware -> (folder, its missions), each proven by the export."""
+    ctx, plan = two_bases
+    out = {}
+    for firmware in ("ardupilot", "px4"):
+        d = tmp_path_factory.mktemp(firmware)
+        export_plan_dir(d, plan, firmware, surface=ctx.surface, formats=("plan",))
+        out[firmware] = (d, plan_missions(plan, firmware))
+    return out
+
+
+def _bases(plan) -> list:
+    return [(b.lat, b.lon, b.alt_amsl) for b in {(v.launch.lat, v.launch.lon): v.launch
+                                                  for v in plan.vehicles}.values()]
+
+
+def test_each_plan_file_carries_the_fleet_bases_as_rally_points(two_bases, exported):
+    _, plan = two_bases
+    bases = _bases(plan)
+    assert len(bases) == 2
+    for firmware, (d, missions) in exported.items():
+        for m in missions:
+            doc = load_plan_file(d / f"vehicle-{m.vehicle_id}.plan")
+            home = next(v.launch for v in plan.vehicles if v.id == m.vehicle_id)
+            assert doc.home == pytest.approx((home.lat, home.lon, home.alt_amsl), abs=1e-7)
+            # relative to plannedHomePosition, as QGroundControl keeps them
+            want = sorted((lat, lon, alt - home.alt_amsl) for lat, lon, alt in bases)
+            assert len(doc.rally_points) == 2
+            assert np.ravel(sorted(doc.rally_points)) == pytest.approx(np.ravel(want), abs=1e-6)
+
+
+def test_mavsdk_imports_them_as_rally_items(exported, mavsdk_importer):
+    for firmware, (d, missions) in exported.items():
+        for m in missions:
+            path = d / f"vehicle-{m.vehicle_id}.plan"
+            data = mavsdk_importer.import_qgroundcontrol_mission(str(path))
+            said = json.loads(path.read_text())["rallyPoints"]["points"]
+            got = [(it.command, it.frame, it.mission_type, it.x, it.y, it.z)
+                   for it in data.rally_items]
+            assert got == [(RALLY_POINT, RELATIVE, 2, round(lat * 1e7), round(lon * 1e7),
+                            pytest.approx(alt, abs=1e-3)) for lat, lon, alt in said]
+
+
+def test_every_rally_point_is_a_hidden_base_by_brute_force_line_of_sight(two_bases):
+    """The column over each rally point, from a metre above the ground to the top of
+    its takeoff, is out of the outpost's sight by dense sampling of the terrain."""
+    ctx, plan = two_bases
+    missions = plan_missions(plan, "px4")
+    terrain, k = ctx.terrain, ctx.scenario.curvature_coeff
+    cell = abs(terrain.transform.a)
+    tops = {(round(it.x, 6), round(it.y, 6)): it.z for m in missions for it in m.items
+            if it.command == NAV_TAKEOFF}
+    points = rally_points(plan, missions)
+    assert len(points) == 2
+    for lat, lon, ground in points:
+        x, y = terrain.from_lonlat(lon, lat)
+        row, col = terrain.rowcol(float(x), float(y))
+        top = tops[(round(lat, 6), round(lon, 6))]
+        judged = 0
+        for o in ctx.outposts:
+            if math.hypot(float(x) - o.x, float(y) - o.y) > o.range_m:
+                continue
+            row0, col0 = terrain.rowcol(o.x, o.y)
+            z0 = float(terrain.ground(o.x, o.y)[0]) + o.height_m
+            lowest = sampled_lowest(terrain.height, cell, float(col0), float(row0), z0,
+                                    float(col), float(row), k, n=4001)
+            assert top < lowest and ground + 1.0 < lowest, (lat, lon)
+            judged += 1
+        assert judged, f"no outpost in range of the base at {lat}, {lon}: nothing judged"
+
+
+def test_no_rally_point_without_a_proven_column(two_bases):
+    """Missions that neither take off nor land (takeoff items left out) prove no base's
+    column: no rally point is written, and PX4's Return along such a mission can only
+    reverse, then fly straight home: said."""
+    _, plan = two_bases
+    bare = plan_missions(plan, "px4", MissionOptions(takeoff=False))
+    assert rally_points(plan, bare) == []
+    gaps = landing_gaps(bare[0])
+    assert len(gaps) == 2 and gaps[0].startswith("no mission landing")
+    assert "a straight line home from item 0" in gaps[1]
+
+
+def test_px4_missions_land_at_their_base_and_start_above_home(two_bases):
+    """Every PX4 mission from the ground has its mission landing: its first NAV_LAND
+    (what PX4 1.17 takes for the landing when there is no DO_LAND_START) stands at the
+    base it lands at, the last position item; and it starts with the takeoff over
+    its home. ArduPilot's SmartRTL needs neither."""
+    _, plan = two_bases
+    for m, route in zip(plan_missions(plan, "px4"), plan.vehicles):
+        positions = [it for it in m.items if it.is_position]
+        land = next(it for it in positions if it.command == NAV_LAND)
+        assert land is positions[-1]
+        assert (land.x, land.y, land.z) == pytest.approx(
+            (route.landing.lat, route.landing.lon, route.landing.alt_amsl), abs=1e-7)
+        assert positions[0].command == NAV_TAKEOFF and landing_gaps(m) == []
+    assert all(landing_gaps(m) == [] for m in plan_missions(plan, "ardupilot"))
+
+
+def test_segments_after_the_first_do_not_start_above_home(two_bases):
+    """A route in segments of 12 items (`missions.segments`): the first takes off but
+    does not land, the others start in the air; PX4's Return along each but the
+    first ends with a straight line home, and along each but the last it cannot
+    fly forward to a base: each said."""
+    _, plan = two_bases
+    route = plan.vehicles[0]
+    options = MissionOptions(speed_mps=plan.params["speed_mps"])
+    rm = RouteMissions(route, "px4", options, lambda mission: mission)
+    segments = [rm.segment(12, rm.fly[0], 0)]
+    while not segments[-1].final:
+        segments.append(rm.segment(12, segments[-1].last_waypoint, len(segments)))
+    assert len(segments) > 2
+    first, middle, last = (landing_gaps(s) for s in (segments[0], segments[1], segments[-1]))
+    assert len(first) == 1 and first[0].startswith("no mission landing")
+    assert len(middle) == 2 and "does not start above its home" in middle[1]
+    assert len(last) == 1 and "does not start above its home" in last[0]
+
+
+def test_a_malformed_rally_point_is_one_line_naming_the_file(exported, tmp_path, capsys):
+    d, missions = exported["px4"]
+    doc = json.loads((d / f"vehicle-{missions[0].vehicle_id}.plan").read_text())
+    doc["rallyPoints"]["points"] = [[36.6, "west", 300.0]]
+    bad = tmp_path / "bad.plan"
+    bad.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match="bad.plan: rally point 1 is not"):
+        load_plan_file(bad)
+    assert main(["upload", str(bad), "--unchecked", "--connect", "tcp:127.0.0.1:1"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bad.plan: rally point 1 is not [lat, lon, alt]" in err[0]
