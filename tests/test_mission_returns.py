@@ -4,20 +4,28 @@ bases as the ``.plan`` rally points, and the mission landing PX4's Return flies 
 Judged by what did not write them: MAVSDK's QGroundControl importer (the rally
 items it would upload), brute-force line of sight over the terrain (each rally
 point's column hidden from the outpost), PX4's own rule for a mission's landing
-(its first NAV_LAND, mavlink_mission.cpp)."""
+(its first NAV_LAND, mavlink_mission.cpp), MAVSDK as a ground station uploading
+them to a simulated PX4 and reading them back, pymavlink driving a simulated
+ArduPilot whose RTL flies to the closest of them, read from its track file."""
 
 import json
 import math
+import os
+import time
 from dataclasses import replace
 
 import numpy as np
 import pytest
 from hills import central_outpost
 from mavsdk_judge import mission_raw
+from pymavlink import mavutil
+from pyproj import Geod
 from sampled_sight import sampled_lowest
+from sim_fleet import quick_fleet
 
 from common.errors import InputError
 from gcs.cli import main
+from gcs.sim import read_track
 from missions.build import MissionOptions, plan_missions
 from missions.export import export_plan_dir
 from missions.items import NAV_LAND, NAV_TAKEOFF
@@ -29,6 +37,10 @@ from planner.pipeline import plan_mission, prepare
 from planner.scenario import Scenario
 from planner.terrain import synthetic_terrain
 
+os.environ.setdefault("MAVLINK20", "1")
+mavutil.set_dialect("ardupilotmega")
+M = mavutil.mavlink
+GEOD = Geod(ellps="WGS84")
 N = 60
 RALLY_POINT = 5100            # MAV_CMD_NAV_RALLY_POINT
 RELATIVE = 3                  # MAV_FRAME_GLOBAL_RELATIVE_ALT
@@ -188,3 +200,101 @@ def test_a_malformed_rally_point_is_one_line_naming_the_file(exported, tmp_path,
     assert main(["upload", str(bad), "--unchecked", "--connect", "tcp:127.0.0.1:1"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bad.plan: rally point 1 is not [lat, lon, alt]" in err[0]
+
+
+# -- the simulator --------------------------------------------------------------------
+def test_the_simulator_takes_rally_points_from_mavsdk_and_gives_them_back(exported):
+    """MAVSDK as the ground station uploads a .plan's rally items to a simulated PX4
+    (as QGroundControl does beside the mission) and downloads them again."""
+    from mavsdk import ComponentType, Configuration, Mavsdk
+    from mavsdk.plugins.mission_raw import MissionRaw
+
+    d, missions = exported["px4"]
+    fleet = quick_fleet(1, "px4")
+    ground = Mavsdk(Configuration.create_with_component_type(ComponentType.GROUND_STATION))
+    try:
+        url = fleet.urls()[0].replace("udpin:", "udpin://")
+        ground.add_any_connection(url)
+        system = ground.first_autopilot(10.0)
+        assert system is not None, "MAVSDK found no simulated autopilot"
+        raw = MissionRaw(system)
+        path = d / f"vehicle-{missions[0].vehicle_id}.plan"
+        items = raw.import_qgroundcontrol_mission(str(path)).rally_items
+        assert len(items) == 2
+        raw.upload_rally_points(items)
+        back = raw.download_rallypoints()
+        key = [(it.x, it.y, round(it.z, 3), it.frame) for it in items]
+        assert [(it.x, it.y, round(it.z, 3), it.frame) for it in back] == key
+        held = fleet.vehicle(1).mission.rally()
+        assert [(round(a * 1e7), round(b * 1e7), round(z, 3), f) for a, b, z, f in held] == key
+    finally:
+        ground.destroy()
+        fleet.stop()
+
+
+def _upload_rally(m, points, command=RALLY_POINT) -> int:
+    """Rally points [(lat, lon, alt above home)] by the mission protocol, by hand
+    (MAV_MISSION_TYPE_RALLY), as ``command`` items; the MISSION_ACK's result."""
+    m.mav.mission_count_send(1, 1, len(points), M.MAV_MISSION_TYPE_RALLY)
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline:
+        msg = m.recv_match(type=["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"],
+                           blocking=True, timeout=1)
+        if msg is None or msg.mission_type != M.MAV_MISSION_TYPE_RALLY:
+            continue
+        if msg.get_type() == "MISSION_ACK":
+            return msg.type
+        lat, lon, alt = points[msg.seq]
+        m.mav.mission_item_int_send(1, 1, msg.seq, RELATIVE, command, 0, 1, 0, 0, 0, 0,
+                                    round(lat * 1e7), round(lon * 1e7), alt,
+                                    M.MAV_MISSION_TYPE_RALLY)
+    raise AssertionError("no MISSION_ACK to the rally upload")
+
+
+def _command(m, cmd, *params) -> int:
+    p = list(params) + [0.0] * (7 - len(params))
+    m.mav.command_long_send(1, 1, cmd, 0, *p)
+    ack = m.recv_match(type="COMMAND_ACK", condition=f"COMMAND_ACK.command=={cmd}",
+                       blocking=True, timeout=5)
+    return ack.result
+
+
+def test_a_plain_rtl_flies_straight_to_the_closest_rally_point(tmp_path):
+    """ArduPilot's RTL goes to the closest rally point when it is closer than home
+    (RALLY_INCL_HOME 1): the simulator's vehicle, sent 150 m north, RTLs to the
+    rally point 200 m north, not home, and lands there. A straight line, proven
+    nothing: the reason no failsafe the profile keeps is an RTL."""
+    home = (36.6, -84.25, 300.0)
+    north, far = (GEOD.fwd(home[1], home[0], 0.0, d)[:2] for d in (150.0, 200.0))
+    fleet = quick_fleet(1, "ardupilot", homes=[home], track_dir=tmp_path, speedup=20.0)
+    m = mavutil.mavlink_connection(fleet.urls()[0], source_system=250, source_component=190)
+    try:
+        m.mav.request_data_stream_send(0, 0, M.MAV_DATA_STREAM_ALL, 4, 1)
+        m.recv_match(type="SYS_STATUS", blocking=True, timeout=10,
+                     condition="SYS_STATUS.onboard_control_sensors_health & 268435456")
+        # a rally list of anything but rally points is refused, as both firmwares do
+        assert _upload_rally(m, [(far[1], far[0], 0.0)], command=M.MAV_CMD_NAV_WAYPOINT) \
+            == M.MAV_MISSION_UNSUPPORTED
+        assert _upload_rally(m, [(far[1], far[0], 0.0)]) == M.MAV_MISSION_ACCEPTED
+        assert _command(m, M.MAV_CMD_DO_SET_MODE, 1, 4) == M.MAV_RESULT_ACCEPTED  # GUIDED
+        assert _command(m, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        assert _command(m, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 20) == M.MAV_RESULT_ACCEPTED
+        m.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=20,
+                     condition="GLOBAL_POSITION_INT.relative_alt > 19000")
+        m.mav.set_position_target_global_int_send(
+            0, 1, 1, M.MAV_FRAME_GLOBAL_RELATIVE_ALT_INT, 0b110111111000,
+            round(north[1] * 1e7), round(north[0] * 1e7), 20.0, 0, 0, 0, 0, 0, 0, 0, 0)
+        reached = f"abs(GLOBAL_POSITION_INT.lat - {round(north[1] * 1e7)}) < 50"
+        assert m.recv_match(type="GLOBAL_POSITION_INT", condition=reached, blocking=True,
+                            timeout=30) is not None
+        assert _command(m, M.MAV_CMD_NAV_RETURN_TO_LAUNCH) == M.MAV_RESULT_ACCEPTED
+        m.recv_match(type="EXTENDED_SYS_STATE", blocking=True, timeout=60,
+                     condition="EXTENDED_SYS_STATE.landed_state == 1")
+    finally:
+        m.close()
+        fleet.stop()
+    track = read_track(tmp_path / "vehicle_1.json")
+    last = (float(track.lat[-1]), float(track.lon[-1]))
+    assert GEOD.inv(last[1], last[0], far[0], far[1])[2] < 3.0
+    assert abs(float(track.alt[-1]) - home[2]) < 0.5
+    assert "landed" in [e["event"] for e in track.events]

@@ -12,6 +12,12 @@ a download returns what the real autopilot would. A mission longer than the
 vehicle's capacity (the profile's: ArduPilot 650, PX4 none; or as configured)
 is refused with NO_SPACE at MISSION_COUNT, with the STATUSTEXT ArduPilot sends.
 PX4 requests with MISSION_REQUEST_INT and swaps the mission in when complete.
+
+Rally points and fence items (MAV_MISSION_TYPE_RALLY, _FENCE: what a ground
+station such as QGroundControl uploads from a ``.plan`` beside its mission) are
+taken by the same protocol and kept as sent, each list apart (`other`): both
+firmwares hold them, and a ground station that finds them refused calls the whole
+upload failed. The vehicle's return reads the rally points (`rally`).
 """
 
 from dataclasses import dataclass, replace
@@ -22,6 +28,10 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 from autopilots.mavlink import FRAME_MISSION, GLOBAL_FRAMES
 
 SUPPORTED_FRAMES = GLOBAL_FRAMES | {FRAME_MISSION}
+#: the commands a rally or fence upload may carry; any other is refused UNSUPPORTED, as
+#: both firmwares do (ArduPilot MissionItemProtocol_Rally / _Fence, PX4 mavlink_mission.cpp)
+TYPED_COMMANDS = {mavlink.MAV_MISSION_TYPE_RALLY: frozenset({5100}),
+                  mavlink.MAV_MISSION_TYPE_FENCE: frozenset({5000, 5001, 5002, 5003, 5004})}
 RETRY_S = 1.5
 RETRIES = 5
 
@@ -67,13 +77,14 @@ class MissionItem:
         return cls(msg.seq, msg.frame, msg.command, msg.param1, msg.param2, msg.param3,
                    msg.param4, x, y, msg.z, msg.autocontinue)
 
-    def encode(self, mav, target: tuple, legacy: bool, current: bool):
+    def encode(self, mav, target: tuple, legacy: bool, current: bool, mission_type: int = 0):
         args = (target[0], target[1], self.seq, self.frame, self.command, int(current),
                 self.autocontinue, self.param1, self.param2, self.param3, self.param4)
         if legacy:
             scale = 1e-7 if self.frame in GLOBAL_FRAMES else 1.0
-            return mav.mission_item_encode(*args, self.x * scale, self.y * scale, self.z)
-        return mav.mission_item_int_encode(*args, self.x, self.y, self.z)
+            return mav.mission_item_encode(*args, self.x * scale, self.y * scale, self.z,
+                                           mission_type)
+        return mav.mission_item_int_encode(*args, self.x, self.y, self.z, mission_type)
 
 
 class MissionServer:
@@ -92,8 +103,10 @@ class MissionServer:
         self._home, self._current, self._changed = home, current, changed
         self._boot, self._no_space_s = boot_time, no_space_s
         self.items = [self._home_item()] if flavour.home_item else []
+        #: mission type (rally, fence) -> its items, as uploaded
+        self.other = {mavlink.MAV_MISSION_TYPE_RALLY: [], mavlink.MAV_MISSION_TYPE_FENCE: []}
         self._up = None            # upload in progress
-        self._done = None          # (partner, count) of the last finished upload, to re-ACK
+        self._done = None          # (partner, count, type) of the last finished upload: re-ACKed
 
     def booted(self, now: float) -> None:
         """The autopilot started now (ArduPilot refuses uploads for a moment)."""
@@ -132,17 +145,24 @@ class MissionServer:
             return
         if up["tries"] >= RETRIES:
             self._up = None
-            self._ack(up["partner"], mavlink.MAV_MISSION_OPERATION_CANCELLED)
+            self._ack(up["partner"], mavlink.MAV_MISSION_OPERATION_CANCELLED, up["type"])
             return
         up["tries"] += 1
         self._request(now)
 
     # -- upload -----------------------------------------------------------------------
     def _on_count(self, msg, partner, now) -> None:
-        if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
-            result = (mavlink.MAV_MISSION_ACCEPTED if msg.count == 0
-                      else mavlink.MAV_MISSION_UNSUPPORTED)
-            return self._ack(partner, result, msg.mission_type)
+        kind = msg.mission_type
+        if kind != mavlink.MAV_MISSION_TYPE_MISSION:
+            if kind not in self.other:
+                return self._ack(partner, mavlink.MAV_MISSION_UNSUPPORTED, kind)
+            self._done = None
+            if msg.count == 0:
+                self.other[kind] = []
+                return self._ack(partner, mavlink.MAV_MISSION_ACCEPTED, kind)
+            self._up = {"partner": partner, "count": msg.count, "next": 0, "tries": 0,
+                        "asked": now, "items": [], "type": kind}
+            return self._request(now)
         if self.flavour.home_item and now - self._boot < self._no_space_s:
             return self._no_space(partner, 0)
         if self.capacity is not None and msg.count > self.capacity:
@@ -153,7 +173,7 @@ class MissionServer:
             self._replace([], "cleared")
             return self._ack(partner, mavlink.MAV_MISSION_ACCEPTED)
         self._up = {"partner": partner, "count": msg.count, "next": 0, "tries": 0,
-                    "asked": now, "items": []}
+                    "asked": now, "items": [], "type": kind}
         self._request(now)
 
     def _no_space(self, partner, capacity: int) -> None:
@@ -165,13 +185,15 @@ class MissionServer:
                       self.flavour.texts.no_space.format(n=capacity))
 
     def _on_item(self, msg, partner, now) -> None:
-        if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
-            return
         up = self._up
         if up is None:
-            if self._done == (partner, msg.seq + 1):    # our ACK was lost: say it again
-                self._ack(partner, mavlink.MAV_MISSION_ACCEPTED)
+            if self._done == (partner, msg.seq + 1, msg.mission_type):  # our ACK was lost
+                self._ack(partner, mavlink.MAV_MISSION_ACCEPTED, msg.mission_type)
             return
+        if msg.mission_type != up["type"]:
+            return
+        if up["type"] != mavlink.MAV_MISSION_TYPE_MISSION:
+            return self._on_other_item(msg, partner, now)
         if partner != up["partner"]:
             return self._ack(partner, mavlink.MAV_MISSION_DENIED)
         if msg.seq != up["next"]:                       # out of order: said, and asked again
@@ -192,11 +214,40 @@ class MissionServer:
         if up["next"] < up["count"]:
             return self._request(now)
         self._up = None
-        self._done = (partner, up["count"])
+        self._done = (partner, up["count"], up["type"])
         self._replace(up["items"], "uploaded")
         self._ack(partner, mavlink.MAV_MISSION_ACCEPTED)
         if self.flavour.home_item:
             self._say(mavlink.MAV_SEVERITY_INFO, "Flight plan received")
+
+    def _on_other_item(self, msg, partner, now) -> None:
+        """An item of a rally or fence upload: kept as sent, the list replaced whole
+        when the last one arrives."""
+        up, kind = self._up, self._up["type"]
+        if partner != up["partner"]:
+            return self._ack(partner, mavlink.MAV_MISSION_DENIED, kind)
+        if msg.seq != up["next"]:
+            return self._request(now)
+        if msg.frame not in SUPPORTED_FRAMES:
+            self._up = None
+            return self._ack(partner, mavlink.MAV_MISSION_UNSUPPORTED_FRAME, kind)
+        if msg.command not in TYPED_COMMANDS[kind]:
+            self._up = None
+            return self._ack(partner, mavlink.MAV_MISSION_UNSUPPORTED, kind)
+        up["items"].append(MissionItem.from_msg(msg))
+        up["next"] += 1
+        up["tries"] = 0
+        if up["next"] < up["count"]:
+            return self._request(now)
+        self._up = None
+        self._done = (partner, up["count"], kind)
+        self.other[kind] = up["items"]
+        self._ack(partner, mavlink.MAV_MISSION_ACCEPTED, kind)
+
+    def rally(self) -> list:
+        """The rally points held: [(lat, lon, alt, frame)]."""
+        return [(it.lat, it.lon, float(it.z), it.frame)
+                for it in self.other[mavlink.MAV_MISSION_TYPE_RALLY]]
 
     def _write_live(self, item) -> None:
         if item.seq == 0:
@@ -217,18 +268,25 @@ class MissionServer:
         up["asked"] = now
         target = up["partner"]
         if self.flavour.legacy_request:
-            self._send(self._mav.mission_request_encode(*target, up["next"]))
+            self._send(self._mav.mission_request_encode(*target, up["next"], up["type"]))
         else:
-            self._send(self._mav.mission_request_int_encode(*target, up["next"]))
+            self._send(self._mav.mission_request_int_encode(*target, up["next"], up["type"]))
 
     # -- download and clear -----------------------------------------------------------
     def _on_request_list(self, msg, partner, now) -> None:
-        count = len(self.items) if msg.mission_type == mavlink.MAV_MISSION_TYPE_MISSION else 0
-        self._send(self._mav.mission_count_encode(*partner, count, msg.mission_type))
+        kind = msg.mission_type
+        count = len(self.items) if kind == mavlink.MAV_MISSION_TYPE_MISSION \
+            else len(self.other.get(kind, []))
+        self._send(self._mav.mission_count_encode(*partner, count, kind))
 
     def _on_request(self, msg, partner, now) -> None:
-        if msg.mission_type != mavlink.MAV_MISSION_TYPE_MISSION:
-            return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE, msg.mission_type)
+        kind = msg.mission_type
+        if kind != mavlink.MAV_MISSION_TYPE_MISSION:
+            held = self.other.get(kind, [])
+            if not 0 <= msg.seq < len(held):
+                return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE, kind)
+            legacy = msg.get_type() == "MISSION_REQUEST"
+            return self._send(held[msg.seq].encode(self._mav, partner, legacy, False, kind))
         if not 0 <= msg.seq < len(self.items) or self.items[msg.seq] is None:
             return self._ack(partner, mavlink.MAV_MISSION_INVALID_SEQUENCE)
         item = self._home_item() if (self.flavour.home_item and msg.seq == 0) \
@@ -240,6 +298,8 @@ class MissionServer:
         if msg.mission_type == mavlink.MAV_MISSION_TYPE_MISSION:
             self._up = None
             self._replace([], "cleared")
+        elif msg.mission_type in self.other:
+            self.other[msg.mission_type] = []
         self._ack(partner, mavlink.MAV_MISSION_ACCEPTED, msg.mission_type)
 
     def _ack(self, partner, result, mission_type=mavlink.MAV_MISSION_TYPE_MISSION) -> None:

@@ -903,10 +903,22 @@ class SimVehicle:
             return
         if task["phase"] == "climb":
             task["phase"] = "return"
-            self.body.go_to((self.home[0], self.home[1], self.body.pos[2]))
+            self.body.go_to((*self._rtl_target(), self.body.pos[2]))
         elif task["phase"] == "return":
             seq = task["seq"]
             self._start_land(None, seq)
+
+    def _rtl_target(self) -> tuple:
+        """Where a plain return flies, straight: home, or the closest rally point held
+        when it is closer (ArduPilot's RTL with RALLY_INCL_HOME 1, its default; PX4's
+        Return with RTL_TYPE 0: the profiles' ``rally_returns``)."""
+        here = self.body.pos[:2]
+        best = tuple(self.home[:2])
+        for lat, lon, _, _ in self.mission.rally():
+            point = tuple(self.frame.to_local(lat, lon))
+            if math.dist(here, point) < math.dist(here, best):
+                best = point
+        return best
 
     def _update_retrace(self, task) -> None:
         """A return along known points (ArduPilot's SmartRTL: its saved path newest
