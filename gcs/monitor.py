@@ -50,6 +50,7 @@ from gcs.corridor import POSITION_MARGIN_M, ProvenPath
 from gcs.link import has_position
 from gcs.mavlink import M
 from missions.items import NAV_LAND
+from missions.returns import landing_gaps
 
 # Flight states of a vehicle, as shown in the status table and flight.json.
 WAITING, STARTING, FLYING, HOLDING, RETURNING, LANDED, LOST = (
@@ -148,6 +149,7 @@ class VehicleProgress:
     track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL, vehicle time s)]
     airborne: bool = False
     lifted_at_s: float | None = None  # when it last left the ground (`LIFTOFF_M`)
+    return_gaps: list = field(default_factory=list)  # said of its mission's return, last
     lost_at_s: float | None = None
     lost_reason: str | None = None
     lost_stalled_s: float = 0.0  # of its silence, the time this ground station stood still
@@ -341,11 +343,25 @@ class Monitor:
                 # placed, not timed: a hold until its time is not flight
                 v.contact.mark(self.now(), fleet_s, self._own_clock(v), timed=False)
             self.links[sysid].state.mission_seq = None   # the old mission's; wait for news
+        self._return_gaps(sysid, mission)
 
     def set_mission(self, sysid: int, mission) -> None:
         """The mission uploaded for the current route (the whole, or its first segment)."""
         with self._lock:
             self.vehicles[sysid].mission = mission
+        self._return_gaps(sysid, mission)
+
+    def _return_gaps(self, sysid: int, mission) -> None:
+        """Where the firmware's return along ``mission`` would leave the proven legs
+        (`missions.returns.landing_gaps`: PX4's Return along a mission that does not
+        land at a base, or does not start above its home), said as a known risk when
+        it changes: a segment or a re-task flown in the air has them all along."""
+        v = self.vehicles[sysid]
+        gaps = landing_gaps(mission) if getattr(mission, "firmware", None) else []
+        if gaps and gaps != v.return_gaps:
+            self.event(sysid, "known risk: its Return along this mission: " + "; ".join(gaps),
+                       return_gaps=gaps)
+        v.return_gaps = gaps
 
     def next_segment(self, sysid: int, mission, counted: bool = True) -> None:
         """The vehicle now flies the next segment of the same route (``counted``), or
@@ -357,6 +373,7 @@ class Monitor:
             v.reached = set()
             v.segments += 1 if counted else 0
             self.links[sysid].state.mission_seq = None
+        self._return_gaps(sysid, mission)
 
     def relaunch(self, sysid: int) -> None:
         """A landed survivor (or one still waiting for its takeoff) goes up on a

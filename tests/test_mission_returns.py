@@ -189,6 +189,38 @@ def test_segments_after_the_first_do_not_start_above_home(two_bases):
     assert len(last) == 1 and "does not start above its home" in last[0]
 
 
+def test_the_monitor_says_each_new_gap_of_the_return_as_a_known_risk(two_bases):
+    """The ground station's monitor, given the missions a PX4 vehicle flies in turn:
+    the whole route says nothing; its segments say what their Return leaves, once
+    for each change (the middle segments repeat the second's)."""
+    from types import SimpleNamespace
+
+    from gcs.monitor import Monitor
+
+    _, plan = two_bases
+    route = plan.vehicles[0]
+    rm = RouteMissions(route, "px4", MissionOptions(speed_mps=plan.params["speed_mps"]),
+                       lambda mission: mission)
+    segments = [rm.segment(12, rm.fly[0], 0)]
+    while not segments[-1].final:
+        segments.append(rm.segment(12, segments[-1].last_waypoint, len(segments)))
+    assert len(segments) > 3
+    link = SimpleNamespace(sysid=1, flavour="px4", subscribe=lambda cb: (lambda: None),
+                           state=SimpleNamespace(mission_seq=None))
+    monitor = Monitor()
+    monitor.follow(link, route.id, route, None)
+    monitor.set_mission(1, rm.whole)
+    assert monitor.events == []
+    monitor.set_mission(1, segments[0])
+    for segment in segments[1:]:
+        monitor.next_segment(1, segment)
+    said = [e["return_gaps"] for e in monitor.events]
+    assert [e["event"].startswith("known risk: its Return along this mission: ")
+            for e in monitor.events] == [True] * 3
+    assert said == [landing_gaps(segments[0]), landing_gaps(segments[1]),
+                    landing_gaps(segments[-1])]
+
+
 def test_a_malformed_rally_point_is_one_line_naming_the_file(exported, tmp_path, capsys):
     d, missions = exported["px4"]
     doc = json.loads((d / f"vehicle-{missions[0].vehicle_id}.plan").read_text())
