@@ -54,12 +54,14 @@ def fly_case(planned, backend, workdir, kills=(), drop_pct=0.0, interrupt=None, 
     as ``when(flight)`` says so, once; ``radio``: each link cut while its vehicle
     is out of the plan's radio line of sight (`fleets.start_backend`; on real SITL
     through the relay, which needs the link failsafes off that test_radio_shadows
-    sets: the cases opt in, each case without it says why); ``params``:
+    sets: the cases opt in, each case without it says why), or while ``radio(lat,
+    lon, alt)`` says it is not heard; ``params``:
     {name: value} real SITL starts with; ``options``: `FlyOptions` fields to change.
     Returns a result dict."""
     speedup = speedup or SPEEDUP[backend]
     longest = max(v.mission_time_s for v in planned.plan.vehicles)
-    heard = radio_for_plan(planned.plan, planned.ctx.terrain) if radio else None
+    heard = radio if callable(radio) else \
+        radio_for_plan(planned.plan, planned.ctx.terrain) if radio else None
     be = start_backend(backend, planned.plan, workdir, speedup, capacity, below_base_m, spool,
                        heard, params)
     if drop_pct:

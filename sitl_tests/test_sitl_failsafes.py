@@ -4,13 +4,18 @@ flight, naming the parameters; --set-failsafes writes the hidden-safe values,
 and the vehicle itself, asked again, holds them (each a value the profile calls
 hidden); the previous values are kept to restore, and restored.
 
+A ground-station link cut by hand mid-mission (the backend's `cut_link`, wherever the
+vehicle is), on SITL started with a link failsafe that returns in view: with
+--set-failsafes the mission flies on, by the autopilot's own word.
+
 Real SITL runs when the environment names its binaries (`source /opt/sitl.env`:
 ARDUPILOT_SITL_BIN, ARDUPILOT_DEFAULTS, PX4_SITL_BIN); otherwise skipped, saying so."""
 
 import pytest
-from fleets import skip_unless_configured, start_backend
+from fleets import REAL_BACKENDS, SPEEDUP, skip_unless_configured, start_backend
 
 from autopilots import profile
+from common.geo import distance_m
 from gcs import params
 from gcs.flight import FailsafeRefused, Flight, FlyOptions
 from gcs.flight.failsafes import restore
@@ -106,3 +111,50 @@ def _battery_failsafe_flies_home(planned, tmp_path, firmware, param, value, mode
     assert v1["state"] == "landed"
     assert_hidden_and_clear(case, {1: tracks[1]})
     assert_landed_at_launch(case.ctx, tracks, [1], firmware)
+
+
+#: wall s of the cut: several of the firmware's link timeouts of its own clock
+#: (FS_GCS_TIMEOUT 5 s at 10x: 30 s; COM_DL_LOSS_T 10 s at 4x: 20 s), under the
+#: 6 wall s after which the ground station calls a silence it did not expect a loss
+CUT_WALL_S = {"ardupilot": 3.0, "px4": 5.0}
+
+
+@pytest.mark.parametrize("firmware", REAL_BACKENDS)
+def test_a_link_cut_mid_mission_flies_the_mission_on_with_set_failsafes(planned, tmp_path,
+                                                                        firmware):
+    """Real SITL started with a link-loss failsafe that flies a return in view
+    (ArduPilot FS_GCS_ENABLE 1, PX4 NAV_DLL_ACT 2, no mission exception), flown
+    with --set-failsafes: vehicle 1's link is cut both ways 30 % into its route,
+    for longer than its firmware's link timeout. The autopilot's own word, on the
+    judge's link: no change of mode in the cut, no failsafe mode ever; it flew on
+    in the cut, reached every waypoint after it, landed at its base, hidden and
+    clear all along (its own track); nobody lost."""
+    from test_end_to_end import assert_hidden_and_clear, assert_landed_at_launch, fly_case
+    from test_radio_shadows import LINK_TIMEOUT_S, UNSAFE_LINK
+
+    skip_unless_configured(firmware)
+    assert CUT_WALL_S[firmware] * SPEEDUP[firmware] > 1.5 * LINK_TIMEOUT_S[firmware]
+    case = planned(0, firmware)
+    cuts = []
+    result = fly_case(case, firmware, tmp_path, radio=lambda lat, lon, alt: True,
+                      params=UNSAFE_LINK[firmware],
+                      at=[(1, 0.3, lambda be: cuts.append(_cut(be, 1, CUT_WALL_S[firmware])))])
+    report, tracks, judge = result["report"], result["tracks"], result["judges"][1]
+    assert len(cuts) == 1, "the link was never cut"
+    start, end = cuts[0]
+    autopilot = profile(firmware)
+    failsafe = {autopilot.modes()[name] for name in autopilot.failsafe_modes
+                if name != autopilot.hold_mode}
+    print(f"\nlink cut [{firmware}]: {end - start:.1f} wall s from "
+          f"{start - report['start_unix']:.1f} s; modes {judge.modes}")
+    assert not [m for t, m in judge.modes if start <= t <= end + 1.0], judge.modes
+    assert not [m for t, m in judge.modes if m in failsafe], judge.modes
+    inside = [(lat, lon) for t, lat, lon, _ in judge.samples if start <= t <= end]
+    assert len(inside) > 2 and distance_m(*inside[0], *inside[-1]) > 20.0, inside[:1]
+    assert report["losses"] == [] and report["replans"] == []
+    v1 = next(v for v in report["vehicles"] if v["sysid"] == 1)
+    assert v1["state"] == "landed" and v1["failsafe_modes"] == []
+    assert_hidden_and_clear(case, tracks)
+    assert_landed_at_launch(case.ctx, tracks, list(tracks), firmware)
+    changed = {c["parameter"] for c in report["failsafes"][1]["set"]}
+    assert ("FS_OPTIONS" if firmware == "ardupilot" else "COM_DLL_EXCEPT") in changed
