@@ -22,6 +22,7 @@ NAV_LAND = 21
 NAV_TAKEOFF = 22
 NAV_LAST = 95                   # MAV_CMD_NAV_LAST: commands up to it are navigation
 DO_CHANGE_SPEED = 178
+DO_LAND_START = 189             # marks where a mission's landing begins
 DO_DIGICAM_CONTROL = 203        # ArduPilot's camera command
 IMAGE_START_CAPTURE = 2000      # PX4's camera command
 #: commands whose x, y, z are a place the vehicle flies to (waypoint, loiters, land,
@@ -32,6 +33,7 @@ COMMAND_NAMES = {
     NAV_WAYPOINT: "NAV_WAYPOINT", NAV_RETURN_TO_LAUNCH: "NAV_RETURN_TO_LAUNCH",
     NAV_LAND: "NAV_LAND", NAV_TAKEOFF: "NAV_TAKEOFF", DO_CHANGE_SPEED: "DO_CHANGE_SPEED",
     DO_DIGICAM_CONTROL: "DO_DIGICAM_CONTROL", IMAGE_START_CAPTURE: "IMAGE_START_CAPTURE",
+    DO_LAND_START: "DO_LAND_START",
 }
 
 # HEARTBEAT

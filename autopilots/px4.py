@@ -75,10 +75,9 @@ FAILSAFES = (
         # rtl_mission_fast(_reverse).cpp on_activation: from the mission it goes on from
         # its current item; from any other mode (a hold) setMissionToClosestItem
         risks={v: "a Return from outside the mission (a hold) first flies straight to the "
-                  "mission item closest to it; reversed along a mission that does not "
-                  "start above home (a segment after the first, a re-task in the air) it "
-                  "ends with a straight line home (rtl_mission_fast_reverse.cpp "
-                  "handleLanding)" for v in (2, 4)}),)),
+                  "mission item closest to it; reversed along a segment flown from the "
+                  "air that does not land, it ends with a straight line home "
+                  "(rtl_mission_fast_reverse.cpp handleLanding)" for v in (2, 4)}),)),
     Failsafe("ground-station link loss", (
         FailsafeParameter("NAV_DLL_ACT", {
             0: "disabled: it flies on", 1: "Hold where it is", 2: _RETURN,

@@ -15,6 +15,12 @@ profile):
 - ``NAV_LAND`` at the base it lands at (its launch point, or for a sortie the
   base it names: `VehicleRoute.landing`), when the route ends above it. Never
   ``RETURN_TO_LAUNCH``: the autopilot would fly straight at its RTL altitude.
+- where the firmware's return flies the mission to its landing (PX4,
+  ``landing_return``) and the mission lands but does not take off (a re-task or
+  a segment flown from the air): ``DO_LAND_START`` first. PX4's Return
+  (RTL_TYPE 4) then flies on to the landing from anywhere past the first item,
+  never reversed to the mission's start, from where it would fly straight home
+  (`missions.returns`).
 
 Positions are absolute (MAV_FRAME_GLOBAL, metres AMSL) like the exposure
 surface; commands without a position use MAV_FRAME_MISSION as PX4 requires.
@@ -26,6 +32,7 @@ from typing import Optional
 from autopilots import NAMES, firmware_of, profile
 from autopilots.mavlink import (
     DO_CHANGE_SPEED,
+    DO_LAND_START,
     FRAME_GLOBAL,
     FRAME_MISSION,
     NAV_LAND,
@@ -101,10 +108,15 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
     out = _Builder()
     waypoints = route.waypoints
     first, last = waypoints[0], waypoints[-1]
+    base = route.landing        # its launch point, or the base a sortie lands at
+    takes_off = options.takeoff and takeoff and is_above_launch(route.launch, first)
+    lands = options.takeoff and land and is_above_launch(base, last)
     if autopilot.home_item:
         home = route.launch or first
         out.add(_position(NAV_WAYPOINT, home.lat, home.lon, home.alt_amsl))
-    if options.takeoff and takeoff and is_above_launch(route.launch, first):
+    if lands_from_the_air(autopilot, takes_off, lands):
+        out.add(_command(DO_LAND_START))
+    if takes_off:
         out.add(_position(NAV_TAKEOFF, route.launch.lat, route.launch.lon, first.alt_amsl,
                           p4=yaw))
     if options.speed_mps:
@@ -123,12 +135,17 @@ def route_items(route, firmware, options, fly, takeoff=True, land=True, segment=
             shots += 1
             if index not in skip_camera:
                 out.add(_command(autopilot.camera_command, *autopilot.camera_params(shots)))
-    base = route.landing        # its launch point, or the base a sortie lands at
-    if options.takeoff and land and is_above_launch(base, last):
+    if lands:
         out.add(_position(NAV_LAND, base.lat, base.lon, base.alt_amsl, p4=yaw))
     return VehicleMission(route.id, autopilot.name, renumber(out.items), out.waypoint_of_item,
                           segment=segment, first_waypoint=fly[0] if fly else 0,
                           last_waypoint=fly[-1] if fly else None, final=bool(land))
+
+
+def lands_from_the_air(autopilot, takes_off: bool, lands: bool) -> bool:
+    """Whether a mission starts with ``DO_LAND_START`` (see the module doc): its firmware's
+    return flies the mission to its landing, and it lands without taking off first."""
+    return bool(autopilot.landing_return and lands and not takes_off)
 
 
 def firmware_profile(firmware: str):

@@ -25,6 +25,7 @@ from autopilots.mavlink import (
 from autopilots.mavlink import (  # noqa: F401 - handed on
     DO_CHANGE_SPEED,
     DO_DIGICAM_CONTROL,
+    DO_LAND_START,
     FRAME_GLOBAL,
     FRAME_MISSION,
     IMAGE_START_CAPTURE,

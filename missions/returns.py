@@ -12,16 +12,18 @@ and the rally points (issue 60).
   fleet's hidden landing places, and a return that goes to one lands at a base.
   `gcs fly` uploads none: with the failsafes it keeps, no return reads them.
 - **The mission landing** (`landing_gaps`): PX4's Return along the mission (RTL_TYPE
-  4) flies forward to the mission's landing (its first NAV_LAND) or reversed to
-  the mission's start, then straight home. Both are the proven legs only when the
-  mission lands at a base and starts above its home. Each mission built here from a
-  plan on the ground does both (`missions.build`: NAV_TAKEOFF at its base,
-  NAV_LAND at the base it lands at); what does not (a segment before the last, a
-  mission started in the air) is said, as a known risk of that return.
+  4) flies forward to the mission's landing or reversed to the mission's start,
+  then straight home. Both are the proven legs when the mission starts above its
+  home: each mission built here from a plan on the ground (`missions.build`:
+  NAV_TAKEOFF at its base, NAV_LAND at the base it lands at). One flown from the
+  air (a re-task, a segment after the first) is reversed into view, so the builder
+  marks its landing's start at its first item (DO_LAND_START): the Return then
+  always flies forward. What stays (a segment from the air that does not land
+  has nothing to fly forward to) is said, as a known risk of that return.
 """
 
 from autopilots import profile
-from autopilots.mavlink import NAV_LAND, NAV_TAKEOFF
+from autopilots.mavlink import DO_LAND_START, NAV_LAND, NAV_TAKEOFF
 from common.geo import distance_m
 
 from .build import ABOVE_LAUNCH_M
@@ -54,20 +56,29 @@ def landing_gaps(mission, home=None) -> list:
     """Where the firmware's return along ``mission`` (a `VehicleMission` or
     `CheckedMission`) would leave the proven legs, in words ([]: nowhere, or a
     firmware whose return does not follow the mission). ``home``: (lat, lon) where
-    the vehicle armed, when known; default the mission's takeoff point."""
+    the vehicle armed, when known; default the mission's takeoff point.
+
+    PX4 (rtl.cpp, RTL_TYPE 4): forward to the landing while the landing's start (the
+    first DO_LAND_START, else the first NAV_LAND) is fewer items ahead than the
+    current item's number, else reversed to the first position item and from there
+    straight home. Along a mission that starts above home both ways are the proven
+    legs; along one that starts in the air only the forward way is."""
     autopilot = profile(mission.firmware)
     if not autopilot.landing_return:
         return []
-    flown = [it for it in mission.items[1 if autopilot.home_item else 0:] if it.is_position]
+    items = mission.items[1 if autopilot.home_item else 0:]
+    flown = [it for it in items if it.is_position]
     if not flown:
         return []
-    gaps = []
-    if not any(int(it.command) == NAV_LAND for it in flown):
-        gaps.append("no mission landing: its Return cannot fly forward to a base, only "
-                    "back along the mission")
     first = flown[0]
     start = home or ((first.x, first.y) if int(first.command) == NAV_TAKEOFF else None)
-    if start is None or distance_m(first.x, first.y, *start) > ABOVE_LAUNCH_M:
-        gaps.append(f"it does not start above its home: a Return reversed along it ends "
-                    f"with a straight line home from item {first.seq}")
-    return gaps
+    if start is not None and distance_m(first.x, first.y, *start) <= ABOVE_LAUNCH_M:
+        return []
+    land = next((it.seq for it in flown if int(it.command) == NAV_LAND), None)
+    mark = next((it.seq for it in items if int(it.command) == DO_LAND_START), land)
+    home_words = f"reversed, it ends with a straight line home from item {first.seq}"
+    if land is None:
+        return [f"it starts in the air and has no landing: its Return is always {home_words}"]
+    if mark <= first.seq:
+        return []        # marked at its start: forward to the landing from past item 0
+    return [f"it starts in the air: a Return before item {mark // 2 + 1} is {home_words}"]

@@ -34,7 +34,7 @@ import numpy as np
 from common.errors import InputError
 from common.geo import LocalFrame, distance_m
 
-from .build import firmware_profile, is_above_launch, route_items
+from .build import firmware_profile, is_above_launch, lands_from_the_air, route_items
 
 #: waypoints closer than this (m, horizontally and vertically) are the same place
 SAME_PLACE_M = 0.01
@@ -170,9 +170,11 @@ class RouteMissions:
         whether it lands (it reaches the route's end)."""
         w, o = self.route.waypoints, self.options
         used = (1 if self.profile.home_item else 0) + (1 if o.speed_mps else 0)
-        if k == 0 and o.takeoff and is_above_launch(self.route.launch, w[0]):
-            used += 1
-        landing = 1 if o.takeoff and is_above_launch(self.route.launch, w[-1]) else 0
+        takes_off = k == 0 and o.takeoff and is_above_launch(self.route.launch, w[0])
+        used += 1 if takes_off else 0
+        landing = 1 if o.takeoff and is_above_launch(self.route.landing, w[-1]) else 0
+        # and the DO_LAND_START of a segment that lands without taking off (PX4)
+        landing += 1 if lands_from_the_air(self.profile, takes_off, landing) else 0
         end = k
         for j in range(k, len(self.fly)):
             cost = 1 + (1 if w[self.fly[j]].snapshot and o.camera else 0)

@@ -28,7 +28,7 @@ from gcs.cli import main
 from gcs.sim import read_track
 from missions.build import MissionOptions, plan_missions
 from missions.export import export_plan_dir
-from missions.items import NAV_LAND, NAV_TAKEOFF
+from missions.items import DO_LAND_START, NAV_LAND, NAV_TAKEOFF
 from missions.qgc import load_plan_file
 from missions.returns import landing_gaps, rally_points
 from missions.segments import RouteMissions
@@ -145,13 +145,16 @@ def test_every_rally_point_is_a_hidden_base_by_brute_force_line_of_sight(two_bas
 def test_no_rally_point_without_a_proven_column(two_bases):
     """Missions that neither take off nor land (takeoff items left out) prove no base's
     column: no rally point is written, and PX4's Return along such a mission can only
-    reverse, then fly straight home: said."""
+    reverse, then fly straight home: said (unless its home is known to be under its
+    start)."""
     _, plan = two_bases
     bare = plan_missions(plan, "px4", MissionOptions(takeoff=False))
     assert rally_points(plan, bare) == []
     gaps = landing_gaps(bare[0])
-    assert len(gaps) == 2 and gaps[0].startswith("no mission landing")
-    assert "a straight line home from item 0" in gaps[1]
+    assert len(gaps) == 1 and "has no landing" in gaps[0], gaps
+    assert "always reversed, it ends with a straight line home from item 0" in gaps[0]
+    launch = plan.vehicles[0].launch
+    assert landing_gaps(bare[0], home=(launch.lat, launch.lon)) == []
 
 
 def test_px4_missions_land_at_their_base_and_start_above_home(two_bases):
@@ -171,10 +174,10 @@ def test_px4_missions_land_at_their_base_and_start_above_home(two_bases):
 
 
 def test_segments_after_the_first_do_not_start_above_home(two_bases):
-    """A route in segments of 12 items (`missions.segments`): the first takes off but
-    does not land, the others start in the air; PX4's Return along each but the
-    first ends with a straight line home, and along each but the last it cannot
-    fly forward to a base: each said."""
+    """A route in segments of 12 items (`missions.segments`): the first takes off
+    (reversed, its Return comes down over home), the middle ones start in the air
+    with no landing (reversed, it ends in a straight line home: said), the last
+    lands from the air and is marked (DO_LAND_START first: always forward)."""
     _, plan = two_bases
     route = plan.vehicles[0]
     options = MissionOptions(speed_mps=plan.params["speed_mps"])
@@ -183,16 +186,18 @@ def test_segments_after_the_first_do_not_start_above_home(two_bases):
     while not segments[-1].final:
         segments.append(rm.segment(12, segments[-1].last_waypoint, len(segments)))
     assert len(segments) > 2
+    assert all(len(s.items) <= 12 for s in segments)
     first, middle, last = (landing_gaps(s) for s in (segments[0], segments[1], segments[-1]))
-    assert len(first) == 1 and first[0].startswith("no mission landing")
-    assert len(middle) == 2 and "does not start above its home" in middle[1]
-    assert len(last) == 1 and "does not start above its home" in last[0]
+    assert first == [] and last == []
+    assert len(middle) == 1 and "starts in the air and has no landing" in middle[0]
+    assert [it.command for it in segments[-1].items[:1]] == [DO_LAND_START]
+    assert not any(it.command == DO_LAND_START for s in segments[:-1] for it in s.items)
 
 
 def test_the_monitor_says_each_new_gap_of_the_return_as_a_known_risk(two_bases):
     """The ground station's monitor, given the missions a PX4 vehicle flies in turn:
-    the whole route says nothing; its segments say what their Return leaves, once
-    for each change (the middle segments repeat the second's)."""
+    the whole route and the first segment say nothing; the middle segments' gap is
+    said once (they repeat it); the last, marked, says nothing."""
     from types import SimpleNamespace
 
     from gcs.monitor import Monitor
@@ -216,9 +221,8 @@ def test_the_monitor_says_each_new_gap_of_the_return_as_a_known_risk(two_bases):
         monitor.next_segment(1, segment)
     said = [e["return_gaps"] for e in monitor.events]
     assert [e["event"].startswith("known risk: its Return along this mission: ")
-            for e in monitor.events] == [True] * 3
-    assert said == [landing_gaps(segments[0]), landing_gaps(segments[1]),
-                    landing_gaps(segments[-1])]
+            for e in monitor.events] == [True]
+    assert said == [landing_gaps(segments[1])] and said[0]
 
 
 def test_a_malformed_rally_point_is_one_line_naming_the_file(exported, tmp_path, capsys):
@@ -267,20 +271,29 @@ def test_the_simulator_takes_rally_points_from_mavsdk_and_gives_them_back(export
 def _upload_rally(m, points, command=RALLY_POINT) -> int:
     """Rally points [(lat, lon, alt above home)] by the mission protocol, by hand
     (MAV_MISSION_TYPE_RALLY), as ``command`` items; the MISSION_ACK's result."""
-    m.mav.mission_count_send(1, 1, len(points), M.MAV_MISSION_TYPE_RALLY)
+    return _upload(m, [dict(frame=RELATIVE, command=command, current=0, autocontinue=1,
+                            param1=0, param2=0, param3=0, param4=0, x=round(lat * 1e7),
+                            y=round(lon * 1e7), z=alt) for lat, lon, alt in points],
+                   M.MAV_MISSION_TYPE_RALLY)
+
+
+def _upload(m, items, kind=0) -> int:
+    """``items`` (MISSION_ITEM_INT's fields) by the mission protocol, by hand, as
+    mission type ``kind``; the MISSION_ACK's result."""
+    m.mav.mission_count_send(1, 1, len(items), kind)
     deadline = time.monotonic() + 10
     while time.monotonic() < deadline:
         msg = m.recv_match(type=["MISSION_REQUEST", "MISSION_REQUEST_INT", "MISSION_ACK"],
                            blocking=True, timeout=1)
-        if msg is None or msg.mission_type != M.MAV_MISSION_TYPE_RALLY:
+        if msg is None or msg.mission_type != kind:
             continue
         if msg.get_type() == "MISSION_ACK":
             return msg.type
-        lat, lon, alt = points[msg.seq]
-        m.mav.mission_item_int_send(1, 1, msg.seq, RELATIVE, command, 0, 1, 0, 0, 0, 0,
-                                    round(lat * 1e7), round(lon * 1e7), alt,
-                                    M.MAV_MISSION_TYPE_RALLY)
-    raise AssertionError("no MISSION_ACK to the rally upload")
+        f = items[msg.seq]
+        m.mav.mission_item_int_send(1, 1, msg.seq, f["frame"], f["command"], f["current"],
+                                    f["autocontinue"], f["param1"], f["param2"], f["param3"],
+                                    f["param4"], f["x"], f["y"], f["z"], kind)
+    raise AssertionError("no MISSION_ACK to the upload")
 
 
 def _command(m, cmd, *params) -> int:
@@ -330,3 +343,60 @@ def test_a_plain_rtl_flies_straight_to_the_closest_rally_point(tmp_path):
     assert GEOD.inv(last[1], last[0], far[0], far[1])[2] < 3.0
     assert abs(float(track.alt[-1]) - home[2]) < 0.5
     assert "landed" in [e["event"] for e in track.events]
+
+
+def test_px4_s_return_along_a_mission_flown_from_the_air_flies_on_to_its_landing(tmp_path):
+    """A simulated PX4 (RTL_TYPE 4) in the air flies a mission that starts there (as
+    a re-task or a later segment does): its Return, asked 3 items into 7, flies on
+    to the landing at its base (the mission's DO_LAND_START, first, makes the rest
+    of the mission the shorter way), never back to the mission's start and straight
+    home. Without the mark it turned back (rtl.cpp reverseIsFurther: 6 - 3 < 3 is
+    false). Judged on the simulator's track: after the Return it passes over the
+    mission's next two waypoints and lands at home."""
+    from missions.build import route_items
+    from planner.plan import GeoPoint, VehicleRoute, Waypoint
+
+    home = (36.6, -84.25, 300.0)
+    def at(north, east):
+        lon, lat, _ = GEOD.fwd(home[1], home[0], 0.0, north)
+        lon, lat, _ = GEOD.fwd(lon, lat, 90.0, east)
+        return lat, lon
+    corners = [(0, 0), (150, 0), (250, 0), (250, 150), (100, 150), (0, 0)]
+    waypoints = [Waypoint(lon, lat, home[2] + 30.0, 10.0 * i)
+                 for i, (lat, lon) in enumerate(at(n, e) for n, e in corners)]
+    route = VehicleRoute(1, GeoPoint(home[1], home[0], home[2]), waypoints, 60.0, 80.0, 900.0)
+    mission = route_items(route, "px4", MissionOptions(speed_mps=8.0), [2, 3, 4, 5],
+                          takeoff=False, land=True, segment=1)
+    commands = [it.command for it in mission.items]
+    assert commands == [DO_LAND_START, 178, 16, 16, 16, 16, NAV_LAND]
+    assert landing_gaps(mission) == []
+    fleet = quick_fleet(1, "px4", homes=[home], track_dir=tmp_path, speedup=20.0)
+    fleet.vehicle(1).params["RTL_TYPE"] = 4
+    m = mavutil.mavlink_connection(fleet.urls()[0], source_system=250, source_component=190)
+    try:
+        m.recv_match(type="SYS_STATUS", blocking=True, timeout=10,
+                     condition="SYS_STATUS.onboard_control_sensors_health & 268435456")
+        assert _upload(m, [it.to_int() for it in mission.items]) == M.MAV_MISSION_ACCEPTED
+        assert _command(m, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, home[2] + 30.0) == \
+            M.MAV_RESULT_ACCEPTED
+        assert _command(m, M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == M.MAV_RESULT_ACCEPTED
+        m.recv_match(type="GLOBAL_POSITION_INT", blocking=True, timeout=20,
+                     condition="GLOBAL_POSITION_INT.relative_alt > 29000")
+        assert _command(m, M.MAV_CMD_DO_SET_MODE, 1, 4, 4) == M.MAV_RESULT_ACCEPTED
+        m.recv_match(type="MISSION_CURRENT", blocking=True, timeout=30,
+                     condition="MISSION_CURRENT.seq == 3")
+        assert _command(m, M.MAV_CMD_NAV_RETURN_TO_LAUNCH) == M.MAV_RESULT_ACCEPTED
+        asked = time.time()
+        m.recv_match(type="EXTENDED_SYS_STATE", blocking=True, timeout=60,
+                     condition="EXTENDED_SYS_STATE.landed_state == 1")
+    finally:
+        m.close()
+        fleet.stop()
+    track = read_track(tmp_path / "vehicle_1.json")
+    assert any(e["event"].startswith("return along the mission") for e in track.events)
+    after = track.wall >= asked
+    for lat, lon in (at(250, 150), at(100, 150)):
+        closest = min(GEOD.inv(lon, lat, b, a)[2]
+                      for a, b in zip(track.lat[after], track.lon[after]))
+        assert closest < 5.0, (lat, lon, closest)
+    assert GEOD.inv(home[1], home[0], float(track.lon[-1]), float(track.lat[-1]))[2] < 3.0

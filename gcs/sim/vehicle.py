@@ -843,10 +843,14 @@ class SimVehicle:
         items = [it for it in self.mission.items if it is not None and it.is_nav
                  and (it.x, it.y) != (0, 0)]
         land = next((it.seq for it in items if it.command == M.MAV_CMD_NAV_LAND), None)
+        # the landing's start: the first DO_LAND_START, else the landing itself
+        # (mavlink_mission.cpp land_start_index)
+        mark = next((it.seq for it in self.mission.items if it is not None
+                     and it.command == M.MAV_CMD_DO_LAND_START), land)
         cur = self.current
         # RTL_TYPE 2: forward when the mission lands; 4: whichever counts fewer items
-        # (rtl.cpp reverseIsFurther: land - current < current)
-        forward = land is not None and (rtl_type == 2 or land - cur < cur)
+        # (rtl.cpp reverseIsFurther: land start - current < current)
+        forward = land is not None and (rtl_type == 2 or mark - cur < cur)
         if forward:
             way = [it for it in items if cur <= it.seq <= land]
         else:
