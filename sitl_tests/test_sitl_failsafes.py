@@ -11,14 +11,17 @@ vehicle is), on SITL started with a link failsafe that returns in view: with
 Real SITL runs when the environment names its binaries (`source /opt/sitl.env`:
 ARDUPILOT_SITL_BIN, ARDUPILOT_DEFAULTS, PX4_SITL_BIN); otherwise skipped, saying so."""
 
+import math
+
 import pytest
 from fleets import REAL_BACKENDS, SPEEDUP, skip_unless_configured, start_backend
 
 from autopilots import profile
-from common.geo import distance_m
+from common.geo import LocalFrame, distance_m
 from gcs import params
 from gcs.flight import FailsafeRefused, Flight, FlyOptions
 from gcs.flight.failsafes import restore
+from gcs.mavlink import M
 
 pytestmark = pytest.mark.timeout(600)
 
@@ -158,3 +161,67 @@ def test_a_link_cut_mid_mission_flies_the_mission_on_with_set_failsafes(planned,
     assert_landed_at_launch(case.ctx, tracks, list(tracks), firmware)
     changed = {c["parameter"] for c in report["failsafes"][1]["set"]}
     assert ("FS_OPTIONS" if firmware == "ardupilot" else "COM_DLL_EXCEPT") in changed
+
+
+def test_a_px4_return_along_a_mission_flown_from_the_air_flies_on_to_its_landing(tmp_path):
+    """Real PX4 SITL (RTL_TYPE 4) in the air flies a mission that starts there, as a
+    re-task or a later segment does, built by `missions.build` (DO_LAND_START first):
+    asked to Return 3 items into 7, it flies on over the mission's next two
+    waypoints and lands at home, by its own reported positions. Without the mark
+    PX4 1.17 turned back (a one-off run of the same flight, 2026-12-07: never within
+    146 m of those waypoints, back to the one before and straight home)."""
+    import time
+
+    from gcs import commands, mission_protocol
+    from gcs.link import GroundLink
+    from missions.build import MissionOptions, route_items
+    from missions.check import unproven
+    from missions.items import DO_LAND_START
+    from planner.plan import GeoPoint, Plan, VehicleRoute, Waypoint
+
+    skip_unless_configured("px4")
+    home = (47.397742, 8.545594, 488.0)
+    frame = LocalFrame(home[0], home[1])
+    corners = [frame.to_geo(e, n) for n, e in
+               ((0, 0), (150, 0), (250, 0), (250, 150), (100, 150), (0, 0))]
+    waypoints = [Waypoint(lon, lat, home[2] + 30.0, 10.0 * i)
+                 for i, (lat, lon) in enumerate(corners)]
+    route = VehicleRoute(1, GeoPoint(home[1], home[0], home[2]), waypoints, 60.0, 80.0, 900.0)
+    mission = route_items(route, "px4", MissionOptions(speed_mps=8.0), [2, 3, 4, 5],
+                          takeoff=False, land=True, segment=1)
+    assert mission.items[0].command == DO_LAND_START
+    plan = Plan("rt", {}, "EPSG:4326", [], [route])
+    be = start_backend("px4", plan, tmp_path / "sitl", 4.0,
+                       params={"RTL_TYPE": 4, "NAV_DLL_ACT": 0})
+    try:
+        with GroundLink.open(be.urls(), expect=1, timeout_s=60) as link:
+            v = link.vehicles[1]
+            commands.wait_position(v, timeout_s=120)
+            mission_protocol.upload(v, unproven(mission, "a square flown from the air"))
+            commands.command_long(v, M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, math.nan, math.nan,
+                                  math.nan, home[2] + 30.0)
+            commands.arm(v, timeout_s=60)
+            _until(lambda: (v.state.relative_alt or 0) > 27.0, 120, "no climb to 30 m")
+            commands.set_mode(v, "AUTO.MISSION")
+            _until(lambda: v.state.mission_seq == 3, 120, "never flying to item 3")
+            commands.command_long(v, M.MAV_CMD_NAV_RETURN_TO_LAUNCH)
+            asked = time.time()
+            _until(lambda: v.state.landed and (v.state.relative_alt or 9) < 1.0, 180,
+                   "never landed")
+        samples = [s for s in be.judges[1].samples if s[0] >= asked]
+    finally:
+        be.stop()
+    for lat, lon in corners[3:5]:
+        closest = min(distance_m(lat, lon, a, b) for _, a, b, _ in samples)
+        assert closest < 5.0, (lat, lon, closest)
+    _, lat, lon, _ = samples[-1]
+    assert distance_m(lat, lon, home[0], home[1]) < 3.0
+
+
+def _until(holds, seconds, said) -> None:
+    import time
+
+    deadline = time.monotonic() + seconds
+    while not holds():
+        assert time.monotonic() < deadline, said
+        time.sleep(0.1)
