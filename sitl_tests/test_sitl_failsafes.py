@@ -159,7 +159,8 @@ def test_a_link_cut_mid_mission_flies_the_mission_on_with_set_failsafes(planned,
     assert v1["state"] == "landed" and v1["failsafe_modes"] == []
     assert_hidden_and_clear(case, tracks)
     assert_landed_at_launch(case.ctx, tracks, list(tracks), firmware)
-    changed = {c["parameter"] for c in report["failsafes"][1]["set"]}
+    set_1 = next(f["set"] for sysid, f in report["failsafes"].items() if int(sysid) == 1)
+    changed = {c["parameter"] for c in set_1}
     assert ("FS_OPTIONS" if firmware == "ardupilot" else "COM_DLL_EXCEPT") in changed
 
 
