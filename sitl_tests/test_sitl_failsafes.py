@@ -219,6 +219,16 @@ def test_a_px4_return_along_a_mission_flown_from_the_air_flies_on_to_its_landing
     assert distance_m(lat, lon, home[0], home[1]) < 3.0
 
 
+def _cut(backend, sysid: int, seconds: float) -> tuple:
+    """Cut ``sysid``'s link now for ``seconds`` wall s (the backend's `cut_link`: on
+    real SITL, the relay's); (from, to) wall times."""
+    import time
+
+    start = time.time()
+    backend.cut_link(sysid, seconds)
+    return start, start + seconds
+
+
 def _until(holds, seconds, said) -> None:
     import time
 
