@@ -297,24 +297,46 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
 
 
 def draw_area(ax, terrain, plan):
-    """The plan's area of operations polygon (``--area-file``), dashed, when its file
-    is still there; labelled for the legend. Its legend handle (None: not drawn)."""
+    """The plan's area of operations (``--area`` box, ``--area-file`` polygon while
+    its file is still there), dashed; labelled for the legend. Its legend handle
+    (None: not drawn)."""
+    p = plan.params
+    return draw_area_of(ax, terrain, p.get("area"), p.get("area_file"),
+                        bool(p.get("area_flight")))
+
+
+#: points along each side of the --area box: a parallel or meridian is a curve on
+#: a projected map
+BOX_STEPS = 32
+
+
+def draw_area_of(ax, terrain, box=None, area_file=None, area_flight=False):
+    """The area of operations, dashed: the (south, west, north, east) ``box``, which
+    both targets and flight stay inside (the DEM may be read wider, around an
+    outpost outside it, and the map with it), and the ``area_file`` polygon when
+    the file is there. Its legend handle, None when there is neither."""
     from pathlib import Path
 
-    name = plan.params.get("area_file")
-    if not name or not Path(name).is_file():
-        return None
-    from planner.terrain.area import read_area
-
-    label = "area of operations (targets" + (" and flight" if plan.params.get("area_flight")
-                                              else "") + " inside)"
+    rings = []
+    if box is not None:
+        s, w, n, e = box
+        t = np.linspace(0.0, 1.0, BOX_STEPS)
+        lon = np.concatenate([w + (e - w) * t, np.full(BOX_STEPS, e), e - (e - w) * t,
+                              np.full(BOX_STEPS, w)])
+        lat = np.concatenate([np.full(BOX_STEPS, s), s + (n - s) * t, np.full(BOX_STEPS, n),
+                              n - (n - s) * t])
+        rings.append(np.stack([lon, lat], axis=1))
+    if area_file and Path(area_file).is_file():
+        from planner.terrain.area import read_area
+        rings += [ring for polygon in read_area(area_file) for ring in polygon]
+    flight = area_flight or (box is not None and not area_file)
+    label = "area of operations (targets" + (" and flight" if flight else "") + " inside)"
     handle = None
-    for polygon in read_area(name):
-        for ring in polygon:
-            x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
-            line, = ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4,
-                            zorder=4, label=label)
-            handle, label = handle or line, None
+    for ring in rings:
+        x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
+        line, = ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4,
+                        zorder=4, label=label)
+        handle, label = handle or line, None
     return handle
 
 

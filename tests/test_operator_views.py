@@ -262,6 +262,36 @@ def test_flight_figure_draws_the_area_polygon(planned, tmp_path):
     assert "area of operations (targets inside)" in _legend(fig)
 
 
+@pytest.mark.parametrize("figure", ["overview", "flight"])
+def test_maps_draw_the_area_box_where_its_corners_are(planned, figure):
+    """The --area box is the area of operations too (targets and flight stay inside;
+    the DEM is read wider around an outpost outside it, and the map with it):
+    overview.png and flight.png draw it dashed, its corners at the cells given as its
+    corners, placed from the grid's own geometry (cell centres from the south-west
+    corner), not by the maps' projection."""
+    from dataclasses import replace
+
+    ctx = planned.ctx
+    terrain = ctx.terrain
+    rows, cols = terrain.shape
+    (r0, c0), (r1, c1) = (rows - 6, 4), (5, cols - 8)      # south-west, north-east cells
+    lon0, lat0 = terrain.to_lonlat(*terrain.xy(r0, c0))
+    lon1, lat1 = terrain.to_lonlat(*terrain.xy(r1, c1))
+    plan = replace(planned.plan, params={**planned.plan.params, "area_file": None,
+                                         "area": [float(lat0), float(lon0), float(lat1),
+                                                  float(lon1)]})
+    fig = (overview_figure(terrain, ctx.surface, plan) if figure == "overview" else
+           flight_figure(terrain, ctx.surface, plan, _report(planned)))
+    assert "area of operations (targets and flight inside)" in _legend(fig)
+    [line] = [ln for ln in fig.axes[0].lines
+              if ln.get_label() == "area of operations (targets and flight inside)"]
+    x, y = (np.asarray(v) for v in line.get_data())
+    d = terrain.cell_size / 1000.0
+    for r, c in ((r0, c0), (r1, c1)):
+        corner = np.array([(c + 0.5) * d, (rows - r - 0.5) * d])
+        assert np.hypot(x - corner[0], y - corner[1]).min() < 0.5 * d, (r, c)
+
+
 def test_the_north_arrow_keeps_off_the_points_a_map_draws_on_top(planned):
     """A base standing where the arrow goes (upper left): the arrow stands elsewhere,
     clear of it (bases.png had base squares on the arrow); with nothing to avoid it

@@ -162,20 +162,20 @@ def bases_figure(ctx, bases):
     from matplotlib.lines import Line2D
 
     from common.colours import BASE_COLOUR
-    from gcs.plots import draw_background, lonlat_km, symbol_legend
+    from gcs.plots import draw_area_of, draw_background, lonlat_km, symbol_legend
 
     terrain = ctx.terrain
     fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)
     x, y = lonlat_km(terrain, [b.lon for b in bases], [b.lat for b in bases])
     im = draw_background(ax, terrain, ctx.surface, avoid=zip(x, y))
-    _draw_area(ax, terrain, ctx.scenario)
+    s = ctx.scenario
+    draw_area_of(ax, terrain, s.area, s.area_file, s.area_flight)
     for b, bx, by in zip(reversed(bases), x[::-1], y[::-1]):   # the best drawn on top
         best = b.rank == 1
         ax.plot(bx, by, marker="s", color="#ffd700" if best else BASE_COLOUR,
                 markeredgecolor="black", markersize=16 if best else 13, zorder=12)
         ax.text(bx, by, str(b.rank), ha="center", va="center", fontsize=8 if b.rank < 10 else 6,
                 fontweight="bold", zorder=13)
-    s = ctx.scenario
     ax.set_title(f"Suggested bases for {s.uavs} UAVs (k = {s.k}), numbered best first: "
                  f"best {bases[0].bound_s / 60:.1f} min\n(coverage time bound from the "
                  f"base; --launch {bases[0].launch_arg})")
@@ -192,24 +192,3 @@ def bases_figure(ctx, bases):
               loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8,
               framealpha=0.9)
     return fig
-
-
-def _draw_area(ax, terrain, scenario) -> None:
-    """The --area box and the --area-file polygon, dashed, labelled for the legend."""
-    import numpy as np
-
-    from gcs.plots import lonlat_km
-
-    rings = []
-    if scenario.area is not None:
-        s, w, n, e = scenario.area
-        rings.append(np.array([[w, s], [e, s], [e, n], [w, n], [w, s]], float))
-    if scenario.area_file:
-        from planner.terrain.area import read_area
-        rings += [ring for polygon in read_area(scenario.area_file) for ring in polygon]
-    label = "area of operations"
-    for ring in rings:
-        x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
-        ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
-                label=label)
-        label = None
