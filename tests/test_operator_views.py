@@ -319,6 +319,46 @@ def test_the_north_arrow_keeps_off_the_points_a_map_draws_on_top(planned):
     assert math.dist(moved, upper_left) > NORTH_CLEAR * min(x1 - x0, y1 - y0)
 
 
+def test_a_range_label_keeps_off_the_bases(planned):
+    """A range's label stands on its circle, elsewhere than where a base stands (in
+    bases.png a base square hid "South summit: 8 km range"): the label's box, as wide
+    as its text, holds no base. (Other posts' names are kept off the same way.)"""
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+
+    from gcs.plots import LABEL_CHAR_SHARE, LABEL_CLEAR, LABEL_HEIGHT_SHARE, draw_background
+    from planner.exposure import Outpost
+
+    ctx = planned.ctx
+    rows, cols = ctx.terrain.shape
+    x, y = ctx.terrain.xy(rows // 2, cols // 2)
+    post = Outpost(float(x), float(y), 2.0, 400.0, name="ring")
+    surface = SimpleNamespace(ceiling=ctx.surface.ceiling, outposts=[post])
+    text = "ring: 0.4 km range"
+
+    def label(avoid):
+        fig, ax = plt.subplots()
+        draw_background(ax, ctx.terrain, surface, avoid=avoid)
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        [t] = [t for t in ax.texts if t.get_text() == text]
+        plt.close(fig)
+        return np.array(t.xy), t.get_horizontalalignment(), (x0, x1, y0, y1)
+
+    first, _, (x0, x1, y0, y1) = label(())
+    moved, ha, _ = label([first])
+    width = LABEL_CHAR_SHARE * len(text) * (x1 - x0)
+    lo, hi = (moved[0] - width, moved[0]) if ha == "right" else (moved[0], moved[0] + width)
+    near = LABEL_CLEAR * min(x1 - x0, y1 - y0)
+    assert not (lo - near < first[0] < hi + near
+                and moved[1] - near < first[1] < moved[1] + LABEL_HEIGHT_SHARE * (y1 - y0) + near)
+    # still on its circle
+    cx, cy = (x - ctx.terrain.transform.c) / 1000.0, \
+        (y - (ctx.terrain.transform.f + rows * ctx.terrain.transform.e)) / 1000.0
+    assert math.hypot(moved[0] - cx, moved[1] - cy) == pytest.approx(0.4, abs=1e-6)
+
+
 def test_no_graticule_labels_in_the_lower_left_corner(planned):
     """The corner where a longitude label along the bottom and a latitude label up
     the left side collided keeps none."""
