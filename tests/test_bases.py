@@ -201,7 +201,7 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     """On a 3-min battery one base reaches about half the ground; a second adds
     more. No plan from a set's bases (the UAVs taking them in turn) sees more than
     the set is said to reach: the judge is the planner's plan, target for target.
-    (It sees less: here 0.95 of 1.10 km² from one base, 0.94 of 1.22 from two; the
+    (It sees less: here 0.95 of 1.11 km² from one base, 1.46 of 1.61 from two; the
     sorties' stops and the search leave reachable ground unseen.)"""
     from planner.bases import suggest_sets
 
