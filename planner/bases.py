@@ -120,8 +120,16 @@ def suggest_bases(ctx: PlanningContext, count: int = 10, separation_m: float = S
                                   "column above the ground hidden, clear and joined to the "
                                   "hidden area the fleet flies in (try a lower --clearance "
                                   "or --track-tolerance, or a larger area)")
-    bases.sort(key=_rank_key)
-    return [replace(b, rank=n + 1) for n, b in enumerate(bases[:count])]
+    # on a battery a base from which no sortie sees a target plans nothing (its bound,
+    # over no ground, read 0.0 min)
+    useful = [b for b in bases if b.reach is None or b.reach.any()]
+    if not useful:
+        raise InputError("--endurance", f"no base found reaches a target on one battery "
+                                        f"({ctx.scenario.endurance_min:g} min less "
+                                        f"{ctx.scenario.reserve_pct:g} % reserve): give a "
+                                        "longer --endurance")
+    useful.sort(key=_rank_key)
+    return [replace(b, rank=n + 1) for n, b in enumerate(useful[:count])]
 
 
 def _cell(ctx: PlanningContext, base: Base) -> tuple:

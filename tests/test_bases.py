@@ -255,10 +255,11 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
         assert launch == [b.launch_arg for b in s.bases]
 
 
-def test_bases_stand_in_the_area_of_operations(tmp_path):
+@pytest.mark.parametrize("endurance", [None, 3.0])
+def test_bases_stand_in_the_area_of_operations(tmp_path, endurance):
     """With an --area-file polygon over the hills' eastern part, every base stands in
-    it (by matplotlib's point-in-polygon on the file's own ring): the best bound had
-    a base ranked among them 10 cells west of it."""
+    it (by matplotlib's point-in-polygon on the file's own ring), on a battery too:
+    the best bound had a base ranked among them 10 cells west of it."""
     from matplotlib.path import Path as Polygon
 
     terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
@@ -268,10 +269,27 @@ def test_bases_stand_in_the_area_of_operations(tmp_path):
     area.write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
     scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
                         clearance_m=20.0, hide_margin_m=5.0, method="rt",
-                        area_file=str(area)).validate()
-    ctx = prepare(scenario, terrain=terrain, outposts=[central_outpost(terrain)])
+                        area_file=str(area), endurance_min=endurance,
+                        launch=[(0.0, 0.0)]).validate()    # stands in for the bases tried
+    ctx = prepare(replace(scenario, launch=[]), terrain=terrain,
+                  outposts=[central_outpost(terrain)])
     bases = suggest_bases(ctx, count=4, separation_m=SEPARATION, spacing_m=90.0)
     assert len(bases) >= 2
     polygon = Polygon(ring)
     for b in bases:
         assert b.inside and polygon.contains_point((b.lon, b.lat)), b.launch_arg
+        assert endurance is None or b.reach_km2 > 0
+
+
+def test_on_a_battery_that_reaches_nothing_no_base_is_suggested():
+    """A battery too short for any sortie to see a target: one line naming
+    --endurance, not bases whose bound over no ground reads 0.0 min."""
+    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
+                        clearance_m=20.0, hide_margin_m=5.0, method="rt", endurance_min=0.5,
+                        launch=[(0.0, 0.0)]).validate()
+    ctx = prepare(replace(scenario, launch=[]), terrain=terrain,
+                  outposts=[central_outpost(terrain)])
+    with pytest.raises(InputError, match="no base found reaches a target on one battery") as e:
+        suggest_bases(ctx, count=4, separation_m=SEPARATION, spacing_m=90.0)
+    assert e.value.source == "--endurance"

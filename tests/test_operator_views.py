@@ -154,6 +154,25 @@ def test_flight_figure_on_mission_time_with_timeline_and_profiles(planned):
         assert needed in legend, needed
 
 
+def test_flight_figure_legends_cover_no_panel_and_not_the_title(planned):
+    """flight.png's legends stand beside the panels, by their drawn extents: the
+    altitude legends covered the top of each profile (where a flight comes closest
+    to the ceiling), and the timeline's legend stood on the title."""
+    ctx = planned.ctx
+    fig = flight_figure(ctx.terrain, ctx.surface, planned.plan, _report(planned))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    assert len(legends) >= 3                    # the map's, the timeline's, the profiles'
+    panels = [ax.get_window_extent(renderer) for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    title = fig._suptitle.get_window_extent(renderer)
+    for legend in legends:
+        box = legend.get_window_extent(renderer)
+        for panel in panels:
+            assert not box.overlaps(panel), (legend.get_texts()[0].get_text(), panel)
+        assert not box.overlaps(title), legend.get_texts()[0].get_text()
+
+
 def test_one_palette_in_png_kml_and_geojson(planned):
     """UAV n has one colour everywhere; no vehicle is red, the outposts' colour."""
     ctx, plan = planned.ctx, planned.plan
