@@ -44,10 +44,11 @@ def shortfall(problem, usable_s, required) -> Shortfall:
     short = achievable(battery) < required
     if not short.any():
         return Shortfall(short)
-    reach = _reaching(battery)                  # [n_uavs, n_targets]
+    # per UAV, the viewpoints it flies to and back from on one battery
+    able = ~beyond(battery) & _not_closed(problem)
+    reach = _reaching(problem, able)            # [n_uavs, n_targets]
     indptr = np.asarray(problem.vis_indptr)
-    able = ~beyond(battery)
-    open_ = able.any(axis=0) & _not_closed(problem)
+    open_ = able.any(axis=0)
     places = np.bincount(np.asarray(problem.vis_indices)[np.repeat(open_, np.diff(indptr))],
                          minlength=int(problem.n_targets))
     few = short & (places >= required) & (reach.sum(axis=0) < required)
@@ -69,16 +70,16 @@ def _not_closed(problem) -> np.ndarray:
     return np.asarray(problem.owner) != CLOSED
 
 
-def _reaching(problem) -> np.ndarray:
+def _reaching(problem, able) -> np.ndarray:
     """bool [n_uavs, n_targets]: the UAVs that can sight each target on one battery
-    (fly to a viewpoint that sees it, from a base they come to, and back), or saw it
+    (fly to a viewpoint that sees it: ``able`` [n_uavs, n_viewpoints]), or saw it
     before planning from a place of their own."""
     indptr = np.asarray(problem.vis_indptr)
     vis = sparse.csr_matrix((np.ones(len(problem.vis_indices), np.int32),
                              np.asarray(problem.vis_indices), indptr),
                             shape=(problem.n_viewpoints, int(problem.n_targets)))
-    able = (~beyond(problem) & _not_closed(problem)).astype(np.int32)
-    return ((sparse.csr_matrix(able) @ vis).toarray() > 0) | problem.own_matrix()
+    return ((sparse.csr_matrix(able.astype(np.int32)) @ vis).toarray() > 0) | \
+        problem.own_matrix()
 
 
 def bases_of(starts, to_lonlat) -> list:
@@ -110,6 +111,7 @@ def few_reason(uavs, bases, k_plus_1) -> str:
     if at:
         who += (f" of base{'s' if len(at) > 1 else ''} "
                 + " and ".join(f"{n} ({lat:.6f},{lon:.6f})" for n, lat, lon in at))
-    more = "another UAV at that base" if len(at) == 1 else "another UAV at one of those bases"
+    more = ("another UAV at that base" if len(at) == 1 else
+            "another UAV at one of those bases" if at else "another UAV that reaches it")
     return (f"reached on one battery only by {who}, fewer UAVs than the k+1 = {k_plus_1} "
             f"sightings it needs ({more}, or --k {len(uavs) - 1}, would plan it)")

@@ -92,3 +92,16 @@ def test_bases_are_numbered_in_the_order_the_uavs_take_them(two_bases):
     assert [n for n, _, _ in bases] == [1, 2, 1]
     assert bases[1][1:] == pytest.approx((a.lat, a.lon), abs=1e-6)
 
+
+
+def test_ground_two_bases_reach_too_few_for_names_both():
+    """k = 2 and UAVs 2 and 3, from two bases, the only ones reaching some ground:
+    both bases are named, and --k 1 is what their two UAVs can give."""
+    from planner.shortfall import few_reason
+
+    bases = [(1, 36.5, -84.2), (1, 36.5, -84.2), (2, 36.6, -84.3)]
+    said = few_reason([2, 3], bases, 3)
+    assert said.startswith(f"{FEW} UAVs 2, 3 of bases 1 (36.500000,-84.200000) and "
+                           "2 (36.600000,-84.300000), fewer UAVs than the k+1 = 3")
+    assert "another UAV at one of those bases, or --k 1," in said
+    assert "another UAV that reaches it" in few_reason([1], [], 2)
