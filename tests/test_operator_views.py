@@ -173,6 +173,47 @@ def test_flight_figure_legends_cover_no_panel_and_not_the_title(planned):
         assert not box.overlaps(title), legend.get_texts()[0].get_text()
 
 
+def test_flight_figure_draws_no_path_through_a_silence(planned):
+    """Vehicle 1 unheard from wall 3 s to 6 s (its out_of_contact): no line on the map
+    or on its altitude panel joins the last report before to the first after as if
+    flown (a 15-min shadow was drawn as a straight flight through a valley); the map
+    joins them dotted, the panel shades the silence over its 10x mission time, and
+    each legend says so. A flight with no silence has neither."""
+    from matplotlib.patches import Rectangle
+
+    from gcs.flight_plot import SILENT_LABEL
+
+    ctx = planned.ctx
+    plain = _report(planned)
+    report = _report(planned)
+    one = report["vehicles"][0]
+    walls = np.array([p[0] for p in one["track"]])
+    before, after = walls[walls <= 3.0].max(), walls[walls >= 6.0].min()
+    one["track"] = [p for p in one["track"] if not 3.0 < p[0] < 6.0]
+    one["out_of_contact"] = [{"from_s": float(before), "to_s": float(after), "due_s": 9.0}]
+    k = int(np.flatnonzero(np.array([p[0] for p in one["track"]]) == before)[0])
+    colour = to_hex(vehicle_colour(one["vehicle"]))
+
+    fig = flight_figure(ctx.terrain, ctx.surface, planned.plan, report)
+    solid = [ln for ln in fig.axes[0].lines if to_hex(ln.get_color()) == colour
+             and ln.get_linestyle() == "-" and ln.get_linewidth() == 2.0]
+    [track] = [ln for ln in solid if len(ln.get_xdata()) == len(one["track"]) + 1]
+    x = np.asarray(track.get_xdata(), float)
+    assert np.flatnonzero(np.isnan(x)).tolist() == [k + 1]
+    assert any(ln.get_linestyle() == ":" and to_hex(ln.get_color()) == colour
+               and len(ln.get_xdata()) == 2 for ln in fig.axes[0].lines)
+    panel = next(ax for ax in fig.axes if ax.get_title(loc="left").startswith("sysid 1 "))
+    [flown] = [ln for ln in panel.lines if ln.get_label() == "flown altitude"]
+    assert np.isnan(np.asarray(flown.get_ydata(), float)).sum() == 1
+    # axvspan's shade: a Rectangle (matplotlib >= 3.9) or a Polygon
+    widths = [r.get_width() if isinstance(r, Rectangle) else np.ptp(np.asarray(r.get_xy())[:, 0])
+              for r in panel.patches]
+    assert any(w == pytest.approx(10.0 * (after - before)) for w in widths), widths
+    assert SILENT_LABEL in _legend(fig)
+    assert SILENT_LABEL not in _legend(flight_figure(ctx.terrain, ctx.surface, planned.plan,
+                                                     plain))
+
+
 def test_one_palette_in_png_kml_and_geojson(planned):
     """UAV n has one colour everywhere; no vehicle is red, the outposts' colour."""
     ctx, plan = planned.ctx, planned.plan
