@@ -47,8 +47,10 @@ def unheard(v) -> np.ndarray:
     t = np.asarray(v["track"], float)[:, 0] if v["track"] else np.zeros(0)
     gap = np.zeros(max(len(t) - 1, 0), bool)
     for quiet in v.get("out_of_contact") or []:
+        # it fell silent after the one and was heard again by the other (its first
+        # report then may come a moment before the loop that marks the silence over)
         if quiet.get("to_s") is not None:         # still silent: the track ends there
-            gap |= (t[:-1] <= quiet["from_s"] + 0.01) & (t[1:] >= quiet["to_s"] - 0.01)
+            gap |= (t[:-1] <= quiet["from_s"] + 0.01) & (t[1:] > quiet["from_s"])
     return gap
 
 
@@ -187,8 +189,7 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
                        markeredgecolor="black", label="where a vehicle was lost")]
     if any(unheard(v).any() for v in report["vehicles"]):
         handles.append(Line2D([], [], color="grey", linestyle=":", linewidth=1.0,
-                              label="out of contact, no reports: dotted from where it went "
-                                    "unheard to where it was heard again"))
+                              label="out of contact (dotted: last heard to heard again)"))
     handles += symbol_legend(surface, snapshots=True, base=True)
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2,
               fontsize=8, framealpha=0.9)
