@@ -35,6 +35,30 @@ TERRAIN_FILL = "#a0785a"
 CEILING_LINE = "#08306b"
 GUARD_COLOUR = "#ffd700"       # gold, hatched: no vehicle has it
 REPLAN_SHADE = "#bdbdbd"
+SILENT_SHADE = "#9ecae1"
+SILENT_LABEL = "out of contact: no reports (where it flew is not known)"
+
+
+def unheard(v) -> np.ndarray:
+    """bool per pair of successive track samples: whether the vehicle was out of
+    contact between them (a silence of its ``out_of_contact`` lies between the two).
+    A line drawn there is no flown path: a shadow of 15 minutes was drawn as a
+    straight flight through the valley under it."""
+    t = np.asarray(v["track"], float)[:, 0] if v["track"] else np.zeros(0)
+    gap = np.zeros(max(len(t) - 1, 0), bool)
+    for quiet in v.get("out_of_contact") or []:
+        # it fell silent after the one and was heard again by the other (its first
+        # report then may come a moment before the loop that marks the silence over)
+        if quiet.get("to_s") is not None:         # still silent: the track ends there
+            gap |= (t[:-1] <= quiet["from_s"] + 0.01) & (t[1:] > quiet["from_s"])
+    return gap
+
+
+def broken(values, gap) -> np.ndarray:
+    """``values`` (per track sample, along the first axis) with NaN between the two
+    samples of each ``gap`` (`unheard`), so that a line drawn through them stops."""
+    values = np.asarray(values, float)
+    return np.insert(values, np.flatnonzero(gap) + 1, np.nan, axis=0)
 
 
 # -- mission time ---------------------------------------------------------------------------
@@ -128,7 +152,8 @@ def flight_figure(terrain, surface, plan, report: dict):
     for i, v in enumerate(vehicles):
         pax = fig.add_subplot(grid[i + 1, 1], sharex=timeline if first is None else first)
         first = first or pax
-        draw_altitude_profile(pax, terrain, surface, v, clock, last=i == len(vehicles) - 1)
+        draw_altitude_profile(pax, terrain, surface, v, clock, last=i == len(vehicles) - 1,
+                              silent=any(unheard(u).any() for u in vehicles))
     fig.suptitle(_title(report, clock), fontsize=12, y=1.0 - 0.15 / height, va="top")
     return fig
 
@@ -162,6 +187,9 @@ def draw_flight_map(ax, terrain, surface, plan, report, clock) -> None:
                        label="re-planned route (dashed)"),
                 Line2D([], [], linestyle="none", marker="X", color="grey", markersize=10,
                        markeredgecolor="black", label="where a vehicle was lost")]
+    if any(unheard(v).any() for v in report["vehicles"]):
+        handles.append(Line2D([], [], color="grey", linestyle=":", linewidth=1.0,
+                              label="out of contact (dotted: last heard to heard again)"))
     handles += symbol_legend(surface, snapshots=True, base=True)
     ax.legend(handles=handles, loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2,
               fontsize=8, framealpha=0.9)
@@ -180,7 +208,10 @@ def _draw_track(ax, terrain, v, c, clock):
     if v["track"]:
         t = np.asarray(v["track"], float)
         x, y = lonlat_km(terrain, t[:, 1], t[:, 2])
-        ax.plot(x, y, "-", color=c, linewidth=2.0, zorder=5)
+        gap = unheard(v)
+        ax.plot(broken(x, gap), broken(y, gap), "-", color=c, linewidth=2.0, zorder=5)
+        for k in np.flatnonzero(gap):        # where it went unheard and where heard again
+            ax.plot(x[k:k + 2], y[k:k + 2], ":", color=c, linewidth=1.0, zorder=5)
         if v["state"] == "lost":
             ax.plot(x[-1], y[-1], "X", color=c, markersize=14, markeredgecolor="black",
                     zorder=11)
@@ -309,10 +340,12 @@ def _guard_holds(report) -> list:
                       report.get("duration_s", 0.0))
 
 
-def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
+def draw_altitude_profile(ax, terrain, surface, v, clock, last=False, silent=False) -> None:
     """A vehicle's altitude (AMSL) over mission time, the ground under it (the plan's
     ground for clearance, so the gap shown is the clearance it is guaranteed) and the
-    hidden ceiling above it (NaN where the point is not in the flyable region)."""
+    hidden ceiling above it (NaN where the point is not in the flyable region); its
+    silences shaded, no line through them (`unheard`). ``silent``: some vehicle has
+    one, and the legend (under the ``last`` panel) says what the shade is."""
     c = vehicle_colour(v["vehicle"])
     ax.set_title(f"sysid {v['sysid']} (UAV {v['vehicle']}): altitude, metres AMSL",
                  fontsize=9, loc="left")
@@ -326,11 +359,16 @@ def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
     ground = bilinear(terrain.upper, row, col)   # the ground its clearance is kept from
     ceiling = bilinear(surface.ceiling, row, col)
     bottom = np.nanmin(ground) - 30 if np.isfinite(ground).any() else np.nanmin(t[:, 3]) - 30
-    ax.fill_between(tt, bottom, ground, color=TERRAIN_FILL, alpha=0.6, linewidth=0,
+    gap = unheard(v)
+    for k in np.flatnonzero(gap):
+        ax.axvspan(tt[k], tt[k + 1], color=SILENT_SHADE, alpha=0.35, linewidth=0)
+    ax.fill_between(broken(tt, gap), bottom, broken(ground, gap), color=TERRAIN_FILL,
+                    alpha=0.6, linewidth=0,
                     label="ground under it (for clearance: nowhere below the DEM)")
-    ax.plot(tt, ceiling, "--", color=CEILING_LINE, linewidth=1.0,
+    ax.plot(broken(tt, gap), broken(ceiling, gap), "--", color=CEILING_LINE, linewidth=1.0,
             label="hidden ceiling there (fly below)")
-    ax.plot(tt, t[:, 3], "-", color=c, linewidth=1.6, label="flown altitude")
+    ax.plot(broken(tt, gap), broken(t[:, 3], gap), "-", color=c, linewidth=1.6,
+            label="flown altitude")
     if v["state"] == "lost":
         ax.plot(tt[-1], t[-1, 3], "X", color=c, markersize=10, markeredgecolor="black")
     ax.set_ylim(bottom, np.nanmax([np.nanmax(t[:, 3]), np.nanmax(ceiling) if np.isfinite(
@@ -346,6 +384,9 @@ def draw_altitude_profile(ax, terrain, surface, v, clock, last=False) -> None:
         # the flown line in no one vehicle's colour: the legend is every panel's
         handles = [Line2D([], [], color="grey", linewidth=1.6) if label == "flown altitude"
                    else h for h, label in zip(handles, labels)]
+        if silent:                      # some vehicle's panel shades a silence
+            handles.append(Patch(color=SILENT_SHADE, alpha=0.35))
+            labels.append(SILENT_LABEL)
         ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.42),
                   fontsize=7.5, ncol=3, framealpha=0.9)
 

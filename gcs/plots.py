@@ -66,21 +66,23 @@ def draw_background(ax, terrain, surface, names=True, avoid=()):
     shade = LightSource(azdeg=315, altdeg=45).hillshade(h, vert_exag=2, dx=terrain.cell_size,
                                                         dy=terrain.cell_size)
     extent = _extent_km(terrain)
+    avoid = np.asarray(list(avoid), float).reshape(-1, 2)     # read twice below
     ax.imshow(shade, cmap="gray", extent=extent, origin="upper", vmin=0, vmax=1)
     hidden_agl = surface.ceiling - terrain.height
     im = ax.imshow(np.ma.masked_invalid(hidden_agl), cmap=CEILING_CMAP, alpha=0.45,
                    extent=extent, origin="upper", vmin=0,
                    vmax=np.nanmax(hidden_agl) if np.isfinite(hidden_agl).any() else 1)
+    # a range's label keeps off the bases and off every post's name (they overlapped)
+    avoid_labels = np.concatenate([avoid, *(_name_points(terrain, extent, o, _post_name(o, n))
+                                            for n, o in enumerate(surface.outposts))])
     for n, o in enumerate(surface.outposts):
         ox, oy = _to_km(terrain, o.x, o.y)
         ax.plot(ox, oy, marker="^", color=OUTPOST_COLOUR, markersize=10,
                 markeredgecolor="black", zorder=8)
         name = getattr(o, "name", None) or f"outpost {n + 1}"
         if names:
-            rng = f"{o.range_m / 1000:g} km range" if np.isfinite(o.range_m) \
-                else "range unlimited"
             right = ox > (extent[0] + extent[1]) / 2       # keep the label on the map
-            ax.annotate(f"{name} ({rng})", (ox, oy), xytext=(-7 if right else 7, -4),
+            ax.annotate(_post_name(o, n), (ox, oy), xytext=(-7 if right else 7, -4),
                         textcoords="offset points", ha="right" if right else "left",
                         fontsize=8, fontweight="bold", color="black", zorder=9,
                         bbox=dict(boxstyle="round,pad=0.15", fc="white", ec=OUTPOST_COLOUR,
@@ -90,7 +92,8 @@ def draw_background(ax, terrain, surface, names=True, avoid=()):
             ax.add_patch(plt.Circle((ox, oy), r, fill=False, color=OUTPOST_COLOUR,
                                     linestyle=":", linewidth=1.2, zorder=4))
             if names:
-                _label_range(ax, extent, ox, oy, r, f"{name}: {o.range_m / 1000:g} km range")
+                _label_range(ax, extent, ox, oy, r, f"{name}: {o.range_m / 1000:g} km range",
+                             avoid_labels)
     ax.set_xlim(extent[0], extent[1])
     ax.set_ylim(extent[2], extent[3])
     ax.set_xlabel("east (km from the grid's south-west corner)")
@@ -102,22 +105,58 @@ def draw_background(ax, terrain, surface, names=True, avoid=()):
     return im
 
 
-def _label_range(ax, extent, ox, oy, r, text) -> None:
+def _post_name(o, n) -> str:
+    """A post's label beside it: its name (or number) and its range."""
+    name = getattr(o, "name", None) or f"outpost {n + 1}"
+    rng = f"{o.range_m / 1000:g} km range" if np.isfinite(o.range_m) else "range unlimited"
+    return f"{name} ({rng})"
+
+
+def _name_points(terrain, extent, o, text) -> np.ndarray:
+    """(n, 2) km: points along a post's name label (bold 8-pt, beside it, towards
+    the map's middle), for other labels to keep off."""
+    ox, oy = _to_km(terrain, o.x, o.y)
+    width = 1.2 * LABEL_CHAR_SHARE * len(text) * (extent[1] - extent[0])
+    side = -1.0 if ox > (extent[0] + extent[1]) / 2 else 1.0
+    return np.stack([ox + side * np.linspace(0.0, width, 12), np.full(12, float(oy))], axis=1)
+
+
+#: a range label's size on the map, per character and in height, as shares of the
+#: map's width and height (7-pt italic on the 10-inch maps); how far (share of the
+#: map's shorter side) it keeps from a point to avoid (a base's square)
+LABEL_CHAR_SHARE, LABEL_HEIGHT_SHARE, LABEL_CLEAR = 0.009, 0.025, 0.02
+
+
+def _label_range(ax, extent, ox, oy, r, text, avoid=()) -> None:
     """The range's name on its circle, at the first point of it inside the map
-    (searching from the top clockwise), so the circle can be told from others."""
+    (searching from the top clockwise) where the label covers none of the points
+    ``avoid`` (km: what the map draws on top, bases, which hid the label), so the
+    circle can be told from others; where every place covers one, the first."""
     x0, x1, y0, y1 = extent
     pad = 0.04 * max(x1 - x0, y1 - y0)
+    points = np.asarray(avoid, float).reshape(-1, 2)
+    width = LABEL_CHAR_SHARE * len(text) * (x1 - x0)
+    height, near = LABEL_HEIGHT_SHARE * (y1 - y0), LABEL_CLEAR * min(x1 - x0, y1 - y0)
+    first = None
     for deg in np.arange(60, 60 + 360, 10):
         a = math.radians(deg)
         px, py = ox + r * math.cos(a), oy + r * math.sin(a)
-        if x0 + pad < px < x1 - pad and y0 + pad < py < y1 - pad:
-            right = px > (x0 + x1) / 2
-            ax.annotate(text, (px, py), fontsize=7, color=OUTPOST_COLOUR, style="italic",
-                        ha="right" if right else "left", va="bottom", zorder=9,
-                        xytext=(-3 if right else 3, 3),
-                        textcoords="offset points",
-                        bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.7))
-            return
+        if not (x0 + pad < px < x1 - pad and y0 + pad < py < y1 - pad):
+            continue
+        right = px > (x0 + x1) / 2
+        first = first or (px, py, right)
+        lo, hi = (px - width, px) if right else (px, px + width)
+        if not ((points[:, 0] > lo - near) & (points[:, 0] < hi + near)
+                & (points[:, 1] > py - near) & (points[:, 1] < py + height + near)).any():
+            first = (px, py, right)
+            break
+    if first is None:
+        return
+    px, py, right = first
+    ax.annotate(text, (px, py), fontsize=7, color=OUTPOST_COLOUR, style="italic",
+                ha="right" if right else "left", va="bottom", zorder=9,
+                xytext=(-3 if right else 3, 3), textcoords="offset points",
+                bbox=dict(boxstyle="round,pad=0.1", fc="white", ec="none", alpha=0.7))
 
 
 def _nice_step(span: float, target: int = 4) -> float:
@@ -297,24 +336,46 @@ def draw_routes(ax, terrain, plan, linestyle="-", label_prefix="UAV", alpha=1.0)
 
 
 def draw_area(ax, terrain, plan):
-    """The plan's area of operations polygon (``--area-file``), dashed, when its file
-    is still there; labelled for the legend. Its legend handle (None: not drawn)."""
+    """The plan's area of operations (``--area`` box, ``--area-file`` polygon while
+    its file is still there), dashed; labelled for the legend. Its legend handle
+    (None: not drawn)."""
+    p = plan.params
+    return draw_area_of(ax, terrain, p.get("area"), p.get("area_file"),
+                        bool(p.get("area_flight")))
+
+
+#: points along each side of the --area box: a parallel or meridian is a curve on
+#: a projected map
+BOX_STEPS = 32
+
+
+def draw_area_of(ax, terrain, box=None, area_file=None, area_flight=False):
+    """The area of operations, dashed: the (south, west, north, east) ``box``, which
+    both targets and flight stay inside (the DEM may be read wider, around an
+    outpost outside it, and the map with it), and the ``area_file`` polygon when
+    the file is there. Its legend handle, None when there is neither."""
     from pathlib import Path
 
-    name = plan.params.get("area_file")
-    if not name or not Path(name).is_file():
-        return None
-    from planner.terrain.area import read_area
-
-    label = "area of operations (targets" + (" and flight" if plan.params.get("area_flight")
-                                              else "") + " inside)"
+    rings = []
+    if box is not None:
+        s, w, n, e = box
+        t = np.linspace(0.0, 1.0, BOX_STEPS)
+        lon = np.concatenate([w + (e - w) * t, np.full(BOX_STEPS, e), e - (e - w) * t,
+                              np.full(BOX_STEPS, w)])
+        lat = np.concatenate([np.full(BOX_STEPS, s), s + (n - s) * t, np.full(BOX_STEPS, n),
+                              n - (n - s) * t])
+        rings.append(np.stack([lon, lat], axis=1))
+    if area_file and Path(area_file).is_file():
+        from planner.terrain.area import read_area
+        rings += [ring for polygon in read_area(area_file) for ring in polygon]
+    flight = area_flight or (box is not None and not area_file)
+    label = "area of operations (targets" + (" and flight" if flight else "") + " inside)"
     handle = None
-    for polygon in read_area(name):
-        for ring in polygon:
-            x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
-            line, = ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4,
-                            zorder=4, label=label)
-            handle, label = handle or line, None
+    for ring in rings:
+        x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
+        line, = ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4,
+                        zorder=4, label=label)
+        handle, label = handle or line, None
     return handle
 
 

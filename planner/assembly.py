@@ -22,6 +22,7 @@ from .context import outposts_json
 from .coverage.model import achievable, beyond_battery
 from .plan import GeoPoint, Plan, VehicleRoute, Waypoint
 from .returns import returns
+from .shortfall import bases_of, few_reason, shortfall
 
 
 def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds,
@@ -33,7 +34,8 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
     # target only a viewpoint beyond one battery sees still counts as not covered
     places = achievable(replace(problem, endurance_s=np.inf))
     required = np.minimum(problem.needs(), places)
-    short = _short_of_battery(ctx, problem, required)
+    lack = _short_of_battery(ctx, problem, required)
+    short = None if lack is None else lack.short
     ranks = list(dict.fromkeys(fleet.sorties[i].uav for i in fleet.schedule.order))
     vehicles = [_vehicle(ctx, r, fleet, starts[r] if starts else None, ranks)
                 for r in range(len(allocation.routes))]
@@ -70,8 +72,12 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
         metrics["filled_voids"] = {"at": ctx.terrain.meta["filled_at"],
                                    "margin_m": VOID_FILL_MARGIN_M}
     if ctx.unseen is not None:
+        few = [] if lack is None else [
+            (few_reason(uavs, bases_of(starts, ctx.terrain.to_lonlat), int(s.k) + 1), mask)
+            for uavs, mask in lack.few]
         metrics["area"] = area_summary(ctx.terrain.cell_size, ctx.unseen,
-                                       ctx.visibility.target_cells, counts, required, short)
+                                       ctx.visibility.target_cells, counts, required, short,
+                                       few)
     metrics["radius_bound_s"], metrics["lower_bound_s"] = bounds
     # under a battery the bounds ask of each target only what one battery reaches:
     # they are bounds over that share of the targets, said beside them
@@ -86,12 +92,12 @@ def make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, b
 
 
 def _short_of_battery(ctx, problem, required):
-    """bool per target: the sightings it needs only viewpoints beyond one battery
-    give (fewer places a base reaches and leaves on one battery than required);
-    None without a battery."""
+    """The targets one battery leaves short of their ``required`` sightings, and
+    why (`planner.shortfall.Shortfall`: beyond one battery of any base, or reached
+    by too few UAVs); None without a battery."""
     if ctx.scenario.endurance_min is None:
         return None
-    return achievable(replace(problem, endurance_s=ctx.scenario.usable_s)) < required
+    return shortfall(problem, ctx.scenario.usable_s, required)
 
 
 def _battery_metrics(ctx, problem, fleet, short) -> dict:

@@ -9,7 +9,9 @@ its cell lies in the fleet's flyable region and its top in the strongly
 connected part of the graph that holds the viewpoints. Bases are ranked by the
 planner's reach bound (`coverage.bounds.radius`): a lower bound on coverage time for
 the whole fleet leaving from that base, from the hidden travel times of the
-coverage problem `gcs plan` would build (`problem.coverage_problem`).
+coverage problem `gcs plan` would build (`problem.coverage_problem`). On a battery
+a base is first ranked by the ground one battery reaches from it (`Base.reach`),
+since its bound is over that ground only.
 
 The exact check costs tenths of a second a point (its proven legs), so not every
 cell is checked: candidates on a grid are ordered by a quick estimate (the same
@@ -32,6 +34,7 @@ from .coverage.model import prepare as prepare_problem
 from .launch import launch_starts
 from .problem import coverage_problem
 from .split import PART_VIEWPOINTS
+from .visibility.unseen import OUTSIDE
 
 #: least distance between two reported bases (m): apart enough that the list offers
 #: different places, not one good spot ten times
@@ -60,6 +63,9 @@ class Base:
     start: object = field(default=None, repr=False, compare=False)  # launch.Start
     # per target, seen from a viewpoint one battery reaches from here (with an endurance)
     reach: Optional[np.ndarray] = field(default=None, repr=False, compare=False)
+    reach_km2: Optional[float] = None  # the ground of ``reach`` (None: no endurance)
+    reach_pct: Optional[float] = None  # of the ground any hidden viewpoint sees
+    inside: bool = True  # in the area of operations (else none there passed the checks)
 
     @property
     def launch_arg(self) -> str:
@@ -93,20 +99,50 @@ def suggest_bases(ctx: PlanningContext, count: int = 10, separation_m: float = S
         raise InputError("bases", f"{len(ctx.viewpoints):,} viewpoints: too large an area to "
                                   f"rank bases over (at most {PART_VIEWPOINTS:,}); choose "
                                   "a smaller --area around where the base may stand")
-    rows, cols = candidate_cells(ctx, spacing_m)
-    quick = quick_bounds(ctx, rows, cols, progress)
-    order = np.argsort(quick, kind="stable")
-    order = order[np.isfinite(quick[order])]   # inf: the targets are out of hidden reach
-    checked = check_in_order(ctx, rows[order], cols[order], CHECKED_PER_BASE * count,
-                             separation_m, progress)
-    bases = [b for b in (_base(ctx, *found) for found in checked) if np.isfinite(b.bound_s)]
+    # a base stands in the area of operations (one 3 km outside it, in the DEM's
+    # corner, was once suggested best); only where none passes there, outside it
+    area, bases = in_area(ctx), []
+    for inside in (True, False):
+        rows, cols = candidate_cells(ctx, spacing_m, inside)
+        if not len(rows):
+            continue
+        quick = quick_bounds(ctx, rows, cols, progress)
+        order = np.argsort(quick, kind="stable")
+        order = order[np.isfinite(quick[order])]   # inf: the targets are out of hidden reach
+        checked = check_in_order(ctx, rows[order], cols[order], CHECKED_PER_BASE * count,
+                                 separation_m, progress)
+        bases = [replace(b, inside=bool(area[_cell(ctx, b)])) for b in
+                 (_base(ctx, *found) for found in checked) if np.isfinite(b.bound_s)]
+        if bases or area.all():
+            break
     if not bases:
         raise InputError("bases", "no ground point passes the launch checks: nowhere is the "
                                   "column above the ground hidden, clear and joined to the "
                                   "hidden area the fleet flies in (try a lower --clearance "
                                   "or --track-tolerance, or a larger area)")
-    bases.sort(key=lambda b: b.bound_s)
-    return [replace(b, rank=n + 1) for n, b in enumerate(bases[:count])]
+    # on a battery a base from which no sortie sees a target plans nothing (its bound,
+    # over no ground, read 0.0 min)
+    useful = [b for b in bases if b.reach is None or b.reach.any()]
+    if not useful:
+        raise InputError("--endurance", f"no base found reaches a target on one battery "
+                                        f"({ctx.scenario.endurance_min:g} min less "
+                                        f"{ctx.scenario.reserve_pct:g} % reserve): give a "
+                                        "longer --endurance")
+    useful.sort(key=_rank_key)
+    return [replace(b, rank=n + 1) for n, b in enumerate(useful[:count])]
+
+
+def _cell(ctx: PlanningContext, base: Base) -> tuple:
+    """(row, col) of the grid cell a base stands in."""
+    return tuple(int(v) for v in np.rint(ctx.terrain.rowcol(base.x, base.y)))
+
+
+def _rank_key(base: Base) -> tuple:
+    """Best first: on a battery, the base that reaches the most ground, then the
+    lowest bound (which is over that ground only: a base that reaches little has
+    a small bound, and ranked by it alone came first); without one, the lowest
+    bound."""
+    return (-(base.reach_km2 or 0.0), base.bound_s)
 
 
 def check_in_order(ctx: PlanningContext, rows, cols, wanted: int, separation_m: float,
@@ -130,12 +166,24 @@ def check_in_order(ctx: PlanningContext, rows, cols, wanted: int, separation_m: 
     return checked
 
 
-def candidate_cells(ctx: PlanningContext, spacing_m: Optional[float] = None) -> tuple:
+def in_area(ctx: PlanningContext) -> np.ndarray:
+    """bool [rows, cols]: the area of operations (``--area``, ``--area-file``; the
+    whole grid without one)."""
+    if ctx.unseen is None:
+        return np.ones(ctx.terrain.shape, bool)
+    return ctx.unseen != OUTSIDE
+
+
+def candidate_cells(ctx: PlanningContext, spacing_m: Optional[float] = None,
+                    inside: bool = False) -> tuple:
     """(rows, cols) of grid cells worth checking: every ``spacing_m`` (coarser
     when more than `MAX_CANDIDATES` would pass), in the fleet's flyable region
-    and over a node of the hidden travel graph (a launch there would be refused)."""
+    and over a node of the hidden travel graph (a launch there would be refused);
+    ``inside``: in the area of operations only."""
     terrain, graph = ctx.terrain, ctx.graph
     usable = np.isin(ctx.surface.regions, np.asarray(ctx.regions)) & (graph.node_of_cell >= 0)
+    if inside:
+        usable &= in_area(ctx)
     stride = max(1, int(round((spacing_m or 0.0) / terrain.cell_size)))
     # the grid is sparse enough for the quick estimate when a stride^2 cell block
     # holds one candidate on average: start from there
@@ -203,8 +251,16 @@ def _base(ctx: PlanningContext, start, lat, lon) -> Base:
     bound = float(reach_bound(prepare_problem(problem)))
     # the planner's own battery rule: a target no sortie from here can see has none
     reach = achievable(problem) > 0 if s.endurance_min is not None else None
+    km2, pct = (None, None) if reach is None else _ground(ctx, reach)
     return Base(0, lat, lon, float(start.launch[0]), float(start.launch[1]),
-                float(start.launch[2]), float(start.xyz[2]), bound, start, reach)
+                float(start.launch[2]), float(start.xyz[2]), bound, start, reach, km2, pct)
+
+
+def _ground(ctx: PlanningContext, targets) -> tuple:
+    """(km², % of the targets) of the target cells ``targets`` (bool per target)."""
+    total, n = ctx.visibility.n_targets, int(np.count_nonzero(targets))
+    return (round(n * ctx.terrain.cell_size ** 2 / 1e6, 3),
+            round(100.0 * n / total, 1) if total else 0.0)
 
 
 def suggest_sets(ctx: PlanningContext, bases: list) -> list:
@@ -213,8 +269,7 @@ def suggest_sets(ctx: PlanningContext, bases: list) -> list:
     adds the most ground a battery reaches (`Base.reach`; of equals, the better
     ranked), while one adds any: the first set is the one base that reaches the
     most. Without an endurance every base reaches everything: the best one, alone."""
-    s, cell_km2 = ctx.scenario, ctx.terrain.cell_size ** 2 / 1e6
-    total = ctx.visibility.n_targets
+    s, total = ctx.scenario, ctx.visibility.n_targets
     reach = {id(b): np.ones(total, bool) if b.reach is None else b.reach for b in bases}
     chosen, seen = [], np.zeros(total, bool)
     while len(chosen) < min(s.uavs, len(bases)):
@@ -230,8 +285,7 @@ def suggest_sets(ctx: PlanningContext, bases: list) -> list:
         starts = [chosen[i % n].start for i in range(s.uavs)]
         covered = np.logical_or.reduce([reach[id(b)] for b in chosen[:n]])
         problem = coverage_problem(ctx, s.uavs, starts, s.k, s.visibility)
-        out.append(BaseSet(chosen[:n], round(int(covered.sum()) * cell_km2, 3),
-                           round(100.0 * covered.sum() / total, 1) if total else 0.0,
+        out.append(BaseSet(chosen[:n], *_ground(ctx, covered),
                            float(reach_bound(prepare_problem(problem)))))
     return out
 

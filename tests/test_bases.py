@@ -201,7 +201,7 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     """On a 3-min battery one base reaches about half the ground; a second adds
     more. No plan from a set's bases (the UAVs taking them in turn) sees more than
     the set is said to reach: the judge is the planner's plan, target for target.
-    (It sees less: here 0.95 of 1.10 km² from one base, 0.94 of 1.22 from two; the
+    (It sees less: here 0.95 of 1.11 km² from one base, 1.46 of 1.61 from two; the
     sorties' stops and the search leave reachable ground unseen.)"""
     from planner.bases import suggest_sets
 
@@ -219,6 +219,15 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     cell_km2 = terrain.cell_size ** 2 / 1e6
     alone = [int(b.reach.sum()) for b in bases]
     assert sets[0].reach_km2 == pytest.approx(max(alone) * cell_km2, abs=1e-3)
+    # on a battery the ranking is by that reach first (a bound over little ground is
+    # small: ranked by it alone, a base reaching none came first), then by the bound;
+    # the best base is the first set's
+    assert [b.reach_km2 for b in bases] == pytest.approx([n * cell_km2 for n in alone],
+                                                         abs=1e-3)
+    assert alone == sorted(alone, reverse=True)
+    for a, b in zip(bases, bases[1:]):
+        assert alone[a.rank - 1] > alone[b.rank - 1] or a.bound_s <= b.bound_s
+    assert sets[0].bases == [bases[0]]
     for s in sets:
         launch = [(b.lat, b.lon) for b in s.bases]
         trial = replace(ctx, scenario=replace(ctx.scenario, launch=launch))
@@ -226,8 +235,17 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
         seen = np.logical_or.reduce([b.reach for b in s.bases])
         assert not ((outcome.counts >= 1) & ~seen).any()    # nothing seen beyond reach
         assert (outcome.counts >= 1).sum() * cell_km2 <= s.reach_km2 + 1e-3
-    # the console's table: one row per set, its --launch as gcs plan takes it
-    from gcs.cli.bases import sets_table
+    # the console's tables: one row per base with its reach, one per set, each
+    # --launch as gcs plan takes it
+    from gcs.cli.bases import bases_table, sets_table
+
+    table = bases_table(bases, 2, 3.0).splitlines()
+    assert "on one 3-min battery" in table[0] and "reach km²" in table[1]
+    for b, row in zip(bases, table[2:], strict=False):
+        rank, launch, _, _, km2, pct, bound = row.split()
+        assert (int(rank), launch, float(km2), float(pct), float(bound)) == \
+            (b.rank, b.launch_arg, round(b.reach_km2, 2), b.reach_pct, round(b.bound_s / 60, 1))
+    assert table[-1] == f"best: --launch {bases[0].launch_arg}"
 
     rows = sets_table(sets, 3.0).splitlines()[2:]
     for s, row in zip(sets, rows, strict=True):
@@ -235,3 +253,43 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
         assert (int(n), float(km2), float(pct)) == (len(s.bases), round(s.reach_km2, 2),
                                                     s.reach_pct)
         assert launch == [b.launch_arg for b in s.bases]
+
+
+@pytest.mark.parametrize("endurance", [None, 3.0])
+def test_bases_stand_in_the_area_of_operations(tmp_path, endurance):
+    """With an --area-file polygon over the hills' eastern part, every base stands in
+    it (by matplotlib's point-in-polygon on the file's own ring), on a battery too:
+    the best bound had a base ranked among them 10 cells west of it."""
+    from matplotlib.path import Path as Polygon
+
+    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+    ring = [[float(v) for v in terrain.to_lonlat(*terrain.xy(r, c))]
+            for r, c in ((2, 32), (2, 57), (57, 57), (57, 32), (2, 32))]
+    area = tmp_path / "east.geojson"
+    area.write_text(json.dumps({"type": "Polygon", "coordinates": [ring]}))
+    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
+                        clearance_m=20.0, hide_margin_m=5.0, method="rt",
+                        area_file=str(area), endurance_min=endurance,
+                        launch=[(0.0, 0.0)]).validate()    # stands in for the bases tried
+    ctx = prepare(replace(scenario, launch=[]), terrain=terrain,
+                  outposts=[central_outpost(terrain)])
+    bases = suggest_bases(ctx, count=4, separation_m=SEPARATION, spacing_m=90.0)
+    assert len(bases) >= 2
+    polygon = Polygon(ring)
+    for b in bases:
+        assert b.inside and polygon.contains_point((b.lon, b.lat)), b.launch_arg
+        assert endurance is None or b.reach_km2 > 0
+
+
+def test_on_a_battery_that_reaches_nothing_no_base_is_suggested():
+    """A battery too short for any sortie to see a target: one line naming
+    --endurance, not bases whose bound over no ground reads 0.0 min."""
+    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
+                        clearance_m=20.0, hide_margin_m=5.0, method="rt", endurance_min=0.5,
+                        launch=[(0.0, 0.0)]).validate()
+    ctx = prepare(replace(scenario, launch=[]), terrain=terrain,
+                  outposts=[central_outpost(terrain)])
+    with pytest.raises(InputError, match="no base found reaches a target on one battery") as e:
+        suggest_bases(ctx, count=4, separation_m=SEPARATION, spacing_m=90.0)
+    assert e.value.source == "--endurance"

@@ -154,6 +154,68 @@ def test_flight_figure_on_mission_time_with_timeline_and_profiles(planned):
         assert needed in legend, needed
 
 
+def test_flight_figure_legends_cover_no_panel_and_not_the_title(planned):
+    """flight.png's legends stand beside the panels, by their drawn extents: the
+    altitude legends covered the top of each profile (where a flight comes closest
+    to the ceiling), and the timeline's legend stood on the title."""
+    ctx = planned.ctx
+    fig = flight_figure(ctx.terrain, ctx.surface, planned.plan, _report(planned))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    legends = [ax.get_legend() for ax in fig.axes if ax.get_legend() is not None]
+    assert len(legends) >= 3                    # the map's, the timeline's, the profiles'
+    panels = [ax.get_window_extent(renderer) for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    title = fig._suptitle.get_window_extent(renderer)
+    for legend in legends:
+        box = legend.get_window_extent(renderer)
+        for panel in panels:
+            assert not box.overlaps(panel), (legend.get_texts()[0].get_text(), panel)
+        assert not box.overlaps(title), legend.get_texts()[0].get_text()
+
+
+def test_flight_figure_draws_no_path_through_a_silence(planned):
+    """Vehicle 1 unheard from wall 3 s to 6 s (its out_of_contact): no line on the map
+    or on its altitude panel joins the last report before to the first after as if
+    flown (a 15-min shadow was drawn as a straight flight through a valley); the map
+    joins them dotted, the panel shades the silence over its 10x mission time, and
+    each legend says so. A flight with no silence has neither."""
+    from matplotlib.patches import Rectangle
+
+    from gcs.flight_plot import SILENT_LABEL
+
+    ctx = planned.ctx
+    plain = _report(planned)
+    report = _report(planned)
+    one = report["vehicles"][0]
+    walls = np.array([p[0] for p in one["track"]])
+    before, after = walls[walls <= 3.0].max(), walls[walls >= 6.0].min()
+    one["track"] = [p for p in one["track"] if not 3.0 < p[0] < 6.0]
+    # marked over by the loop a moment after its first report (as in the demo's flight)
+    one["out_of_contact"] = [{"from_s": float(before), "to_s": float(after) + 0.3,
+                              "due_s": 9.0}]
+    k = int(np.flatnonzero(np.array([p[0] for p in one["track"]]) == before)[0])
+    colour = to_hex(vehicle_colour(one["vehicle"]))
+
+    fig = flight_figure(ctx.terrain, ctx.surface, planned.plan, report)
+    solid = [ln for ln in fig.axes[0].lines if to_hex(ln.get_color()) == colour
+             and ln.get_linestyle() == "-" and ln.get_linewidth() == 2.0]
+    [track] = [ln for ln in solid if len(ln.get_xdata()) == len(one["track"]) + 1]
+    x = np.asarray(track.get_xdata(), float)
+    assert np.flatnonzero(np.isnan(x)).tolist() == [k + 1]
+    assert any(ln.get_linestyle() == ":" and to_hex(ln.get_color()) == colour
+               and len(ln.get_xdata()) == 2 for ln in fig.axes[0].lines)
+    panel = next(ax for ax in fig.axes if ax.get_title(loc="left").startswith("sysid 1 "))
+    [flown] = [ln for ln in panel.lines if ln.get_label() == "flown altitude"]
+    assert np.isnan(np.asarray(flown.get_ydata(), float)).sum() == 1
+    # axvspan's shade: a Rectangle (matplotlib >= 3.9) or a Polygon
+    widths = [r.get_width() if isinstance(r, Rectangle) else np.ptp(np.asarray(r.get_xy())[:, 0])
+              for r in panel.patches]
+    assert any(w == pytest.approx(10.0 * (after - before)) for w in widths), widths
+    assert SILENT_LABEL in _legend(fig)
+    assert SILENT_LABEL not in _legend(flight_figure(ctx.terrain, ctx.surface, planned.plan,
+                                                     plain))
+
+
 def test_one_palette_in_png_kml_and_geojson(planned):
     """UAV n has one colour everywhere; no vehicle is red, the outposts' colour."""
     ctx, plan = planned.ctx, planned.plan
@@ -262,6 +324,36 @@ def test_flight_figure_draws_the_area_polygon(planned, tmp_path):
     assert "area of operations (targets inside)" in _legend(fig)
 
 
+@pytest.mark.parametrize("figure", ["overview", "flight"])
+def test_maps_draw_the_area_box_where_its_corners_are(planned, figure):
+    """The --area box is the area of operations too (targets and flight stay inside;
+    the DEM is read wider around an outpost outside it, and the map with it):
+    overview.png and flight.png draw it dashed, its corners at the cells given as its
+    corners, placed from the grid's own geometry (cell centres from the south-west
+    corner), not by the maps' projection."""
+    from dataclasses import replace
+
+    ctx = planned.ctx
+    terrain = ctx.terrain
+    rows, cols = terrain.shape
+    (r0, c0), (r1, c1) = (rows - 6, 4), (5, cols - 8)      # south-west, north-east cells
+    lon0, lat0 = terrain.to_lonlat(*terrain.xy(r0, c0))
+    lon1, lat1 = terrain.to_lonlat(*terrain.xy(r1, c1))
+    plan = replace(planned.plan, params={**planned.plan.params, "area_file": None,
+                                         "area": [float(lat0), float(lon0), float(lat1),
+                                                  float(lon1)]})
+    fig = (overview_figure(terrain, ctx.surface, plan) if figure == "overview" else
+           flight_figure(terrain, ctx.surface, plan, _report(planned)))
+    assert "area of operations (targets and flight inside)" in _legend(fig)
+    [line] = [ln for ln in fig.axes[0].lines
+              if ln.get_label() == "area of operations (targets and flight inside)"]
+    x, y = (np.asarray(v) for v in line.get_data())
+    d = terrain.cell_size / 1000.0
+    for r, c in ((r0, c0), (r1, c1)):
+        corner = np.array([(c + 0.5) * d, (rows - r - 0.5) * d])
+        assert np.hypot(x - corner[0], y - corner[1]).min() < 0.5 * d, (r, c)
+
+
 def test_the_north_arrow_keeps_off_the_points_a_map_draws_on_top(planned):
     """A base standing where the arrow goes (upper left): the arrow stands elsewhere,
     clear of it (bases.png had base squares on the arrow); with nothing to avoid it
@@ -287,6 +379,46 @@ def test_the_north_arrow_keeps_off_the_points_a_map_draws_on_top(planned):
     assert math.dist(alone, upper_left) < 0.15 * (x1 - x0)
     moved, _ = north([upper_left])
     assert math.dist(moved, upper_left) > NORTH_CLEAR * min(x1 - x0, y1 - y0)
+
+
+def test_a_range_label_keeps_off_the_bases(planned):
+    """A range's label stands on its circle, elsewhere than where a base stands (in
+    bases.png a base square hid "South summit: 8 km range"): the label's box, as wide
+    as its text, holds no base. (Other posts' names are kept off the same way.)"""
+    from types import SimpleNamespace
+
+    import matplotlib.pyplot as plt
+
+    from gcs.plots import LABEL_CHAR_SHARE, LABEL_CLEAR, LABEL_HEIGHT_SHARE, draw_background
+    from planner.exposure import Outpost
+
+    ctx = planned.ctx
+    rows, cols = ctx.terrain.shape
+    x, y = ctx.terrain.xy(rows // 2, cols // 2)
+    post = Outpost(float(x), float(y), 2.0, 400.0, name="ring")
+    surface = SimpleNamespace(ceiling=ctx.surface.ceiling, outposts=[post])
+    text = "ring: 0.4 km range"
+
+    def label(avoid):
+        fig, ax = plt.subplots()
+        draw_background(ax, ctx.terrain, surface, avoid=avoid)
+        x0, x1 = ax.get_xlim()
+        y0, y1 = ax.get_ylim()
+        [t] = [t for t in ax.texts if t.get_text() == text]
+        plt.close(fig)
+        return np.array(t.xy), t.get_horizontalalignment(), (x0, x1, y0, y1)
+
+    first, _, (x0, x1, y0, y1) = label(())
+    moved, ha, _ = label([first])
+    width = LABEL_CHAR_SHARE * len(text) * (x1 - x0)
+    lo, hi = (moved[0] - width, moved[0]) if ha == "right" else (moved[0], moved[0] + width)
+    near = LABEL_CLEAR * min(x1 - x0, y1 - y0)
+    assert not (lo - near < first[0] < hi + near
+                and moved[1] - near < first[1] < moved[1] + LABEL_HEIGHT_SHARE * (y1 - y0) + near)
+    # still on its circle
+    cx, cy = (x - ctx.terrain.transform.c) / 1000.0, \
+        (y - (ctx.terrain.transform.f + rows * ctx.terrain.transform.e)) / 1000.0
+    assert math.hypot(moved[0] - cx, moved[1] - cy) == pytest.approx(0.4, abs=1e-6)
 
 
 def test_no_graticule_labels_in_the_lower_left_corner(planned):

@@ -60,7 +60,7 @@ def run(args) -> int:
         progress("write", 0.0)
         written = write_bases(args.output, ctx, bases)
         progress("write", 1.0)
-    print(bases_table(bases, scenario.uavs))
+    print(bases_table(bases, scenario.uavs, scenario.endurance_min))
     if sets:
         print(sets_table(sets, scenario.endurance_min))
     for path, what in written:
@@ -68,15 +68,29 @@ def run(args) -> int:
     return 0
 
 
-def bases_table(bases, uavs) -> str:
-    """The terminal table, and the ``--launch`` of the best base."""
-    lines = [f"{len(bases)} bases for {uavs} UAVs, best first (bound: no plan from there "
-             "covers the targets sooner)",
-             f"{'rank':>4}  {'lat,lon':<22} {'ground m':>8} {'takeoff m':>9} {'bound min':>9}"]
+def bases_table(bases, uavs, endurance_min=None) -> str:
+    """The terminal table, and the ``--launch`` of the best base. On a battery
+    each base's reach (`planner.bases.Base.reach_km2`), which ranks it first, and
+    its bound is said to be over that ground."""
+    if endurance_min is None:
+        head = (f"{len(bases)} bases for {uavs} UAVs, best first (bound: no plan from there "
+                "covers the targets sooner)")
+    else:
+        head = (f"{len(bases)} bases for {uavs} UAVs on one {endurance_min:g}-min battery, "
+                "best first: the most ground one battery reaches from there (% of the "
+                "ground any hidden viewpoint sees), then the lowest bound (no plan from "
+                "there covers that ground sooner; the rest it does not cover at all)")
+    reach = endurance_min is not None
+    lines = [head, f"{'rank':>4}  {'lat,lon':<22} {'ground m':>8} {'takeoff m':>9}"
+                   + (f" {'reach km²':>9} {'reach %':>7}" if reach else "") + f" {'bound min':>9}"]
     for b in bases:
-        lines.append(f"{b.rank:>4}  {b.launch_arg:<22} {b.ground_m:>8.0f} {b.takeoff_m:>9.0f} "
-                     f"{b.bound_s / 60:>9.1f}")
+        lines.append(f"{b.rank:>4}  {b.launch_arg:<22} {b.ground_m:>8.0f} {b.takeoff_m:>9.0f}"
+                     + (f" {b.reach_km2:>9.2f} {b.reach_pct:>7.1f}" if reach else "")
+                     + f" {b.bound_s / 60:>9.1f}")
     lines.append(f"best: --launch {bases[0].launch_arg}")
+    if not any(b.inside for b in bases):
+        lines.append("none of them stands in the area of operations: no ground point there "
+                     "passes the launch checks")
     return "\n".join(lines)
 
 
@@ -162,54 +176,38 @@ def bases_figure(ctx, bases):
     from matplotlib.lines import Line2D
 
     from common.colours import BASE_COLOUR
-    from gcs.plots import draw_background, lonlat_km, symbol_legend
+    from gcs.plots import draw_area_of, draw_background, lonlat_km, symbol_legend
 
     terrain = ctx.terrain
     fig, ax = plt.subplots(figsize=(10, 10.5), dpi=110)
     x, y = lonlat_km(terrain, [b.lon for b in bases], [b.lat for b in bases])
     im = draw_background(ax, terrain, ctx.surface, avoid=zip(x, y))
-    _draw_area(ax, terrain, ctx.scenario)
+    s = ctx.scenario
+    draw_area_of(ax, terrain, s.area, s.area_file, s.area_flight)
     for b, bx, by in zip(reversed(bases), x[::-1], y[::-1]):   # the best drawn on top
-        best = b.rank == 1
-        ax.plot(bx, by, marker="s", color="#ffd700" if best else BASE_COLOUR,
-                markeredgecolor="black", markersize=16 if best else 13, zorder=12)
+        top = b.rank == 1
+        ax.plot(bx, by, marker="s", color="#ffd700" if top else BASE_COLOUR,
+                markeredgecolor="black", markersize=16 if top else 13, zorder=12)
         ax.text(bx, by, str(b.rank), ha="center", va="center", fontsize=8 if b.rank < 10 else 6,
                 fontweight="bold", zorder=13)
-    s = ctx.scenario
+    best = bases[0]
+    reach = ("" if best.reach_km2 is None else
+             f"reaches {best.reach_km2:.2f} km² ({best.reach_pct:.1f} %) on one battery, ")
     ax.set_title(f"Suggested bases for {s.uavs} UAVs (k = {s.k}), numbered best first: "
-                 f"best {bases[0].bound_s / 60:.1f} min\n(coverage time bound from the "
-                 f"base; --launch {bases[0].launch_arg})")
+                 f"best {reach}{best.bound_s / 60:.1f} min\n(coverage time bound from the "
+                 f"base{' over that ground' if reach else ''}; --launch {best.launch_arg})")
     fig.colorbar(im, ax=ax, shrink=0.7, label="hidden ceiling above ground (m): "
                                               "room to fly unseen")
     handles, _ = ax.get_legend_handles_labels()
     handles += [Line2D([], [], linestyle="none", marker="s", color="#ffd700",
                        markeredgecolor="black", markersize=11,
-                       label=f"best base (1): bound {bases[0].bound_s / 60:.1f} min"),
+                       label=f"best base (1): bound {best.bound_s / 60:.1f} min"),
                 Line2D([], [], linestyle="none", marker="s", color=BASE_COLOUR,
                        markeredgecolor="black", markersize=10,
-                       label="other bases, numbered by rank (lower = faster coverage)")]
+                       label="other bases, numbered by rank (lower = "
+                             + ("more ground one battery reaches, then " if reach else "")
+                             + "faster coverage)")]
     ax.legend(handles=handles + symbol_legend(ctx.surface, snapshots=False, base=False),
               loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8,
               framealpha=0.9)
     return fig
-
-
-def _draw_area(ax, terrain, scenario) -> None:
-    """The --area box and the --area-file polygon, dashed, labelled for the legend."""
-    import numpy as np
-
-    from gcs.plots import lonlat_km
-
-    rings = []
-    if scenario.area is not None:
-        s, w, n, e = scenario.area
-        rings.append(np.array([[w, s], [e, s], [e, n], [w, n], [w, s]], float))
-    if scenario.area_file:
-        from planner.terrain.area import read_area
-        rings += [ring for polygon in read_area(scenario.area_file) for ring in polygon]
-    label = "area of operations"
-    for ring in rings:
-        x, y = lonlat_km(terrain, ring[:, 0], ring[:, 1])
-        ax.plot(x, y, linestyle=(0, (5, 3)), color="black", linewidth=1.4, zorder=4,
-                label=label)
-        label = None

@@ -92,18 +92,21 @@ UNPLANNED = {"battery": "seen as asked only from viewpoints beyond one battery",
              "none": "seen by no UAV of the plan"}
 
 
-def area_summary(cell_size, unseen, cells, counts, needed, short=None) -> dict:
+def area_summary(cell_size, unseen, cells, counts, needed, short=None, few=()) -> dict:
     """The area accounting of a plan, km² and % of the area of operations: every
     cell of it is in exactly one of ``planned``, ``unplanned`` (`UNPLANNED`'s
-    reasons) and ``unseen`` (`REASONS`), so that they add up to the whole area.
+    reasons, and ``few``'s) and ``unseen`` (`REASONS`), so that they add up to the
+    whole area.
 
     ``unseen``: `unseen_reasons` (the area of operations is where it is not
     `OUTSIDE`); ``cells`` (flat ids of the target cells) and ``counts`` (distinct
     UAVs seeing each): the plan's coverage; ``needed``: distinct UAVs each target
     needs; ``short``: bool per target, the sightings it needs only viewpoints
-    beyond one battery give (None: no battery). ``visible``: ground some reachable
-    hidden viewpoint sees (the targets); ``planned``: ground the plan sees as
-    often as required."""
+    beyond one battery give (None: no battery); ``few``: [(reason, bool per
+    target)], targets of ``short`` that are so because too few UAVs reach them on
+    one battery (`planner.shortfall`), each said with its own reason. ``visible``:
+    ground some reachable hidden viewpoint sees (the targets); ``planned``: ground
+    the plan sees as often as required."""
     km2 = cell_size ** 2 / 1e6
     inside = unseen != OUTSIDE
     total = int(inside.sum())
@@ -111,14 +114,18 @@ def area_summary(cell_size, unseen, cells, counts, needed, short=None) -> dict:
     counts = np.asarray(counts)
     done = counts >= needed
     short = np.zeros(len(counts), bool) if short is None else np.asarray(short, bool)
-    missed = {"battery": ~done & short, "fewer": ~done & ~short & (counts > 0),
-              "none": ~done & ~short & (counts == 0)}
+    thin = {why: ~done & np.asarray(mask, bool) for why, mask in few}
+    far = short.copy()
+    for mask in thin.values():
+        far &= ~mask
+    missed = {UNPLANNED["battery"]: ~done & far, **thin,
+              UNPLANNED["fewer"]: ~done & ~short & (counts > 0),
+              UNPLANNED["none"]: ~done & ~short & (counts == 0)}
 
     def part(n):
         return {"km2": round(n * km2, 3), "pct": round(100.0 * n / total, 2) if total else 0.0}
 
     return {"area_km2": round(total * km2, 3), "visible": part(int(in_area.sum())),
             "planned": part(int((in_area & done).sum())),
-            "unplanned": {UNPLANNED[key]: part(int((in_area & m).sum()))
-                          for key, m in missed.items()},
+            "unplanned": {why: part(int((in_area & m).sum())) for why, m in missed.items()},
             "unseen": {REASONS[code]: part(int((unseen == code).sum())) for code in REASONS}}
