@@ -285,6 +285,11 @@ def test_a_failed_start_brings_the_vehicles_in_the_air_home(planned, tmp_path):
             assert "armed" not in events
             continue
         assert "landed" in events and abs(track.alt[-1] - track.home[2]) < 1.0
+        if v.id in report["replans"][0]["left_out"]:
+            # in a radio shadow as it failed: it flew its plan until heard, and was
+            # then brought home with the others (`gcs.flight.left_out`)
+            assert any(v.id in r["survivors"] for r in report["replans"][1:])
+            continue
         # down before its mission would have ended, on its own clock from its takeoff
         took_off = next(e["t"] for e in track.events if e["event"] == "takeoff")
         assert track.t[-1] < took_off + v.mission_time_s - v.takeoff_s

@@ -410,7 +410,7 @@ class Flight:
             m.check_losses()
             lost, back = m.take_losses(), m.take_rejoined()
             if lost or back or self.left_out.short():
-                self.retask(rejoined=back)
+                self.retask(home=self.left_out.home, rejoined=back)
             self._next_sorties()
             if self.batteries.watch():
                 self.retask()
@@ -548,7 +548,7 @@ class Flight:
                 m.set_state(sysid, LANDED)
                 m.event(sysid, "stays on the ground: the re-plan has no task for it")
         self.retasks.append(record)
-        self.left_out.after(record)
+        self.left_out.after(record, home)
 
     # -- results ------------------------------------------------------------------------
     def report(self) -> dict:

@@ -24,11 +24,13 @@ class LeftOut:
         self.state = state
         self.context = context
         self.waiting = set()
+        self.home = False             # the last re-plan sent the fleet home
 
-    def after(self, record) -> None:
-        """A re-plan was made (`gcs.retask.Retask`): its left-out vehicles are watched
-        (and the earlier ones, now in it or left out again, no longer)."""
-        self.waiting = set(record.left_out)
+    def after(self, record, home: bool = False) -> None:
+        """A re-plan was made (`gcs.retask.Retask`; ``home``: the fleet sent home): its
+        left-out vehicles are watched (and the earlier ones, now in it or left out
+        again, no longer)."""
+        self.waiting, self.home = set(record.left_out), home
 
     def short(self) -> bool:
         """A vehicle left out is heard again, and the plans in hand fall short of the
@@ -39,6 +41,11 @@ class LeftOut:
         self.waiting -= set(back) | {s for s in self.waiting if m.vehicles[s].state == LOST}
         if not back:
             return False
+        if self.home:                 # sent home with the others, never back to work
+            m.event(None, f"vehicle(s) {', '.join(map(str, back))} heard again after the "
+                          "last re-plan left them out: brought home with the others",
+                    back=back)
+            return True
         outlook = self.outlook()
         if outlook["meets_requirement"]:
             return False
