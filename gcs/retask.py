@@ -202,12 +202,14 @@ class Retasker:
         it stays down unless re-launched), and heard: one out of contact as its
         plan predicts cannot be commanded, and flies its plan on (`Monitor.planned_at`).
         Nor one flying its autopilot's failsafe return (a link loss while it was held,
-        its battery): a hold would undo the way home the firmware chose."""
+        its battery), in a mode gcs did not command (PX4's Hold is also ours): a hold
+        would undo the way home the firmware chose."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
                 if v.state not in (LOST, LANDED, STRANDED, WAITING)
                 and not (v.airborne and not m.links[s].state.armed)
-                and m.planned_at(s) is None and not m.in_failsafe(s)]
+                and m.planned_at(s) is None
+                and not (m.vehicles[s].uncommanded and m.in_failsafe(s))]
 
     def landed_at_launch(self) -> list:
         """Landed survivors sitting at their base (`_base`), still heard from: they
