@@ -254,28 +254,39 @@ def _to_polyline(points, line) -> np.ndarray:
     return np.array(out)
 
 
+def _ardupilot_at_base(planned, tmp_path):
+    """Three simulated ArduPilot copters at the plan's base, on its terrain."""
+    from gcs.sim import terrain_ground
+
+    lat, lon, alt = planned.launch
+    return quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
+                       terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+
+
+def _fly_setting_failsafes(planned, fleet, tmp_path, lost_after, timeout) -> Path:
+    """`gcs fly --set-failsafes` of the plan on ``fleet`` (stopped after); its folder."""
+    out = tmp_path / "flight"
+    try:
+        main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
+              "--lost-after", str(lost_after), "--timeout", str(timeout), "-o", str(out)])
+    finally:
+        fleet.stop()
+    return out
+
+
 def test_a_low_battery_mid_sortie_flies_smartrtl_the_proven_way_home(planned, tmp_path):
     """ArduPilot with --set-failsafes (BATT_FS_LOW_ACT 4, SmartRTL or Land): its
     battery crosses the low level halfway through its route; it retraces its own
     flown path to its base and lands there. Judged on the simulator's true track:
     every point after the failsafe within SRTL_ACCURACY of the path flown before it,
     hidden from the outpost by dense sampling of each sight line, down at home."""
-    from gcs.sim import terrain_ground
-
-    lat, lon, alt = planned.launch
-    fleet = quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
-                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    fleet = _ardupilot_at_base(planned, tmp_path)
     route = planned.plan.vehicles[0]
     hover_s = fleet.config.battery_min * 60.0
     # the low level, in mAh left, crossed about halfway through route 1
     fleet.vehicle(1).params["BATT_LOW_MAH"] = CAPACITY_MAH * (1.0 - 0.5 * route.mission_time_s
                                                               / hover_s)
-    out = tmp_path / "flight"
-    try:
-        main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
-              "--lost-after", "3", "--timeout", "120", "-o", str(out)])
-    finally:
-        fleet.stop()
+    out = _fly_setting_failsafes(planned, fleet, tmp_path, lost_after=3, timeout=120)
     track = read_track(track_path(tmp_path / "tracks", 1))
     fired = next(e["t"] for e in track.events
                  if e["event"] == "battery failsafe: low, SMART_RTL or LAND")
@@ -326,11 +337,7 @@ def test_a_smartrtl_buffer_too_small_is_predicted_and_its_fallback_reported(plan
     preflight says where the buffer fills, the simulated autopilot fills it no
     sooner ("SmartRTL deactivated: buffer full"), and a low battery after that
     takes BATT_FS_LOW_ACT 4's fallback, LAND where it is: said, and in the report."""
-    from gcs.sim import terrain_ground
-
-    lat, lon, alt = planned.launch
-    fleet = quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
-                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    fleet = _ardupilot_at_base(planned, tmp_path)
     route = planned.plan.vehicles[0]
     fleet.vehicle(1).params["SRTL_POINTS"] = 30.0
     # low after 60 % of its planned flight: its buffer fills at about 43 %, and at 80 %
@@ -446,11 +453,7 @@ def test_a_vehicle_held_by_a_re_plan_that_falls_silent_flies_home_on_its_own(pla
     import threading
     import time
 
-    from gcs.sim import terrain_ground
-
-    lat, lon, alt = planned.launch
-    fleet = quick_fleet(3, "ardupilot", homes=[(lat, lon, alt)] * 3,
-                        terrain=terrain_ground(planned.terrain), track_dir=tmp_path / "tracks")
+    fleet = _ardupilot_at_base(planned, tmp_path)
     held = {}
 
     def kill_one_cut_one_held():
@@ -464,16 +467,11 @@ def test_a_vehicle_held_by_a_re_plan_that_falls_silent_flies_home_on_its_own(pla
         held["t"] = two.t
         fleet.cut_link(2, 25.0)
     threading.Thread(target=kill_one_cut_one_held, daemon=True).start()
-    out = tmp_path / "flight"
-    try:
-        main(["fly", str(planned.dir), *_urls(fleet, "ardupilot"), "--set-failsafes",
-              "--lost-after", "2", "--timeout", "150", "-o", str(out)])
-    finally:
-        fleet.stop()
+    out = _fly_setting_failsafes(planned, fleet, tmp_path, lost_after=2, timeout=150)
     track = read_track(track_path(tmp_path / "tracks", 2))
-    fired = next(e["t"] for e in track.events if e["event"].startswith("link failsafe"))
-    assert held["t"] <= fired and track.events[[e["t"] for e in track.events].index(fired)][
-        "event"] == "link failsafe: SMART_RTL or LAND"
+    failsafe = next(e for e in track.events if e["event"].startswith("link failsafe"))
+    fired = failsafe["t"]
+    assert held["t"] <= fired and failsafe["event"] == "link failsafe: SMART_RTL or LAND"
     x, y = planned.terrain.from_lonlat(track.lon, track.lat)
     after = np.stack([x, y, track.alt], axis=1)[track.t > fired]
     assert len(after) > 10 and not _seen(planned, after[::max(1, len(after) // 150)]).any()
