@@ -21,6 +21,9 @@ from gcs import busy
 RATE_WINDOW_S = 3.0
 #: the least span of reports after a busy spell a pace is read from
 RATE_MIN_SPAN_S = 0.5
+#: wall seconds a rate read is reused for: it is asked several times per loop of the
+#: flight, and each read walks seconds of every vehicle's reports
+RATE_REUSE_S = 0.05
 
 
 class FleetClock:
@@ -31,11 +34,17 @@ class FleetClock:
         self._lock = threading.Lock()
         self._wall = None        # monitor time of the last reading
         self._t = None           # fleet time then
+        self._rate = (-np.inf, 1.0)  # (monitor time, rate) of the last read
 
     def rate(self) -> float:
         """Fleet seconds per wall second, from the vehicles' telemetry (1 without)."""
+        at, rate = self._rate
+        if self.monitor.now() - at < RATE_REUSE_S:
+            return rate
         rates = [r for r in map(self._pace, self._tracks(RATE_WINDOW_S)) if r is not None]
-        return float(np.median(rates)) if rates else 1.0
+        rate = float(np.median(rates)) if rates else 1.0
+        self._rate = (self.monitor.now(), rate)
+        return rate
 
     def _tracks(self, back_s: float) -> list:
         """Each vehicle's reports (monitor time, own clock) of the last ``back_s``

@@ -150,6 +150,9 @@ class SeparationGuard:
         self._commands = collections.deque(maxlen=KEPT_TIMES)  # wall s a command took
         self._last_step = None
         self._cycle = ([], 0)     # held vehicles waiting on each other, loops seen
+        self._local = None        # the local frame of the flight (`_frame`)
+        self._routes = {}         # id(route) -> (route, its projected points, landing)
+        self._base_columns = None  # the bases' columns in that frame (`_columns`)
 
     @property
     def active(self) -> bool:
@@ -208,13 +211,13 @@ class SeparationGuard:
         if self._last_step is not None:
             self._loops.append(now - self._last_step)
         self._last_step = now
-        frame = _Frame(self.monitor, self.fleet.airborne(), self.clock.rate())
+        frame = _Frame(self.monitor, self.fleet.airborne(), self.clock.rate(), self._frame())
         if not frame.here:
             return
         self._note_closest(frame)
         self.landing &= set(frame.here)
         horizon = self.horizon()
-        columns = frame.columns(self.bases, self.separation_m)
+        columns = self._columns()
         # one down on its pad (its landing not told yet) is in nobody's way; one held
         # just above it is (and is flown on from there: left out, it hovered for good)
         ahead = {s: (frame.standing(s, horizon) if s in self.held else
@@ -291,20 +294,50 @@ class SeparationGuard:
         route, its landing included (``land``: only its landing, from where it is)."""
         v = self.monitor.vehicles[sysid]
         silent_at = self.monitor.planned_at(sysid)    # out of contact: where its plan is
-        rest = [] if land else [w for i, w in enumerate(v.route.waypoints) if i not in v.done
+        rest = [] if land else [i for i, w in enumerate(v.route.waypoints) if i not in v.done
                                 and (silent_at is None or w.t_s > silent_at)]
-        poly = frame.project([(w.lon, w.lat, w.alt_amsl) for w in rest])
-        base = v.route.landing          # the base this flight lands at
-        ground = None if base is None else \
-            frame.project([(base.lon, base.lat, base.alt_amsl)])[0]
+        route, ground = self._projected(v.route)
+        poly = route[rest]
         if not len(poly):
             poly = frame.position(sysid)[None]
         profile = Profile.of_route(poly, self.travel, launch=ground, start=frame.position(sysid),
                                    stop_s=self.stop_s)
         holds = np.zeros(profile.n)
-        holds[profile.route[0]:profile.route[0] + len(rest)] = [w.hold_s for w in rest]
+        holds[profile.route[0]:profile.route[0] + len(rest)] = \
+            [v.route.waypoints[i].hold_s for i in rest]
         holds[0] += wait_s          # vertex 0: where it stands now
         return profile.timed(0.0, holds)
+
+    def _frame(self) -> LocalFrame:
+        """The guard's local frame, about its first base (or the first vehicle heard),
+        kept for the flight: a frame made anew per loop cost as much as its use."""
+        if self._local is None:
+            at = self.bases[0][:2] if self.bases else next(
+                ((s.lat, s.lon) for s in (self.monitor.links[i].state
+                                          for i in self.monitor.links) if s.lat is not None),
+                (0.0, 0.0))
+            self._local = LocalFrame(*at)
+        return self._local
+
+    def _columns(self) -> list:
+        """The bases' `Column` s in the guard's frame (made once: the bases stay)."""
+        if self._base_columns is None:
+            local = self._frame()
+            self._base_columns = base_columns(
+                [(*local.to_local(lat, lon), top) for lat, lon, top in self.bases],
+                self.separation_m)
+        return self._base_columns
+
+    def _projected(self, route) -> tuple:
+        """(route's waypoints [n, 3] in the guard's frame, its landing base's point or
+        None), projected once per route."""
+        if self._routes.get(id(route), (None,))[0] is not route:
+            local, base = self._frame(), route.landing
+            points = local.project([(w.lon, w.lat, w.alt_amsl) for w in route.waypoints])
+            ground = None if base is None else \
+                local.project([(base.lon, base.lat, base.alt_amsl)])[0]
+            self._routes[id(route)] = (route, points.reshape(-1, 3), ground)
+        return self._routes[id(route)][1:]
 
     def _stopping(self, frame, sysid, horizon) -> Trajectory:
         """``sysid`` held now: it flies on along its route for the guard's reaction
@@ -518,25 +551,28 @@ class _Frame:
     east, north, up), each reported position carried forward to now at its
     reported velocity."""
 
-    def __init__(self, monitor, sysids, rate):
-        self.monitor = monitor
-        self._p, self.local = {}, None
+    def __init__(self, monitor, sysids, rate, local):
+        self.monitor, self.local = monitor, local
         self.unheard = set()      # out of contact: placed where its plan has it
         mono = time.monotonic()
+        ids, points, moved = [], [], []
         for sysid in sysids:
             s = monitor.links[sysid].state
             if s.lat is None or s.velocity is None or s.position_at is None:
                 continue
-            if self.local is None:
-                self.local = LocalFrame(s.lat, s.lon)
             planned = monitor.planned_position(sysid)
             if planned is not None:     # out of contact, as planned: it flies its plan
-                self._p[sysid] = self.project([planned])[0]
+                points.append(planned)
+                moved.append(np.zeros(3))
                 self.unheard.add(sysid)
-                continue
-            north, east, up = s.velocity
-            p = self.project([(s.lon, s.lat, s.alt_amsl)])[0]
-            self._p[sysid] = p + np.array([east, north, up]) * (mono - s.position_at) * rate
+            else:
+                north, east, up = s.velocity
+                points.append((s.lon, s.lat, s.alt_amsl))
+                moved.append(np.array([east, north, up]) * (mono - s.position_at) * rate)
+            ids.append(sysid)
+        # one projection for all: each call lets go of the interpreter, and getting it
+        # back behind the simulator's and the links' threads took a millisecond or more
+        self._p = dict(zip(ids, self.project(points) + np.array(moved).reshape(-1, 3)))
 
     @property
     def here(self) -> list:
@@ -547,12 +583,6 @@ class _Frame:
 
     def project(self, points) -> np.ndarray:
         return self.local.project(points) if len(points) else np.zeros((0, 3))
-
-    def columns(self, bases, separation_m) -> list:
-        """The base `Column` s of ``bases`` ((lat, lon, column top m AMSL) of each
-        use of a base) in this frame."""
-        return base_columns([(*self.local.to_local(lat, lon), top) for lat, lon, top in bases],
-                            separation_m)
 
     def standing(self, sysid, horizon) -> Trajectory:
         """Held where it is for the horizon."""

@@ -106,6 +106,15 @@ def _own_at(state, mono: float) -> float | None:
     return boot_s + (mono - boot_at) * getattr(state, "clock_rate", 1.0)
 
 
+def _n_items(mission) -> int:
+    """Items of ``mission`` (0 for None): by its len() where it has one, as a checked
+    mission does, whose ``items`` are copies made on each read (the status line's
+    read of them was a tenth of the flight loop's time)."""
+    if mission is None:
+        return 0
+    return len(mission) if hasattr(mission, "__len__") else len(mission.items)
+
+
 def _note_airborne(v, armed: bool, agl) -> None:
     """Armed away from home height, above it or below it (a route over lower ground
     than the launch point): flying. Judged on every position report too: at a high
@@ -173,6 +182,7 @@ class VehicleProgress:
     heard_after_loss_s: float | None = None  # its first HEARTBEAT after it was declared lost
     silent_loss: bool = False  # declared lost for a silence (may come back), not a crash
     rejoins: list = field(default_factory=list)  # [{"lost_at_s", "reason", "back_s", ...}]
+    _trajectory: tuple = (None, None)  # (route, its trajectory array): `trajectory`
 
     @property
     def snapshot_total(self) -> int:
@@ -182,6 +192,15 @@ class VehicleProgress:
     def snapshots_done(self) -> int:
         """Snapshots of the current mission taken so far."""
         return sum(1 for i in self.done if self.route.waypoints[i].snapshot)
+
+    @property
+    def trajectory(self):
+        """Its route's planned trajectory as an array [t_s, lon, lat, alt AMSL] (None
+        without one), made once per route: read on every loop of the flight."""
+        if self._trajectory[0] is not self.route:
+            rows = getattr(self.route, "trajectory", None)
+            self._trajectory = (self.route, np.asarray(rows, float) if rows else None)
+        return self._trajectory[1]
 
     @property
     def finished(self) -> bool:
@@ -894,11 +913,10 @@ class Monitor:
         """(lon, lat, alt AMSL) of a vehicle out of contact as planned, on its planned
         trajectory (`planned_at`); None for one heard."""
         at = self.planned_at(sysid)
-        rows = getattr(self.vehicles[sysid].route, "trajectory", None) if at is not None else None
-        if not rows:
+        rows = self.vehicles[sysid].trajectory if at is not None else None
+        if rows is None:
             return None
-        t = [r[0] for r in rows]
-        return tuple(float(np.interp(at, t, [r[k] for r in rows])) for k in (1, 2, 3))
+        return tuple(float(np.interp(at, rows[:, 0], rows[:, k])) for k in (1, 2, 3))
 
     def take_losses(self) -> list:
         """Vehicles found lost since the last call, by any `check_losses` (a loss
@@ -936,7 +954,7 @@ class Monitor:
             for sysid, v in sorted(self.vehicles.items()):
                 s = self.links[sysid].state
                 age = self.links[sysid].heartbeat_age()
-                items = len(v.mission.items) if v.mission is not None else 0
+                items = _n_items(v.mission)
                 rows.append({
                     "sysid": sysid, "vehicle": v.vehicle_id, "mode": s.mode or "?",
                     "item": f"{s.mission_seq if s.mission_seq is not None else '-'}/{items}",

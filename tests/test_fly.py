@@ -198,7 +198,8 @@ def test_cli_dry_run_with_a_kill(plan_dir, tmp_path):
     out = tmp_path / "flight"
     started = time.monotonic()
     code = main(["fly", str(plan_dir), "--sim", "3", "--speedup", "100", "--kill", "2@item30",
-                 "--lost-after", "2", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)])
+                 "--lost-after", "2", "--sim-base-port", str(free_base_port(10, 3)),
+                 "-o", str(out)])
     wall = time.monotonic() - started
     report = json.loads((out / "flight.json").read_text())
     # a vehicle was lost: the flight did not go as planned, whatever the coverage
@@ -207,7 +208,10 @@ def test_cli_dry_run_with_a_kill(plan_dir, tmp_path):
     assert report["outcome"]["in_air"] == [] and not report["outcome"]["ok"]
     assert report["format"] == "gcs-flight/1"
     assert [x["sysid"] for x in report["losses"]] == [2]
-    assert report["replans"] and report["replans"][0]["survivors"] == [1, 3]
+    # each survivor re-tasked, or left to fly its plan where the ground station did
+    # not hear it at that moment (on a loaded machine at 100x: `gcs.flight.left_out`)
+    first = report["replans"][0]
+    assert sorted(first["survivors"] + first["left_out"]) == [1, 3] and first["survivors"]
     assert (out / "flight.png").stat().st_size > 10000
     assert all((out / f"vehicle_{s}.tlog").stat().st_size > 1000 for s in (1, 2, 3))
     cov = report["coverage"]["survivors"]

@@ -51,6 +51,8 @@ class TrackRecorder:
         self.real_time_s = 0.0    # wall s run at 1x while the ground station was busy
         self._next_sample = 0.0
         self._dirty = True
+        self._encoded = []        # the samples written so far, as JSON text in pieces
+        self._n_encoded = 0
 
     def sample(self, t: float, lat: float, lon: float, alt: float, used: float,
                force=False) -> None:
@@ -74,10 +76,19 @@ class TrackRecorder:
     def flush(self, complete=False) -> None:
         if self.path is None or not (self._dirty or complete):
             return
-        doc = dict(self._head, samples=self.samples, snapshots=self.snapshots,
+        doc = dict(self._head, samples=[], snapshots=self.snapshots,
                    events=self.events, killed_at=self.killed_at, complete=complete,
                    real_time_s=round(self.real_time_s, 3))
-        write_text_atomic(self.path, json.dumps(doc, separators=(",", ":")))
+        text = json.dumps(doc, separators=(",", ":"))
+        # the samples encoded once each: a flight's file is rewritten every couple of
+        # wall seconds, and encoding all of it each time was a fifth of a simulated
+        # flight's work
+        if len(self.samples) > self._n_encoded:
+            self._encoded.append(json.dumps(self.samples[self._n_encoded:],
+                                            separators=(",", ":"))[1:-1])
+            self._n_encoded = len(self.samples)
+        samples = '"samples":[' + ",".join(self._encoded) + "]"
+        write_text_atomic(self.path, text.replace('"samples":[]', samples, 1))
         self._dirty = False
 
 

@@ -64,25 +64,31 @@ def ray_clear(h, cell, u0, v0, z0, u1, v1, z1, wavelength_m, fresnel, curv):
         t = t_next
 
 
+@njit(cache=True)
+def reaches(h, cell, antennas, u, v, z, wavelength_m, fresnel, range_m, near_m, curv):
+    """Whether some antenna (u, v, z) reaches the point (u, v, z): within ``near_m``
+    (slant), or within ``range_m`` and its ray clear (`ray_clear`). One point,
+    serially: the simulator's radio asks this of each vehicle many times a second."""
+    for a in range(antennas.shape[0]):
+        du = (u - antennas[a, 0]) * cell
+        dv = (v - antennas[a, 1]) * cell
+        dz = z - antennas[a, 2]
+        d2 = du * du + dv * dv + dz * dz
+        if d2 <= near_m * near_m:
+            return True
+        if d2 > range_m * range_m:
+            continue
+        if ray_clear(h, cell, antennas[a, 0], antennas[a, 1], antennas[a, 2], u, v, z,
+                     wavelength_m, fresnel, curv):
+            return True
+    return False
+
+
 @njit(cache=True, parallel=True)
 def in_contact(h, cell, antennas, points, wavelength_m, fresnel, range_m, near_m, curv):
-    """For each point (u, v, z), whether some antenna (u, v, z) reaches it: within
-    ``near_m`` (slant), or within ``range_m`` and its ray clear (`ray_clear`)."""
+    """For each point (u, v, z), whether some antenna reaches it (`reaches`)."""
     out = np.zeros(points.shape[0], np.bool_)
     for k in prange(points.shape[0]):
-        for a in range(antennas.shape[0]):
-            du = (points[k, 0] - antennas[a, 0]) * cell
-            dv = (points[k, 1] - antennas[a, 1]) * cell
-            dz = points[k, 2] - antennas[a, 2]
-            d2 = du * du + dv * dv + dz * dz
-            if d2 <= near_m * near_m:
-                out[k] = True
-                break
-            if d2 > range_m * range_m:
-                continue
-            if ray_clear(h, cell, antennas[a, 0], antennas[a, 1], antennas[a, 2],
-                         points[k, 0], points[k, 1], points[k, 2], wavelength_m, fresnel,
-                         curv):
-                out[k] = True
-                break
+        out[k] = reaches(h, cell, antennas, points[k, 0], points[k, 1], points[k, 2],
+                         wavelength_m, fresnel, range_m, near_m, curv)
     return out
