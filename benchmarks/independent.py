@@ -26,7 +26,7 @@ import numpy as np
 from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
 from planner.coverage.model.evaluation import evaluate, sighting_counts
-from planner.coverage.search.routing import _BIG, _SPAN_WEIGHT, _matrix
+from planner.coverage.search.routing import FORBIDDEN, SPAN_WEIGHT, transit_matrix
 from planner.coverage.search.setcover import dominating_set
 
 #: rounds of lazy distinct-UAV constraints at most
@@ -101,16 +101,16 @@ def _solve(prep, chosen, uavs, groups, time_limit_s, initial=None):
     """Routes (viewpoint ids) of every chosen viewpoint over ``uavs``, the ``groups``
     on distinct UAVs, min makespan, from the routes ``initial`` if given; None when
     OR-Tools finds none in time."""
-    mat, starts, end = _matrix(prep, np.asarray(chosen, np.int64), uavs)
+    mat, starts, end = transit_matrix(prep, np.asarray(chosen, np.int64), uavs)
     manager = pywrapcp.RoutingIndexManager(len(mat), len(uavs), starts, [end] * len(uavs))
     model = pywrapcp.RoutingModel(manager)
     transit = model.RegisterTransitMatrix(mat.tolist())
     model.SetArcCostEvaluatorOfAllVehicles(transit)
-    model.AddDimension(transit, 0, int(mat[mat < _BIG].sum()) + 1, True, "time")
-    model.GetDimensionOrDie("time").SetGlobalSpanCostCoefficient(_SPAN_WEIGHT)
+    model.AddDimension(transit, 0, int(mat[mat < FORBIDDEN].sum()) + 1, True, "time")
+    model.GetDimensionOrDie("time").SetGlobalSpanCostCoefficient(SPAN_WEIGHT)
     # every visit optional at a penalty above any makespan, so that a first solution
     # exists under the distinct-UAV constraints (a visit left out: coverage short)
-    penalty = _SPAN_WEIGHT * (int(mat[mat < _BIG].sum()) + 1)
+    penalty = SPAN_WEIGHT * (int(mat[mat < FORBIDDEN].sum()) + 1)
     for i in range(len(chosen)):
         model.AddDisjunction([manager.NodeToIndex(i)], penalty)
     solver = model.solver()
