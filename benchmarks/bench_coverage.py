@@ -37,7 +37,8 @@ against the same bound with the LP whole (scipy's HiGHS, every row, as before
 
 **At scale** (``--at-scale``, alone): plan, lower bound and their ratio on
 generated terrains of hundreds of viewpoints, the bound before the scattered route
-bound beside it (benchmarks/at_scale.py).
+bound beside it, and OR-Tools' routing solver alone at ALNS's wall time
+(benchmarks/at_scale.py, benchmarks/independent.py).
 
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
 (planner.coverage.model.instances), ``--sweep`` the step-cap (th_ra) sweep,
@@ -244,8 +245,9 @@ def bound_rows(quick):
         ratio = gen / whole if whole else math.nan
         print(f"{n_vp:>10} {family:>10} {launch!s:>6} | {whole_s:8.2f} {whole:9.1f} | "
               f"{gen_s:11.2f} {gen:9.1f} {ratio:7.4f}")
-    print(f"total seconds: whole {sum(r[4] for r in rows):.1f}, generated "
-          f"{sum(r[6] for r in rows):.1f} (x {sum(r[4] for r in rows) / sum(r[6] for r in rows):.1f})")
+    whole, generated = sum(r[4] for r in rows), sum(r[6] for r in rows)
+    print(f"total seconds: whole {whole:.1f}, generated {generated:.1f} "
+          f"(x {whole / generated:.1f})")
 
 
 # -- the terrain suite ------------------------------------------------------------------

@@ -89,6 +89,27 @@ def launch_starts(ctx: PlanningContext) -> Optional[list]:
     return starts
 
 
+def takeoff_delays(starts, separation_m: float) -> Optional[np.ndarray]:
+    """Per UAV of ``starts`` (one `Start` each), the least time it waits on the ground
+    for its base's column on the fleet clock (`planner.fleet.columns`: one airborne
+    vehicle in it at a time, and a vehicle is in it all its vertical takeoff): the
+    i-th of the UAVs on one base (i = 0, 1, ...) waits i takeoffs, whichever of them
+    goes first (they are interchangeable). 0 for a UAV in the air (a re-plan); None
+    without starts or without a separation to keep (no columns)."""
+    if not starts or separation_m <= 0:
+        return None
+    delays = np.zeros(len(starts))
+    taken = {}
+    for r, st in enumerate(starts):
+        if st.launch is None or st.held is not None:
+            continue
+        key = (tuple(np.round(np.asarray(st.launch, float) / SAME_PLACE_M).astype(int)),
+               round(st.climb_s / SAME_PLACE_M))
+        delays[r] = taken.get(key, 0) * st.climb_s
+        taken[key] = taken.get(key, 0) + 1
+    return delays
+
+
 def above_launch(ctx, ground_xyz) -> np.ndarray:
     """The takeoff (and landing approach) point above a launch point (`launch_tops`)."""
     return launch_tops(ctx.graph, np.asarray(ground_xyz, float)[None, :2])[0]

@@ -56,7 +56,14 @@ from . import coverage, split
 from .assembly import make_plan
 from .context import MissingContext, PlanningContext
 from .fleet.clock import fleet_clock, over_battery
-from .launch import Start, above_launch, launch_starts, launch_tops, launch_xy
+from .launch import (
+    Start,
+    above_launch,
+    launch_starts,
+    launch_tops,
+    launch_xy,
+    takeoff_delays,
+)
 from .parallel import dask_client
 from .plan import Plan
 from .problem import coverage_problem
@@ -239,11 +246,13 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
     parts = split.n_parts(len(ctx.viewpoints), s)
     problem, allocation, prep, sorties, counts, fleet, checkins = _fleet(request, parts,
                                                                           timing, progress)
-    # only the reach bound holds for the whole of an area planned in parts
+    # only the reach bound holds for the whole of an area planned in parts; the bounds
+    # are of the timed plan: a base's vehicles wait for its column (`bounds.takeoffs`)
     with _stage("lower bound", timing, progress):
         bounds = ((split.reach_bound(problem),) * 2 if parts > 1
                   else coverage.lower_bounds(problem, strong_bound, prep,
-                                             bound_budget_s(allocation.planning_s)))
+                                             bound_budget_s(allocation.planning_s),
+                                             takeoff_delays(starts, s.separation_m)))
     plan = make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds,
                      checkins)
     over = over_battery(fleet, s.usable_s, starts)

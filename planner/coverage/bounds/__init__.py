@@ -3,7 +3,8 @@
 Modules, one bound each: radius (the reach and packing bounds: quick, for any
 problem), flow (the first-sighting flow LP), routes (route pricing, where at most
 30 viewpoints see what is needed), scatter (route pricing on a few far-apart places
-of a larger problem), exact (the proven optimum of small plain
+of a larger problem), takeoffs (the vehicles of a base take off one at a time: the
+bounds of the timed plan), exact (the proven optimum of small plain
 problems: the oracle of the tests and of ``bench_coverage --optimal``).
 A new bound is a module here, taken into `lower_bounds`.
 """
@@ -15,6 +16,7 @@ from .flow import flow_bound
 from .radius import radius_bound
 from .routes import route_bound
 from .scatter import SCATTER_TIME_LIMIT_S, scatter_bound
+from .takeoffs import delayed
 
 
 def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
@@ -31,12 +33,15 @@ def lower_bound(problem: CoverageProblem, strong: bool = True) -> float:
 
 
 def lower_bounds(problem: CoverageProblem, strong: bool = True, prep=None,
-                 budget_s: float = SCATTER_TIME_LIMIT_S) -> tuple:
+                 budget_s: float = SCATTER_TIME_LIMIT_S, delays=None) -> tuple:
     """(radius bound, best bound) in seconds: see `lower_bound`. ``prep``: the
     problem already prepared (`model.prepared.prepare`), to share its target classes;
-    ``budget_s``: the scattered bound's time (a plan gives a share of its search's)."""
+    ``budget_s``: the scattered bound's time (a plan gives a share of its search's);
+    ``delays``: per UAV, the least wait for its base before its takeoff on the fleet
+    clock (`takeoffs`): the bounds are then of the timed plan."""
     prep = prep if prep is not None else prepare(problem)
     cprep = target_classes(prep)[0] if problem.n_targets else prep
+    cprep = delayed(cprep, delays)
     radius = radius_bound(cprep)
     best = max(radius, flow_bound(cprep)) if strong else radius
     if strong:

@@ -12,24 +12,25 @@ import numpy as np
 from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
 _SCALE = 1000.0  # integer milliseconds for the solver
-_BIG = 10 ** 9  # unreachable / forbidden arcs
-_SPAN_WEIGHT = 100
+FORBIDDEN = 10 ** 9  # unreachable / forbidden arcs
+SPAN_WEIGHT = 100
 
 
-def _matrix(prep, nodes, uavs):
+def transit_matrix(prep, nodes, uavs):
     """Integer transit matrix: viewpoints, then start nodes, then one end node."""
     m, n_v = len(nodes), len(uavs)
     has_launch = prep.has_launch
     n_start = n_v if has_launch else 1
     size = m + n_start + 1
     end = size - 1
-    mat = np.full((size, size), _BIG, dtype=np.int64)
+    mat = np.full((size, size), FORBIDDEN, dtype=np.int64)
     sub = prep.travel[np.ix_(nodes, nodes)] * _SCALE
-    mat[:m, :m] = np.where(np.isfinite(sub), np.minimum(np.round(sub), _BIG), _BIG)
+    mat[:m, :m] = np.where(np.isfinite(sub), np.minimum(np.round(sub), FORBIDDEN), FORBIDDEN)
     for s in range(n_start):
         if has_launch:
             out = prep.launch_out[uavs[s], nodes] * _SCALE
-            mat[m + s, :m] = np.where(np.isfinite(out), np.minimum(np.round(out), _BIG), _BIG)
+            mat[m + s, :m] = np.where(np.isfinite(out), np.minimum(np.round(out), FORBIDDEN),
+                                      FORBIDDEN)
         else:
             mat[m + s, :m] = 0
         mat[m + s, end] = 0
@@ -50,13 +51,13 @@ def route_nodes(prep, nodes, uavs, time_limit_s: float, initial=None,
     nodes = np.asarray(nodes, dtype=np.int64)
     if len(nodes) == 0:
         return [[] for _ in uavs]
-    mat, starts, end = _matrix(prep, nodes, list(uavs))
+    mat, starts, end = transit_matrix(prep, nodes, list(uavs))
     manager = pywrapcp.RoutingIndexManager(len(mat), len(uavs), starts, [end] * len(uavs))
     model = pywrapcp.RoutingModel(manager)
     transit = model.RegisterTransitMatrix(mat.tolist())
     model.SetArcCostEvaluatorOfAllVehicles(transit)
-    model.AddDimension(transit, 0, int(mat[mat < _BIG].sum()) + 1, True, "time")
-    model.GetDimensionOrDie("time").SetGlobalSpanCostCoefficient(_SPAN_WEIGHT)
+    model.AddDimension(transit, 0, int(mat[mat < FORBIDDEN].sum()) + 1, True, "time")
+    model.GetDimensionOrDie("time").SetGlobalSpanCostCoefficient(SPAN_WEIGHT)
     params = pywrapcp.DefaultRoutingSearchParameters()
     params.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PATH_CHEAPEST_ARC
     meta = routing_enums_pb2.LocalSearchMetaheuristic
