@@ -106,13 +106,26 @@ def _own_at(state, mono: float) -> float | None:
     return boot_s + (mono - boot_at) * getattr(state, "clock_rate", 1.0)
 
 
-def _n_items(mission) -> int:
+def mission_items(mission) -> int:
     """Items of ``mission`` (0 for None): by its len() where it has one, as a checked
     mission does, whose ``items`` are copies made on each read (the status line's
     read of them was a tenth of the flight loop's time)."""
     if mission is None:
         return 0
     return len(mission) if hasattr(mission, "__len__") else len(mission.items)
+
+
+def _or_dash(value) -> str:
+    return "-" if value is None else str(value)
+
+
+def shown_item(state, items: int) -> int | None:
+    """The item of its current mission (``items`` long) a vehicle reports flying, for
+    the operator; None before it reports one: a MISSION_CURRENT of the mission before
+    still on its way names an item past this one's end (a relaunched vehicle shown
+    at "item 70/49")."""
+    seq = getattr(state, "mission_seq", None)
+    return int(seq) if seq is not None and 0 <= seq < items else None
 
 
 def _note_airborne(v, armed: bool, agl) -> None:
@@ -954,10 +967,10 @@ class Monitor:
             for sysid, v in sorted(self.vehicles.items()):
                 s = self.links[sysid].state
                 age = self.links[sysid].heartbeat_age()
-                items = _n_items(v.mission)
+                items = mission_items(v.mission)
                 rows.append({
                     "sysid": sysid, "vehicle": v.vehicle_id, "mode": s.mode or "?",
-                    "item": f"{s.mission_seq if s.mission_seq is not None else '-'}/{items}",
+                    "item": f"{_or_dash(shown_item(s, items))}/{items}",
                     "mission": v.generation,
                     "snapshots": f"{len(v.snapshots)} ({v.snapshots_done}/{v.snapshot_total})",
                     "alt": s.relative_alt, "heartbeat_s": age, "state": v.state,

@@ -194,6 +194,20 @@ def test_landing_after_flying_only_below_home(plan_dir):
     assert m.vehicles[1].state == LANDED
 
 
+def test_the_status_shows_no_item_of_the_mission_before(plan_dir):
+    """A relaunched vehicle's MISSION_CURRENT of its old, longer mission, still on its
+    way, is not shown against the new mission (the live map once said "item 70/49")."""
+    plan = Plan.load(plan_dir)
+    m = Monitor(lost_after_s=5.0)
+    link = _FakeLink(1)
+    m.follow(link, plan.vehicles[0].id, plan.vehicles[0],
+             SimpleNamespace(items=[None] * 49, waypoint_of_item=[]))
+    link.state.mission_seq = 70
+    assert m.status_rows()[0]["item"] == "-/49"
+    link.state.mission_seq = 12
+    assert m.status_rows()[0]["item"] == "12/49"
+
+
 def test_cli_dry_run_with_a_kill(plan_dir, tmp_path):
     out = tmp_path / "flight"
     started = time.monotonic()

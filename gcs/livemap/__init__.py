@@ -31,6 +31,7 @@ from importlib import resources
 from pathlib import Path
 
 from common.colours import BASE_COLOUR, OUTPOST_COLOUR, vehicle_colour
+from gcs.monitor import mission_items, shown_item
 
 STATIC = "static"
 DEFAULT_HOST = "127.0.0.1"
@@ -222,7 +223,7 @@ def flight_state(flight) -> dict:
             vehicles.append({
                 "sysid": sysid, "vehicle": v.vehicle_id, "colour": vehicle_colour(v.vehicle_id),
                 "state": v.state, "mode": s.mode, "mission": v.generation,
-                "item": s.mission_seq, "items": len(getattr(v.mission, "items", []) or []),
+                "item": shown_item(s, mission_items(v.mission)), "items": mission_items(v.mission),
                 "position": None if last is None else [last[2], last[1]],
                 "alt_amsl": _finite(None if last is None else last[3], 1),
                 "alt_above_home": _finite(s.relative_alt, 1),
