@@ -16,19 +16,24 @@ def problems_beside_guard(report: dict) -> list[str]:
 
 #: the outcome's line for a battery reported empty in the air (gcs.flight.report)
 EMPTY = "battery reported empty in the air"
+#: the outcome's line for a vehicle that flew a mode gcs did not command (its failsafe's)
+UNCOMMANDED = "flew in modes gcs did not command"
 
 
 def problems_beside_pauses(report: dict) -> list[str]:
-    """`problems_beside_guard`, and beside an empty battery of a vehicle the ground
-    station held in the air (the guard, or a re-plan while it plans). On a 12-minute
-    battery at 100x a held wall second is 100 s of flight: the ground station's 1-4 s
-    of re-planning, or a hold resumed two loops later, outlast the 25 % reserve (3
-    minutes), where at 1x they cost a few seconds of it. A vehicle never held that
-    ran its battery empty is a fault; so is every other problem."""
+    """`problems_beside_guard`, and beside an empty battery or a failsafe's return of
+    a vehicle the ground station held in the air (the guard, or a re-plan while it
+    plans). On a 12-minute battery at 100x a held wall second is 100 s of flight: the
+    ground station's 1-4 s of re-planning, or a hold resumed two loops later, outlast
+    the 25 % reserve (3 minutes), where at 1x they cost a few seconds of it; and a
+    vehicle held where the radio does not reach flies its link failsafe (set to
+    SmartRTL: `gcs.sim.link_loss`) after 5 s of its time, 50 wall ms. A vehicle never
+    held that ran its battery empty or flew a failsafe is a fault; so is every other
+    problem."""
     held = {a["sysid"] for a in report["separation"].get("actions", [])}
     held |= {e.get("sysid") for e in report["events"] if e["event"] == "holding"}
     return [p for p in problems_beside_guard(report)
-            if not (EMPTY in p and _vehicle_of(p) in held)]
+            if not ((EMPTY in p or UNCOMMANDED in p) and _vehicle_of(p) in held)]
 
 
 def _vehicle_of(problem: str):
