@@ -26,7 +26,7 @@ import numpy as np
 from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
 from planner.coverage.model.evaluation import evaluate, sighting_counts
-from planner.coverage.search.routing import FORBIDDEN, SPAN_WEIGHT, transit_matrix
+from planner.coverage.search.routing import FORBIDDEN, SPAN_WEIGHT, solved_routes, transit_matrix
 from planner.coverage.search.setcover import dominating_set
 
 #: rounds of lazy distinct-UAV constraints at most
@@ -133,13 +133,4 @@ def _solve(prep, chosen, uavs, groups, time_limit_s, initial=None):
         solution = model.SolveWithParameters(params)
     if solution is None:
         return None
-    routes = []
-    for v in range(len(uavs)):
-        idx, route = model.Start(v), []
-        while not model.IsEnd(idx):
-            node = manager.IndexToNode(idx)
-            if node < len(chosen):
-                route.append(int(chosen[node]))
-            idx = solution.Value(model.NextVar(idx))
-        routes.append(route)
-    return routes
+    return solved_routes(model, manager, solution, len(uavs), chosen)

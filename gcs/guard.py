@@ -552,7 +552,7 @@ class _Frame:
     reported velocity."""
 
     def __init__(self, monitor, sysids, rate, local):
-        self.monitor, self.local = monitor, local
+        self.local = local
         self.unheard = set()      # out of contact: placed where its plan has it
         mono = time.monotonic()
         ids, points, moved = [], [], []

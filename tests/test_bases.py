@@ -197,6 +197,18 @@ def test_no_point_passing_is_one_clear_error(hills, monkeypatch):
         suggest_bases(ctx, count=2)
 
 
+def _on_a_battery(endurance_min):
+    """The planning context of the tests' hills for 2 UAVs on an ``endurance_min``
+    battery, without a launch point (an endurance needs one to validate; the bases
+    tried stand in for it)."""
+    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
+    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
+                        clearance_m=20.0, hide_margin_m=5.0, method="rt",
+                        endurance_min=endurance_min, launch=[(0.0, 0.0)]).validate()
+    return prepare(replace(scenario, launch=[]), terrain=terrain,
+                   outposts=[central_outpost(terrain)])
+
+
 def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     """On a 3-min battery one base reaches about half the ground; a second adds
     more. No plan from a set's bases (the UAVs taking them in turn) sees more than
@@ -205,18 +217,12 @@ def test_sets_of_bases_bound_what_a_plan_from_them_sees():
     sorties' stops and the search leave reachable ground unseen.)"""
     from planner.bases import suggest_sets
 
-    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
-    # an endurance needs a launch point to validate; the bases tried stand in for it
-    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
-                        clearance_m=20.0, hide_margin_m=5.0, method="rt", endurance_min=3.0,
-                        launch=[(0.0, 0.0)]).validate()
-    ctx = prepare(replace(scenario, launch=[]), terrain=terrain,
-                  outposts=[central_outpost(terrain)])
+    ctx = _on_a_battery(3.0)
     bases = suggest_bases(ctx, count=4, separation_m=SEPARATION, spacing_m=90.0)
     sets = suggest_sets(ctx, bases)
     assert len(sets) == 2 and sets[1].bases[0] is sets[0].bases[0]
     assert 0.0 < sets[0].reach_pct < sets[1].reach_pct < 100.0
-    cell_km2 = terrain.cell_size ** 2 / 1e6
+    cell_km2 = ctx.terrain.cell_size ** 2 / 1e6
     alone = [int(b.reach.sum()) for b in bases]
     assert sets[0].reach_km2 == pytest.approx(max(alone) * cell_km2, abs=1e-3)
     # on a battery the ranking is by that reach first (a bound over little ground is
@@ -284,12 +290,7 @@ def test_bases_stand_in_the_area_of_operations(tmp_path, endurance):
 def test_on_a_battery_that_reaches_nothing_no_base_is_suggested():
     """A battery too short for any sortie to see a target: one line naming
     --endurance, not bases whose bound over no ground reads 0.0 min."""
-    terrain = synthetic_terrain(N, N, cell=30.0, seed=3, family="hills")
-    scenario = Scenario(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
-                        clearance_m=20.0, hide_margin_m=5.0, method="rt", endurance_min=0.5,
-                        launch=[(0.0, 0.0)]).validate()
-    ctx = prepare(replace(scenario, launch=[]), terrain=terrain,
-                  outposts=[central_outpost(terrain)])
+    ctx = _on_a_battery(0.5)
     with pytest.raises(InputError, match="no base found reaches a target on one battery") as e:
         suggest_bases(ctx, count=4, separation_m=SEPARATION, spacing_m=90.0)
     assert e.value.source == "--endurance"

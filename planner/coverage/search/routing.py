@@ -73,8 +73,14 @@ def route_nodes(prep, nodes, uavs, time_limit_s: float, initial=None,
         solution = model.SolveWithParameters(params)
     if solution is None:
         raise RuntimeError("OR-Tools found no route for the selected viewpoints")
+    return solved_routes(model, manager, solution, len(uavs), nodes)
+
+
+def solved_routes(model, manager, solution, n_uavs: int, nodes) -> list:
+    """Each UAV's route of an OR-Tools ``solution``, as the viewpoints ``nodes`` its
+    matrix rows stand for (the start and end rows after them are left out)."""
     routes = []
-    for v in range(len(uavs)):
+    for v in range(n_uavs):
         idx, route = model.Start(v), []
         while not model.IsEnd(idx):
             node = manager.IndexToNode(idx)
