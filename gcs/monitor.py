@@ -499,6 +499,19 @@ class Monitor:
         v.landed_at_s = round(self.now(), 3)
         self.event(v.sysid, LANDED, battery_pct=s.battery_pct)
 
+    def _on_ground(self, s) -> bool:
+        """By its height above the plan's terrain, fresh with its position; without a
+        terrain by its own word (EXTENDED_SYS_STATE), else by its height above home,
+        which is no height above the ground: a route over a valley flies at home
+        height (a vehicle heard back there was once judged down in the field)."""
+        height = self._height(s)
+        if height is not None:
+            return height <= LANDED_AGL_M
+        if getattr(s, "landed", None) is not None:
+            return s.landed
+        agl = getattr(s, "relative_alt", None)
+        return agl is not None and abs(agl) <= LANDED_AGL_M
+
     def _height(self, s):
         """Height (m) above the plan's terrain, None when unknown."""
         if self.ground is None or getattr(s, "lat", None) is None or s.alt_amsl is None:
@@ -820,8 +833,10 @@ class Monitor:
         re-planned with the others (`take_rejoined`); down anywhere else it stays
         lost."""
         s = self.links[v.sysid].state
-        agl = s.relative_alt
-        flying = bool(s.armed) and (agl is None or abs(agl) > LANDED_AGL_M)
+        grounded = self._on_ground(s)
+        if s.armed and grounded and self.on_pad(v.sysid):
+            return      # touching down at its base or lifting off: judged once it is not
+        flying = bool(s.armed) and not grounded
         landed = not s.armed and self.on_pad(v.sysid)
         v.silent_loss = False                # judged once: a loss again is a new one
         if not (flying or landed):

@@ -197,9 +197,10 @@ def test_waypoints_passed_unheard_are_not_timed_when_the_next_is_reported():
     assert v.contact.progress == pytest.approx(1.0, abs=0.01)
 
 
-def _declared_lost(silence=True, on_pad=False, **state):
+def _declared_lost(silence=True, on_pad=False, ground=None, **state):
     """`_monitored`'s vehicle declared lost (for a silence, or not), then heard again
-    (a HEARTBEAT, then a position report after it); it flies toward item 2."""
+    (a HEARTBEAT, then a position report after it); it flies toward item 2.
+    ``ground``: the plan's terrain, (lat, lon) -> m AMSL."""
     import time
     from dataclasses import replace
     from types import SimpleNamespace
@@ -213,6 +214,7 @@ def _declared_lost(silence=True, on_pad=False, **state):
     monitor._on(1, SimpleNamespace(get_type=lambda: "HEARTBEAT", base_mode=0))
     link.state.mission_seq, link.state.boot_at = 2, time.monotonic() + 0.01
     monitor.on_pad = lambda sysid: on_pad
+    monitor.ground = ground
     monitor.check_losses()
     return monitor, v
 
@@ -242,6 +244,23 @@ def test_a_vehicle_heard_again_on_the_ground_is_taken_back_only_at_its_base():
     monitor, v = _declared_lost(on_pad=False, armed=False, relative_alt=0.0)
     assert v.state == LOST and monitor.take_rejoined() == []
     assert any("down away from its bases" in e["event"] for e in monitor.events)
+
+
+def test_a_vehicle_heard_again_is_judged_on_the_ground_by_the_terrain_not_by_home():
+    """Height above home is no height above the ground: heard back at home height over
+    a valley 80 m below its base, it is flying (a flight test's vehicle, flying its
+    mission, was once left lost as 'down away from its bases'). Armed on its pad
+    (touching down or lifting off), it is judged once it has done either."""
+    from gcs.monitor import FLYING, LANDED, LOST
+
+    monitor, v = _declared_lost(relative_alt=1.0, alt_amsl=700.0, ground=lambda la, lo: 620.0)
+    assert v.state == FLYING and monitor.take_rejoined() == [1]
+    monitor, v = _declared_lost(on_pad=True, relative_alt=0.0, alt_amsl=640.0,
+                                ground=lambda la, lo: 639.5)
+    assert v.state == LOST and v.silent_loss and monitor.take_rejoined() == []
+    monitor.links[1].state.armed = False
+    monitor.check_losses()
+    assert v.state == LANDED and monitor.take_rejoined() == [1]
 
 
 def test_a_crashed_vehicle_heard_again_is_not_taken_back():
