@@ -529,3 +529,27 @@ def test_read_terrain_rejects_non_working_grids(tmp_path):
         read_terrain(geo)
     with pytest.raises(InputError, match="no such file"):
         read_terrain(tmp_path / "none.tif")
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.integers(2, 9), st.integers(2, 9), st.lists(st.tuples(st.floats(-2.0, 11.0),
+                                                               st.floats(-2.0, 11.0)),
+                                                     min_size=1, max_size=20),
+       st.integers(0, 3))
+def test_the_ground_at_one_point_is_the_grids(rows, cols, points, voids):
+    """`Terrain.ground_at` (the simulator's and the monitor's, one point as a float)
+    gives `Terrain.ground`'s value: inside, on the edges, outside (NaN) and beside
+    voids (NaN cells), on both surfaces."""
+    from planner.terrain import Terrain
+
+    rng = np.random.default_rng(rows * 10 + cols)
+    height = rng.uniform(100.0, 900.0, (rows, cols))
+    height.flat[rng.choice(height.size, min(voids, height.size - 1), replace=False)] = np.nan
+    terrain = Terrain(height, Affine(30.0, 0.0, 500000.0, 0.0, -30.0, 4000000.0),
+                      "EPSG:32616", height_upper=height + 2.0)
+    for r, c in points + [(0.0, 0.0), (rows - 1.0, cols - 1.0)]:
+        x, y = 500000.0 + 30.0 * (c + 0.5), 4000000.0 - 30.0 * (r + 0.5)
+        for upper in (False, True):
+            want = terrain.ground(x, y, upper=upper)[0]
+            got = terrain.ground_at(x, y, upper=upper)
+            assert (np.isnan(want) and np.isnan(got)) or got == want, (r, c, upper)

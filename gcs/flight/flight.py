@@ -154,8 +154,7 @@ class Flight:
                                                 source=str(self.plan_dir / PLAN_FILE))
 
         def ground(lat, lon):
-            x, y = terrain.from_lonlat(lon, lat)
-            return float(terrain.ground(x, y)[0])
+            return terrain.ground_at(*terrain.from_lonlat(lon, lat))
 
         self.monitor.ground = ground
 

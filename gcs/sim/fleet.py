@@ -240,8 +240,7 @@ def terrain_ground(terrain):
     the plan's ground for clearance (its upper surface, nowhere below the DEM), the
     one its bases stand on: a vehicle lands where it took off."""
     def ground(lat: float, lon: float) -> float:
-        x, y = terrain.from_lonlat(lon, lat)
-        return float(terrain.ground(x, y, upper=True)[0])
+        return terrain.ground_at(*terrain.from_lonlat(lon, lat), upper=True)
     return ground
 
 

@@ -121,6 +121,7 @@ class SimVehicle:
         lat, lon, alt = cfg.home
         self.frame = LocalFrame(lat, lon)
         self._home_ground = float(alt)
+        self._geo_memo = self._ground_memo = (None, None)    # ((x, y), its value)
         self.home = (0.0, 0.0, self._home_ground)    # local x, y, alt
         self.limits = cfg.limits.of_firmware(self.flavour.profile.rates)
         self.body = PointMass((0.0, 0.0, self._home_ground), self.limits)
@@ -181,8 +182,20 @@ class SimVehicle:
         flat at the home altitude as in ArduPilot and PX4 SITL."""
         if self.cfg.terrain is None:
             return self._home_ground
-        ground = self.cfg.terrain(*self.frame.to_geo(self.body.pos[0], self.body.pos[1]))
-        return float(ground) if math.isfinite(ground) else self._home_ground
+        at = (self.body.pos[0], self.body.pos[1])
+        if self._ground_memo[0] != at:     # asked twice a physics step, and while landed
+            ground = self.cfg.terrain(*self._geo())
+            self._ground_memo = (at, float(ground) if math.isfinite(ground)
+                                 else self._home_ground)
+        return self._ground_memo[1]
+
+    def _geo(self) -> tuple:
+        """(lat, lon) of the true position, converted once per position (a pyproj call:
+        the ground, the track and the telemetry of a step all ask)."""
+        at = (self.body.pos[0], self.body.pos[1])
+        if self._geo_memo[0] != at:
+            self._geo_memo = (at, self.frame.to_geo(*at))
+        return self._geo_memo[1]
 
     # -- life cycle -------------------------------------------------------------------
     def open(self) -> None:
@@ -272,9 +285,7 @@ class SimVehicle:
     # -- state seen from outside ------------------------------------------------------
     def position(self) -> tuple:
         """(lat, lon, alt AMSL) of the true position."""
-        x, y, z = self.body.pos
-        lat, lon = self.frame.to_geo(x, y)
-        return lat, lon, z
+        return (*self._geo(), self.body.pos[2])
 
     def _booted_for(self) -> float:
         return -1.0 if self.boot_wall is None else time.monotonic() - self.boot_wall
