@@ -464,6 +464,10 @@ def test_a_vehicle_held_by_a_re_plan_that_falls_silent_flies_home_on_its_own(pla
         fleet.kill(1)
         while two.mode != "GUIDED" and not two.landed:   # the re-plan's hold
             time.sleep(0.005)
+        # its acknowledgement on its way first: cut with it, the ground station never
+        # knew the hold was taken, and read the silence as the shadow its plan flew
+        # into (a loaded run: out of contact as planned, never lost)
+        time.sleep(0.3)
         held["t"] = two.t
         fleet.cut_link(2, 25.0)
     threading.Thread(target=kill_one_cut_one_held, daemon=True).start()
@@ -480,5 +484,8 @@ def test_a_vehicle_held_by_a_re_plan_that_falls_silent_flies_home_on_its_own(pla
     assert "landed" in [e["event"] for e in track.events if e["t"] > fired]
     report = json.loads((out / "flight.json").read_text())
     two = next(v for v in report["vehicles"] if v["sysid"] == 2)
-    assert two["state"] == "landed" and [r["as"] for r in two["rejoins"]] == ["landed"]
+    # heard again down at home, or still on its way there (the simulator keeps real
+    # time while the ground station re-plans: a loaded run's long re-plan): taken back
+    assert two["state"] == "landed" and [r["as"] for r in two["rejoins"]] in (
+        ["landed"], ["flying"])
     assert [x["sysid"] for x in report["losses"]] == [1]

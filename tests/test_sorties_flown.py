@@ -60,11 +60,12 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     third when the others have landed on spent batteries (1450 s): they go up again
     once swapped (the re-plan once gave their first, empty sortie nothing to see
     and left them down). Judged by the simulator's own tracks. Without a loss, each
-    swap powers the autopilot down for 6 s (a flight controller fed by its pack; the
-    simulator closes its TCP port as SITL rebooting does), twice --lost-after:
+    swap powers the autopilot down for 9 s (a flight controller fed by its pack; the
+    simulator closes its TCP port as SITL rebooting does), three times --lost-after:
     silent at its base, not lost; connected to again, it flies its next sortie (at
-    4 s, a loaded machine's stalls, which the ground station leaves out of a
-    silence, twice kept one of the silences under --lost-after: never said). A
+    4 s, and at 6 s on a machine loaded to 6, its stalls, which the ground station
+    leaves out of a silence, kept one of the silences under --lost-after: never
+    said). A
     kill that finds vehicle 2 down waiting for its swap (a busy machine once delayed
     it so) is such a silence: lost after --swap-silence, 10 wall s here (1000 s of
     mission time; the default 600 wall s outlasted the test)."""
@@ -72,7 +73,7 @@ def test_a_fleet_flies_its_sorties_on_the_simulator(twelve, tmp_path, kill):
     code = main(["fly", str(twelve.dir), "--sim", "3", "--speedup", str(SPEEDUP), "--lost-after",
                  "3", "--sim-base-port", str(free_base_port(10, 3)), "-o", str(out)]
                 + (["--kill", kill, "--swap-silence", "10"] if kill
-                   else ["--swap-reboot", "6"]))
+                   else ["--swap-reboot", "9"]))
     report = json.loads((out / "flight.json").read_text())
     lost = [2] if kill else []
     assert report["outcome"]["lost"] == lost and report["outcome"]["coverage_reached"]
