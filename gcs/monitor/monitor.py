@@ -1,101 +1,37 @@
-# Over 600 lines, knowingly: one Monitor owns each vehicle's telemetry state (progress,
-# snapshots, silence, liftoff, landing), and every verdict reads the same fields under one lock.
-"""Following each vehicle from its telemetry: progress, snapshots, losses, landing.
-
-A `Monitor` subscribes to every `gcs.link.VehicleLink` of the flight. From the
-reader threads it records the track (GLOBAL_POSITION_INT), the mission items
-reached (MISSION_ITEM_REACHED, mapped to plan waypoints through
-`VehicleMission.waypoint_of_item`; an item reached means every waypoint before it
-was, as PX4 reports a waypoint followed by DO commands with the number of the last
-of them, and only the latest of several reached between two reports) and camera
-feedback. A snapshot counts as
-taken when its waypoint is reached: ArduPilot reports MISSION_ITEM_REACHED for
-navigation items only, and camera feedback only with a camera configured, so
-the waypoint is the one signal every autopilot gives. Camera feedback, where
-it comes, is kept beside it.
-
-Loss detection (`check_losses`, on the wall clock, by the flight loop and by a
-thread of its own while the flight computes or waits: `watch_losses`):
-a vehicle is lost when nothing (no HEARTBEAT, no report) has come for
-``lost_after_s`` seconds,
-or when it disarms in the air. A link that comes back earlier is not a loss.
-A silence that starts where the plan predicts a radio shadow (`gcs.contact`) is
-an event, out of contact as planned; the vehicle is lost only when it is not heard
-by the shadow's end at its measured pace, with a margin (overdue).
-
-A vehicle in the air further from its route's proven legs than the plan's track
-tolerance (`gcs.corridor`) flies where nothing was proven: an event when it
-leaves them and when it is back, and an episode in ``off_route``.
-
-Touching the ground is a landing only at a base of its flight (the launch point,
-or the base a sortie lands at) after the mission's last waypoint (the one above
-that base, before the landing). Anywhere else, or earlier, it is a crash: the
-vehicle is lost with its snapshots. So is a vehicle whose altitude goes below
-the terrain (the plan's DEM) + ``CRASH_MARGIN_M`` away from its bases, whether
-or not it disarms.
-"""
+"""The `Monitor`: one object, one lock, over the telemetry of every vehicle of a
+flight. Here: following a vehicle's link, the event log, the flight state the
+flight sets, the missions and the progress along them, losses and silences, the
+views of the status table; its telemetry and landing parts are modules of their
+own."""
 
 import collections
 import math
-import re
 import threading
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
-from common.geo import distance_m
-from gcs.contact import Contact, Expected
+from gcs.contact import Contact
 from gcs.corridor import POSITION_MARGIN_M, ProvenPath
-from gcs.link import has_position
-from gcs.mavlink import M
-from missions.items import NAV_LAND
 from missions.returns import landing_gaps
 
-# Flight states of a vehicle, as shown in the status table and flight.json.
-WAITING, STARTING, FLYING, HOLDING, RETURNING, LANDED, LOST = (
-    "waiting", "starting", "flying", "holding", "returning", "landed", "lost")
-#: held in the air where no hidden leg joins it to the hidden volume (a re-plan
-#: cannot route it): left to the operator, still watched for a loss
-STRANDED = "stranded"
-#: below this height above home (m) a disarmed vehicle has landed, above it it fell
-LANDED_AGL_M = 3.0
-#: this high above home (m), armed, a vehicle has left the ground: its liftoff as it
-#: reports it, which a fleet's takeoffs are timed on (seconds after the command that
-#: sent it up, with arming and spool-up: `gcs.flight.departures`)
-LIFTOFF_M = 1.0
-#: keep one track sample per this many wall seconds (telemetry comes at a few Hz)
-TRACK_PERIOD_S = 0.2
-#: position reports above LANDED_AGL_M after a disarm that make it a fall
-DISARM_REPORTS = 3
-#: within this distance (m, horizontally) of its launch point a touchdown is a landing
-LAUNCH_RADIUS_M = 10.0
-#: a vehicle is started (or re-launched) only within the plan's track tolerance of its
-#: launch point, and at least this (m: a GNSS fix on the ground)
-MIN_LAUNCH_TOLERANCE_M = 1.0
-#: below the terrain + this (m) away from its launch point, a vehicle has hit the ground
-CRASH_MARGIN_M = 2.0
-#: wall seconds a vehicle down for its battery swap may be silent (most flight
-#: controllers are fed by the pack: a swap powers them down) before it is lost: the
-#: crew's swap and the autopilot's boot (`gcs fly --swap-silence`)
-SWAP_SILENCE_S = 600.0
-#: wall seconds a held vehicle is given to brake before its position is taken
-SETTLE_S = 3.0
-SETTLED_MPS = 0.5
+from .landing import Landing
+from .records import (
+    FLYING,
+    HOLDING,
+    LANDED,
+    LOST,
+    SETTLE_S,
+    SETTLED_MPS,
+    STARTING,
+    STRANDED,
+    SWAP_SILENCE_S,
+    WAITING,
+    Snapshot,
+    VehicleProgress,
+)
+from .telemetry import Telemetry
 
-
-
-def _uncommanded_said(profile, mode: str) -> str:
-    """The event of a flying vehicle seen in ``mode``, which gcs did not command: a
-    failsafe's mode (the profile's ``failsafe_modes``) says what the firmware flies
-    in it."""
-    flies = profile.failsafe_modes.get(mode)
-    if flies is not None:
-        return (f"failsafe: flying in {mode}, a mode gcs did not command ({flies}): the "
-                "autopilot's own action, proven hidden only where `gcs fly` found its "
-                "failsafes hidden")
-    return (f"flying in {mode}, a mode gcs did not command (a pilot's or a failsafe's): "
-            "what it flies there is not proven hidden")
 
 def _own_at(state, mono: float) -> float | None:
     """A vehicle's own clock (s since boot) at ``mono`` (time.monotonic()): its latest
@@ -128,117 +64,11 @@ def shown_item(state, items: int) -> int | None:
     return int(seq) if seq is not None and 0 <= seq < items else None
 
 
-def _note_airborne(v, armed: bool, agl) -> None:
-    """Armed away from home height, above it or below it (a route over lower ground
-    than the launch point): flying. Judged on every position report too: at a high
-    speed-up a heartbeat may come only after the vehicle has dropped below home."""
-    if armed and agl is not None and abs(agl) > LANDED_AGL_M:
-        v.airborne = True
-
-
 def _speed(state, vertical: bool) -> float:
     """m/s from the last GLOBAL_POSITION_INT: ground speed, or 3-D with ``vertical``."""
     if vertical and state.velocity is not None:
         return math.hypot(*state.velocity)
     return math.inf if state.groundspeed is None else state.groundspeed
-
-
-@dataclass
-class Snapshot:
-    t_s: float  # seconds since the flight started (wall clock)
-    lon: float
-    lat: float
-    alt_amsl: float
-    mission: int  # which mission of the vehicle: 0 = the plan, 1.. = re-plans
-    waypoint: int  # index into that mission's route waypoints
-
-
-@dataclass
-class VehicleProgress:
-    """What the ground station knows about one vehicle of the flight."""
-
-    sysid: int
-    vehicle_id: int  # plan route id
-    flavour: str
-    route: object  # planner.plan.VehicleRoute being flown
-    mission: object  # missions.build.VehicleMission uploaded
-    generation: int = 0  # 0: the plan's mission; n: the n-th re-plan
-    state: str = WAITING
-    reached: set = field(default_factory=set)  # item seqs reached in this mission
-    done: set = field(default_factory=set)  # route waypoint indices reached in this mission
-    snapshots: list = field(default_factory=list)  # [Snapshot], every mission
-    camera: list = field(default_factory=list)  # camera feedback positions [(t, lon, lat, alt)]
-    track: list = field(default_factory=list)  # [(t, lon, lat, alt AMSL, vehicle time s)]
-    airborne: bool = False
-    lifted_at_s: float | None = None  # when it last left the ground (`LIFTOFF_M`)
-    return_gaps: list = field(default_factory=list)  # said of its mission's return, last
-    lost_at_s: float | None = None
-    lost_reason: str | None = None
-    lost_stalled_s: float = 0.0  # of its silence, the time this ground station stood still
-    last_heartbeat_s: float | None = None
-    landed_at_s: float | None = None
-    disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
-    disarmed_reports: int = 0  # position reports since
-    relaunched: int = 0  # times sent up again after landing
-    grounded: str = WAITING  # its state before the re-launch under way (`call_off`)
-    segments: int = 0  # segments sent in flight (a route longer than the vehicle holds)
-    uncommanded: list = field(default_factory=list)  # [(t_s, mode)] flown in, not commanded
-    proven: object = None  # gcs.corridor.ProvenPath of the route flown now
-    off_route: list = field(default_factory=list)  # [[from t_s, to t_s or None, max m]]
-    powered_down_at_s: float | None = None  # silent at its base for a battery swap since
-    # its predicted radio shadows, on this monitor's clock (`follow`: its route's)
-    contact: Contact = field(default_factory=lambda: Contact([]))
-    quiet: Expected | None = None  # the predicted silence it is in now, if heard silent
-    quiet_flown: float = 0.0  # of it, fleet seconds of its plan flown since heard (estimated)
-    quiet_at: float = 0.0  # when that was last counted (monitor s)
-    silences: list = field(default_factory=list)  # [{"from_s", "to_s", "due_s", ...}] flown
-    heard_after_loss_s: float | None = None  # its first HEARTBEAT after it was declared lost
-    silent_loss: bool = False  # declared lost for a silence (may come back), not a crash
-    rejoins: list = field(default_factory=list)  # [{"lost_at_s", "reason", "back_s", ...}]
-    _trajectory: tuple = (None, None)  # (route, its trajectory array): `trajectory`
-
-    @property
-    def snapshot_total(self) -> int:
-        return sum(1 for w in self.route.waypoints if w.snapshot)
-
-    @property
-    def snapshots_done(self) -> int:
-        """Snapshots of the current mission taken so far."""
-        return sum(1 for i in self.done if self.route.waypoints[i].snapshot)
-
-    @property
-    def trajectory(self):
-        """Its route's planned trajectory as an array [t_s, lon, lat, alt AMSL] (None
-        without one), made once per route: read on every loop of the flight."""
-        if self._trajectory[0] is not self.route:
-            rows = getattr(self.route, "trajectory", None)
-            self._trajectory = (self.route, np.asarray(rows, float) if rows else None)
-        return self._trajectory[1]
-
-    @property
-    def finished(self) -> bool:
-        """Nothing more for the flight to do with it (a stranded one is the operator's)."""
-        return self.state in (LANDED, LOST, STRANDED)
-
-    @property
-    def bases(self) -> list:
-        """[(lat, lon)] of where its flight takes off and lands: its route's launch
-        point, and the base a sortie lands at when that is another."""
-        points = [getattr(self.route, "launch", None), getattr(self.route, "land", None)]
-        return [(p.lat, p.lon) for p in points if p is not None]
-
-    def final_approach_seq(self) -> int | None:
-        """The mission item a proper landing comes after: the last waypoint (above
-        launch) before the final NAV_LAND, or the last position item."""
-        items = getattr(self.mission, "items", None) or []
-        if not getattr(self.mission, "final", True):
-            return len(items)           # a segment that does not land: no touchdown is one
-        positions = [it.seq for it in items if it.is_position]
-        if not positions:
-            return None
-        if items[positions[-1]].command == NAV_LAND and len(positions) > 1:
-            return positions[-2]
-        return positions[-1]
 
 
 class StallClock:
@@ -273,7 +103,7 @@ class StallClock:
         self._stop.set()
 
 
-class Monitor:
+class Monitor(Telemetry, Landing):
     """Telemetry of every vehicle of a flight, on one clock (seconds since `t0`)."""
 
     def __init__(self, lost_after_s: float = 5.0, on_event=None, ground=None,
@@ -430,179 +260,6 @@ class Monitor:
                 self.event(sysid, f"start called off: {v.state}")
 
     # -- telemetry (reader threads) ---------------------------------------------------
-    def _on(self, sysid: int, msg) -> None:
-        kind = msg.get_type()
-        handler = self._HANDLERS.get(kind)
-        if handler is not None:
-            with self._lock:
-                v = self.vehicles.get(sysid)
-                if v is not None and v.state != LOST:
-                    handler(self, v, msg)
-                elif v is not None and kind == "HEARTBEAT" and v.heard_after_loss_s is None:
-                    v.heard_after_loss_s = round(self.now(), 3)
-                    self.event(sysid, f"heard again after it was declared lost ({v.lost_reason})"
-                               + ("" if v.silent_loss else ": it came down where it is not "
-                                  "flown or guarded by this flight; bring it home by hand"),
-                               heard_after_loss=True)
-
-    def _heartbeat(self, v, msg) -> None:
-        v.last_heartbeat_s = self.now()
-        if v.quiet is not None:
-            self._back_in_contact(v)
-        armed = bool(msg.base_mode & M.MAV_MODE_FLAG_SAFETY_ARMED)
-        agl = self.links[v.sysid].state.relative_alt
-        _note_airborne(v, armed, agl)
-        if v.airborne and armed:
-            self._judge_mode(v)
-        if v.airborne and not armed and v.state != LANDED and v.disarmed_at_s is None:
-            # position reports lag the touchdown: judge by the next ones
-            v.disarmed_at_s = self.now()
-            v.disarmed_reports = 0
-            self._judge_disarm(v, agl)
-
-    def _judge_mode(self, v) -> None:
-        """In the air in a mode the ground station did not command (a pilot took
-        over, a failsafe fired: RTL, LAND): what it flies now is not proven hidden.
-        Each such mode is an event and a problem of the flight (`uncommanded`)."""
-        link = self.links[v.sysid]
-        profile = getattr(link, "profile", None)
-        mode = link.state.mode
-        if profile is None or mode is None or mode in profile.commanded_modes:
-            return
-        if not v.uncommanded or v.uncommanded[-1][1] != mode:
-            v.uncommanded.append((round(self.now(), 3), mode))
-            self.event(v.sysid, _uncommanded_said(profile, mode))
-
-    def _judge_disarm(self, v, agl) -> None:
-        """Disarmed after flying: on the ground or still falling? On the ground it
-        landed only at a base of its flight after its last waypoint; anywhere else,
-        or before, it crashed (lost)."""
-        s = self.links[v.sysid].state
-        height = self._height(s)
-        touched = (agl is not None and abs(agl) <= LANDED_AGL_M) or \
-            (height is not None and height <= LANDED_AGL_M) or getattr(s, "landed", None) is True
-        if not touched:
-            if v.disarmed_reports >= DISARM_REPORTS:
-                self._lose(v, f"disarmed in the air ({agl or 0.0:.0f} m above home)")
-            return
-        away = self._from_base(v, s)
-        if away is not None and away > LAUNCH_RADIUS_M:
-            return self._lose(v, self._down_said(v, away) or
-                              f"crashed: touched the ground {away:.0f} m from its base")
-        final, progress = v.final_approach_seq(), self._progress(v, s)
-        if final is not None and (progress is None or progress < final) and \
-                not self._failsafe_return(v):
-            where = "nothing" if progress is None else f"item {progress}"
-            return self._lose(v, f"crashed: touched the ground before its last item "
-                                 f"({where} of {final} reached)")
-        v.state = LANDED
-        v.landed_at_s = round(self.now(), 3)
-        self.event(v.sysid, LANDED, battery_pct=s.battery_pct)
-
-    def _on_ground(self, s) -> bool:
-        """By its height above the plan's terrain, fresh with its position; without a
-        terrain by its own word (EXTENDED_SYS_STATE), else by its height above home,
-        which is no height above the ground: a route over a valley flies at home
-        height (a vehicle heard back there was once judged down in the field)."""
-        height = self._height(s)
-        if height is not None:
-            return height <= LANDED_AGL_M
-        if getattr(s, "landed", None) is not None:
-            return s.landed
-        agl = getattr(s, "relative_alt", None)
-        return agl is not None and abs(agl) <= LANDED_AGL_M
-
-    def _height(self, s):
-        """Height (m) above the plan's terrain, None when unknown."""
-        if self.ground is None or getattr(s, "lat", None) is None or s.alt_amsl is None:
-            return None
-        ground = self.ground(s.lat, s.lon)
-        return None if ground is None or not math.isfinite(ground) else s.alt_amsl - ground
-
-    def in_failsafe(self, sysid) -> bool:
-        """Flying in a failsafe's mode now (SmartRTL, RTL, LAND): the autopilot's own
-        return, which no command of the ground station should undo."""
-        link = self.links.get(sysid)
-        modes = getattr(getattr(link, "profile", None), "failsafe_modes", {})
-        return link is not None and link.state.mode in modes
-
-    def _failsafe_return(self, v) -> bool:
-        """Its last mode was a failsafe's (SmartRTL, RTL, LAND): down at a base before
-        its last item, it came home on the autopilot's own; elsewhere, it is down in
-        the field (lost to the flight all the same), not crashed."""
-        modes = getattr(getattr(self.links.get(v.sysid), "profile", None), "failsafe_modes", {})
-        return bool(v.uncommanded) and v.uncommanded[-1][1] in modes
-
-    def _down_said(self, v, away) -> str | None:
-        """A vehicle a failsafe put down away from its bases: why it is lost to the
-        flight (None when no failsafe did)."""
-        if not self._failsafe_return(v):
-            return None
-        return (f"down in the field: a failsafe's {v.uncommanded[-1][1]} put it on the ground "
-                f"{away or 0.0:.0f} m from its base")
-
-    @staticmethod
-    def _from_base(v, s):
-        """Horizontal distance (m) from the nearer of its bases (`Vehicle.bases`: the
-        launch point, the base a sortie lands at; home where the route has none)."""
-        home = getattr(s, "home", None)
-        bases = v.bases or ([home[:2]] if home is not None else [])
-        if not bases or getattr(s, "lat", None) is None:
-            return None
-        return min(distance_m(b[0], b[1], s.lat, s.lon) for b in bases)
-
-    @staticmethod
-    def _progress(v, s):
-        """The furthest item of the current mission the vehicle is known to have
-        reached or be flying to (MISSION_ITEM_REACHED, MISSION_CURRENT)."""
-        seen = set(v.reached)
-        if getattr(s, "mission_seq", None) is not None:
-            seen.add(int(s.mission_seq))
-        return max(seen) if seen else None
-
-    def _below_terrain(self, v, s) -> None:
-        """Away from launch and below the terrain + CRASH_MARGIN_M: it hit the ground."""
-        height = self._height(s)
-        if height is None or height >= CRASH_MARGIN_M:
-            return
-        away = self._from_base(v, s)
-        if away is None or away > LAUNCH_RADIUS_M:
-            self._lose(v, self._down_said(v, away) or f"crashed: {height:.1f} m above the "
-                          f"terrain ({s.alt_amsl:.1f} m AMSL, {away or 0.0:.0f} m from launch)")
-
-    def _position(self, v, msg) -> None:
-        if not has_position(msg):
-            return                     # no position yet (ArduPilot before its EKF origin)
-        t = self.now()
-        agl = msg.relative_alt * 1e-3
-        armed = self.links[v.sysid].state.armed
-        _note_airborne(v, armed, agl)
-        if armed and agl > LIFTOFF_M and v.lifted_at_s is None:
-            v.lifted_at_s = t
-            if not v.done:          # the route's takeoff: its first progress on the fleet clock
-                v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v),
-                               timed=False)     # seen once its HEARTBEAT says it armed
-        if v.airborne and v.state not in (LANDED, LOST):
-            self._below_terrain(v, self.links[v.sysid].state)
-            if v.state == LOST:
-                return
-            if v.state != STRANDED:
-                self._judge_route(v, msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3, t)
-        if v.disarmed_at_s is not None and v.state != LANDED:
-            v.disarmed_reports += 1
-            self._judge_disarm(v, agl)
-        if v.track and t - v.track[-1][0] < TRACK_PERIOD_S:
-            return
-        # the vehicle's own clock too: mission time, which runs faster than the wall
-        # clock in a sped-up simulation
-        boot = getattr(msg, "time_boot_ms", None)
-        v.track.append((round(t, 3), msg.lon * 1e-7, msg.lat * 1e-7, msg.alt * 1e-3,
-                        None if boot is None else round(boot * 1e-3, 3)))
-        # its clock's rate (a sped-up simulator, slower on a busy machine), as its link
-        # measures it
-        if boot is not None:
-            v.contact.set_clock_rate(getattr(self.links[v.sysid].state, "clock_rate", 1.0))
-
     def _judge_route(self, v, lat, lon, alt, t) -> None:
         """Off its proven legs (beyond the track tolerance and the position's own
         error) or back on them: an event each time, the episode kept."""
@@ -622,18 +279,6 @@ class Monitor:
             off[1] = round(t, 3)
             self.event(v.sysid, f"back on its proven route after {t - off[0]:.1f} s, "
                                 f"{off[2]:.0f} m off at most")
-
-    def _reached(self, v, msg) -> None:
-        """An item reached: its waypoint, and every waypoint of the mission before it
-        not counted yet, since a mission is flown in order. PX4 reports a waypoint
-        followed by DO commands (the camera) once they are done, with the last
-        one's number, and only the latest item reached when several are reached
-        between two of its reports (close waypoints)."""
-        seq = int(msg.seq)
-        if seq in v.reached:
-            return
-        v.reached.add(seq)
-        self._passed(v, seq, timed=True)
 
     def _passed(self, v, seq: int, timed: bool) -> None:
         """Item ``seq`` passed, and so every waypoint before it; only a reached item
@@ -657,26 +302,6 @@ class Monitor:
             if w.snapshot:
                 v.snapshots.append(Snapshot(round(self.now(), 3), w.lon, w.lat, w.alt_amsl,
                                             v.generation, index))
-
-    def _camera(self, v, msg) -> None:
-        if msg.get_type() == "CAMERA_FEEDBACK":
-            lat, lon, alt = msg.lat * 1e-7, msg.lng * 1e-7, msg.alt_msl
-        else:
-            lat, lon, alt = msg.lat * 1e-7, msg.lon * 1e-7, msg.alt * 1e-3
-        v.camera.append((round(self.now(), 3), lon, lat, alt))
-
-    def _text(self, v, msg) -> None:
-        """A STATUSTEXT in which the autopilot says a failsafe fired or its return is
-        gone (the profile's ``failsafe_texts``): an event, in its words."""
-        profile = getattr(self.links.get(v.sysid), "profile", None)
-        pattern = getattr(profile, "failsafe_texts", None)
-        text = str(getattr(msg, "text", ""))
-        if pattern and re.search(pattern, text):
-            self.event(v.sysid, f"failsafe: the autopilot says \"{text}\"")
-
-    _HANDLERS = {"HEARTBEAT": _heartbeat, "GLOBAL_POSITION_INT": _position,
-                 "MISSION_ITEM_REACHED": _reached, "CAMERA_FEEDBACK": _camera,
-                 "CAMERA_IMAGE_CAPTURED": _camera, "STATUSTEXT": _text}
 
     # -- losses (flight loop) ---------------------------------------------------------
     def wait_settled(self, sysids, vertical: bool = True, timeout_s: float = SETTLE_S) -> None:
@@ -887,27 +512,6 @@ class Monitor:
             self.event(v.sysid, f"heard again after {self.now() - v.powered_down_at_s:.0f} s "
                                 "powered down for its battery swap")
             v.powered_down_at_s = None
-
-    def on_pad(self, sysid) -> bool:
-        """Down at a base of its flight (within `LAUNCH_RADIUS_M`, at home height), whether
-        or not its landing has been told yet (the disarm comes a few seconds after
-        the touchdown)."""
-        v, s = self.vehicles[sysid], self.links[sysid].state
-        planned = self.planned_position(sysid)
-        if planned is not None:     # out of contact as planned: where its plan has it
-            return self._planned_on_pad(v, planned)
-        agl, away = getattr(s, "relative_alt", None), self._from_base(v, s)
-        return agl is not None and abs(agl) <= LANDED_AGL_M and away is not None \
-            and away <= LAUNCH_RADIUS_M
-
-    @staticmethod
-    def _planned_on_pad(v, planned) -> bool:
-        """Whether (lon, lat, alt AMSL) ``planned`` is down on a base of its route (a
-        silent vehicle's plan landed it: in nobody's column until its next takeoff)."""
-        lon, lat, alt = planned
-        points = [getattr(v.route, "launch", None), getattr(v.route, "land", None)]
-        return any(p is not None and abs(alt - p.alt_amsl) <= LANDED_AGL_M and
-                   distance_m(p.lat, p.lon, lat, lon) <= LAUNCH_RADIUS_M for p in points)
 
     def silent(self, sysid) -> bool:
         """Nothing heard from ``sysid`` for ``lost_after_s`` of the time this ground
