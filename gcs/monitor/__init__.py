@@ -37,9 +37,15 @@ The package, a module a job:
 - ``records``: the flight states, the thresholds, `VehicleProgress` and its
   `Snapshot` list (plain data);
 - ``telemetry``: the reader threads' handlers, one a message kind (`_HANDLERS`);
+- ``route``: the missions given, the waypoints passed (snapshots), the
+  proven legs kept or left;
 - ``landing``: on the ground, landed at a base or crashed (`on_pad`);
+- ``losses``: silences past ``lost_after_s`` (`StallClock`), lost vehicles, and
+  the ones heard back and taken again (`_rejoin`, `catch_up`);
+- ``shadows``: out of contact as planned, overdue, and where its plan has a
+  silent vehicle (`planned_at`);
 - ``monitor``: the `Monitor` itself: following the links, the event log, the
-  views of the status table, and what has not moved out yet.
+  flight state the flight sets, the views of the status table.
 
 The parts are mixins of the one `Monitor`, not functions taking it: every
 judgment reads and writes the same vehicle records under the same lock, and
@@ -53,7 +59,8 @@ in its ``__init__``.
 
 from common.geo import distance_m  # imported from here by gcs.retask
 
-from .monitor import Monitor, StallClock, mission_items, shown_item
+from .losses import StallClock
+from .monitor import Monitor, mission_items, shown_item
 from .records import (
     CRASH_MARGIN_M,
     DISARM_REPORTS,
