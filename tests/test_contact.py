@@ -263,6 +263,34 @@ def test_a_vehicle_heard_again_is_judged_on_the_ground_by_the_terrain_not_by_hom
     assert v.state == LANDED and monitor.take_rejoined() == [1]
 
 
+def test_a_vehicle_heard_again_down_at_its_base_after_a_silence_came_home_unheard():
+    """Out of contact as planned, its link failsafe took it home unheard (its mode
+    change lost with the link) and it disarmed at its base before its last item:
+    heard again, it has landed, not crashed, and what it flew unheard is a problem of
+    the flight (once judged 'crashed: touched the ground before its last item' in a
+    loaded test run). Heard in the air after its silence, then down early: crashed."""
+    from types import SimpleNamespace
+
+    from gcs.monitor import LANDED, LOST
+
+    for heard_flying, want in ((False, LANDED), (True, LOST)):
+        monitor, _, v = _monitored(relative_alt=0.0, alt_amsl=640.0, mission_seq=3,
+                                   battery_pct=None)
+        v.mission = SimpleNamespace(final=True, items=[
+            SimpleNamespace(seq=i, is_position=True, command=16) for i in range(6)])
+        v.quiet = SimpleNamespace(heard_s=5.0, due_s=9.0, overdue_s=12.0, window=(70, 100))
+        monitor._back_in_contact(v)
+        if heard_flying:   # a position in the air after its silence
+            monitor.links[1].state.relative_alt = 60.0
+            monitor._on(1, SimpleNamespace(get_type=lambda: "GLOBAL_POSITION_INT", lat=366000000,
+                                           lon=-842000000, alt=700000, relative_alt=60000,
+                                           time_boot_ms=1000, vx=0, vy=0, vz=0, hdg=0))
+            monitor.links[1].state.relative_alt = 0.0
+        monitor._on(1, SimpleNamespace(get_type=lambda: "HEARTBEAT", base_mode=0))
+        assert v.state == want, monitor.events[-1]
+        assert len(v.down_unheard) == (0 if heard_flying else 1)
+
+
 def test_a_crashed_vehicle_heard_again_is_not_taken_back():
     """Lost for a crash (not a silence): its HEARTBEAT from the ground is said, and it
     stays lost."""

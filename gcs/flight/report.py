@@ -95,6 +95,10 @@ def outcome(flight, covered: dict) -> dict:
             problems.append(f"vehicle {sysid} flew off its proven route ({len(v.off_route)} "
                             f"time(s), up to {worst:.0f} m from its legs): what it flew "
                             "there was not proven hidden")
+        for d in v.down_unheard:
+            problems.append(f"vehicle {sysid} came down at its base at {d['t_s']:.1f} s, "
+                            f"before its last item, while out of contact (from "
+                            f"{d['from_s']:.1f} s): what it flew unheard was not proven hidden")
         if v.uncommanded:
             modes = ", ".join(f"{mode} at {t:.1f} s" for t, mode in v.uncommanded)
             problems.append(f"vehicle {sysid} flew in modes gcs did not command ({modes}): "
@@ -174,6 +178,7 @@ def _vehicle_report(flight, v) -> dict:
              "window": list(v.quiet.window)}] if v.quiet is not None else []),
         # the modes a failsafe put it in while flying, and what the firmware flies there
         "failsafe_modes": _failsafe_modes(m.links.get(v.sysid), v.uncommanded),
+        "down_unheard": list(v.down_unheard),   # home before its last item, in a silence
         "pace": {str(j): p for j, p in flight.batteries.paces.get(v.sysid, {}).items()},
     }
 

@@ -30,14 +30,29 @@ class Landing:
             return self._lose(v, self._down_said(v, away) or
                               f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
-        if final is not None and (progress is None or progress < final) and \
-                not self._failsafe_return(v):
-            where = "nothing" if progress is None else f"item {progress}"
+        early = final is not None and (progress is None or progress < final)
+        where = "nothing" if progress is None else f"item {progress}"
+        if early and v.unheard_from_s is not None and not self._failsafe_return(v):
+            self._landed_unheard(v, progress, final, where)
+        elif early and not self._failsafe_return(v):
             return self._lose(v, f"crashed: touched the ground before its last item "
                                  f"({where} of {final} reached)")
         v.state = LANDED
         v.landed_at_s = round(self.now(), 3)
         self.event(v.sysid, LANDED, battery_pct=s.battery_pct)
+
+    def _landed_unheard(self, v, progress, final, where) -> None:
+        """Heard again after a radio silence, down at its base before its last item: it
+        came home unheard (a failsafe's return whose mode the silence hid: the link
+        failsafe fires in the silence itself), not a crash; what it flew there is not
+        known, so not proven hidden (a problem of the flight, `down_unheard`)."""
+        v.down_unheard.append({"t_s": round(self.now(), 3), "from_s": round(v.unheard_from_s, 3),
+                               "item": progress, "final": final})
+        self.event(v.sysid, f"down at its base before its last item ({where} of {final} "
+                            f"reached), heard again after a silence from "
+                            f"{v.unheard_from_s:.0f} s: it came home unheard (a failsafe's "
+                            "return?), its way not proven hidden")
+        v.unheard_from_s = None
 
     def _below_terrain(self, v, s) -> None:
         """Away from launch and below the terrain + CRASH_MARGIN_M: it hit the ground."""

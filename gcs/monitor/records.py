@@ -93,6 +93,9 @@ class VehicleProgress:
     heard_after_loss_s: float | None = None  # its first HEARTBEAT after it was declared lost
     silent_loss: bool = False  # declared lost for a silence (may come back), not a crash
     rejoins: list = field(default_factory=list)  # [{"lost_at_s", "reason", "back_s", ...}]
+    # out of contact since (monitor s) until heard flying again: it may come down unheard
+    unheard_from_s: float | None = None
+    down_unheard: list = field(default_factory=list)  # [{"t_s", "from_s", "item", "final"}]
     _trajectory: tuple = (None, None)  # (route, its trajectory array): `trajectory`
 
     @property

@@ -57,6 +57,7 @@ class Shadows:
     def _back_in_contact(self, v) -> None:
         q, v.quiet = v.quiet, None
         now = self.now()
+        v.unheard_from_s = q.heard_s      # until a position says it is still in the air
         v.silences.append({"from_s": round(q.heard_s, 3), "to_s": round(now, 3),
                            "due_s": round(q.due_s, 3), "window": list(q.window)})
         self.event(v.sysid, f"back in contact after {now - q.heard_s:.0f} s out of contact, "

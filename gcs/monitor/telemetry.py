@@ -91,6 +91,9 @@ class Telemetry:
             if not v.done:          # the route's takeoff: its first progress on the fleet clock
                 v.contact.mark(t, getattr(v.route, "takeoff_s", 0.0), self._own_clock(v),
                                timed=False)     # seen once its HEARTBEAT says it armed
+        if armed and v.unheard_from_s is not None and \
+                not self._on_ground(self.links[v.sysid].state):
+            v.unheard_from_s = None     # heard in the air after its silence
         if v.airborne and v.state not in (LANDED, LOST):
             self._below_terrain(v, self.links[v.sysid].state)
             if v.state == LOST:
