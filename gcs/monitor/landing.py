@@ -30,13 +30,13 @@ class Landing:
             return self._lose(v, self._down_said(v, away) or
                               f"crashed: touched the ground {away:.0f} m from its base")
         final, progress = v.final_approach_seq(), self._progress(v, s)
-        early = final is not None and (progress is None or progress < final)
-        where = "nothing" if progress is None else f"item {progress}"
-        if early and v.unheard_from_s is not None and not self._failsafe_return(v):
+        if final is not None and (progress is None or progress < final) and \
+                not self._failsafe_return(v):
+            where = "nothing" if progress is None else f"item {progress}"
+            if v.unheard_from_s is None:
+                return self._lose(v, f"crashed: touched the ground before its last item "
+                                     f"({where} of {final} reached)")
             self._landed_unheard(v, progress, final, where)
-        elif early and not self._failsafe_return(v):
-            return self._lose(v, f"crashed: touched the ground before its last item "
-                                 f"({where} of {final} reached)")
         v.state = LANDED
         v.landed_at_s = round(self.now(), 3)
         self.event(v.sysid, LANDED, battery_pct=s.battery_pct)

@@ -189,11 +189,11 @@ class Losses:
         re-planned with the others (`take_rejoined`); down anywhere else it stays
         lost."""
         s = self.links[v.sysid].state
-        grounded = self._on_ground(s)
-        if s.armed and grounded and self.on_pad(v.sysid):
+        grounded, pad = self._on_ground(s), self.on_pad(v.sysid)
+        if s.armed and grounded and pad:
             return      # touching down at its base or lifting off: judged once it is not
         flying = bool(s.armed) and not grounded
-        landed = not s.armed and self.on_pad(v.sysid)
+        landed = not s.armed and pad
         v.silent_loss = False                # judged once: a loss again is a new one
         if not (flying or landed):
             self.event(v.sysid, "heard again after it was declared lost, down away from "

@@ -129,9 +129,8 @@ class Terrain:
 
     def ground_at(self, x: float, y: float, upper=False) -> float:
         """`ground` at one point, as a float (`bilinear_at`)."""
-        t = self.transform
-        return bilinear_at(self.upper if upper else self.height,
-                           (float(y) - t.f) / t.e - 0.5, (float(x) - t.c) / t.a - 0.5)
+        row, col = self.rowcol(x, y)
+        return bilinear_at(self.upper if upper else self.height, float(row), float(col))
 
 
 def bilinear_at(grid: np.ndarray, row: float, col: float) -> float:
