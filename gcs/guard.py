@@ -218,11 +218,7 @@ class SeparationGuard:
         self.landing &= set(frame.here)
         horizon = self.horizon()
         columns = self._columns()
-        # one down on its pad (its landing not told yet) is in nobody's way; one held
-        # just above it is (and is flown on from there: left out, it hovered for good)
-        ahead = {s: (frame.standing(s, horizon) if s in self.held else
-                     self._route(frame, s, self.fleet.waiting(s) or 0.0, s in self.landing))
-                 for s in frame.here if s in self.held or not self.fleet.on_pad(s)}
+        ahead = self._ahead(frame, horizon, frame.here)
         for a, b, begin, column in self._conflicts(frame, ahead, horizon, columns):
             if self._fixed(a) and self._fixed(b) or \
                     self._clash(ahead[a], ahead[b], columns) > horizon:
@@ -249,6 +245,28 @@ class SeparationGuard:
                 self._do(sysid, self.fleet.land if land else self.fleet.resume,
                          "land here" if land else "resume", other=self.held[sysid][1])
         self._note_cycle(waits_on)
+
+    def in_way_of_takeoff(self, sysid, wait_s=0.0):
+        """The airborne vehicle in the way of ``sysid``'s takeoff from where it stands
+        (its route climbing after ``wait_s`` fleet seconds), as of a held vehicle's
+        resume (`_in_way`); None when it may go. The base column being clear now
+        was not enough: a vehicle took off 30 s late from under one flying over its
+        base, and the guard, which sees only those in the air, found them 3 m apart."""
+        if not self.active:
+            return None
+        frame = _Frame(self.monitor, [*self.fleet.airborne(), sysid], self.clock.rate(),
+                       self._frame())
+        if sysid not in frame.here:
+            return None             # no position yet: the column rule alone
+        horizon, columns = self.horizon(), self._columns()
+        ahead = self._ahead(frame, horizon, [s for s in frame.here if s != sysid])
+        go = self._route(frame, sysid, wait_s)
+        # looked at until it is out of its base column, and as long after its climb
+        # begins as a resume is: the launch's own latency (arming, the spool-up) was
+        # 100 s of flight at 100x, and a look that short saw it only on its pad
+        out = max(_exits(Occupied(go, columns)).values(), default=0.0)
+        until = max(out, wait_s + RESUME_FACTOR * horizon + self.reaction_s())
+        return self._in_way(frame, ahead, sysid, go, until, columns)
 
     @property
     def deadlocked(self) -> list:
@@ -307,6 +325,15 @@ class SeparationGuard:
             [v.route.waypoints[i].hold_s for i in rest]
         holds[0] += wait_s          # vertex 0: where it stands now
         return profile.timed(0.0, holds)
+
+    def _ahead(self, frame, horizon, ids) -> dict:
+        """{sysid: its predicted flight} of ``ids``: a held one standing, the others
+        on their routes. One down on its pad (its landing not told yet) is in
+        nobody's way; one held just above it is (and is flown on from there: left
+        out, it hovered for good)."""
+        return {s: (frame.standing(s, horizon) if s in self.held else
+                    self._route(frame, s, self.fleet.waiting(s) or 0.0, s in self.landing))
+                for s in ids if s in self.held or not self.fleet.on_pad(s)}
 
     def _frame(self) -> LocalFrame:
         """The guard's local frame, about its first base (or the first vehicle heard),

@@ -547,7 +547,7 @@ def test_takeoffs_are_timed_on_the_liftoff_the_vehicle_reports():
             return None if self.t is None else self.t + 10.0 * (now["t"] - self.wall)
     state = SimpleNamespace(monitor=monitor, clock=Clock())
     d = Departures(state)
-    d._launched = {1: (0.0, 0.0)}                   # commanded at 0, due at 0
+    d._launched = {1: (0.0, 0.0, 0.0)}              # commanded at 0, due at 0
     d.pending = {2: Departure(15.0, "launch", None), 3: Departure(30.0, "launch", None)}
     now["t"] = 1.0                                  # 10 s of flight later: not up yet
     d._anchor_clock()
@@ -558,11 +558,57 @@ def test_takeoffs_are_timed_on_the_liftoff_the_vehicle_reports():
     assert d.latency_s == pytest.approx(12.0)
     assert [p.due for p in d.pending.values()] == [15.0, 30.0]     # the first sets t = 0
     del d.pending[2]
-    d._launched = {2: (now["t"], 15.0)}
+    d._launched = {2: (now["t"], 15.0, 15.0)}
     vehicles[2].lifted_at_s, now["t"] = 3.9, 4.0    # up at fleet 27 s, due at 15 s
     d._anchor_clock()
     assert d.pending[3].due == pytest.approx(42.0)
     assert any("12 s after its planned takeoff" in text for _, text in events)
+    # 24 s from its command: launches are still begun as early as the quickest took
+    # (begun earlier by a slow one, the next quick one lifts off before its time)
+    assert d.latency_s == pytest.approx(12.0)
+    # a next sortie scheduled from now on is as late as they are
+    d.launch(1, 600.0, None)
+    assert (d.pending[1].due, d.pending[1].planned) == (pytest.approx(612.0), 600.0)
+
+
+def test_takeoffs_keep_the_plans_order_however_late_the_vehicles_are_ready():
+    """A vehicle back from its battery swap, its next sortie past due, does not take
+    off before a takeoff the plan has earlier: another's next sortie, that vehicle
+    still in the air or down for its swap, or a pending takeoff (three vehicles late
+    from their swaps once went in the order they were ready, and the guard held two
+    for each other until their batteries ran out). A lost vehicle is not waited for."""
+    from gcs.flight.departures import Departures
+
+    part = lambda t: SimpleNamespace(takeoff_s=t, launch=None)    # noqa: E731
+    vehicles = {s: SimpleNamespace(state=LANDED, lifted_at_s=None) for s in (1, 2, 3)}
+    events = []
+    monitor = SimpleNamespace(vehicles=vehicles, now=lambda: 0.0,
+                              event=lambda s, text, **kw: events.append((s, text)))
+    clock = SimpleNamespace(now=lambda: 5000.0, rate=lambda: 1.0, started=True)
+    later = {1: [(0.0, part(784.0))], 2: [], 3: [(0.0, part(1005.0))]}
+    state = SimpleNamespace(monitor=monitor, clock=clock, later=later,
+                            separation_m=30.0, plan=SimpleNamespace(vehicles=[]))
+    d = Departures(state)
+    sent = []
+    d._send = lambda sysid, dep: sent.append(sysid)
+    d.launch(2, 1210.0, part(1210.0))          # 2 ready first: 1 and 3 go before it
+    d.due()
+    assert sent == [] and events[-1] == (2, "takeoff waits: vehicle 1 takes off before "
+                                            "it in the plan")
+    later[1].clear()
+    d.launch(1, 784.0, part(784.0))
+    d.due()
+    assert sent == [1]
+    d._launched[1] = (0.0, 784.0, 784.0)       # sent, not seen up yet: 3 still waits
+    later[3].clear()
+    d.launch(3, 1005.0, part(1005.0))
+    d.due()
+    assert sent == [1] and 2 in d.pending and 3 in d.pending
+    vehicles[1].state = FLYING
+    del d._launched[1]
+    vehicles[3].state = LOST
+    d.due()
+    assert sent == [1, 2]
 
 
 @pytest.mark.parametrize("text,failsafe", [

@@ -429,6 +429,28 @@ def test_two_held_at_the_top_of_a_column_the_one_above_leaves_first():
     assert resumed > 0.0
 
 
+def test_a_takeoff_waits_while_a_vehicle_is_predicted_over_its_base():
+    """A vehicle on its pad under a base column (2) may take off only when no
+    airborne vehicle's predicted flight comes into its climb or route (as a held
+    vehicle's resume): 1 flying toward the column over the base is in its way;
+    past it and flying away, it is not. (Late from its swap, a vehicle once took off
+    under one flying over its base, and they were 3 m apart when the guard, which
+    sees only vehicles in the air, first looked.)"""
+    base = GeoPoint(LON0, LAT0, ALT - 60.0)
+    pad = Scripted(2, (0.0, 0.0), (0.0, 0.0))
+    pad.p[2] = ALT - 60.0
+    pad.report()
+    pad.route = VehicleRoute(2, base, [Waypoint(LON0, LAT0, ALT, 0.0),
+                                       _route(0, -500).waypoints[0]], 0.0, 0.0, 0.0)
+    verdicts = []
+    for x, far in ((-80.0, 600.0), (300.0, 900.0)):
+        one = Scripted(1, (x, 0.0), (12.0, 0.0), route_to=_route(far, 0.0))
+        monitor, guard = _guard([one, pad], {1: 1, 2: 2}, bases=[(LAT0, LON0, ALT)])
+        guard.fleet.airborne = lambda: [1]        # 2 is down on its pad
+        verdicts.append(guard.in_way_of_takeoff(2, wait_s=2.0))
+    assert verdicts == [1, None]
+
+
 def _landed_flight(monitor, guard):
     """A flight as its report judges it: every vehicle landed, the coverage reached,
     no battery trouble; the guard and monitor of a scripted run."""

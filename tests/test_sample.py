@@ -29,7 +29,8 @@ def sample():
 # (test_any_dem), with sorties (test_sorties) and on smaller grids
 @pytest.mark.parametrize("method", [m for m in METHODS if m not in ("b", "c")])
 def test_whole_sample_plans_with_every_method(sample, method):
-    outcome = allocate(sample, 4, launch_starts(sample), method=method)
+    # no strong bound: nothing here is judged by it (14 CPU s of rt+ls's 54)
+    outcome = allocate(sample, 4, launch_starts(sample), method=method, strong_bound=False)
     metrics = outcome.plan.metrics
     assert metrics["k_covered"] == metrics["targets"] > 50_000
     # two sightings from two UAVs at two places, or one from each place there is

@@ -11,14 +11,23 @@ clock of the commands: a takeoff waits while another airborne vehicle is in its
 base's column (within the separation of the base across the ground, below the
 column's top and the separation, at any height below: SITL's ground can lie
 140 m under a base), and claims the column from its arming until it is seen
-airborne. Takeoffs are timed on what the vehicles do: the fleet clock reads a
-vehicle's planned takeoff time when it is seen leaving the ground (t = 0: the
-first takeoff), and a vehicle seen leaving later than planned (arming, a slow
-spool-up) puts every takeoff after it as much later, so that the plan's spacing
-is kept (on real ArduPilot SITL a liftoff came 7 s of flight after the one
-before instead of the planned 15, timed from the commands).
+airborne; and while the separation guard predicts an airborne vehicle in the
+way of its climb and route (`SeparationGuard.in_way_of_takeoff`: one flying over
+the base, or down its column, soon). Takeoffs are timed on what the vehicles do:
+the fleet clock reads a vehicle's planned takeoff time when it is seen leaving
+the ground (t = 0: the first takeoff), and a vehicle seen leaving later than
+planned (arming, a slow spool-up) puts every takeoff after it as much later, so
+that the plan's spacing is kept (on real ArduPilot SITL a liftoff came 7 s of
+flight after the one before instead of the planned 15, timed from the commands).
+That slip stays with
+the takeoffs yet to be scheduled too (the next sorties of vehicles down for their
+swap), and no takeoff goes before one planned earlier: the plan's separation is
+proven in its order and spacing of takeoffs. Three vehicles late back from their
+battery swaps once went in the order they were ready, out of the plan's, and the
+guard held two of them for each other until their batteries ran out.
 """
 
+import collections
 import math
 import threading
 from dataclasses import dataclass
@@ -26,7 +35,7 @@ from types import SimpleNamespace
 
 from common.geo import LocalFrame
 from gcs import commands
-from gcs.monitor import FLYING, LANDED, LOST, STARTING
+from gcs.monitor import FLYING, LANDED, LOST, STARTING, STRANDED
 from gcs.retask import Retasker
 from planner.fleet import base_columns
 
@@ -38,6 +47,8 @@ CALL_OFF_WAIT_S = 10.0
 #: fleet seconds a liftoff may come after its planned time before the takeoffs after
 #: it are put later (the clock's own reading of a report is no finer)
 SLIP_S = 1.0
+#: the recent launches whose latency is kept (`Departures.latency_s`)
+KEPT_LATENCIES = 8
 
 
 def flight_bases(plan) -> list:
@@ -62,6 +73,11 @@ class Departure:
     due: float
     kind: str
     route: object
+    planned: float = None     # its time on the plan's clock, no slip added (`due` at first)
+
+    def __post_init__(self):
+        if self.planned is None:
+            self.planned = self.due
 
 
 class Departures:
@@ -72,12 +88,16 @@ class Departures:
         self.pending = {}         # sysid -> Departure: takeoffs and resumes yet to come
         self._running = {}        # sysid -> (thread, error, cancel) of departures under way
         self._resuming = set()    # of them, vehicles a re-plan held, flying on
-        self._waiting_for = {}    # sysid -> the vehicle its base column waits for
+        self._waiting_for = {}    # sysid -> (the vehicle its takeoff waits for, why)
         self._lifting = {}        # sysid -> launch point of the base column claimed for it
         self._column_lock = threading.Lock()
-        self._launched = {}       # sysid -> (monitor s begun, fleet s due) not yet seen up
-        self.latency_s = 0.0      # fleet s from a launch's first command to its liftoff
+        self._launched = {}       # sysid -> (monitor s begun, fleet s due, planned) not yet up
+        self.slip_s = 0.0         # fleet s the takeoffs yet to come go after their plan's time
+        self._latencies = collections.deque(maxlen=KEPT_LATENCIES)   # `latency_s`'s
         self.on_liftoff = []      # [(sysid, route) -> None]: told as each is sent up
+        # (sysid, fleet s before it climbs) -> the airborne vehicle in the way of its
+        # takeoff, or None (`SeparationGuard.in_way_of_takeoff`; None: no guard)
+        self.in_way = None
         self._frame, self._columns = None, None     # the plan's base columns, once
 
     def __contains__(self, sysid) -> bool:
@@ -85,6 +105,17 @@ class Departures:
 
     def __bool__(self) -> bool:
         return bool(self.pending)
+
+    @property
+    def latency_s(self) -> float:
+        """Fleet seconds the quickest of the recent launches took from its first
+        command to its liftoff (arming, the takeoff command, the spool-up), 0 before
+        any: each launch is begun that much before its time. The quickest, not the
+        last: one that lifts off later than its time only puts the takeoffs after it
+        later, one earlier comes closer to the one before it (at 100x a launch came
+        0.5 wall s quicker than the one before, 50 s of flight, and climbed after
+        the vehicle ahead on its path)."""
+        return min(self._latencies, default=0.0)
 
     def launch_all(self) -> None:
         """Every vehicle not lost takes off at its route's planned time."""
@@ -94,8 +125,9 @@ class Departures:
                 self.pending[sysid] = Departure(v.route.takeoff_s, "launch", v.route)
 
     def launch(self, sysid, due, route) -> None:
-        """``sysid`` takes off on ``route`` at fleet time ``due`` (its next sortie)."""
-        self.pending[sysid] = Departure(due, "launch", route)
+        """``sysid`` takes off on ``route`` at the plan's fleet time ``due`` (its next
+        sortie), as late as the takeoffs before it were (`slip_s`)."""
+        self.pending[sysid] = Departure(due + self.slip_s, "launch", route, planned=due)
 
     def depart(self, sysid, after_s, kind, route) -> None:
         """``sysid`` takes off (``kind`` "launch") or flies on ("resume") ``after_s``
@@ -105,8 +137,9 @@ class Departures:
     def call_off(self) -> None:
         """A re-plan decides who goes up: every departure yet to come is dropped (a
         next sortie uploaded, its takeoff time not yet come, stays down), and every
-        start sequence under way is stopped."""
+        start sequence under way is stopped; its schedule starts from now, no slip."""
         m = self.state.monitor
+        self.slip_s = 0.0
         for sysid in list(self.pending):
             del self.pending[sysid]
             m.call_off(sysid)
@@ -149,8 +182,11 @@ class Departures:
             early = self.latency_s if d.kind == "launch" else 0.0
             if d.due - early > now or sysid in self._running:
                 continue
-            if d.kind == "launch" and not self._column_clear(sysid, d.route):
+            if d.kind == "launch" and not (self._in_turn(sysid, d) and
+                                           self._column_clear(sysid, d.route) and
+                                           self._clear_of_traffic(sysid)):
                 continue
+            self._waiting_for.pop(sysid, None)
             del self.pending[sysid]
             self._send(sysid, d)
 
@@ -160,7 +196,7 @@ class Departures:
         if d.kind == "resume":
             self._resuming.add(sysid)
         else:
-            self._launched[sysid] = (self.state.monitor.now(), d.due)
+            self._launched[sysid] = (self.state.monitor.now(), d.due, d.planned)
 
         def go(s=sysid, route=d.route):
             try:
@@ -229,11 +265,10 @@ class Departures:
         """Each launch seen leaving the ground (`Monitor`'s ``lifted_at_s``): the fleet
         clock reads its planned takeoff time then if it has not started (t = 0: the
         first takeoff); one later than planned puts every takeoff to come as much
-        later (`_slipped`); and each launch is begun as much earlier as the last one
-        took from its first command to its liftoff (arming, the takeoff command,
-        the spool-up: `latency_s`)."""
+        later (`_slipped`); and the time each took from its first command to its
+        liftoff is kept (`latency_s`)."""
         m, clock = self.state.monitor, self.state.clock
-        for sysid, (begun, due) in list(self._launched.items()):
+        for sysid, (begun, due, _) in list(self._launched.items()):
             v = m.vehicles[sysid]
             if v.state == LOST:
                 del self._launched[sysid]
@@ -245,20 +280,48 @@ class Departures:
             ago = (m.now() - v.lifted_at_s) * rate      # fleet s since it lifted off
             if not clock.started:
                 clock.start(due + ago)
-            self.latency_s = (v.lifted_at_s - begun) * rate
+            self._latencies.append((v.lifted_at_s - begun) * rate)
             self._slipped(sysid, clock.now() - ago - due)
 
     def _slipped(self, sysid, late_s) -> None:
         """``sysid`` left the ground ``late_s`` fleet seconds after its planned time:
         the takeoffs to come wait as much longer, keeping the plan's spacing."""
         later = [s for s, d in self.pending.items() if d.kind == "launch"]
-        if late_s <= SLIP_S or not later:
+        if late_s <= SLIP_S:
+            return
+        self.slip_s += late_s
+        if not later:
             return
         for other in later:
             self.pending[other].due += late_s
         self.state.monitor.event(sysid, f"left the ground {late_s:.0f} s after its planned "
                                         f"takeoff: the takeoffs after it are as much later",
                                  late_s=round(late_s, 1), vehicles=sorted(later))
+
+    def _in_turn(self, sysid, d) -> bool:
+        """No other vehicle's takeoff planned before ``d`` is yet to come: pending, sent
+        and not seen up, or the next sortie of one flying or down for its swap."""
+        m = self.state.monitor
+        for other, v in m.vehicles.items():
+            if other == sysid or v.state in (LOST, STRANDED):
+                continue
+            if other in self.pending:
+                first = self.pending[other]
+                planned = first.planned if first.kind == "launch" else math.inf
+            elif other in self._launched:
+                planned = self._launched[other][2]
+            else:
+                parts = self.state.later.get(other) or [(0.0, None)]
+                offset, route = parts[0]
+                planned = math.inf if route is None else offset + route.takeoff_s
+            if planned < d.planned:
+                return self._wait_for(sysid, other, "takes off before it in the plan")
+        return True
+
+    def _clear_of_traffic(self, sysid) -> bool:
+        """No airborne vehicle predicted in the way of its climb and route (`in_way`)."""
+        other = self.in_way(sysid, self.latency_s) if self.in_way is not None else None
+        return other is None or self._wait_for(sysid, other, "is predicted in its way")
 
     def _claim_column(self, sysid, route) -> bool:
         """`_column_clear`, and if so the column kept for ``sysid`` from its arming
@@ -282,8 +345,12 @@ class Departures:
             return True
         for other, base in list(self._lifting.items()):
             v = m.vehicles[other]
-            if v.airborne or v.state in (LOST, LANDED):
-                self._lifting.pop(other, None)      # where it is now speaks for it
+            # seen up (or down, or lost): where it is now speaks for it; a claim of
+            # a takeoff long gone (nobody looked since) once held the column against
+            # the next sortie's, while the claimant waited for that one in turn
+            if v.airborne or v.state in (LOST, LANDED) or \
+                    other not in self._running and other not in self._launched:
+                self._lifting.pop(other, None)
             elif other != sysid and base is not None and self.column(base) is column:
                 return self._wait_for(sysid, other)
         for other, v in m.vehicles.items():
@@ -293,7 +360,6 @@ class Departures:
             x, y = self._frame.to_local(s.lat, s.lon)
             if column.contains(math.hypot(x - column.x, y - column.y), s.alt_amsl):
                 return self._wait_for(sysid, other)
-        self._waiting_for.pop(sysid, None)
         return True
 
     def column(self, point):
@@ -310,10 +376,9 @@ class Departures:
         x, y = self._frame.to_local(point.lat, point.lon)
         return min(self._columns, key=lambda c: math.hypot(c.x - x, c.y - y))
 
-    def _wait_for(self, sysid, other) -> bool:
-        """False, said once per vehicle waited for."""
-        if self._waiting_for.get(sysid) != other:
-            self._waiting_for[sysid] = other
-            self.state.monitor.event(sysid, f"takeoff waits: vehicle {other} is in its base "
-                                            "column")
+    def _wait_for(self, sysid, other, why="is in its base column") -> bool:
+        """False, said once per vehicle and reason waited for."""
+        if self._waiting_for.get(sysid) != (other, why):
+            self._waiting_for[sysid] = (other, why)
+            self.state.monitor.event(sysid, f"takeoff waits: vehicle {other} {why}")
         return False

@@ -336,6 +336,7 @@ class Flight:
             m, self.state.separation_m, {s: v.route.priority for s, v in m.vehicles.items()},
             self.clock, self.holds, travel=self.state.ctx.scenario.travel_params(),
             stop_s=stop_time(self.plan.params), bases=flight_bases(self.plan))
+        self.departures.in_way = self.guard.in_way_of_takeoff
         # every vehicle ready to arm first: then each start takes about as long, and the
         # takeoffs keep the plan's spacing
         self.state.on_every(lambda s: commands.wait_ready(m.links[s], self.options.ready_timeout_s),
