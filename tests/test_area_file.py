@@ -9,10 +9,10 @@ import zipfile
 import numpy as np
 import pytest
 from hills import central_outpost
+from quick_plan import plan_routes
 
 from common.errors import InputError
 from gcs.cli import main
-from planner.pipeline import plan_mission
 from planner.scenario import Scenario, read_scenario
 from planner.terrain import synthetic_terrain
 from planner.terrain.area import area_mask, read_area
@@ -103,9 +103,9 @@ def test_targets_and_optionally_flight_stay_in_the_polygon(hills, tmp_path):
     common = dict(sample=True, uavs=2, sensor_range_m=500.0, ceiling_agl_m=150.0,
                   clearance_m=20.0, hide_margin_m=5.0, launch=[launch],
                   method="rt+ls")   # the polygon is the point here, not the search
-    whole, _ = plan_mission(Scenario(**common).validate(), terrain=terrain, outposts=outposts)
-    ctx, outcome = plan_mission(Scenario(**common, area_file=str(path)).validate(),
-                                terrain=terrain, outposts=outposts)
+    whole, _ = plan_routes(Scenario(**common).validate(), terrain, outposts)
+    ctx, outcome = plan_routes(Scenario(**common, area_file=str(path)).validate(), terrain,
+                               outposts)
     inside = area_mask(terrain, read_area(path))
     r, c = ctx.visibility.target_rowcol()
     assert ctx.visibility.n_targets > 0 and inside[r, c].all()
@@ -119,8 +119,8 @@ def test_targets_and_optionally_flight_stay_in_the_polygon(hills, tmp_path):
         for t in ctx.visibility.seen_by(v):
             assert v in ctx.visibility.seers(t)
     # area_flight: every waypoint inside the polygon too
-    ctx2, flown = plan_mission(Scenario(**common, area_file=str(path), area_flight=True)
-                               .validate(), terrain=terrain, outposts=outposts)
+    ctx2, flown = plan_routes(Scenario(**common, area_file=str(path), area_flight=True)
+                              .validate(), terrain, outposts)
     points = [(w.lon, w.lat) for v in flown.plan.vehicles for w in v.waypoints]
     assert points and all(_inside(p, rings) for p in points)
     assert np.isnan(ctx2.surface.exposure[~inside]).all()

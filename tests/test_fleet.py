@@ -12,12 +12,13 @@ import pytest
 from hills import central_outpost
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from quick_plan import plan_routes
 from scipy import ndimage
 
 from autopilots import profile
 from planner.fleet import Profile, Trajectory, schedule, separation
 from planner.fleet.schedule import drift_s
-from planner.pipeline import exposure_stages, plan_mission
+from planner.pipeline import exposure_stages
 from planner.scenario import METHODS, Scenario
 from planner.terrain import synthetic_terrain
 from planner.travel import TravelParams
@@ -263,7 +264,7 @@ def _plan(method, k, seed, separation_m=30.0, **more):
     i = int(np.argmin(rows + cols))
     llon, llat = terrain.to_lonlat(*terrain.xy(rows[i], cols[i]))
     s = replace(s, launch=[(float(llat), float(llon))]).validate()
-    return plan_mission(s, terrain=terrain, outposts=[post])
+    return plan_routes(s, terrain=terrain, outposts=[post])
 
 
 @pytest.mark.slow

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from quick_plan import plan_routes
 
 from planner.exposure import (
     Outpost,
@@ -122,7 +123,7 @@ def test_times_follow_the_travel_model(planned):
 
 
 def test_deterministic(terrain, planned):
-    _, again = plan_mission(_scenario(terrain), terrain=terrain, outposts=_outposts(terrain))
+    _, again = plan_routes(_scenario(terrain), terrain, _outposts(terrain))
     first = planned[1].plan
     assert [[(w.lon, w.lat, w.alt_amsl) for w in v.waypoints] for v in first.vehicles] == \
            [[(w.lon, w.lat, w.alt_amsl) for w in v.waypoints] for v in again.plan.vehicles]

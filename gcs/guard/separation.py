@@ -1,57 +1,4 @@
-"""The separation guard: keeps airborne vehicles apart when they drift from the plan.
-
-A plan proves its vehicles separated on its own schedule, and its base columns
-used by one vehicle at a time (`planner.fleet.columns`); real ones drift from it
-(wind, speed, a late takeoff, a slow spool-up). Each flight-loop step the guard
-predicts where every airborne vehicle will be over the next `horizon` seconds of
-fleet time: from its reported position (carried forward to now at its reported
-velocity) along the rest of its route, at the planned speeds, stops and holds,
-down to its landing (`planner.fleet.Profile`: what it flies, not a straight line
-that ignores its turns); a held vehicle stays where it is. A conflict is two
-predictions closer than the separation (`Trajectory.first_conflict`, exact) or
-two in one base column at once. The guard holds one of the pair where it is, in
-its firmware's hold mode, on its proven leg, so hidden: the one of lower priority
-(the plan's: the later placed on the fleet clock; before it, a vehicle short of
-battery, which every second held costs), unless holding it would still be in the
-other's way, then the other; both only when neither alone clears it. Two
-already in one column: the one that leaves it first on its route (the upper one
-climbing out, the lower one landing) goes, the other holds.
-
-The guard reacts in its own time: its loop (measured, `loop_s`), a command's way
-to the vehicle (measured, `command_s`) and a position report's way down (with the
-command's way up, one acknowledged command's round trip: `latency_s`), which at a
-speed-up of the vehicles' clock are that many times more seconds of flight. The
-horizon counts them, and a vehicle about to be held is predicted flying on along
-its route for that long before it stands (`reaction_s`): on a busy machine a loop
-of 0.5 s is 50 s of flight at 100x.
-
-A held vehicle flies on, highest priority first, no sooner than two of the
-guard's loops after its hold, and only once its route from where it stands keeps
-`RESUME_FACTOR` separations clear of every other's prediction and shares no
-column with another within the horizon. From closer than that to another (two
-in one base column), it flies on only where its route parts from the other
-*standing* (the other's own motion is not counted on: at the top of a column a
-copter lingers as it turns to its first leg), and in a column only if it leaves
-the column first. A held vehicle in its base column with nothing left to
-photograph, only the column's top before its landing (`lands_here`: a re-plan
-that brought it home as it took off), is flown on by landing from where it
-stands: up to the top it would climb through the one descending above it, each
-waiting on the other for good.
-
-Held vehicles that each wait on another held one (two head-on on one leg, one
-coming down a column the other climbs) would wait for good: a cycle of them
-found on `MIN_HOLD_LOOPS` loops running is `deadlocked`, and the flight re-plans
-them from where they stand (its fleet clock orders who goes first); nothing
-else would free them but a battery running low.
-
-A vehicle a re-plan holds until its own time to fly on (`waiting`) is the re-plan's:
-the guard never holds or resumes it (resumed early, it flew its new route ahead of
-time, and its resume at that time then sent it back to the route's first item in a
-straight line, through a hill), and predicts it standing until then.
-
-Every hold and resume is an event, and `report` gives them with the closest
-approach seen between each pair (from telemetry).
-"""
+"""The separation guard's loop: `SeparationGuard` (see the package doc)."""
 
 import collections
 import threading
@@ -65,6 +12,9 @@ from planner.fleet import Profile, Trajectory, base_columns
 from planner.fleet.columns import Occupied
 from planner.travel import TravelParams
 
+from .fleet import GuardFleet
+from .predict import Frame, exits, halted, parting
+
 #: fleet seconds of look-ahead, beyond the ground station's own reaction time
 HORIZON_S = 8.0
 #: wall seconds from a position report to the vehicle braking on a hold, before any
@@ -72,57 +22,12 @@ HORIZON_S = 8.0
 LATENCY_S = 1.0
 #: a held vehicle flies on only when predicted this many separations clear
 RESUME_FACTOR = 1.2
-#: metres a pair standing too close may close in by rounding and still be parting
-PARTING_SLACK_M = 0.5
 #: wall seconds a re-plan waits for a hold or resume under way
 FORGET_WAIT_S = 15.0
 #: the loops and commands whose wall times are kept (the longest is counted)
 KEPT_TIMES = 32
 #: a held vehicle flies on no sooner than this many of the guard's loops after its hold
 MIN_HOLD_LOOPS = 2
-
-
-def closest_ahead(d0, dv, horizon):
-    """(least distance, after how long) of two straight motions, offset d0 (m) and
-    relative velocity dv (m/s), over [0, horizon] s."""
-    vv = float(np.dot(dv, dv))
-    u = 0.0 if vv <= 1e-12 else min(max(-float(np.dot(d0, dv)) / vv, 0.0), horizon)
-    return float(np.linalg.norm(d0 + u * dv)), u
-
-
-class GuardFleet:
-    """What the guard reads of a flight and asks of its vehicles (a flight's
-    `gcs.flight.holds.Holds`; tests give their own)."""
-
-    def airborne(self) -> list:
-        """The system ids flying now."""
-        return []
-
-    def hold(self, sysid) -> None:
-        """Hold ``sysid`` where it is (its firmware's hold mode)."""
-
-    def resume(self, sysid) -> None:
-        """Fly ``sysid`` on along its route."""
-
-    def on_pad(self, sysid) -> bool:
-        """Touched down at its base, not yet told landed."""
-        return False
-
-    def short(self, sysid) -> bool:
-        """Short of battery: it goes before every other."""
-        return False
-
-    def waiting(self, sysid):
-        """Fleet seconds until a re-plan flies it on, None if it waits for none."""
-        return None
-
-    def lands_here(self, sysid) -> bool:
-        """It may land from where it is (`land`)."""
-        return False
-
-    def land(self, sysid) -> None:
-        """Land it from where it is."""
-        self.resume(sysid)
 
 
 class SeparationGuard:
@@ -211,7 +116,7 @@ class SeparationGuard:
         if self._last_step is not None:
             self._loops.append(now - self._last_step)
         self._last_step = now
-        frame = _Frame(self.monitor, self.fleet.airborne(), self.clock.rate(), self._frame())
+        frame = Frame(self.monitor, self.fleet.airborne(), self.clock.rate(), self._frame())
         if not frame.here:
             return
         self._note_closest(frame)
@@ -254,7 +159,7 @@ class SeparationGuard:
         base, and the guard, which sees only those in the air, found them 3 m apart."""
         if not self.active:
             return None
-        frame = _Frame(self.monitor, [*self.fleet.airborne(), sysid], self.clock.rate(),
+        frame = Frame(self.monitor, [*self.fleet.airborne(), sysid], self.clock.rate(),
                        self._frame())
         if sysid not in frame.here:
             return None             # no position yet: the column rule alone
@@ -264,7 +169,7 @@ class SeparationGuard:
         # looked at until it is out of its base column, and as long after its climb
         # begins as a resume is: the launch's own latency (arming, the spool-up) was
         # 100 s of flight at 100x, and a look that short saw it only on its pad
-        out = max(_exits(Occupied(go, columns)).values(), default=0.0)
+        out = max(exits(Occupied(go, columns)).values(), default=0.0)
         until = max(out, wait_s + RESUME_FACTOR * horizon + self.reaction_s())
         return self._in_way(frame, ahead, sysid, go, until, columns)
 
@@ -371,7 +276,7 @@ class SeparationGuard:
         time (`reaction_s`), then stands there."""
         route = self._route(frame, sysid, self.fleet.waiting(sysid) or 0.0,
                             sysid in self.landing)
-        return _halted(route, self.reaction_s(), horizon)
+        return halted(route, self.reaction_s(), horizon)
 
     def _conflicts(self, frame, ahead, horizon, columns) -> list:
         """(a, b, when, column) of every pair predicted closer than the separation,
@@ -384,7 +289,7 @@ class SeparationGuard:
         for i, a in enumerate(ids):
             for b in ids[i + 1:]:
                 begin, _ = ahead[a].first_conflict(ahead[b], self.separation_m)
-                if begin <= horizon and not (begin == 0.0 and _parting(frame, ahead, a, b)):
+                if begin <= horizon and not (begin == 0.0 and parting(frame, ahead, a, b)):
                     out.append((a, b, begin, False))
                 shared, _ = occupied[a].first_shared(occupied[b])
                 if shared <= horizon:
@@ -435,13 +340,13 @@ class SeparationGuard:
     def _stayer(self, frame, a, b, columns):
         """Of two in one column, the one that leaves it later flying its route (None:
         they are in no column together)."""
-        exits = {s: _exits(Occupied(self._route(frame, s, land=s in self.landing), columns))
+        leave = {s: exits(Occupied(self._route(frame, s, land=s in self.landing), columns))
                  for s in (a, b)}
-        shared = [c for c in range(len(columns)) if c in exits[a] and c in exits[b]]
+        shared = [c for c in range(len(columns)) if c in leave[a] and c in leave[b]]
         if not shared:
             return None
         c = shared[0]
-        return a if exits[a][c] > exits[b][c] else b
+        return a if leave[a][c] > leave[b][c] else b
 
     def _in_way(self, frame, ahead, sysid, go, horizon, columns):
         """The vehicle in the way of ``sysid``'s route from here (``go``), None when
@@ -459,7 +364,7 @@ class SeparationGuard:
             if np.linalg.norm(frame.position(other) - frame.position(sysid)) < room:
                 # the other where it stands, while it is in the air (one landing is not)
                 still = frame.standing(other, min(horizon, ahead[other].end))
-                if not _parting(frame, {sysid: go, other: still}, sysid, other):
+                if not parting(frame, {sysid: go, other: still}, sysid, other):
                     return other
             elif go.first_conflict(ahead[other], room)[0] <= horizon:
                 return other
@@ -548,71 +453,3 @@ def hold_spans(actions, end) -> list:
         elif a["sysid"] in since:
             out.append((a["sysid"], (since.pop(a["sysid"]), a["t_s"])))
     return out + [(s, (t, end)) for s, t in since.items()]
-
-
-def _parting(frame, ahead, a, b) -> bool:
-    """Whether ``a`` and ``b`` never come closer than they stand now."""
-    now = float(np.linalg.norm(frame.position(a) - frame.position(b)))
-    return ahead[a].closest_approach(ahead[b])[0] >= now - PARTING_SLACK_M
-
-
-def _exits(occupied) -> dict:
-    """{column index: when it leaves that column} of a trajectory in a column now."""
-    return {c: float(st[0, 1]) for c, st in enumerate(occupied.stretches)
-            if len(st) and st[0, 0] <= 1e-9}
-
-
-def _halted(trajectory, at_s, until_s) -> Trajectory:
-    """``trajectory`` flown until ``at_s``, then standing where it is until ``until_s``."""
-    t, p = trajectory.t, trajectory.xyz
-    at_s = min(max(at_s, t[0]), t[-1])
-    keep = t < at_s
-    here = np.array([np.interp(at_s, t, p[:, k]) for k in range(3)])
-    times = np.r_[t[keep], at_s, max(until_s, at_s + 1e-3)]
-    points = np.vstack([p[keep], here, here])
-    return Trajectory(times, points, np.ones(len(times) - 1, bool))
-
-
-class _Frame:
-    """The airborne vehicles now, on one local frame (`common.geo.LocalFrame`: metres
-    east, north, up), each reported position carried forward to now at its
-    reported velocity."""
-
-    def __init__(self, monitor, sysids, rate, local):
-        self.local = local
-        self.unheard = set()      # out of contact: placed where its plan has it
-        mono = time.monotonic()
-        ids, points, moved = [], [], []
-        for sysid in sysids:
-            s = monitor.links[sysid].state
-            if s.lat is None or s.velocity is None or s.position_at is None:
-                continue
-            planned = monitor.planned_position(sysid)
-            if planned is not None:     # out of contact, as planned: it flies its plan
-                points.append(planned)
-                moved.append(np.zeros(3))
-                self.unheard.add(sysid)
-            else:
-                north, east, up = s.velocity
-                points.append((s.lon, s.lat, s.alt_amsl))
-                moved.append(np.array([east, north, up]) * (mono - s.position_at) * rate)
-            ids.append(sysid)
-        # one projection for all: each call lets go of the interpreter, and getting it
-        # back behind the simulator's and the links' threads took a millisecond or more
-        self._p = dict(zip(ids, self.project(points) + np.array(moved).reshape(-1, 3)))
-
-    @property
-    def here(self) -> list:
-        return list(self._p)
-
-    def position(self, sysid) -> np.ndarray:
-        return self._p[sysid]
-
-    def project(self, points) -> np.ndarray:
-        return self.local.project(points) if len(points) else np.zeros((0, 3))
-
-    def standing(self, sysid, horizon) -> Trajectory:
-        """Held where it is for the horizon."""
-        p = self._p[sysid]
-        return Trajectory(np.array([0.0, max(horizon, 1e-3)]), np.array([p, p]),
-                          np.ones(1, bool))
