@@ -129,7 +129,7 @@ def test_plans_or_refuses_in_the_users_terms(tmp_path_factory, capsys, kind, see
                          [(w + fx * (e - w), s + fy * (n - s)) for fx, fy in posts])
     argv = ["plan", "--dem", str(dem), "--outposts", str(outposts), "--uavs", "3",
             "--k", str(k), "--method", method, "--sensor-range", "700",
-            "--viewpoint-spacing", "200", "--time-budget", "0.2", "-o", str(tmp / "out")]
+            "--viewpoint-spacing", "200", "-o", str(tmp / "out")]
     area = (s, w, n, e) if kind == "hgt" else None
     if area:
         argv += ["--area", ",".join(map(str, area))]
