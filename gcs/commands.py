@@ -309,6 +309,7 @@ class _StartRun:
         self.climb_timeout_s, self.retries = climb_timeout_s, retries
         self.ready_by = ready_by            # until then a refused arming is tried again
         self.armed_at = None
+        self.arming_mode = None             # the mode it was put in to arm and lift off
 
     def check(self) -> None:
         if self.cancel is not None and self.cancel.is_set():
@@ -326,6 +327,8 @@ class _StartRun:
 
     def mode(self, name) -> None:
         set_mode(self.link, name, retries=self.retries)
+        if self.armed_at is None:
+            self.arming_mode = name
 
     def arm(self, _=None) -> None:
         """Arm; refused (PX4 reports no pre-arm bit, so readiness is its arming
@@ -393,6 +396,12 @@ class _StartRun:
                 # station may take between the arming and the takeoff): arm again
                 if attempt + 1 == TAKEOFF_ATTEMPTS or not self._disarmed_on_the_ground():
                     raise
+                # in its takeoff mode again: a failsafe in the climb may have brought
+                # it down in another (real ArduPilot SITL: a GCS failsafe in the GUIDED
+                # climb, SmartRTL back to the pad, then "Arm: SMARTRTL mode not
+                # armable" until the start gave up)
+                if self.arming_mode is not None:
+                    self.mode(self.arming_mode)
                 self.arm()
 
     def _send_takeoff(self, climb) -> None:

@@ -436,6 +436,33 @@ def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened
     assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0
 
 
+def test_a_vehicle_a_failsafe_brought_down_in_its_climb_arms_in_its_takeoff_mode_again(
+        opened, monkeypatch):
+    """Real ArduPilot SITL: a GCS failsafe in the GUIDED takeoff climb (no mission
+    to continue yet) flew SmartRTL back to the pad, where it disarmed; the start
+    armed again in SMART_RTL, "Arm: SMARTRTL mode not armable", until it gave up.
+    Now it is put in its takeoff mode (GUIDED) again before it arms."""
+    fleet, link = opened(fleet_config("ardupilot", 1, speedup=20.0))
+    vehicle = link.vehicles[1]
+    mp.upload_verified(vehicle, sendable(mission_for("ardupilot", 1)))
+    arm, armed = commands._StartRun.arm, []
+
+    def arm_then_failsafe(run, _=None):
+        arm(run, _)
+        armed.append(run.armed_at)
+        if len(armed) == 1:         # the failsafe's mode, down on the pad: it disarms
+            fleet.vehicle(1).mode = "SMART_RTL"
+            deadline = time.monotonic() + 10
+            while not commands._disarmed_since(vehicle, run.armed_at):
+                assert time.monotonic() < deadline, "the vehicle did not disarm itself"
+                time.sleep(0.05)
+
+    monkeypatch.setattr(commands._StartRun, "arm", arm_then_failsafe)
+    commands.start_mission(vehicle, ALT)
+    assert len(armed) == 2
+    assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0
+
+
 def test_an_item_sent_twice_is_said_out_of_order_and_the_upload_goes_on(opened, monkeypatch):
     """ArduPilot answers an item it is not asking for now with MISSION_ACK
     INVALID_SEQUENCE and keeps the transfer open (MissionItemProtocol::
