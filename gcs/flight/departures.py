@@ -19,12 +19,12 @@ the ground (t = 0: the first takeoff), and a vehicle seen leaving later than
 planned (arming, a slow spool-up) puts every takeoff after it as much later, so
 that the plan's spacing is kept (on real ArduPilot SITL a liftoff came 7 s of
 flight after the one before instead of the planned 15, timed from the commands).
-That slip stays with
-the takeoffs yet to be scheduled too (the next sorties of vehicles down for their
-swap), and no takeoff goes before one planned earlier: the plan's separation is
-proven in its order and spacing of takeoffs. Three vehicles late back from their
-battery swaps once went in the order they were ready, out of the plan's, and the
-guard held two of them for each other until their batteries ran out.
+That slip stays with the takeoffs yet to be scheduled too (the next sorties of
+vehicles down for their swap), and no takeoff goes before one planned earlier:
+the plan's separation is proven in its order and spacing of takeoffs. Three
+vehicles late back from their battery swaps once went in the order they were
+ready, out of the plan's, and the guard held two of them for each other until
+their batteries ran out.
 """
 
 import collections
