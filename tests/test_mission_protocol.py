@@ -413,10 +413,16 @@ def mission_for_route(r, firmware):
     return vehicle_mission(r, firmware, MissionOptions(speed_mps=8.0)).items
 
 
-def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened, monkeypatch):
+@pytest.mark.parametrize("failsafe_mode", [None, "SMART_RTL"])
+def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened, monkeypatch,
+                                                                        failsafe_mode):
     """ArduPilot disarms itself idle on the ground (DISARM_DELAY, 10 s of its time: a
     fraction of a wall second at a high --speedup, as CI once met). A takeoff that
-    comes after that is refused; the start arms again and retries, once."""
+    comes after that is refused; the start arms again and retries, once. Brought
+    down in another mode (real ArduPilot SITL: a GCS failsafe in the GUIDED takeoff
+    climb, no mission to continue yet, flew SmartRTL back to the pad, where it
+    disarmed; the start armed again in SMART_RTL, "Arm: SMARTRTL mode not armable",
+    until it gave up), it is put in its takeoff mode (GUIDED) again first."""
     fleet, link = opened(fleet_config("ardupilot", 1, speedup=20.0))
     vehicle = link.vehicles[1]
     mp.upload_verified(vehicle, sendable(mission_for("ardupilot", 1)))
@@ -425,39 +431,14 @@ def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened
     def arm_then_idle(run, _=None):
         arm(run, _)
         armed.append(run.armed_at)
+        if len(armed) == 1 and failsafe_mode:
+            fleet.vehicle(1).mode = failsafe_mode
         deadline = time.monotonic() + 10
         while len(armed) == 1 and not commands._disarmed_since(vehicle, run.armed_at):
             assert time.monotonic() < deadline, "the vehicle did not disarm itself"
             time.sleep(0.05)
 
     monkeypatch.setattr(commands._StartRun, "arm", arm_then_idle)
-    commands.start_mission(vehicle, ALT)
-    assert len(armed) == 2
-    assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0
-
-
-def test_a_vehicle_a_failsafe_brought_down_in_its_climb_arms_in_its_takeoff_mode_again(
-        opened, monkeypatch):
-    """Real ArduPilot SITL: a GCS failsafe in the GUIDED takeoff climb (no mission
-    to continue yet) flew SmartRTL back to the pad, where it disarmed; the start
-    armed again in SMART_RTL, "Arm: SMARTRTL mode not armable", until it gave up.
-    Now it is put in its takeoff mode (GUIDED) again before it arms."""
-    fleet, link = opened(fleet_config("ardupilot", 1, speedup=20.0))
-    vehicle = link.vehicles[1]
-    mp.upload_verified(vehicle, sendable(mission_for("ardupilot", 1)))
-    arm, armed = commands._StartRun.arm, []
-
-    def arm_then_failsafe(run, _=None):
-        arm(run, _)
-        armed.append(run.armed_at)
-        if len(armed) == 1:         # the failsafe's mode, down on the pad: it disarms
-            fleet.vehicle(1).mode = "SMART_RTL"
-            deadline = time.monotonic() + 10
-            while not commands._disarmed_since(vehicle, run.armed_at):
-                assert time.monotonic() < deadline, "the vehicle did not disarm itself"
-                time.sleep(0.05)
-
-    monkeypatch.setattr(commands._StartRun, "arm", arm_then_failsafe)
     commands.start_mission(vehicle, ALT)
     assert len(armed) == 2
     assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0
