@@ -309,7 +309,6 @@ class _StartRun:
         self.climb_timeout_s, self.retries = climb_timeout_s, retries
         self.ready_by = ready_by            # until then a refused arming is tried again
         self.armed_at = None
-        self.arming_mode = None             # the mode it was put in to arm and lift off
 
     def check(self) -> None:
         if self.cancel is not None and self.cancel.is_set():
@@ -327,8 +326,6 @@ class _StartRun:
 
     def mode(self, name) -> None:
         set_mode(self.link, name, retries=self.retries)
-        if self.armed_at is None:
-            self.arming_mode = name
 
     def arm(self, _=None) -> None:
         """Arm; refused (PX4 reports no pre-arm bit, so readiness is its arming
@@ -396,12 +393,7 @@ class _StartRun:
                 # station may take between the arming and the takeoff): arm again
                 if attempt + 1 == TAKEOFF_ATTEMPTS or not self._disarmed_on_the_ground():
                     raise
-                # in its takeoff mode again: a failsafe in the climb may have brought
-                # it down in another (real ArduPilot SITL: a GCS failsafe in the GUIDED
-                # climb, SmartRTL back to the pad, then "Arm: SMARTRTL mode not
-                # armable" until the start gave up)
-                if self.arming_mode is not None:
-                    self.mode(self.arming_mode)
+                self._not_brought_down_by_a_failsafe()
                 self.arm()
 
     def _send_takeoff(self, climb) -> None:
@@ -413,6 +405,17 @@ class _StartRun:
             # because the takeoff is already under way
             if exc.result is None or not _climbing(self.link):
                 raise
+
+    def _not_brought_down_by_a_failsafe(self) -> None:
+        """Down and disarmed in a failsafe's mode, the vehicle climbed and came back
+        on its own: the flight has judged it down (a return, or a crash), so it is not
+        sent up again here. (Real ArduPilot SITL: a GCS failsafe in the GUIDED takeoff
+        climb, where FS_OPTIONS has no "continue", flew SmartRTL back to the pad; the
+        re-arm then met "Arm: SMARTRTL mode not armable" until the ready timeout.)"""
+        mode = self.link.state.mode
+        if mode in self.profile.failsafe_modes:
+            raise CommandError(self.link, f"a failsafe brought it back down in {mode} during "
+                                          "its takeoff climb: not started again")
 
     def _disarmed_on_the_ground(self) -> bool:
         return _disarmed_since(self.link, self.armed_at) and \

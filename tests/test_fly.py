@@ -609,6 +609,14 @@ def test_takeoffs_keep_the_plans_order_however_late_the_vehicles_are_ready():
     vehicles[3].state = LOST
     d.due()
     assert sent == [1, 2]
+    # one whose swap the operator leaves unconfirmed past its time is not waited for
+    vehicles[3].state, later[1] = LANDED, [(0.0, part(4000.0))]
+    d.launch(3, 4500.0, part(4500.0))
+    d.due()
+    assert sent == [1, 2]
+    d.awaits_operator = lambda sysid: sysid == 1
+    d.due()
+    assert sent == [1, 2, 3]
 
 
 @pytest.mark.parametrize("text,failsafe", [

@@ -419,10 +419,11 @@ def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened
     """ArduPilot disarms itself idle on the ground (DISARM_DELAY, 10 s of its time: a
     fraction of a wall second at a high --speedup, as CI once met). A takeoff that
     comes after that is refused; the start arms again and retries, once. Brought
-    down in another mode (real ArduPilot SITL: a GCS failsafe in the GUIDED takeoff
-    climb, no mission to continue yet, flew SmartRTL back to the pad, where it
-    disarmed; the start armed again in SMART_RTL, "Arm: SMARTRTL mode not armable",
-    until it gave up), it is put in its takeoff mode (GUIDED) again first."""
+    down in a failsafe's mode (real ArduPilot SITL: a GCS failsafe in the GUIDED
+    takeoff climb, no mission to continue yet, flew SmartRTL back to the pad, where
+    it disarmed; the start armed again in SMART_RTL, "Arm: SMARTRTL mode not
+    armable", until its ready timeout), the start fails at once and says why: the
+    flight has judged the vehicle down, and one sent up again flew unwatched."""
     fleet, link = opened(fleet_config("ardupilot", 1, speedup=20.0))
     vehicle = link.vehicles[1]
     mp.upload_verified(vehicle, sendable(mission_for("ardupilot", 1)))
@@ -439,6 +440,12 @@ def test_a_vehicle_that_disarmed_itself_before_the_takeoff_is_armed_again(opened
             time.sleep(0.05)
 
     monkeypatch.setattr(commands._StartRun, "arm", arm_then_idle)
+    if failsafe_mode:
+        with pytest.raises(commands.CommandError, match="a failsafe brought it back down in "
+                                                        "SMART_RTL during its takeoff climb"):
+            commands.start_mission(vehicle, ALT)
+        assert len(armed) == 1 and not fleet.vehicle(1).armed
+        return
     commands.start_mission(vehicle, ALT)
     assert len(armed) == 2
     assert fleet.vehicle(1).armed and (vehicle.state.relative_alt or 0.0) > 1.0

@@ -98,6 +98,10 @@ class Departures:
         # (sysid, fleet s before it climbs) -> the airborne vehicle in the way of its
         # takeoff, or None (`SeparationGuard.in_way_of_takeoff`; None: no guard)
         self.in_way = None
+        # sysid -> whether it waits for the operator's word on its battery swap
+        # (`Batteries.swap_awaited`; never, without one)
+        self.awaits_operator = lambda sysid: False
+        self._replanned_at = -math.inf  # monitor s of the last re-plan's call-off
         self._frame, self._columns = None, None     # the plan's base columns, once
 
     def __contains__(self, sysid) -> bool:
@@ -139,7 +143,7 @@ class Departures:
         next sortie uploaded, its takeoff time not yet come, stays down), and every
         start sequence under way is stopped; its schedule starts from now, no slip."""
         m = self.state.monitor
-        self.slip_s = 0.0
+        self.slip_s, self._replanned_at = 0.0, m.now()
         for sysid in list(self.pending):
             del self.pending[sysid]
             m.call_off(sysid)
@@ -271,17 +275,18 @@ class Departures:
         for sysid, (begun, due, _) in list(self._launched.items()):
             v = m.vehicles[sysid]
             if v.state == LOST:
-                del self._launched[sysid]
+                self._launched.pop(sysid, None)     # (a failed start's thread pops too)
                 continue
             if v.lifted_at_s is None or v.lifted_at_s < begun:
                 continue
-            del self._launched[sysid]
+            self._launched.pop(sysid, None)
             rate = clock.rate()
             ago = (m.now() - v.lifted_at_s) * rate      # fleet s since it lifted off
             if not clock.started:
                 clock.start(due + ago)
             self._latencies.append((v.lifted_at_s - begun) * rate)
-            self._slipped(sysid, clock.now() - ago - due)
+            if begun >= self._replanned_at:     # late on a schedule a re-plan replaced
+                self._slipped(sysid, clock.now() - ago - due)
 
     def _slipped(self, sysid, late_s) -> None:
         """``sysid`` left the ground ``late_s`` fleet seconds after its planned time:
@@ -300,20 +305,25 @@ class Departures:
 
     def _in_turn(self, sysid, d) -> bool:
         """No other vehicle's takeoff planned before ``d`` is yet to come: pending, sent
-        and not seen up, or the next sortie of one flying or down for its swap."""
-        m = self.state.monitor
-        for other, v in m.vehicles.items():
+        and not seen up, or the next sortie of one flying or down for its swap; but
+        not one whose swap the operator has left unconfirmed past its time (a pack
+        kept out would hold every takeoff after it for good)."""
+        m, now = self.state.monitor, self.state.clock.now()
+        for other, v in list(m.vehicles.items()):
             if other == sysid or v.state in (LOST, STRANDED):
                 continue
-            if other in self.pending:
-                first = self.pending[other]
+            first, sent = self.pending.get(other), self._launched.get(other)
+            if first is not None:
                 planned = first.planned if first.kind == "launch" else math.inf
-            elif other in self._launched:
-                planned = self._launched[other][2]
+            elif sent is not None:
+                planned = sent[2]
             else:
                 parts = self.state.later.get(other) or [(0.0, None)]
                 offset, route = parts[0]
                 planned = math.inf if route is None else offset + route.takeoff_s
+                if now is not None and planned + self.slip_s < now and \
+                        self.awaits_operator(other):
+                    continue
             if planned < d.planned:
                 return self._wait_for(sysid, other, "takes off before it in the plan")
         return True
@@ -333,6 +343,7 @@ class Departures:
             if not self._column_clear(sysid, route):
                 return False
             self._lifting[sysid] = route.launch
+            self._waiting_for.pop(sysid, None)
             return True
 
     def _column_clear(self, sysid, route) -> bool:

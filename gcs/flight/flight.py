@@ -99,6 +99,7 @@ class Flight:
         self.departures = Departures(self.state)
         self.batteries = Batteries(self.state, self.departures.waiting_s)
         self.departures.on_liftoff.append(self.batteries.lifted)
+        self.departures.awaits_operator = self.batteries.swap_awaited
         self.segments = Segments(monitor, options.protocol, options.max_items)
         self.holds = Holds(self.state, self.segments, self.batteries.short,
                            self.departures.waiting_s)

@@ -31,7 +31,7 @@ MIN_HOLD_LOOPS = 2
 
 
 class SeparationGuard:
-    """Holds and resumes vehicles of one flight (see the module doc).
+    """Holds and resumes vehicles of one flight (see the package doc, `gcs.guard`).
 
     ``priority[sysid]``: 1 has right of way; ``clock``: the flight's
     `gcs.clock.FleetClock`; ``fleet``: the flight's `GuardFleet`; ``travel``: the
