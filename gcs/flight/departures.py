@@ -313,17 +313,21 @@ class Departures:
             if other == sysid or v.state in (LOST, STRANDED):
                 continue
             first, sent = self.pending.get(other), self._launched.get(other)
+            parts = self.state.later.get(other)
             if first is not None:
-                planned = first.planned if first.kind == "launch" else math.inf
+                if first.kind != "launch":
+                    continue                # a resume is in the air already
+                planned = first.planned
             elif sent is not None:
                 planned = sent[2]
-            else:
-                parts = self.state.later.get(other) or [(0.0, None)]
+            elif parts:
                 offset, route = parts[0]
-                planned = math.inf if route is None else offset + route.takeoff_s
+                planned = offset + route.takeoff_s
                 if now is not None and planned + self.slip_s < now and \
                         self.awaits_operator(other):
                     continue
+            else:
+                continue                    # no takeoff of its own to come
             if planned < d.planned:
                 return self._wait_for(sysid, other, "takes off before it in the plan")
         return True
