@@ -255,11 +255,13 @@ def loss_latency(result, sysid) -> float:
 
 
 def assert_prompt_loss(result, sysid) -> None:
-    """The loss is declared ``lost_after_s`` after the last HEARTBEAT the ground
+    """The loss is declared ``lost_after_s`` after the last message the ground
     station read, not counting the time the ground station itself stood still
     (``stalled_s``: starved by a busy machine, it heard nobody), give or take 2 s
-    (its loop), and that HEARTBEAT came within a heartbeat period or so of the
-    kill (the kill is asked by the test and done by the simulator's next step)."""
+    (its loop), and at most 3 s later than that after the kill the test asked (done
+    by the simulator's next step). Its last HEARTBEAT may be older than its last
+    message: one heard again for a moment at the end of a radio shadow (a burst of
+    reached items, which sets off the test's kill) sent no HEARTBEAT in it."""
     report = result["report"]
     loss = next(x for x in report["losses"] if x["sysid"] == sysid)
     if loss["reason"].startswith("overdue"):
@@ -267,8 +269,9 @@ def assert_prompt_loss(result, sysid) -> None:
         # until it is overdue (how late, tests/test_link_flight.py judges)
         assert loss["due_s"] is not None and loss["detected_s"] >= loss["due_s"]
         return
-    assert loss["detected_s"] - loss["last_heartbeat_s"] - loss["stalled_s"] \
-        <= report["lost_after_s"] + 2.0
+    silence = loss["detected_s"] - loss["last_heard_s"] - loss["stalled_s"]
+    assert report["lost_after_s"] - 0.01 <= silence <= report["lost_after_s"] + 2.0
+    assert loss["last_heartbeat_s"] <= loss["last_heard_s"]
     assert loss_latency(result, sysid) - loss["stalled_s"] <= report["lost_after_s"] + 3.0
 
 

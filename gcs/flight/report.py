@@ -32,7 +32,8 @@ def report(flight) -> dict:
     m = flight.monitor
     vehicles = [_vehicle_report(flight, v) for _, v in sorted(m.vehicles.items())]
     losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
-               "last_heartbeat_s": v.last_heartbeat_s, "reason": v.lost_reason,
+               "last_heartbeat_s": v.last_heartbeat_s, "last_heard_s": v.last_heard_s,
+               "reason": v.lost_reason,
                "due_s": next((s["due_s"] for s in v.silences if s["to_s"] is None), None),
                "stalled_s": v.lost_stalled_s}
               for _, v in sorted(m.vehicles.items()) if v.state == LOST]

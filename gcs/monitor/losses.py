@@ -115,6 +115,7 @@ class Losses:
                 if age - stalled > (max(self.swap_silence_s, self.lost_after_s) if swap
                                     else self.lost_after_s):
                     v.lost_stalled_s = round(stalled, 3)
+                    v.last_heard_s = round(self.now() - age, 3)
                     self._lose(v, f"nothing heard for {age:.1f} s"
                                   + (" since it landed for its battery swap" if swap else ""),
                                silence=True)

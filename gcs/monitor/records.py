@@ -73,6 +73,7 @@ class VehicleProgress:
     lost_at_s: float | None = None
     lost_reason: str | None = None
     lost_stalled_s: float = 0.0  # of its silence, the time this ground station stood still
+    last_heard_s: float | None = None  # of a silent loss: when anything was last heard
     last_heartbeat_s: float | None = None
     landed_at_s: float | None = None
     disarmed_at_s: float | None = None  # disarmed after flying: landed or fell?
