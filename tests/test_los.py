@@ -5,7 +5,13 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from sampled_sight import sampled_lowest
 
-from planner.exposure.los import EARTH_RADIUS_M, lowest_visible_altitude, next_patch, sees
+from planner.exposure.los import (
+    EARTH_RADIUS_M,
+    gap_range,
+    lowest_visible_altitude,
+    next_patch,
+    sees,
+)
 from planner.terrain import bilinear
 
 CELL = 30.0
@@ -109,3 +115,46 @@ def test_a_changed_source_gets_kernels_compiled_anew(tmp_path):
     los = copy / "exposure" / "los.py"
     los.write_text(los.read_text() + "\n# changed\n")
     assert folder() != before
+
+
+def _walk(u0, v0, u1, v1, rows, cols) -> int:
+    """Steps of `next_patch` along the line, each one forward."""
+    t, steps = 0.0, 0
+    while t < 1.0:
+        t_next = next_patch(u0, v0, u1 - u0, v1 - v0, t, rows, cols)[2]
+        assert t_next > t
+        t, steps = t_next, steps + 1
+        assert steps <= cols + rows + 2
+    return steps
+
+
+# a grid coordinate a waypoint rounded for MAVLink lands on: a whole cell give or
+# take a few 1e-12 (its latitude and longitude in 1e-7 degrees, projected back)
+on_a_grid_line = st.tuples(st.integers(1, 28), st.floats(-1e-11, 1e-11))
+
+
+@settings(max_examples=200, deadline=None)
+@given(u=on_a_grid_line, v=st.floats(1, 22), length=st.integers(-6, 6),
+       drift=st.floats(-1e-11, 1e-11), z=st.tuples(st.floats(0, 300), st.floats(0, 300)),
+       seed=st.integers(0, 3), swap=st.booleans())
+def test_a_line_along_a_grid_line_is_walked_cell_by_cell(u, v, length, drift, z, seed, swap):
+    """A leg all but along a grid line (one between two rounded waypoints) moved too
+    little in the walk's nudge to leave the cell it was crossing out of: it was
+    walked in steps of 1e-9 (300,000 for one leg of a `gcs bases` run, 20 ms each).
+    Now it crosses each grid line once, and its lowest and highest height above
+    the ground are those of dense sampling of the bilinear ground."""
+    rows, cols = 24, 30
+    u0 = u[0] + u[1]
+    a, b = (u0, v), (u0 + drift, min(max(v + length, 0.5), rows - 1.5))
+    if swap:        # along a column or along a row
+        a, b = a[::-1], b[::-1]
+        rows, cols = cols, rows
+    _walk(*a, *b, rows, cols)
+    h = np.random.default_rng(seed).random((rows, cols)) * 100.0
+    lo, hi = gap_range(h, a[0], a[1], z[0], b[0], b[1], z[1], False)
+    t = np.linspace(0.0, 1.0, 4001)
+    ground = bilinear(h, a[1] + t * (b[1] - a[1]), a[0] + t * (b[0] - a[0]))
+    gap = z[0] + t * (z[1] - z[0]) - ground
+    # sampling finds the extremes up to its spacing (an extreme between samples)
+    assert gap.min() - 0.2 <= lo <= gap.min() + 1e-6
+    assert gap.max() - 1e-6 <= hi <= gap.max() + 0.2

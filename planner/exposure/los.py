@@ -41,6 +41,19 @@ def next_patch(u0, v0, du, dv, t, n_rows, n_cols):
     tm = min(t + 1e-9, 1.0)
     iu = int(math.floor(u0 + tm * du))
     jv = int(math.floor(v0 + tm * dv))
+    # A line all but along a grid line (a rounded waypoint: dv of 6e-12 cells over
+    # the leg) moves too little in the nudge to leave the cell it is crossing out of
+    # by float arithmetic, while its crossing is already behind t: it is in the next
+    # cell. Read from the nudged point alone, it was walked in steps of 1e-9 (300,000
+    # for one leg, 20 ms: `gcs bases` spent minutes on such legs)
+    if du > 0.0 and (iu + 1 - u0) / du <= t:
+        iu += 1
+    elif du < 0.0 and (iu - u0) / du <= t:
+        iu -= 1
+    if dv > 0.0 and (jv + 1 - v0) / dv <= t:
+        jv += 1
+    elif dv < 0.0 and (jv - v0) / dv <= t:
+        jv -= 1
     i = min(max(iu, 0), n_cols - 2)
     j = min(max(jv, 0), n_rows - 2)
     # Off the grid the edge patch extends to infinity on its outer side: a line
