@@ -465,6 +465,7 @@ class Retasker:
 
     def _step(self, sysids, fn) -> None:
         """fn on every survivor at once; a failure of a vehicle found lost restarts."""
+        since = self.monitor.now()
         errors = in_parallel(fn, sysids, self.monitor)
         newly = self.monitor.check_losses()
         failed = {s: e for s, e in errors.items() if e is not None}
@@ -472,8 +473,11 @@ class Retasker:
         if gone or newly:
             raise _LostDuring(sorted(set(gone) | set(newly)))
         # gone into a predicted radio shadow meanwhile: it flies its plan, the others
-        # are re-planned without it (it may have taken the command: said by the event)
-        quiet = [s for s in failed if self.monitor.planned_at(s) is not None]
+        # are re-planned without it (it may have taken the command: said by the event);
+        # one back out of it just as the command's tries ran out (a shadow of 9 s, the
+        # tries' 9 s) is re-planned afresh, with its new position, not a failed flight
+        quiet = [s for s in failed if self.monitor.planned_at(s) is not None
+                 or _silent_since(self.monitor.vehicles[s], since)]
         if quiet:
             raise _LostDuring(quiet, "out of contact")
         if failed:
@@ -498,6 +502,12 @@ class Retasker:
         profile = commands.autopilot(link)
         commands.set_current(link, profile.first_item, retries=retries)
         commands.set_mode(link, profile.mission_mode, retries=retries)
+
+
+def _silent_since(v, t_s) -> bool:
+    """Whether vehicle record ``v`` was out of contact as planned at some time after
+    ``t_s`` (a predicted silence not over by then)."""
+    return any(x["to_s"] is None or x["to_s"] >= t_s for x in v.silences)
 
 
 class _LostDuring(Exception):

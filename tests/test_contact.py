@@ -299,3 +299,48 @@ def test_a_crashed_vehicle_heard_again_is_not_taken_back():
     monitor, v = _declared_lost(silence=False)
     assert v.state == LOST and monitor.take_rejoined() == [] and not v.rejoins
     assert any("bring it home by hand" in e["event"] for e in monitor.events)
+
+
+class _Quiet:
+    """A monitor whose vehicle 1 was out of contact as planned from 10 to ``back_s``
+    (heard again at ``back_s``, None: not yet), and whose vehicle 2 never was."""
+
+    def __init__(self, back_s):
+        from types import SimpleNamespace
+        self.t = 12.0
+        self.vehicles = {1: SimpleNamespace(state="flying", silences=[
+                             {"from_s": 10.0, "to_s": back_s}]),
+                         2: SimpleNamespace(state="flying", silences=[])}
+
+    def now(self):
+        return self.t
+
+    def check_losses(self):
+        return []
+
+    def planned_at(self, sysid):
+        return 500.0 if sysid == 1 and self.vehicles[1].silences[0]["to_s"] is None else None
+
+
+@pytest.mark.parametrize("back_s", [None, 20.0])
+def test_a_command_that_fails_in_a_predicted_shadow_restarts_the_re_plan(back_s):
+    """A hold sent as the vehicle entered a predicted shadow gets no answer for all its
+    tries (9 s); heard again just as they ran out, it is no longer out of contact.
+    CI's re-plan then failed the whole flight ('no COMMAND_ACK for MAV_CMD_DO_SET_MODE
+    after 6 tries'): now the re-tasking starts again, as for one still out of contact,
+    and a vehicle that was heard all along and refused still fails it."""
+    from gcs.retask import Retasker, RetaskError, _LostDuring
+
+    monitor = _Quiet(back_s)
+    retasker = Retasker.__new__(Retasker)
+    retasker.monitor = monitor
+
+    def hold(sysid):
+        monitor.t = 21.0                  # the tries' time: heard again meanwhile
+        raise TimeoutError("no COMMAND_ACK for MAV_CMD_DO_SET_MODE after 6 tries")
+
+    with pytest.raises(_LostDuring) as quiet:
+        retasker._step([1], hold)
+    assert quiet.value.what == "out of contact" and quiet.value.sysids == [1]
+    with pytest.raises(RetaskError, match="vehicle 2"):
+        retasker._step([2], hold)

@@ -13,7 +13,7 @@ import numpy as np
 import places_reference as ref
 import pytest
 from exhaustive import CASES, exhaustive_optimum, tiny
-from hypothesis import given, settings
+from hypothesis import example, given, settings
 from hypothesis import strategies as st
 
 from planner.coverage import METHODS, CoverageProblem, lower_bound, solve
@@ -231,9 +231,12 @@ def test_route_bound_on_subsets_never_exceeds_the_exhaustive_optimum(monkeypatch
 
 @settings(max_examples=60, deadline=None)
 @given(st.integers(1, 7), st.booleans(), st.floats(0.0, 1.5), st.integers(0, 2**31 - 1))
+@example(6, True, 1.0, 0)           # CI's: the full set's least time the horizon itself
 def test_the_route_sets_within_a_horizon_are_every_such_set(m, has_start, frac, seed):
     """`feasible_sets` against every ordering of every subset: the same sets, the
-    same least times, sizes; too many sets say so."""
+    same least times, sizes; too many sets say so. A set whose least time is the
+    horizon itself, to the last bit (frac = 1: the largest), may go either way: the
+    kernel sums its legs in another order (CI once found the full set 1 ulp over)."""
     rng = np.random.default_rng(seed)
     travel = rng.uniform(1.0, 10.0, (m, m))  # asymmetric, not closed
     start = rng.uniform(0.0, 10.0, m)
@@ -245,14 +248,17 @@ def test_the_route_sets_within_a_horizon_are_every_such_set(m, has_start, frac, 
             mask = sum(1 << i for i in order)
             times[mask] = min(times.get(mask, np.inf), t)
     horizon = frac * max(times.values())
-    want = {mask: t for mask, t in times.items() if t <= horizon}
+    tie = 1e-12 * max(horizon, 1.0)
+    must = {mask for mask, t in times.items() if t <= horizon - tie}
+    may = {mask for mask, t in times.items() if t <= horizon + tie}
     masks, found, sizes, ok = feasible_sets(travel, start, has_start, horizon, 1 << m)
-    assert ok and sorted(masks.tolist()) == sorted(want)
+    got = set(masks.tolist())
+    assert ok and len(got) == len(masks) and must <= got <= may
     for mask, t, size in zip(masks, found, sizes):
-        assert t == pytest.approx(want[int(mask)], rel=1e-12)
+        assert t == pytest.approx(times[int(mask)], rel=1e-12)
         assert size == int(mask).bit_count()
-    if len(want) > 1:
-        assert not feasible_sets(travel, start, has_start, horizon, len(want) - 1)[3]
+    if len(got) > 1:
+        assert not feasible_sets(travel, start, has_start, horizon, len(got) - 1)[3]
 
 
 @pytest.mark.parametrize("seed", [1002, 1007, 1012, 1019])
