@@ -44,6 +44,9 @@ MAX_CANDIDATES = 200
 #: checked bases per reported one: the quick estimate orders the checks, the exact
 #: bound of the checked ones decides the ranking
 CHECKED_PER_BASE = 2
+#: decimals of a base's latitude and longitude as said and as `gcs plan --launch`
+#: takes them (0.1 m)
+LAUNCH_DECIMALS = 6
 
 Progress = Callable[[str, float], None]
 
@@ -70,7 +73,7 @@ class Base:
     @property
     def launch_arg(self) -> str:
         """What to give ``gcs plan --launch``."""
-        return f"{self.lat:.6f},{self.lon:.6f}"
+        return f"{self.lat:.{LAUNCH_DECIMALS}f},{self.lon:.{LAUNCH_DECIMALS}f}"
 
 
 @dataclass
@@ -224,7 +227,9 @@ def checked_start(ctx: PlanningContext, x: float, y: float):
     there and plans in this same context, else None. The check is the planner's:
     `launch_starts` on the scenario with this launch point."""
     lon, lat = ctx.terrain.to_lonlat(x, y)
-    lat, lon = float(lat), float(lon)
+    # the point `gcs plan` takes from `Base.launch_arg` (6 decimals), not 5 cm off:
+    # the reach said is that of its takeoff column and of the paths out of its top
+    lat, lon = round(float(lat), LAUNCH_DECIMALS), round(float(lon), LAUNCH_DECIMALS)
     trial = replace(ctx, scenario=replace(ctx.scenario, launch=[(lat, lon)]))
     # a plan from here must plan in this context (else its targets differ): the cell
     # in the fleet's region, and (below) the top reaching the viewpoints and reached

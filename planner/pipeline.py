@@ -26,7 +26,7 @@ import math
 import time
 import warnings
 from contextlib import contextmanager
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Callable, Optional
 
 import numpy as np
@@ -349,13 +349,20 @@ class SearchRequest:
     scheduler: object                  # where plans in parts run (see `prepare`)
     log: Optional[Callable]
 
+    trips: dict = field(default_factory=dict, compare=False)   # of the first problem
+
     def problem(self, scale, travel=True) -> coverage.CoverageProblem:
         """The coverage problem on the battery ``scale``d (`planner.problem._battery`);
-        ``travel`` False: without the viewpoint times (a plan in parts)."""
+        ``travel`` False: without the viewpoint times (a plan in parts). Its
+        one-viewpoint sorties as flown are found once (they do not scale)."""
         s = self.ctx.scenario
-        return coverage_problem(self.ctx, self.n_uavs, self.starts, s.k, s.visibility,
-                                self.seen, self.required, travel=travel,
-                                visited=self.visited, battery_scale=scale)
+        problem = coverage_problem(self.ctx, self.n_uavs, self.starts, s.k, s.visibility,
+                                   self.seen, self.required, travel=travel,
+                                   visited=self.visited, battery_scale=scale,
+                                   trips=self.trips or None)
+        if problem.trip_s is not None and not self.trips:
+            self.trips.update(trip_s=problem.trip_s, bases_trip_s=problem.bases_trip_s)
+        return problem
 
 
 def _search(request, parts, scale, timing, progress) -> tuple:

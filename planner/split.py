@@ -236,7 +236,9 @@ def part_problem(problem, part: Part, uavs: np.ndarray, travel: np.ndarray):
                                     used_s=per_uav(problem.used_s),
                                     start_back=per_uav(problem.start_back),
                                     bases_out=columns(problem.bases_out),
-                                    bases_back=columns(problem.bases_back))
+                                    bases_back=columns(problem.bases_back),
+                                    trip_s=rows(problem.trip_s),
+                                    bases_trip_s=columns(problem.bases_trip_s))
 
 
 def _solve_part(method, params, report, n, overlay, chunk):

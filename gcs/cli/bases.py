@@ -98,8 +98,8 @@ def sets_table(sets, endurance_min) -> str:
     """What one battery reaches from the base that reaches the most, and from sets
     of bases grown from it for reach (the UAVs take them in turn)."""
     lines = [f"reach on one {endurance_min:g}-min battery: ground seen from a viewpoint "
-             "flown to and back (% of the ground any hidden viewpoint sees); no plan from "
-             "those bases sees more. Sets grown base by base, the UAVs taking them in turn:",
+             "flown to and back (% of the ground any hidden viewpoint sees); a plan from "
+             "those bases sees all of it. Sets grown base by base, the UAVs taking them in turn:",
              f"{'bases':>5}  {'reach km²':>9} {'reach %':>7} {'bound min':>9}  --launch"]
     for s in sets:
         lines.append(f"{len(s.bases):>5}  {s.reach_km2:>9.2f} {s.reach_pct:>7.1f} "
@@ -125,6 +125,8 @@ def _properties(b) -> dict:
     return {"rank": b.rank, "lat": round(b.lat, 7), "lon": round(b.lon, 7),
             "ground_amsl_m": round(b.ground_m, 1), "takeoff_amsl_m": round(b.takeoff_m, 1),
             "bound_min": round(b.bound_s / 60, 2), "launch": b.launch_arg,
+            **({} if b.reach_km2 is None else {"reach_km2": b.reach_km2,
+                                               "reach_pct": b.reach_pct}),
             "marker-color": "#ffffff", "marker-symbol": str(b.rank) if b.rank < 10 else "square"}
 
 

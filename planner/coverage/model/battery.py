@@ -83,8 +83,13 @@ def fleet_batteries(problem, lo, lb) -> tuple:
     back, at = np.array(back, np.float64), np.array(at, np.int64)
     bases_out = np.array(bases_out, np.float64)
     reach = endurance if problem.reach_s is None else problem.reach_s
-    far = bases_out + back[:, None, :] > reach              # per UAV, base, viewpoint
-    own = base_out + back > reach
+    trip = np.zeros_like(base_out) if problem.trip_s is None else \
+        np.asarray(problem.trip_s, np.float64)
+    trips = trip[:, None, :] if problem.bases_trip_s is None else \
+        np.asarray(problem.bases_trip_s, np.float64)[None]
+    # per UAV, base, viewpoint: its round trip, as flown where known
+    far = np.maximum(bases_out + back[:, None, :], trips) > reach
+    own = np.maximum(base_out + back, trip) > reach
     if problem.bases_out is not None:       # a base it never comes to is no start
         far |= ~_bases_reached(at, ~own, ~far)[:, :, None]
     bases_out[far] = np.inf

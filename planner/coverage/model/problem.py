@@ -74,6 +74,12 @@ class CoverageProblem:
     # its last viewpoint, and the next takes off from there (`landing_bases`)
     bases_out: Optional[np.ndarray] = None
     bases_back: Optional[np.ndarray] = None
+    # a sortie to each viewpoint alone as flown (stops at its waypoints, the slow
+    # metres of takeoff and landing), per UAV out of its base [n_uavs, n_vp] and,
+    # with ``bases_out``, out of each base [n_bases, n_vp]; 0 where not known: the
+    # reach is judged by the larger of it and the travel times
+    trip_s: Optional[np.ndarray] = None
+    bases_trip_s: Optional[np.ndarray] = None
 
     @property
     def n_viewpoints(self) -> int:
