@@ -633,21 +633,3 @@ def test_battery_failsafe_announcements_are_told_apart(text, failsafe):
     from gcs.flight.batteries import BATTERY_FAILSAFE_TEXT
 
     assert bool(BATTERY_FAILSAFE_TEXT.search(text)) == failsafe
-
-
-@pytest.mark.parametrize("home", [False, True])
-def test_a_guard_deadlock_re_plans_a_fleet_sent_home_home_again(home):
-    """Vehicles the guard holds for each other are re-planned from where they stand.
-    A fleet already sent home (timed out, Ctrl-C) is re-planned home again: re-planned
-    for coverage, a timed-out flight sent a landed vehicle up again (CI, under load)."""
-    from gcs.flight.flight import Flight
-
-    flight = Flight.__new__(Flight)
-    asked = []
-    flight.state = SimpleNamespace(monitor=SimpleNamespace(event=lambda *args, **kw: None))
-    flight._unlocked = {}
-    flight.left_out = SimpleNamespace(home=home)
-    flight.retask = lambda home=False, rejoined=(): asked.append(home)
-    flight._unlock([2, 3])
-    flight._unlock([2, 3])          # held so again after it: said, not re-planned
-    assert asked == [home]

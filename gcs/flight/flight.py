@@ -414,7 +414,7 @@ class Flight:
                 self.retask(home=self.left_out.home, rejoined=back)
             self._next_sorties()
             if self.batteries.watch():
-                self.retask(home=self.left_out.home)
+                self.retask()
             # a loss found since (on the ground as its next sortie uploads, or by the
             # loss thread) is re-tasked for first: the survivors, down already, fly its
             # work (the flight once ended with it unflown)
@@ -451,9 +451,7 @@ class Flight:
             self.monitor.event(None, "separation guard: vehicles held for each other, none "
                                      "may go first: re-planned from where they stand",
                                held=held)
-            # a fleet sent home stays sent home: once re-planned for coverage here, a
-            # timed-out flight sent a landed vehicle up again (CI, under load)
-            self.retask(home=self.left_out.home)
+            self.retask()
         elif seen == 1:
             self.monitor.event(None, "separation guard: vehicles held for each other again "
                                      "after a re-plan: left held for the battery watch or "
