@@ -161,8 +161,8 @@ def one_visit_flight_s(ctx, base, viewpoints, lands) -> np.ndarray:
     made as `make_sorties` makes one (rounded for MAVLink, the vertices a mission
     flies) and timed as the fleet clock times it, holds aside. The search's travel
     times leave out the stops at the waypoints and the slow metres of the takeoff
-    and the landing: on a 3-min battery a far viewpoint's round trip took 22 %
-    more than they said. inf where no hidden path joins them."""
+    and the landing: on a 3-min battery the round trips took up to 40 % more
+    than they said. inf where no hidden path joins them."""
     lands = np.asarray(lands, float).reshape(-1, 3)
     top = above_launch(ctx, base)
     ends, where = np.unique(lands, axis=0, return_inverse=True)
