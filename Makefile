@@ -31,11 +31,12 @@ install: $(STAMP)
 browser:
 	bash .ci/install-browser.sh
 
-# one test process per core and one more (-n): most of the suite's wall time is
-# simulated flights waiting on their clock (one process per core left a core idle
-# 40 % of the time), and a file's tests stay together (their module fixtures), the
-# longest files first (tests/conftest.py LONGEST_FIRST, kept in that order)
-TEST_ARGS = -q -n $$(( $$(nproc) + 1 )) --dist loadfile --no-loadscope-reorder
+# two test processes per core (-n): most of the wall time of the simulated flights'
+# files is waiting on their clocks (tests/conftest.py LONGEST_FIRST hands them out
+# beside the files that plan), so with one process per core and one more the 2 cores
+# were idle 29 % of a run (pytest 20:46 on 2 cores, nothing else running), with two
+# per core 14 % (16:30); a file's tests stay together (their module fixtures)
+TEST_ARGS = -q -n $$(( 2 * $$(nproc) )) --dist loadfile --no-loadscope-reorder
 
 test: $(STAMP) browser
 	$(BIN)/python -m pytest $(TEST_ARGS)

@@ -32,7 +32,7 @@ STAGE_TEXT = {
 
 def note_first_compile() -> None:
     """Say why the first plan after an install is slow (numba compiling), once per
-    version of the planner's sources."""
+    version of the kernels' sources (`planner._kernel_cache_dir`)."""
     import planner
 
     if not planner.kernels_compiled():

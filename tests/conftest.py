@@ -34,17 +34,22 @@ def _small_plan():
     return scenario, terrain, outposts
 
 
-#: the files whose tests take longest, longest first (summed seconds of a full run on
-#: 2 cores, 2026-12-06): pytest-xdist hands whole files to its test processes in
-#: collection order (with --no-loadscope-reorder; its default puts the files of
-#: most tests first, and the suite ended on two long flight files alone)
+#: the files handed out first, in this order: pytest-xdist gives whole files to its test
+#: processes in collection order (with --no-loadscope-reorder), each process its next
+#: file as it runs out. The simulated flights' files (seconds of wall and CPU in a
+#: full run on 2 cores, 2026-12-07) wait on their flights' clocks more than they
+#: compute, so they go out beside the files that plan the most: with 4 test
+#: processes two or three flights run while one process plans, and the 2 cores stay
+#: busy (the flights first, all four at once, left 0.8 of a core idle for 5 minutes)
 LONGEST_FIRST = (
-    "sitl_tests/test_end_to_end.py",        # 380 s
-    "tests/test_sorties_flown.py",          # 320 s
-    "sitl_tests/test_separation.py",        # 270 s
-    "tests/test_failsafes.py",              # 196 s
-    "tests/test_sorties.py",                # 150 s
-    "tests/test_link_flight.py",            # 153 s
+    "sitl_tests/test_end_to_end.py",        # flights: 382 s wall, 170 s CPU
+    "tests/test_sorties_flown.py",          # flights: 312 s, 102 s
+    "tests/test_sample.py",                 # plans: 172 s, 118 s
+    "tests/test_failsafes.py",              # flights: 305 s, 71 s
+    "tests/test_pipeline.py",               # plans: 165 s, 102 s
+    "sitl_tests/test_separation.py",        # flights: 285 s, 54 s
+    "tests/test_replan.py",                 # plans: 155 s, 101 s
+    "tests/test_link_flight.py",            # flights: 245 s, 39 s
 )
 
 

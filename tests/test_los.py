@@ -89,8 +89,9 @@ def test_a_line_is_walked_patch_by_patch_on_and_off_the_grid(a, b):
 def test_a_changed_source_gets_kernels_compiled_anew(tmp_path):
     """numba re-compiles a cached kernel only when its own file changes; a kernel
     that inlines `next_patch` from this module kept its old code from the cache.
-    The cache folder follows every source of the package, so a change anywhere in
-    it is compiled anew."""
+    The cache folder follows every file that uses numba and every package file
+    those import (a constant frozen into a kernel), and no other: a docstring of
+    the pipeline does not cost a recompile."""
     import os
     import shutil
     import subprocess
@@ -112,9 +113,15 @@ def test_a_changed_source_gets_kernels_compiled_anew(tmp_path):
 
     before = folder()
     assert before.startswith(str(tmp_path / "cache")) and before == folder()
-    los = copy / "exposure" / "los.py"
-    los.write_text(los.read_text() + "\n# changed\n")
-    assert folder() != before
+    pipeline = copy / "pipeline.py"
+    pipeline.write_text(pipeline.read_text().replace('"""', '""" A docstring edit.', 1))
+    assert folder() == before
+    seen = before
+    for changed in ("exposure/los.py", "coverage/model/problem.py"):  # a kernel, a constant's
+        source = copy / changed
+        source.write_text(source.read_text() + "\n# changed\n")
+        assert folder() != seen
+        seen = folder()
 
 
 def _walk(u0, v0, u1, v1, rows, cols) -> int:
