@@ -151,6 +151,28 @@ def test_a_vehicle_short_of_battery_has_right_of_way():
     assert least >= 30.0 and not one.held and one.p[0] > 100.0
 
 
+def test_a_vehicle_at_a_predicted_radio_shadow_has_right_of_way():
+    """The crossing above with vehicle 2 flying into a radio shadow its plan predicts
+    (entered 40 m ahead of where it starts): held there it would hover out of contact
+    until its link-loss failsafe flew it home, so 1 waits for it. Without the shadow,
+    2 waits (the first crossing test)."""
+    k = math.cos(math.radians(LAT0))
+
+    def lonlat(x, y):
+        return LON0 + x / (M_PER_DEG * k), LAT0 + y / M_PER_DEG
+
+    route = _route(0, 400)
+    route.trajectory = [[0.0, *lonlat(0, -240), ALT], [60.0, *lonlat(0, 480), ALT]]
+    route.silences = [[40 / 12.0, 30.0]]
+    one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
+    two = Scripted(2, (0.0, -240.0), (0.0, 12.0), route)
+    monitor, guard = _guard([one, two], {1: 1, 2: 2})
+    assert monitor.near_shadow(2) and not monitor.near_shadow(1)
+    least = _run([one, two], guard, 60.0)
+    assert [(a["sysid"], a["action"]) for a in guard.actions] == [(1, "hold"), (1, "resume")]
+    assert least >= 30.0 and not one.held and one.p[0] > 100.0
+
+
 def test_head_on_both_are_held_and_the_deadlock_is_told():
     """On one line toward each other: standing still, either is in the other's way,
     so both hold, and stay held: neither can pass the other on its route. The guard

@@ -196,7 +196,13 @@ class SeparationGuard:
 
     # -- predictions -------------------------------------------------------------------
     def _rank(self, sysid):
-        return not self.fleet.short(sysid), self.priority.get(sysid, 99), sysid
+        """Held first the higher: right of way to one short of battery, then to one
+        at a predicted radio shadow (held in it, its link-loss failsafe would fly it
+        home: a hold braked vehicle 1 of a simulated flight 1.4 s of flight short of a
+        shadow, and 5 s into it SmartRTL took it home, its coverage left undone),
+        then by priority."""
+        return not self.fleet.short(sysid), not self.monitor.near_shadow(sysid), \
+            self.priority.get(sysid, 99), sysid
 
     def _fixed(self, sysid) -> bool:
         """Held by the guard, by a re-plan until its time, out of contact (no command

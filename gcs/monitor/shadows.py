@@ -107,6 +107,21 @@ class Shadows:
             return v.contact.pace
         return rates[len(rates) // 2] * v.contact.pace / v.contact.clock_rate
 
+    def near_shadow(self, sysid) -> bool:
+        """Whether a vehicle heard now is in a radio shadow its plan predicts or about
+        to enter one (a silence starting now would be as planned: `Contact.expected`).
+        Held there, it would hover out of contact, and the link-loss failsafe fires in
+        the hold mode (ArduPilot's GUIDED has no FS_OPTIONS bit to hold on): the
+        separation guard gives it the right of way."""
+        v = self.vehicles.get(sysid)
+        if v is None or v.quiet is not None or not v.contact.windows:
+            return False
+        s = self.links[sysid].state
+        lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)
+        return v.contact.expected(self.now(), self.lost_after_s,
+                                  None if lat is None else (lat, lon),
+                                  self._own_clock(v)) is not None
+
     def planned_at(self, sysid) -> float | None:
         """Where on its plan's clock a vehicle out of contact as planned is now (its
         planned trajectory stays its own until it is declared lost); None for one
