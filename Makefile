@@ -32,7 +32,7 @@ browser:
 	bash .ci/install-browser.sh
 
 # two test processes per core (-n): most of the wall time of the simulated flights'
-# files is waiting on their clocks (tests/conftest.py LONGEST_FIRST hands them out
+# files is waiting on their clocks (tests/conftest.py HANDED_OUT_FIRST hands them out
 # beside the files that plan), so with one process per core and one more the 2 cores
 # were idle 29 % of a run (pytest 20:46 on 2 cores, nothing else running), with two
 # per core 14 % (16:30); a file's tests stay together (their module fixtures)

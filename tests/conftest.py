@@ -41,7 +41,7 @@ def _small_plan():
 #: compute, so they go out beside the files that plan the most: with 4 test
 #: processes two or three flights run while one process plans, and the 2 cores stay
 #: busy (the flights first, all four at once, left 0.8 of a core idle for 5 minutes)
-LONGEST_FIRST = (
+HANDED_OUT_FIRST = (
     "sitl_tests/test_end_to_end.py",        # flights: 382 s wall, 170 s CPU
     "tests/test_sorties_flown.py",          # flights: 312 s, 102 s
     "tests/test_sample.py",                 # plans: 172 s, 118 s
@@ -54,8 +54,8 @@ LONGEST_FIRST = (
 
 
 def pytest_collection_modifyitems(items):
-    """`LONGEST_FIRST`'s files first, the others in their order (a stable sort)."""
-    rank = {path: i for i, path in enumerate(LONGEST_FIRST)}
+    """`HANDED_OUT_FIRST`'s files first, the others in their order (a stable sort)."""
+    rank = {path: i for i, path in enumerate(HANDED_OUT_FIRST)}
     items.sort(key=lambda item: rank.get(item.nodeid.split("::")[0], len(rank)))
 
 
