@@ -58,9 +58,13 @@ class Scripted:
         s.position_at = time.monotonic()
 
 
+def _lonlat(x, y):
+    """(lon, lat) of local metres east and north of (LON0, LAT0)."""
+    return LON0 + x / (M_PER_DEG * math.cos(math.radians(LAT0))), LAT0 + y / M_PER_DEG
+
+
 def _route(x, y):
-    k = math.cos(math.radians(LAT0))
-    w = Waypoint(LON0 + x / (M_PER_DEG * k), LAT0 + y / M_PER_DEG, ALT, 0.0)
+    w = Waypoint(*_lonlat(x, y), ALT, 0.0)
     return VehicleRoute(1, None, [w], 0.0, 0.0, 0.0)
 
 
@@ -156,13 +160,8 @@ def test_a_vehicle_at_a_predicted_radio_shadow_has_right_of_way():
     (entered 40 m ahead of where it starts): held there it would hover out of contact
     until its link-loss failsafe flew it home, so 1 waits for it. Without the shadow,
     2 waits (the first crossing test)."""
-    k = math.cos(math.radians(LAT0))
-
-    def lonlat(x, y):
-        return LON0 + x / (M_PER_DEG * k), LAT0 + y / M_PER_DEG
-
     route = _route(0, 400)
-    route.trajectory = [[0.0, *lonlat(0, -240), ALT], [60.0, *lonlat(0, 480), ALT]]
+    route.trajectory = [[0.0, *_lonlat(0, -240), ALT], [60.0, *_lonlat(0, 480), ALT]]
     route.silences = [[40 / 12.0, 30.0]]
     one = Scripted(1, (-240.0, 0.0), (12.0, 0.0), _route(400, 0))
     two = Scripted(2, (0.0, -240.0), (0.0, 12.0), route)

@@ -34,11 +34,7 @@ class Shadows:
             # re-plan was taken into a shadow it never flew, and not lost)
             if not v.airborne or v.state in (LANDED, HOLDING):
                 return False
-            s = self.links[v.sysid].state
-            lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)
-            heard, own = self._last_heard(v, s, age)
-            v.quiet = v.contact.expected(heard, self.lost_after_s,
-                                         None if lat is None else (lat, lon), own)
+            v.quiet = self._expected(v, *self._last_heard(v, self.links[v.sysid].state, age))
             if v.quiet is None:
                 return False
             a, b = v.quiet.window
@@ -116,11 +112,15 @@ class Shadows:
         v = self.vehicles.get(sysid)
         if v is None or v.quiet is not None or not v.contact.windows:
             return False
-        s = self.links[sysid].state
+        return self._expected(v, self.now(), self._own_clock(v)) is not None
+
+    def _expected(self, v, heard_s, own_s):
+        """The predicted silence `v` is in, heard at ``heard_s`` (its own clock then at
+        ``own_s``) where its latest position puts it (`Contact.expected`); None: none."""
+        s = self.links[v.sysid].state
         lat, lon = getattr(s, "lat", None), getattr(s, "lon", None)
-        return v.contact.expected(self.now(), self.lost_after_s,
-                                  None if lat is None else (lat, lon),
-                                  self._own_clock(v)) is not None
+        return v.contact.expected(heard_s, self.lost_after_s,
+                                  None if lat is None else (lat, lon), own_s)
 
     def planned_at(self, sysid) -> float | None:
         """Where on its plan's clock a vehicle out of contact as planned is now (its
