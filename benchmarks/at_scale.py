@@ -9,6 +9,10 @@ budget).
 The problems: seeded synthetic terrains of `SIZE`² cells (30 m), three outposts,
 one or two hidden bases (the roomiest spots of the largest hidden region, the
 second far from the first), fleets of 3-8 UAVs, k = 0, 1, 2.
+
+On a battery (`SORTIES`: the battery a multiple of the median round trip to a
+viewpoint, 5-min turnarounds): the plan, the bound it prints and the bound
+without the sortie bound (`planner.coverage.bounds.sorties`), on the same plan.
 """
 
 import time
@@ -22,6 +26,9 @@ SPACING_M = 250.0
 #: (family, seed) of the terrains, and per terrain the (UAVs, k, bases) planned
 TERRAINS = (("ridges", 7), ("hills", 9), ("mixed", 11))
 CASES = ((3, 0, 1), (5, 1, 1), (4, 2, 2), (8, 1, 2))
+#: (UAVs, k, battery as a multiple of the median round trip to a viewpoint) on a
+#: battery, from one base, with `TURNAROUND_S` between sorties
+SORTIES, TURNAROUND_S = ((3, 0, 1.5), (4, 1, 2.0)), 300.0
 
 
 def context(family, seed):
@@ -132,4 +139,45 @@ def run() -> list:
     if both:
         print(f"ALNS / OR-Tools where OR-Tools covers ({len(both)} of {len(rows)}): "
               f"median {np.median(both):.3f}, worst {max(both):.3f}")
+    return rows + run_sorties()
+
+
+def run_sorties() -> list:
+    """The `SORTIES` table: per terrain and case, the plan on a battery, its bound,
+    and the bound without the sortie bound."""
+    from dataclasses import replace
+
+    from planner.coverage import lower_bounds, prepare, solve
+    from planner.coverage.model.routes import walked
+    from planner.pipeline import coverage_problem, launch_starts
+
+    rows = []
+    print("\n| terrain | UAVs | k | battery s | ALNS s (sorties) | bound s (time) | ratio | "
+          "bound without sorties | ratio without |\n|---|---|---|---|---|---|---|---|---|",
+          flush=True)
+    for family, seed in TERRAINS:
+        ctx = context(family, seed)
+        starts = launch_starts(ctx)
+        for n, k, times in SORTIES:
+            p = coverage_problem(ctx, n, [starts[0]] * n, k, "soft")
+            battery = times * float(np.median((p.launch_out + p.launch_back).min(axis=0)))
+            p = replace(p, endurance_s=battery, turnaround_s=TURNAROUND_S)
+            a, prep = solve(p, "alns"), prepare(p)
+            sorties = sum(len(np.unique(walked(np.asarray(route, np.int64), prep.travel,
+                                               prep.battery(r), True)[1]))
+                          for r, route in enumerate(a.routes) if len(route))
+            t0 = time.perf_counter()
+            bound = lower_bounds(p, True, prep, budget_s=0.0)[1]
+            took = time.perf_counter() - t0
+            without = lower_bounds(p, True, prep, budget_s=0.0, usable_s=np.inf)[1]
+            rows.append(dict(terrain=f"{family} s{seed}", n=n, k=k, battery=battery,
+                             alns=a.coverage_time, bound=bound, without=without))
+            print(f"| {family} s{seed} | {n} | {k} | {battery:.0f} | {a.coverage_time:.0f} "
+                  f"({sorties}) | {bound:.0f} ({took:.1f} s) | {a.coverage_time / bound:.2f} | "
+                  f"{without:.0f} | {a.coverage_time / without:.2f} |", flush=True)
+    ratios = [r["alns"] / r["bound"] for r in rows]
+    before = [r["alns"] / r["without"] for r in rows]
+    print(f"\non a battery, plan / bound: median {np.median(ratios):.2f}, worst "
+          f"{max(ratios):.2f} (without the sortie bound: median {np.median(before):.2f}, "
+          f"worst {max(before):.2f}); {len(rows)} problems")
     return rows

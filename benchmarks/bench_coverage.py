@@ -38,7 +38,8 @@ against the same bound with the LP whole (scipy's HiGHS, every row, as before
 **At scale** (``--at-scale``, alone): plan, lower bound and their ratio on
 generated terrains of hundreds of viewpoints, the bound before the scattered route
 bound beside it, and OR-Tools' routing solver alone at ALNS's wall time
-(benchmarks/at_scale.py, benchmarks/independent.py).
+(benchmarks/at_scale.py, benchmarks/independent.py); then on a battery, the plan
+and its bound with and without the sortie bound.
 
 **Synthetic** (``--synthetic``): the earlier seeded point-set problems
 (planner.coverage.model.instances), ``--sweep`` the step-cap (th_ra) sweep,

@@ -252,7 +252,8 @@ def allocate(ctx: PlanningContext, n_uavs: int, starts=None, seen=None, required
         bounds = ((split.reach_bound(problem),) * 2 if parts > 1
                   else coverage.lower_bounds(problem, strong_bound, prep,
                                              bound_budget_s(allocation.planning_s),
-                                             takeoff_delays(starts, s.separation_m)))
+                                             takeoff_delays(starts, s.separation_m),
+                                             s.usable_s))
     plan = make_plan(ctx, method, problem, allocation, starts, fleet, counts, timing, bounds,
                      checkins)
     over = over_battery(fleet, s.usable_s, starts)
