@@ -62,7 +62,9 @@ def _module_files(root: Path, importer: Path, module: str, names: str) -> list:
         base = importer.parent.joinpath(*up, *filter(None, rest.split(".")))
     base = base.resolve()
     found = [base.with_suffix(".py"), base / "__init__.py"]
-    found += [base / f"{name.strip(' ()')}.py" for name in names.split(",")]
+    # "from . import kernels as K" reads kernels.py
+    found += [base / f"{name.strip(' ()').split()[0]}.py" for name in names.split(",")
+              if name.strip(' ()')]
     return found
 
 

@@ -122,6 +122,13 @@ def test_a_changed_source_gets_kernels_compiled_anew(tmp_path):
         source.write_text(source.read_text() + "\n# changed\n")
         assert folder() != seen
         seen = folder()
+    # a module without numba that a kernel's file imports under another name
+    (copy / "exposure" / "aliased.py").write_text("LIMIT = 1\n")
+    los = copy / "exposure" / "los.py"
+    los.write_text(los.read_text() + "from . import aliased as _aliased  # noqa\n")
+    seen = folder()
+    (copy / "exposure" / "aliased.py").write_text("LIMIT = 2\n")
+    assert folder() != seen
 
 
 def _walk(u0, v0, u1, v1, rows, cols) -> int:
