@@ -31,7 +31,7 @@ def radius_bound(prep) -> float:
 
 
 @njit(cache=True)
-def _earliest_arrival(lo, travel_t):
+def earliest_arrival(lo, travel_t):
     """Shortest time from launch to each viewpoint, also via other viewpoints.
 
     Bellman-Ford relaxation: one sweep when ``travel`` is already closed under
@@ -65,7 +65,7 @@ def reach_bound(prep) -> float:
         return 0.0
     # UAVs sharing a launch point share their earliest arrivals
     rows, uav_row = np.unique(prep.launch_out, axis=0, return_inverse=True)
-    arrive = np.array([_earliest_arrival(row, prep.travel_t) for row in rows])
+    arrive = np.array([earliest_arrival(row, prep.travel_t) for row in rows])
     bound = float(reach_bound_of(arrive, uav_row.ravel(), prep.vis_indptr, prep.vis_indices,
                                  prep.seen0, prep.required))
     if len(prep.tgt_indices) * prep.problem.n_uavs <= PLACE_REACH_WORK:

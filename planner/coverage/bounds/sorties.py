@@ -33,7 +33,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .radius import _earliest_arrival
+from .radius import earliest_arrival
 
 #: row updates spent trying targets (about 0.5 s), and the most kept apart (a row each)
 MAX_WORK, MAX_APART = 400_000_000, 256
@@ -77,8 +77,8 @@ def _ways(prep) -> tuple:
                                 if a is not None and len(a)]
     backs = [prep.launch_back] + ([np.asarray(p.bases_back, np.float64)]
                                   if p.bases_back is not None and len(p.bases_back) else [])
-    out = _earliest_arrival(np.vstack(outs).min(axis=0), prep.travel_t)
-    back = _earliest_arrival(np.vstack(backs).min(axis=0), prep.travel)
+    out = earliest_arrival(np.vstack(outs).min(axis=0), prep.travel_t)
+    back = earliest_arrival(np.vstack(backs).min(axis=0), prep.travel)
     return out, back
 
 
