@@ -197,40 +197,19 @@ class Retasker:
         self.home = False
 
     def flying(self) -> list:
-        """Vehicles to re-task: in the air (`_in_the_air`) and heard: one out of
-        contact as its plan predicts cannot be commanded, and flies its plan on
-        (`Monitor.planned_at`); so does one at a radio shadow its plan predicts
-        (`_at_shadow`). Nor one flying its autopilot's failsafe return (a link loss
-        while it was held, its battery), in a mode gcs did not command (PX4's Hold
-        is also ours): a hold would undo the way home the firmware chose."""
-        m = self.monitor
-        return [s for s in self._in_the_air()
-                if m.planned_at(s) is None and not self._at_shadow(s)
-                and not (m.vehicles[s].uncommanded and m.in_failsafe(s))]
-
-    def left_out(self) -> list:
-        """Vehicles in the air a re-plan cannot or must not hold: out of contact as
-        planned (`Monitor.planned_at`), or at a predicted radio shadow."""
-        m = self.monitor
-        return [s for s in self._in_the_air()
-                if m.planned_at(s) is not None or self._at_shadow(s)]
-
-    def _in_the_air(self) -> list:
-        """Not lost, not landed, not still waiting for their takeoff, not disarmed
-        after flying (touched down at the end of a mission: it stays down unless
-        re-launched), not stranded."""
+        """Vehicles to re-task: not lost, not landed, not still waiting for their
+        takeoff, not disarmed after flying (touched down at the end of a mission:
+        it stays down unless re-launched), and heard: one out of contact as its
+        plan predicts cannot be commanded, and flies its plan on (`Monitor.planned_at`).
+        Nor one flying its autopilot's failsafe return (a link loss while it was held,
+        its battery), in a mode gcs did not command (PX4's Hold is also ours): a hold
+        would undo the way home the firmware chose."""
         m = self.monitor
         return [s for s, v in sorted(m.vehicles.items())
                 if v.state not in (LOST, LANDED, STRANDED, WAITING)
-                and not (v.airborne and not m.links[s].state.armed)]
-
-    def _at_shadow(self, sysid) -> bool:
-        """Heard, not held yet, and in or about to enter a radio shadow its plan
-        predicts (`Monitor.near_shadow`). Held there it would hover out of contact
-        for as long as the re-plan takes, and its link-loss failsafe fires in the
-        hold mode (ArduPilot's GUIDED has no FS_OPTIONS bit to hold on): it flies
-        home, its coverage lost. One held already hovers where it was heard."""
-        return self.monitor.vehicles[sysid].state != HOLDING and self.monitor.near_shadow(sysid)
+                and not (v.airborne and not m.links[s].state.armed)
+                and m.planned_at(s) is None
+                and not (m.vehicles[s].uncommanded and m.in_failsafe(s))]
 
     def landed_at_launch(self) -> list:
         """Landed survivors sitting at their base (`_base`), still heard from: they
@@ -286,15 +265,13 @@ class Retasker:
             record.survivors, record.relaunched, self.later = [], [], {}
             m.take_losses()  # this attempt re-tasks for every loss so far, and takes
             record.rejoined = sorted(set(record.rejoined) | set(m.take_rejoined()))  # back
-            sysids, record.left_out = self.flying(), self.left_out()
+            sysids = self.flying()
+            record.left_out = [s for s in sorted(m.vehicles) if m.planned_at(s) is not None]
             for s in record.left_out:
                 # re-planning it once heard again ping-ponged: each re-plan sent another
                 # into a shadow, and the fleet was re-planned until its batteries ran out
-                why = "out of contact as planned" if m.planned_at(s) is not None else \
-                    "at a predicted radio shadow (held there, out of contact, its link-loss " \
-                    "failsafe would fly it home)"
-                m.event(s, f"{why}: not re-tasked, it flies its plan on (the others' "
-                           "re-plan does not count what it will still see)")
+                m.event(s, "out of contact as planned: not re-tasked, it flies its plan on "
+                           "(the others' re-plan does not count what it will still see)")
             landed = [] if home else self._relaunchable(sysids)
             if not sysids and not landed:
                 m.event(None, "re-plan skipped: no survivor in the air or able to go up")

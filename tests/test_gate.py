@@ -248,32 +248,3 @@ def test_a_survivor_no_hidden_leg_joins_is_stranded_not_the_flight(planned, vehi
         assert vehicle.vehicle(1).mode == profile("ardupilot").hold_mode  # held there
         assert held(vehicle) == before                       # nothing uploaded
         assert any(e["event"].startswith("stranded") for e in monitor.events)
-
-
-def test_a_survivor_at_a_predicted_radio_shadow_is_left_out_not_held(planned, vehicle,
-                                                                      monkeypatch):
-    """A re-plan holds the survivors it re-tasks. One at a radio shadow its plan
-    predicts (`Monitor.near_shadow`), held there, would hover out of contact, and its
-    link-loss failsafe would fly it home (ArduPilot's GUIDED has no FS_OPTIONS bit to
-    hold on). It is left out instead, said so: the vehicle's own mode and store
-    unchanged. Heard past the shadow, it counts as back (`LeftOut`), not before."""
-    from gcs.flight.left_out import LeftOut
-
-    with _followed(planned, vehicle) as (monitor, _, _, before):
-        at_shadow = {1: True}
-        monkeypatch.setattr(monitor, "near_shadow", lambda sysid: at_shadow.get(sysid, False))
-        monkeypatch.setattr("gcs.retask.replan", lambda *a, **k: pytest.fail("re-planned"))
-        mode = vehicle.vehicle(1).mode
-        record = Retasker(planned.ctx, monitor).retask()
-        assert record.left_out == [1] and record.survivors == []
-        assert vehicle.vehicle(1).mode == mode != profile("ardupilot").hold_mode
-        assert held(vehicle) == before
-        assert any(e["event"].startswith("at a predicted radio shadow")
-                   for e in monitor.events if e.get("sysid") == 1)
-        left_out = LeftOut(SimpleNamespace(monitor=monitor), lambda: planned.ctx)
-        left_out.after(record)
-        monkeypatch.setattr(left_out, "outlook", lambda: {
-            "meets_requirement": False, "k_covered": 1, "coverable": 2})
-        assert not left_out.short() and left_out.waiting == {1}   # still at its shadow
-        at_shadow[1] = False
-        assert left_out.short() and left_out.waiting == set()

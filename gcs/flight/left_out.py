@@ -1,7 +1,6 @@
 """Vehicles a re-plan left out, heard again (`LeftOut`).
 
-A re-plan cannot command a vehicle out of contact as its plan predicts, nor
-should it hold one at a predicted shadow (held there it falls silent): it flies
+A re-plan cannot command a vehicle out of contact as its plan predicts: it flies
 its plan on, and the others are re-planned without counting what it will still
 see (`gcs.retask`). Heard again, it may be needed: when its loss was the one
 re-planned for, the vehicles re-tasked may not reach the coverage alone. The
@@ -37,9 +36,8 @@ class LeftOut:
         """A vehicle left out is heard again, and the plans in hand fall short of the
         required coverage: said, and True (re-plan the fleet with it)."""
         m = self.state.monitor
-        # one left out at a shadow's edge is not back until it is past it
-        back = sorted(s for s in self.waiting if m.vehicles[s].state != LOST
-                      and m.planned_at(s) is None and not m.near_shadow(s))
+        back = sorted(s for s in self.waiting
+                      if m.vehicles[s].state != LOST and m.planned_at(s) is None)
         self.waiting -= set(back) | {s for s in self.waiting if m.vehicles[s].state == LOST}
         if not back:
             return False
