@@ -148,8 +148,8 @@ def run_sorties() -> list:
     from dataclasses import replace
 
     from planner.coverage import lower_bounds, prepare, solve
-    from planner.coverage.model.routes import walked
     from planner.pipeline import coverage_problem, launch_starts
+    from planner.sorties import sortie_split
 
     rows = []
     print("\n| terrain | UAVs | k | battery s | ALNS s (sorties) | bound s (time) | ratio | "
@@ -163,9 +163,7 @@ def run_sorties() -> list:
             battery = times * float(np.median((p.launch_out + p.launch_back).min(axis=0)))
             p = replace(p, endurance_s=battery, turnaround_s=TURNAROUND_S)
             a, prep = solve(p, "alns"), prepare(p)
-            sorties = sum(len(np.unique(walked(np.asarray(route, np.int64), prep.travel,
-                                               prep.battery(r), True)[1]))
-                          for r, route in enumerate(a.routes) if len(route))
+            sorties = sum(len(np.unique(of)) for of in sortie_split(prep, a.routes))
             t0 = time.perf_counter()
             bound = lower_bounds(p, True, prep, budget_s=0.0)[1]
             took = time.perf_counter() - t0
