@@ -367,7 +367,7 @@ def drop_redundant(problem, routes, arrivals, by: float):
     vp = np.concatenate([np.asarray(r, np.int64) for r in routes] + [np.zeros(0, np.int64)])
     when = np.concatenate([np.asarray(a, float) for a in arrivals] + [np.zeros(0)])
     seen = problem.seen_before()
-    own = problem.own_matrix()
+    own = problem.own_matrix().astype(np.uint8)   # as `coverage.prepare` types it
     length = np.array([a[-1] if len(a) else 0.0 for a in arrivals])
     pos = np.concatenate([np.arange(len(r)) for r in routes] + [np.zeros(0, np.int64)])
     order = np.lexsort((pos, -length[uav])) if len(uav) else np.zeros(0, np.int64)
@@ -451,8 +451,8 @@ def reach_bound(problem) -> float:
     if problem.launch_out is None:
         return 0.0
     rows, of = np.unique(np.asarray(problem.launch_out), axis=0, return_inverse=True)
-    seen = problem.seen_before()
+    seen = problem.seen_before().astype(np.uint8)   # as `coverage.prepare` types them
     indices = np.asarray(problem.vis_indices)
     need = np.minimum(problem.needs(), achievable(problem))  # as `coverage.prepare` caps it
     return float(reach_bound_of(rows, of.ravel(), np.asarray(problem.vis_indptr, np.int64),
-                                indices, seen, need))
+                                indices, seen, need.astype(np.int32)))

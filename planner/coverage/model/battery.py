@@ -79,9 +79,11 @@ def fleet_batteries(problem, lo, lb) -> tuple:
     if base.shape != lo.shape:
         raise ValueError(f"base_out must be {lo.shape}")
     back, at, bases_out = _landings(problem, base, lb)
-    out, base_out = np.array(lo, np.float64), np.array(base, np.float64)
-    back, at = np.array(back, np.float64), np.array(at, np.int64)
-    bases_out = np.array(bases_out, np.float64)
+    # copies in C order whatever the callers' layouts (a problem cut into parts has
+    # transposed ones): the kernels are compiled once per layout, a minute each new one
+    out, base_out = np.array(lo, np.float64, order="C"), np.array(base, np.float64, order="C")
+    back, at = np.array(back, np.float64, order="C"), np.array(at, np.int64, order="C")
+    bases_out = np.array(bases_out, np.float64, order="C")
     reach = endurance if problem.reach_s is None else problem.reach_s
     trip = np.zeros_like(base_out) if problem.trip_s is None else \
         np.asarray(problem.trip_s, np.float64)

@@ -67,10 +67,11 @@ def needed_times(problem: CoverageProblem, routes, arrivals, need) -> np.ndarray
 
 def _columns(problem):
     """(target -> viewpoints CSC, seen before planning from places of their own as
-    uint8 [UAVs, targets])."""
+    uint8 [UAVs, targets]): the types `prepare` gives the same kernels (each other
+    set of types is compiled again, seconds to a minute)."""
     t_indptr, t_indices = csc_transpose(np.asarray(problem.vis_indptr, np.int64),
                                         np.asarray(problem.vis_indices), problem.n_targets)
-    return t_indptr, t_indices.astype(np.int64), problem.own_matrix().astype(np.uint8)
+    return t_indptr, t_indices, problem.own_matrix().astype(np.uint8)
 
 
 @njit(cache=True)
@@ -133,5 +134,5 @@ def sighting_counts(problem: CoverageProblem, routes) -> np.ndarray:
         t_indptr, t_indices, own = _columns(problem)
         hit = places.affected(indptr, indices, problem.n_targets)
         counts[hit] = matched_counts(hit, places.at, t_indptr, t_indices, own,
-                                     np.full(problem.n_targets, problem.n_uavs, np.int64))
+                                     np.full(problem.n_targets, problem.n_uavs, np.int32))
     return counts

@@ -81,8 +81,8 @@ def prepare(problem: CoverageProblem) -> Prepared:
         raise ValueError("vis_indices hold target ids outside 0..n_targets-1")
     has_launch = problem.launch_out is not None
     if has_launch:
-        lo = np.asarray(problem.launch_out, dtype=np.float64)
-        lb = (np.asarray(problem.launch_back, dtype=np.float64)
+        lo = np.ascontiguousarray(problem.launch_out, dtype=np.float64)   # as travel
+        lb = (np.ascontiguousarray(problem.launch_back, dtype=np.float64)
               if problem.launch_back is not None else np.zeros_like(lo))
         if lo.shape != (n, n_vp) or lb.shape != (n, n_vp):
             raise ValueError(f"launch_out/launch_back must be [{n}, {n_vp}]")
@@ -197,7 +197,7 @@ def achievable(problem: CoverageProblem) -> np.ndarray:
              else np.array(problem.owner, np.int64))
     able = np.ones((n, len(indptr) - 1), np.bool_)
     if problem.endurance_s < np.inf:
-        able = ~beyond(problem)
+        able = np.ascontiguousarray(~beyond(problem))   # the layout `prepare` gives
         far = np.flatnonzero(~able.any(axis=0))
         owner[far[owner[far] == FREE]] = CLOSED
     return _achievable(tgt_indptr, tgt_indices, owner, own, n, able)

@@ -256,6 +256,16 @@ def removal_saving(route, i, travel, battery, has_launch):
 
 
 @njit(cache=True)
+def removal_savings(route, travel, battery, has_launch):
+    """`removal_saving` of every visit of the route, in one call (a call from Python
+    per visit cost more than the savings themselves on routes of hundreds)."""
+    out = np.empty(len(route))
+    for i in range(len(route)):
+        out[i] = removal_saving(route, i, travel, battery, has_launch)
+    return out
+
+
+@njit(cache=True)
 def improve_route(route, travel, battery, has_launch):
     """Or-opt (move segments of 1-3, also reversed) and 2-opt until no gain.
 
