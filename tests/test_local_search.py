@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from planner.coverage.model import prepare
 from planner.coverage.model.instances import random_problem
 from planner.coverage.model.routes import route_time
-from planner.coverage.search.insertion import removal_saving, removal_savings
+from planner.coverage.search.insertion import improve_route, removal_saving, removal_savings
 from planner.coverage.search.local_search import Search
 
 
@@ -101,3 +101,53 @@ def test_inputs_in_any_layout_reach_the_kernels_in_one():
     coverage_counts(other, again)
     assert again.routes == usual.routes
     assert {f: len(f.signatures) for f in compiled} == compiled
+
+
+def _reference_improve(route, travel, battery, has_launch):
+    """2-opt, then or-opt of segments of 1-3 (also reversed), every candidate summed
+    by `route_time`, until none improves."""
+    best = np.asarray(route, np.int64)
+    best_t = route_time(best, travel, battery, has_launch)
+    m, improved = len(best), True
+    while improved:
+        improved = False
+        for i in range(m - 1):
+            for j in range(i + 1, m):
+                cand = np.concatenate((best[:i], best[i:j + 1][::-1], best[j + 1:]))
+                t = route_time(cand, travel, battery, has_launch)
+                if t < best_t - 1e-9:
+                    best, best_t, improved = cand, t, True
+        for seg in range(1, 4):
+            for i in range(m - seg + 1):
+                segment, rest = best[i:i + seg], np.concatenate((best[:i], best[i + seg:]))
+                moved = False
+                for s in (segment, segment[::-1]):
+                    for p in range(len(rest) + 1):
+                        if p == i and s is segment:
+                            continue
+                        cand = np.concatenate((rest[:p], s, rest[p:]))
+                        t = route_time(cand, travel, battery, has_launch)
+                        if t < best_t - 1e-9:
+                            best, best_t, improved, moved = cand, t, True, True
+                            break
+                    if moved:
+                        break
+    return best
+
+
+@settings(max_examples=30, deadline=None, derandomize=True)
+@given(seed=st.integers(0, 10_000), length=st.integers(1, 14), launch=st.booleans(),
+       battery=st.booleans())
+def test_route_improvement_makes_the_moves_of_summing_every_candidate(seed, length, launch,
+                                                                       battery):
+    """Without sorties the candidates are estimated first and only the promising ones
+    summed: the same route as summing them all (asymmetric travel: climbs and
+    descents differ), with sorties the same as well."""
+    problem = _problem(seed, 0, battery and launch)
+    if not launch:
+        problem = replace(problem, launch_out=None, launch_back=None)
+    prep = prepare(problem)
+    route = np.random.default_rng(seed).permutation(len(prep.vis_indptr) - 1)[:length]
+    bat = prep.battery(0)
+    assert list(improve_route(route, prep.travel, bat, prep.has_launch)) == list(
+        _reference_improve(route, prep.travel, bat, prep.has_launch))
