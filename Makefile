@@ -31,14 +31,12 @@ install: $(STAMP)
 browser:
 	bash .ci/install-browser.sh
 
-# two test processes per core and one more (-n): most of the wall time of the simulated
-# flights' files is waiting on their clocks (tests/conftest.py HANDED_OUT_FIRST hands
-# them out beside the files that plan), so with one process per core and one more the
-# 2 cores were idle 29 % of a run (pytest 20:46 on 2 cores, nothing else running), with
-# two per core 14 % (16:30); with five, pytest took 12:26 where four took 13:29 (the
-# same tree, a cold kernel cache each, 2026-12-08); a file's tests stay together
-# (their module fixtures)
-TEST_ARGS = -q -n $$(( 2 * $$(nproc) + 1 )) --dist loadfile --no-loadscope-reorder
+# two test processes per core (-n): most of the wall time of the simulated flights'
+# files is waiting on their clocks (tests/conftest.py HANDED_OUT_FIRST hands them out
+# beside the files that plan), so with one process per core and one more the 2 cores
+# were idle 29 % of a run (pytest 20:46 on 2 cores, nothing else running), with two
+# per core 14 % (16:30); a file's tests stay together (their module fixtures)
+TEST_ARGS = -q -n $$(( 2 * $$(nproc) )) --dist loadfile --no-loadscope-reorder
 
 test: $(STAMP) browser
 	$(BIN)/python -m pytest $(TEST_ARGS)

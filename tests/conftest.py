@@ -36,34 +36,20 @@ def _small_plan():
 
 #: the files handed out first, in this order: pytest-xdist gives whole files to its test
 #: processes in collection order (with --no-loadscope-reorder), each process its next
-#: file as it runs out. Seconds of wall and CPU of each in a full run (5 test
-#: processes on 2 cores, a cold kernel cache, 2026-12-08). The simulated flights'
-#: files wait on their flights' clocks more than they compute, so they go out beside
-#: the files that plan the most: the flights first, all at once, left 0.8 of a core
-#: idle for 5 minutes. The other files that mostly wait come next, before the small
-#: ones that only compute (the rest, in their order), which fill the last minutes
-#: of every process (in their collection order, the process that ended last spent its
-#: last 2.5 minutes on two files that wait: test_segments and test_sim)
+#: file as it runs out. The simulated flights' files (seconds of wall and CPU in a
+#: full run on 2 cores, 2026-12-07) wait on their flights' clocks more than they
+#: compute, so they go out beside the files that plan the most: with 4 test
+#: processes two or three flights run while one process plans, and the 2 cores stay
+#: busy (the flights first, all four at once, left 0.8 of a core idle for 5 minutes)
 HANDED_OUT_FIRST = (
-    "sitl_tests/test_end_to_end.py",        # flights: 384 s wall, 111 s CPU
-    "tests/test_sorties_flown.py",          # flights: 322 s, 71 s
-    "tests/test_sample.py",                 # plans: 147 s, 88 s
-    "tests/test_failsafes.py",              # flights: 322 s, 53 s
-    "tests/test_pipeline.py",               # plans: 151 s, 84 s
-    "sitl_tests/test_separation.py",        # flights: 276 s, 34 s
-    "tests/test_replan.py",                 # plans: 63 s, 73 s
-    "tests/test_link_flight.py",            # flights: 243 s, 27 s
-    "tests/test_parallel.py",               # plans: 87 s, 83 s
-    "tests/test_any_dem.py",                # plans: 83 s, 75 s
-    "tests/test_sorties.py",                # both: 115 s, 49 s
-    "tests/test_outcomes.py",               # flights: 81 s, 21 s
-    "tests/test_segments.py",               # flights: 80 s, 9 s
-    "tests/test_livemap.py",                # flights: 72 s, 14 s
-    "tests/test_mission_protocol.py",       # links: 71 s, 3 s
-    "tests/test_sim.py",                    # flights: 66 s, 12 s
-    "tests/test_fly.py",                    # flights: 64 s, 10 s
-    "tests/test_nothing_unproven.py",       # both: 59 s, 25 s
-    "tests/test_link.py",                   # links: 31 s, 1 s
+    "sitl_tests/test_end_to_end.py",        # flights: 382 s wall, 170 s CPU
+    "tests/test_sorties_flown.py",          # flights: 312 s, 102 s
+    "tests/test_sample.py",                 # plans: 172 s, 118 s
+    "tests/test_failsafes.py",              # flights: 305 s, 71 s
+    "tests/test_pipeline.py",               # plans: 165 s, 102 s
+    "sitl_tests/test_separation.py",        # flights: 285 s, 54 s
+    "tests/test_replan.py",                 # plans: 155 s, 101 s
+    "tests/test_link_flight.py",            # flights: 245 s, 39 s
 )
 
 
