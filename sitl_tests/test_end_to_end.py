@@ -411,11 +411,15 @@ def test_px4_flavour_one_killed(planned, tmp_path):
 
 def test_two_losses_one_during_re_tasking(planned, backend, tmp_path):
     """Vehicle 2 shot down mid-mission, the last one as soon as the re-plan starts:
-    the re-plan starts again and the others finish the job."""
+    the re-plan starts again and the others finish the job. No radio: the case needs
+    the others in contact when the first re-plan starts. With it (fresh-clone CI at
+    5 test processes, 2026-12-08) vehicle 1 took off 21 s late, the first re-plan
+    found all three out of contact as planned, the last was shot down inside its
+    shadow and lost only once overdue, after vehicle 1 had landed: no loss during
+    re-tasking at all. Losses in and out of shadows: test_link_flight."""
     p = planned(0, backend)
     n = len(p.plan.vehicles)
-    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (n, "re-planning")],
-                      radio=_radio(backend))
+    result = fly_case(p, backend, tmp_path, kills=[(2, 0.3), (n, "re-planning")])
     report, tracks = result["report"], result["tracks"]
     assert sorted(x["sysid"] for x in report["losses"]) == [2, n]
     for sysid in (2, n):

@@ -31,8 +31,11 @@ def report(flight) -> dict:
     """flight.json's document of a `gcs.flight.Flight` (read, never changed)."""
     m = flight.monitor
     vehicles = [_vehicle_report(flight, v) for _, v in sorted(m.vehicles.items())]
+    # the last HEARTBEAT to the millisecond as the last thing heard is: unrounded, a
+    # HEARTBEAT that was the last thing heard read as heard after it (10.9201 > 10.92)
     losses = [{"sysid": v.sysid, "vehicle": v.vehicle_id, "detected_s": v.lost_at_s,
-               "last_heartbeat_s": v.last_heartbeat_s, "last_heard_s": v.last_heard_s,
+               "last_heartbeat_s": None if v.last_heartbeat_s is None else
+               round(v.last_heartbeat_s, 3), "last_heard_s": v.last_heard_s,
                "reason": v.lost_reason,
                "due_s": next((s["due_s"] for s in v.silences if s["to_s"] is None), None),
                "stalled_s": v.lost_stalled_s}
